@@ -1,0 +1,309 @@
+"""FAP-driven mesh deformation (SPEC §2): eq. 2 weights, superposition, fold guard. Batched.
+
+A :class:`DeformPlan` is built once per personalized mesh. All low-level FAPs except the
+rotations act linearly (value x FAPU x weight x direction), so they are precomputed as one
+basis matrix and a FAP vector (or a batch of them) becomes a single matrix product. Gaze,
+tongue roll and head rotations are applied after it; then the lips/lids crossing rule and the
+topology guard (SPEC §2.3, eqs. 3-4). Everything uses neutral positions, so FAP order does not
+matter.
+
+Points: the V mesh vertices followed by extra feature points that are not mesh vertices
+(irises 3.5/3.6, tongue 6.1-6.4): they move with the FAPs but are not part of any triangle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .faps import FAPS
+from .fitting import FaceFrame
+from .influence import rectangles, side_tags, weights
+from .mesh import StandardMesh, signed_areas
+
+EXTRA_POINTS = ("3.5", "3.6", "6.1", "6.2", "6.3", "6.4")
+
+#: Guard: a triangle may shrink to EPS_SOLVE of its neutral signed area, never invert.
+EPS_SOLVE = 0.06
+EPS_CHECK = 0.05
+
+_DIRS = {"up": (0.0, -1.0), "down": (0.0, 1.0), "left": (1.0, 0.0), "right": (-1.0, 0.0)}
+
+# 2-D approximations of depth FAPs: fap -> list of (fdp, dx, dy) per unit, frame axes
+_DEPTH = {
+    14: [("2.1", 0.0, 0.3)],
+    16: [("8.2", 0.0, 0.5)],
+    17: [("8.1", 0.0, -0.5)],
+    45: [("6.1", 0.0, 0.5)],
+}
+_NONLINEAR = {23, 24, 25, 26, 27, 28, 29, 30, 47, 48, 49, 50}
+
+
+@dataclass(frozen=True, eq=False)
+class DeformPlan:
+    """Everything needed to deform one personalized mesh, precomputed.
+
+    Attributes
+    ----------
+    neutral : (N, 2) float32
+        Neutral positions, image pixels; N = V mesh vertices + extra feature points.
+    basis : (68, N, 2) float32
+        Displacement in pixels per unit of each linear FAP.
+    """
+
+    neutral: np.ndarray
+    basis: np.ndarray
+    n_vertices: int
+    triangles: np.ndarray
+    incidence: np.ndarray  # (V, maxdeg) triangle ids, padded with T (a dummy)
+    pairs: np.ndarray  # (P, 2) upper/lower
+    frame_rot: np.ndarray  # (2, 2)
+    fapu: dict[str, float]
+    head_weight: np.ndarray  # (N,) rotation weight: 1 face, 0.4 margin, 0 border
+    depth: np.ndarray  # (N,) dome depth for pitch/yaw, pixels
+    pivot: np.ndarray  # (2,) 7.1, image pixels
+    eye_radius: float  # R of SPEC §3.2 (IRISD0)
+    tongue_roll_scale: float
+    neutral_sigma: np.ndarray  # (T,)
+    movable: np.ndarray  # (V,) bool: can move for some FAP vector (not border)
+    extra_names: tuple[str, ...] = EXTRA_POINTS
+
+
+def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
+               fapu: dict[str, float], extras: dict[str, np.ndarray]) -> DeformPlan:
+    """Precompute the deformation of a personalized mesh.
+
+    Parameters
+    ----------
+    vertices : (V, 2) neutral mesh vertices, image pixels
+    extras : feature point id -> (2,) image position, for :data:`EXTRA_POINTS`
+    """
+    V = len(vertices)
+    names = list(mesh.names) + [f"tongue_{k}" if k.startswith("6") else f"iris_{k}"
+                                for k in EXTRA_POINTS]
+    pts_img = np.vstack([vertices, np.array([extras[k] for k in EXTRA_POINTS])])
+    P = frame.to_frame(pts_img)
+    byname = {n: P[i] for i, n in enumerate(names)}
+    iod = float(np.linalg.norm(P[mesh.index("eye_l_u3")] - P[mesh.index("eye_r_u3")]))
+    rects = rectangles(byname, iod)
+    sides = side_tags(names)
+    regions = np.concatenate([mesh.regions, np.array(["extra"] * len(EXTRA_POINTS))])
+    movable = ~np.isin(regions, ("margin", "border"))
+    iris_mask = np.array([n.startswith("iris_") for n in names])
+    movable_lin = movable & ~iris_mask
+    fdp_pos = {k: P[i] for k, i in mesh.fdp.items()}
+    for i, k in enumerate(EXTRA_POINTS):
+        fdp_pos[k] = P[V + i]
+    N = len(P)
+    basis = np.zeros((68, N, 2), np.float64)
+    for f in FAPS.values():
+        if f.number < 3 or f.number in _NONLINEAR:
+            continue
+        comps = _DEPTH.get(f.number) or [(f.fdp, *_DIRS[f.direction])]
+        unit = fapu[f.unit]
+        for fdp, dx, dy in comps:
+            if fdp.startswith("6."):
+                w = np.zeros(N)
+                w[V + EXTRA_POINTS.index(fdp)] = 1.0
+            else:
+                w = weights(rects[fdp], fdp_pos[fdp], P, sides, movable_lin)
+            basis[f.number - 1] += unit * w[:, None] * np.array([dx, dy])[None, :]
+    # tongue points follow the jaw (they sit behind the lower teeth)
+    tongue = np.arange(V + 2, N)
+    basis[2, tongue] = basis[2, mesh.fdp["2.1"]]
+    basis[13, tongue] += basis[13, mesh.fdp["2.1"]]
+    basis[14, tongue] = basis[14, mesh.fdp["2.1"]]
+    # frame -> image directions
+    basis = basis @ frame.rot.T
+
+    # head rotation: face 1, margin 0.4, border 0; dome depth for pitch/yaw
+    head_w = np.where(regions == "border", 0.0, np.where(regions == "margin", 0.4, 1.0))
+    chin = P[mesh.fdp["2.1"]]
+    hair = P[mesh.fdp["11.1"]]
+    cl, cr = P[mesh.index("contour_0")], P[mesh.index("contour_32")]
+    centre = np.array([0.5 * (cl[0] + cr[0]), 0.5 * (hair[1] + chin[1])])
+    a, b = 0.5 * (cr[0] - cl[0]) + 1e-6, 0.5 * (chin[1] - hair[1]) + 1e-6
+    rho2 = ((P[:, 0] - centre[0]) / a) ** 2 + ((P[:, 1] - centre[1]) / b) ** 2
+    depth = 0.6 * a * np.clip(1.0 - rho2, 0.0, None)
+    depth[mesh.fdp["9.3"]] += 0.25 * a
+    pivot_f = np.array([chin[0], chin[1] + 0.15 * (chin[1] - hair[1])])
+    tri = mesh.triangles.astype(np.int64)
+    T = len(tri)
+    deg = np.bincount(tri.ravel(), minlength=V)
+    inc = np.full((V, int(deg.max())), T, np.int64)
+    fill = np.zeros(V, np.int64)
+    for t_id, vs in enumerate(tri):
+        for v in vs:
+            inc[v, fill[v]] = t_id
+            fill[v] += 1
+    return DeformPlan(
+        neutral=pts_img.astype(np.float32),
+        basis=basis.astype(np.float32),
+        n_vertices=V,
+        triangles=tri,
+        incidence=inc,
+        pairs=mesh.pairs.astype(np.int64),
+        frame_rot=frame.rot.astype(np.float64),
+        fapu=dict(fapu),
+        head_weight=head_w,
+        depth=depth,
+        pivot=frame.to_image(pivot_f),
+        eye_radius=fapu["IRISD"] * 1024.0,
+        tongue_roll_scale=0.3 * fapu["MW"] * 1024.0,
+        neutral_sigma=signed_areas(pts_img[:V].astype(np.float64), tri),
+        movable=movable[:V],
+    )
+
+
+def _rotate(points: np.ndarray, pivot: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """Rotate (B, N, 2) points about pivot by per-point angles (B, N) (screen clockwise +)."""
+    c, s = np.cos(ang), np.sin(ang)
+    d = points - pivot
+    return pivot + np.stack([c * d[..., 0] - s * d[..., 1], s * d[..., 0] + c * d[..., 1]], -1)
+
+
+def _nonlinear(plan: DeformPlan, faps: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Gaze, tongue roll and head rotations on top of the linear part. (B, N, 2)."""
+    V = plan.n_vertices
+    R = plan.frame_rot
+    ex, ey = R[:, 0], R[:, 1]  # frame axes in image coordinates
+    au = 1e-5
+    # gaze: iris centre moves by R sin(theta); yaw + = face's left = frame +x; pitch + = down
+    for k, (yaw, pitch) in enumerate(((22, 24), (23, 25))):  # 3.5 uses 23/25, 3.6 uses 24/26
+        i = V + k
+        dx = plan.eye_radius * np.sin(faps[:, yaw] * au)
+        dy = plan.eye_radius * np.sin(faps[:, pitch] * au)
+        pos[:, i] += dx[:, None] * ex + dy[:, None] * ey
+    # tongue roll raises the tongue borders 6.3 / 6.4
+    lift = plan.tongue_roll_scale * np.sin(faps[:, 46] * au * 100.0)
+    pos[:, V + 4:V + 6] -= lift[:, None, None] * ey
+    # head pitch / yaw: dome rotation, orthographic projection (relative to neutral)
+    yaw, pitch, roll = faps[:, 48] * au, faps[:, 47] * au, faps[:, 49] * au
+    if np.any(yaw) or np.any(pitch):
+        rel = (plan.neutral.astype(np.float64) - plan.pivot) @ R  # frame coords
+        w = plan.head_weight
+        z = plan.depth
+        dxf = (rel[None, :, 0] * (np.cos(yaw)[:, None] - 1.0) + z[None] * np.sin(yaw)[:, None])
+        dyf = (rel[None, :, 1] * (np.cos(pitch)[:, None] - 1.0)
+               + z[None] * np.sin(pitch)[:, None])
+        pos += w[None, :, None] * (dxf[..., None] * ex + dyf[..., None] * ey)
+    if np.any(roll):
+        # positive roll = towards the face's right; on screen a clockwise turn for an upright
+        # face seen from the front is towards the image left at the top: angle -roll
+        ang = -roll[:, None] * plan.head_weight[None, :]
+        pos = _rotate(pos, plan.pivot, ang)
+    return pos
+
+
+def _pair_rule(plan: DeformPlan, pos: np.ndarray) -> None:
+    """Upper/lower lips and lids meet but never cross (in the face frame's y), in place."""
+    u, lo = plan.pairs[:, 0], plan.pairs[:, 1]
+    ey = plan.frame_rot[:, 1]
+    yu = pos[:, u] @ ey
+    yl = pos[:, lo] @ ey
+    cross = yl < yu
+    if cross.any():
+        mean = 0.5 * (pos[:, u] + pos[:, lo])
+        pu, pl = pos[:, u], pos[:, lo]
+        pu[cross] = mean[cross]
+        pl[cross] = mean[cross]
+        pos[:, u], pos[:, lo] = pu, pl
+
+
+def _tau(plan: DeformPlan, X0: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """First t in (0, 1] where a triangle's area reaches EPS_SOLVE of its neutral area. (B, T)."""
+    t = plan.triangles
+    A0, B0, C0 = X0[t[:, 0]], X0[t[:, 1]], X0[t[:, 2]]
+    dA, dB, dC = D[:, t[:, 0]], D[:, t[:, 1]], D[:, t[:, 2]]
+    u0, w0 = C0 - A0, C0 - B0
+    du, dw = dC - dA, dC - dB
+
+    def cross(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        return p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]
+
+    c0 = plan.neutral_sigma[None, :]
+    sg = np.sign(c0)
+    a2 = sg * cross(du, dw)
+    a1 = sg * (cross(u0, dw) + cross(du, w0))
+    a0 = (1.0 - EPS_SOLVE) * np.abs(c0) * np.ones_like(a1)
+    tau = np.ones_like(a1)
+    lin = np.abs(a2) < 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_lin = np.where(lin & (a1 < 0), -a0 / a1, np.inf)
+        disc = a1 * a1 - 4.0 * a2 * a0
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        q1 = (-a1 - sq) / (2.0 * a2)
+        q2 = (-a1 + sq) / (2.0 * a2)
+    q1 = np.where(~lin & (disc >= 0) & (q1 > 0), q1, np.inf)
+    q2 = np.where(~lin & (disc >= 0) & (q2 > 0), q2, np.inf)
+    first = np.minimum(np.minimum(q1, q2), r_lin)
+    tau = np.where(first <= 1.0, first * 0.999, 1.0)
+    return tau
+
+
+def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
+    """Scale displacements (B, V, 2) so that no triangle inverts or degenerates (SPEC §2.3)."""
+    X0 = plan.neutral[: plan.n_vertices].astype(np.float64)
+    B = D.shape[0]
+    pairs = plan.pairs
+    for _ in range(rounds):
+        tau = _tau(plan, X0, D)
+        if (tau >= 1.0).all():
+            return D
+        tau_pad = np.concatenate([tau, np.ones((B, 1))], 1)
+        f = tau_pad[:, plan.incidence].min(-1)  # (B, V)
+        # lips and lids scale together so that the pair rule still holds
+        fp = np.minimum(f[:, pairs[:, 0]], f[:, pairs[:, 1]])
+        f[:, pairs[:, 0]] = fp
+        f[:, pairs[:, 1]] = fp
+        D = D * f[..., None]
+    tau = _tau(plan, X0, D)
+    t_star = tau.min(1)
+    return D * t_star[:, None, None]
+
+
+def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
+    """Deformed positions of all points (mesh vertices + extra feature points).
+
+    Parameters
+    ----------
+    faps : (68,) or (B, 68) array
+        FAP values in FAPU, already clamped to the table ranges.
+
+    Returns
+    -------
+    (N, 2) or (B, N, 2) float32 image positions (x, y), y down.
+    """
+    f = np.asarray(faps, np.float64)
+    single = f.ndim == 1
+    f = np.atleast_2d(f)
+    lin = np.tensordot(f, plan.basis.astype(np.float64), axes=(1, 0))  # (B, N, 2)
+    pos = plan.neutral.astype(np.float64)[None] + lin
+    _pair_rule(plan, pos)
+    if f[:, list(x - 1 for x in _NONLINEAR)].any():
+        pos = _nonlinear(plan, f, pos)
+    V = plan.n_vertices
+    D = pos[:, :V] - plan.neutral[None, :V]
+    Dg = guard(plan, D)
+    scale = np.ones(f.shape[0])
+    nz = np.abs(D).sum((1, 2)) > 0
+    if nz.any():
+        ratio = np.abs(Dg).sum((1, 2)) / np.maximum(np.abs(D).sum((1, 2)), 1e-12)
+        scale = np.where(nz, np.minimum(ratio, 1.0), 1.0)
+    pos[:, :V] = plan.neutral[None, :V] + Dg
+    extra = pos[:, V:] - plan.neutral[None, V:]
+    pos[:, V:] = plan.neutral[None, V:] + extra * scale[:, None, None]
+    out = pos.astype(np.float32)
+    return out[0] if single else out
+
+
+def eye_state(plan: DeformPlan, faps: np.ndarray, iris_r: np.ndarray) -> np.ndarray:
+    """Iris and pupil radii (2, 2) ``[[iris_r, pupil_r], ...]`` for eyes 3.5 (left), 3.6."""
+    f = np.asarray(faps, np.float64)
+    out = np.zeros((2, 2))
+    for k, (thrust, dil) in enumerate(((26, 28), (27, 29))):
+        r = iris_r[k] * (1.0 + f[thrust] * plan.fapu["ES"] / max(4.0 * iris_r[k], 1e-6))
+        pupil = iris_r[k] / 3.0 + f[dil] * plan.fapu["IRISD"] / 2.0
+        out[k] = (r, float(np.clip(pupil, 0.08 * r, 0.9 * r)))
+    return out

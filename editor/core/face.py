@@ -1,0 +1,226 @@
+"""The ``Face``: a photo, its landmarks, the personalized mesh, FAPU, and rendering.
+
+Data flow: photo -> :func:`detect_landmarks` -> :func:`fit_vertices` (personalized mesh) ->
+:func:`measure_fapu` -> FAP vector -> :func:`deform_points` -> :func:`warp` -> image.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from .deform import EXTRA_POINTS, DeformPlan, build_plan, deform_points, eye_state
+from .errors import NoFaceError
+from .faps import FAPS
+from .fapu import measure_fapu
+from .fitting import FaceFrame, fit_vertices
+from .imageio import as_rgb8, load_image
+from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
+from .mesh import StandardMesh, signed_areas, standard_mesh
+from .warp import WarpPlan, WarpResult, warp
+
+FapInput = Mapping[object, float] | np.ndarray | None
+
+
+def _extra_points(mesh: StandardMesh, verts: np.ndarray, lm: Landmarks,
+                  fapu: dict[str, float]) -> dict[str, np.ndarray]:
+    """Positions of the non-mesh feature points: irises and tongue (behind the lips)."""
+    f = {k: verts[i] for k, i in mesh.fdp.items()}
+    frame = FaceFrame.from_points(lm.points)
+    ex, ey = frame.rot[:, 0], frame.rot[:, 1]
+    mw = fapu["MW"] * 1024
+    tip = 0.5 * (f["2.2"] + f["2.3"])
+    body = tip + 0.12 * mw * ey
+    return {
+        "3.5": np.array([lm.iris_left.cx, lm.iris_left.cy]),
+        "3.6": np.array([lm.iris_right.cx, lm.iris_right.cy]),
+        "6.1": tip, "6.2": body, "6.3": body + 0.3 * mw * ex, "6.4": body - 0.3 * mw * ex,
+    }
+
+
+@dataclass(eq=False)
+class Face:
+    """A photo with its personalized MPEG-4 mesh.
+
+    Attributes
+    ----------
+    image : (H, W, 3) uint8 RGB photo (read-only)
+    landmarks : Landmarks
+    vertices : (V, 2) float32 neutral personalized mesh, image pixels (x, y), y down
+    fapu : dict name -> pixels per unit (MNS, MW, ENS, ES, IRISD; AU = 1e-5 rad)
+    """
+
+    image: np.ndarray
+    landmarks: Landmarks
+    vertices: np.ndarray
+    mesh: StandardMesh = field(default_factory=standard_mesh)
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        self.image = np.ascontiguousarray(self.image)
+        self.image.setflags(write=False)
+        self.vertices = np.asarray(self.vertices, np.float32)
+        self.frame = FaceFrame.from_points(self.landmarks.points)
+        irises = np.array([[self.landmarks.iris_right.cx, self.landmarks.iris_right.cy,
+                            self.landmarks.iris_right.r],
+                           [self.landmarks.iris_left.cx, self.landmarks.iris_left.cy,
+                            self.landmarks.iris_left.r]])
+        self.fapu: dict[str, float] = measure_fapu(self.vertices.astype(np.float64), self.mesh,
+                                                   self.frame, irises)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_image(cls, image: str | os.PathLike[str] | np.ndarray,
+                   detector: LandmarkDetector | None = None) -> Face:
+        """Detect the face in a photo (path or RGB array) and fit the personalized mesh.
+
+        Raises ImageError for unreadable/corrupt/too-large files and NoFaceError when no face
+        is found.
+        """
+        if isinstance(image, np.ndarray):
+            rgb, source = as_rgb8(image), None
+        else:
+            rgb, source = load_image(image), str(Path(image))
+        lm = detect_landmarks(rgb, detector)
+        return cls.from_landmarks(rgb, lm, source=source)
+
+    @classmethod
+    def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:
+        mesh = standard_mesh()
+        irises = np.array([[lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r],
+                           [lm.iris_left.cx, lm.iris_left.cy, lm.iris_left.r]])
+        h, w = rgb.shape[:2]
+        named, _ = fit_vertices(lm.points, irises, (w, h))
+        verts = np.array([named[n] for n in mesh.names], np.float32)
+        sig = signed_areas(verts.astype(np.float64), mesh.triangles)
+        if lm.interocular < 6:
+            raise NoFaceError(f"the face is too small ({lm.interocular:.1f} px between the eyes)")
+        if (sig <= 0).any():
+            verts = _relax(mesh, verts)
+        return cls(rgb, lm, verts, mesh, source)
+
+    def with_vertices(self, vertices: np.ndarray) -> Face:
+        """A copy with an edited neutral mesh (FAPU and rendering follow)."""
+        return Face(self.image, self.landmarks, np.asarray(vertices, np.float32), self.mesh,
+                    self.source)
+
+    # ------------------------------------------------------------------ API
+    @property
+    def triangles(self) -> np.ndarray:
+        return self.mesh.triangles
+
+    @property
+    def fdp(self) -> dict[str, int]:
+        """Feature point id -> vertex index (mesh vertices only)."""
+        return self.mesh.fdp
+
+    @cached_property
+    def plan(self) -> DeformPlan:
+        return build_plan(self.mesh, self.vertices, self.frame, self.fapu,
+                          _extra_points(self.mesh, self.vertices, self.landmarks, self.fapu))
+
+    @cached_property
+    def warp_plan(self) -> WarpPlan:
+        return WarpPlan(self.image, self.vertices, self.mesh.triangles, self.mesh.holes)
+
+    def fap_vector(self, faps: FapInput) -> np.ndarray:
+        """(68,) float32 FAP vector from a mapping (names or numbers) or array, clamped."""
+        return FAPS.clamp(FAPS.vector(faps))
+
+    def deform(self, faps: FapInput) -> np.ndarray:
+        """Deformed mesh vertices (V, 2) float32 for FAP values in FAPU.
+
+        Keys are FAP names or numbers; unknown keys and non-finite values raise ValueError;
+        out-of-range values are clamped to the FAP table's range.
+        """
+        pts = deform_points(self.plan, self.fap_vector(faps))
+        return pts[: self.plan.n_vertices]
+
+    def deform_all(self, faps: FapInput) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Deformed vertices (V, 2) and the extra feature points (irises 3.5/3.6, tongue 6.x)."""
+        pts = deform_points(self.plan, self.fap_vector(faps))
+        V = self.plan.n_vertices
+        return pts[:V], {k: pts[V + i] for i, k in enumerate(EXTRA_POINTS)}
+
+    def feature_points(self, faps: FapInput = None) -> dict[str, list[float]]:
+        """Every feature point (mesh FDPs + irises + tongue) after deformation, id -> [x, y]."""
+        v, extra = self.deform_all(faps)
+        out = {k: [float(v[i, 0]), float(v[i, 1])] for k, i in self.fdp.items()}
+        out.update({k: [float(p[0]), float(p[1])] for k, p in extra.items()})
+        return out
+
+    def eye_state(self, faps: FapInput = None) -> np.ndarray:
+        """Iris and pupil radii ``[[r, pupil_r] for 3.5, 3.6]`` after FAPs 27-30."""
+        r = np.array([self.landmarks.iris_left.r, self.landmarks.iris_right.r])
+        return eye_state(self.plan, self.fap_vector(faps), r)
+
+    def render_full(self, faps: FapInput) -> WarpResult:
+        """Warp result with the opening masks (for compositing layers)."""
+        v = self.deform(faps)
+        return warp(self.warp_plan, v, self.layer_transforms(v))
+
+    def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
+        """2x3 source->destination maps of what lies behind the openings (see ``warp``).
+
+        Each eyeball follows its two eye corners (a similarity); the mouth interior (teeth)
+        follows the skull: a least-squares similarity of the inner eye corners and the nose.
+        """
+        m = self.mesh
+        out = {}
+        for s in "lr":
+            idx = [m.index(f"eye_{s}_c0"), m.index(f"eye_{s}_c1")]
+            out[f"eye_{s}"] = _similarity(self.vertices[idx], v[idx])
+        idx = [self.fdp[k] for k in ("3.8", "3.11", "9.3", "9.15", "9.1", "9.2")]
+        out["mouth"] = _similarity(self.vertices[idx], v[idx])
+        return out
+
+    def render(self, faps: FapInput) -> np.ndarray:
+        """The photo with the expression: (H, W, 3) uint8, same size as the photo."""
+        return self.render_full(faps).image
+
+    @property
+    def interocular(self) -> float:
+        return self.landmarks.interocular
+
+
+def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Least-squares similarity (2x3) mapping the points ``src`` onto ``dst``."""
+    s = np.asarray(src, np.float64)
+    d = np.asarray(dst, np.float64)
+    ms, md = s.mean(0), d.mean(0)
+    a, b = s - ms, d - md
+    den = float((a * a).sum()) or 1.0
+    c = float((a * b).sum()) / den
+    sn = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()) / den
+    R = np.array([[c, -sn], [sn, c]])
+    return np.hstack([R, (md - R @ ms)[:, None]])
+
+
+def _relax(mesh: StandardMesh, verts: np.ndarray, iters: int = 200) -> np.ndarray:
+    """Untangle inverted triangles of a fitted mesh by moving only the free vertices.
+
+    Free vertices (cheeks, jaw, forehead interior, margin) move towards the mean of their
+    neighbours until every triangle has a positive area. Feature curves stay where fitted.
+    """
+    free_regions = ("cheek", "jaw", "forehead", "margin", "ear")
+    free = np.isin(mesh.regions, free_regions)
+    for n in ("hair_",):
+        free &= ~np.char.startswith(np.array(mesh.names), n)
+    e = mesh.edges()
+    v = verts.astype(np.float64).copy()
+    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
+    for _ in range(iters):
+        sig = signed_areas(v, mesh.triangles)
+        if (sig > 0).all():
+            break
+        acc = np.zeros_like(v)
+        np.add.at(acc, e[:, 0], v[e[:, 1]])
+        np.add.at(acc, e[:, 1], v[e[:, 0]])
+        avg = acc / np.maximum(deg, 1)[:, None]
+        v[free] += 0.5 * (avg[free] - v[free])
+    return v.astype(np.float32)

@@ -1,0 +1,342 @@
+"""Placing every vertex of the standard mesh on a face (SPEC §1.3).
+
+All rules work in the *face frame*: origin midway between the eye centres, x along the line
+from the image-left eye to the image-right eye, y perpendicular to it and pointing down, pixel
+units. A tilted photo is thus fitted as if upright, and the parabolas are fitted in that frame.
+
+Rules, region by region (names are the vertex names of ``resources/mesh.json``):
+
+* eyes: upper and lower lids are parabolas through both corners, least-squares through the two
+  middle lid landmarks (SPEC parabolas 5-8); 5 points per lid at x = k/6 of the corner span, so
+  that the middle one is the lid centre FDP (3.1-3.4) that FAPs 19-22 move (SPEC's reading had 4
+  per lid at k/5, which leaves no vertex at the centre). A ring of 12 skin points surrounds each
+  eye (the crease above, the lower orbit below; 3.9, 3.10, 3.13, 3.14);
+* brows: the detector marks the upper edge; the upper contour is a parabola through the ends and
+  the three middle points (5 samples), the lower contour is the same curve lowered by the brow
+  thickness (3 samples);
+* mouth: outer upper lip as two half parabolas meeting at 8.1 (Cupid's bow), outer lower lip,
+  inner upper and inner lower lips as parabolas through the corners (7 samples each at k/8),
+  6 points on the lip bodies between the two contours;
+* face contour: 4 segments between the jaw landmarks 0, 4, 8, 12, 16; side segments as x = f(y),
+  chin segments as y = f(x); 7 samples each, 33 points;
+* forehead: the hairline midpoint by the 1 : 2 rule (glabella to hairline = half of glabella to
+  chin), an elliptic hairline through it and the contour's ends, two rows in between;
+* the rest (cheeks, jaw, philtrum, temples, ears) proportionally between fitted curves; a margin
+  ring around the face and a ring on the image border close the mesh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FaceFrame:
+    """Similarity frame of a face: ``p_image = origin + R @ p_frame``."""
+
+    origin: np.ndarray  # (2,)
+    rot: np.ndarray  # (2, 2), columns = frame x and y axes in image coordinates
+
+    @classmethod
+    def from_points(cls, pts: np.ndarray) -> FaceFrame:
+        el, er = pts[36:42].mean(0), pts[42:48].mean(0)
+        u = (er - el) / max(float(np.linalg.norm(er - el)), 1e-6)
+        rot = np.array([[u[0], -u[1]], [u[1], u[0]]], np.float64)
+        return cls((el + er) / 2.0, rot)
+
+    def to_frame(self, p: np.ndarray) -> np.ndarray:
+        return (np.asarray(p, np.float64) - self.origin) @ self.rot
+
+    def to_image(self, q: np.ndarray) -> np.ndarray:
+        return np.asarray(q, np.float64) @ self.rot.T + self.origin
+
+    @property
+    def angle(self) -> float:
+        """Roll of the face in the image, radians (positive = clockwise on screen)."""
+        return float(np.arctan2(self.rot[1, 0], self.rot[0, 0]))
+
+
+def parabola(pa: np.ndarray, pb: np.ndarray, mids: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Sample the parabola y(x) through ``pa`` and ``pb`` fitted to ``mids`` (least squares).
+
+    ``y = line(x) + a (x - xa)(x - xb)``; samples at ``x = xa + t (xb - xa)``. Returns (n, 2).
+    """
+    xa, ya = pa
+    xb, yb = pb
+    dx = xb - xa if abs(xb - xa) > 1e-9 else 1e-9
+    mids = np.atleast_2d(mids)
+    g = (mids[:, 0] - xa) * (mids[:, 0] - xb)
+    r = mids[:, 1] - (ya + (mids[:, 0] - xa) * (yb - ya) / dx)
+    a = float((g * r).sum() / max(float((g * g).sum()), 1e-12))
+    x = xa + np.asarray(t, np.float64) * dx
+    y = ya + (x - xa) * (yb - ya) / dx + a * (x - xa) * (x - xb)
+    return np.stack([x, y], 1)
+
+
+def _vparabola(pa, pb, mids, t):
+    """Like :func:`parabola` with the roles of x and y swapped (x = f(y))."""
+    out = parabola(pa[::-1], pb[::-1], np.atleast_2d(mids)[:, ::-1], t)
+    return out[:, ::-1]
+
+
+def _interp_x(curve: np.ndarray, y: float) -> float:
+    """x of a polyline (sorted by y) at height y, clamped at its ends."""
+    order = np.argsort(curve[:, 1])
+    return float(np.interp(y, curve[order, 1], curve[order, 0]))
+
+
+def _interp_y(curve: np.ndarray, x: float) -> float:
+    order = np.argsort(curve[:, 0])
+    return float(np.interp(x, curve[order, 0], curve[order, 1]))
+
+
+K6 = np.arange(1, 6) / 6.0
+K8 = np.arange(1, 8) / 8.0
+
+
+def fit_vertices(points68: np.ndarray, irises: np.ndarray, image_size: tuple[int, int]
+                 ) -> tuple[dict[str, np.ndarray], FaceFrame]:
+    """Place every named vertex of the standard mesh on a face.
+
+    Parameters
+    ----------
+    points68 : (68, 2) array
+        iBUG-68 landmarks, image pixels (x, y), y down.
+    irises : (2, 3) array
+        ``(cx, cy, r)`` of the image-left (subject's right) and image-right iris.
+    image_size : (width, height)
+
+    Returns
+    -------
+    vertices : dict name -> (2,) image position (float64)
+    frame : FaceFrame
+    """
+    fr = FaceFrame.from_points(np.asarray(points68, np.float64))
+    P = fr.to_frame(points68)
+    V: dict[str, np.ndarray] = {}
+    iod = float(np.linalg.norm(P[42:48].mean(0) - P[36:42].mean(0)))
+
+    # ---------------- brows (upper edge + lower edge) ----------------
+    brow_upper = {}
+    thick = {}
+    for s, (a, b) in (("r", (17, 21)), ("l", (22, 26))):
+        ends = (P[a], P[b])
+        up = parabola(ends[0], ends[1], P[a + 1 : b], K6)
+        lid_top = min(P[37 + (6 if s == "l" else 0)][1], P[38 + (6 if s == "l" else 0)][1])
+        gap = lid_top - float(np.max(up[:, 1]))
+        T = float(np.clip(0.42 * gap, 0.04 * iod, 0.11 * iod))
+        thick[s] = T
+        brow_upper[s] = np.vstack([ends[0], up, ends[1]])
+        V[f"brow_{s}_e0"] = ends[0] + (0, 0.5 * T)
+        V[f"brow_{s}_e1"] = ends[1] + (0, 0.5 * T)
+        for k, q in enumerate(up, 1):
+            V[f"brow_{s}_u{k}"] = q
+        low = parabola(ends[0], ends[1], P[a + 1 : b], np.arange(1, 4) / 4.0)
+        for k, q in enumerate(low, 1):
+            taper = 0.75 + 0.25 * np.sin(np.pi * k / 4.0)
+            V[f"brow_{s}_d{k}"] = q + (0, T * taper)
+
+    # ---------------- eyes (lids + surrounding ring) ----------------
+    eye_w = {}
+    for s, base in (("r", 36), ("l", 42)):
+        c0, c1 = P[base], P[base + 3]
+        up = parabola(c0, c1, P[base + 1 : base + 3], K6)
+        lo = parabola(c0, c1, P[[base + 5, base + 4]], K6)
+        lo[:, 1] = np.maximum(lo[:, 1], up[:, 1] + 0.02 * iod)  # lids never cross
+        W = float(np.linalg.norm(c1 - c0))
+        eye_w[s] = W
+        V[f"eye_{s}_c0"], V[f"eye_{s}_c1"] = c0, c1
+        for k in range(5):
+            V[f"eye_{s}_u{k + 1}"] = up[k]
+            V[f"eye_{s}_d{k + 1}"] = lo[k]
+        bu = brow_upper[s]
+        prof = 0.55 + 0.45 * np.sin(np.pi * K6)
+        for k in range(5):
+            x = up[k, 0]
+            brow_low = _interp_y(bu, x) + thick[s]
+            gap = max(up[k, 1] - brow_low, 0.05 * iod)
+            V[f"eyering_{s}_u{k + 1}"] = up[k] - (0, min(0.5 * gap, 0.28 * W) * prof[k])
+            V[f"eyering_{s}_d{k + 1}"] = lo[k] + (0, 0.26 * W * prof[k])
+        out = 1.0 if s == "l" else -1.0  # outward along frame x for the outer corner
+        outer, inner = (c1, c0) if s == "l" else (c0, c1)
+        V[f"eyering_{s}_c{1 if s == 'l' else 0}"] = outer + (out * 0.22 * W, -0.02 * W)
+        V[f"eyering_{s}_c{0 if s == 'l' else 1}"] = inner + (-out * 0.14 * W, -0.04 * W)
+
+    # ---------------- nose ----------------
+    for i in range(27, 36):
+        V[f"nose_{i}"] = P[i]
+    wn = P[35, 0] - P[31, 0]
+    V["nose_side_r"] = np.array([P[28, 0] - 0.17 * iod, P[28, 1] + 0.05 * iod])
+    V["nose_side_l"] = np.array([P[28, 0] + 0.17 * iod, P[28, 1] + 0.05 * iod])
+    V["ala_r"] = np.array([P[31, 0] - 0.12 * wn, 0.45 * P[29, 1] + 0.55 * P[31, 1]])
+    V["ala_l"] = np.array([P[35, 0] + 0.12 * wn, 0.45 * P[29, 1] + 0.55 * P[35, 1]])
+
+    # ---------------- mouth ----------------
+    oc0, oc1 = P[48], P[54]
+    mw = float(oc1[0] - oc0[0])
+    left = parabola(oc0, P[51], P[49:51], np.array([0.25, 0.5, 0.75]))
+    right = parabola(P[51], oc1, P[52:54], np.array([0.25, 0.5, 0.75]))
+    ou = np.vstack([left, P[51], right])
+    od = parabola(oc0, oc1, P[[59, 58, 57, 56, 55]], K8)
+    ic0 = P[60].copy()
+    ic1 = P[64].copy()
+    ic0[0] = max(ic0[0], oc0[0] + 0.06 * mw)
+    ic1[0] = min(ic1[0], oc1[0] - 0.06 * mw)
+    ic0[1] = 0.5 * ic0[1] + 0.5 * oc0[1]
+    ic1[1] = 0.5 * ic1[1] + 0.5 * oc1[1]
+    iu = parabola(ic0, ic1, P[61:64], K8)
+    idn = parabola(ic0, ic1, P[[67, 66, 65]], K8)
+    # Inner lips meet but never cross; outer contour stays outside the inner one.
+    cross = idn[:, 1] < iu[:, 1]
+    mean = 0.5 * (idn[:, 1] + iu[:, 1])
+    iu[cross, 1] = mean[cross]
+    idn[cross, 1] = mean[cross]
+    ou[:, 1] = np.minimum(ou[:, 1], iu[:, 1] - 0.015 * mw)
+    od[:, 1] = np.maximum(od[:, 1], idn[:, 1] + 0.015 * mw)
+    V["lipo_c0"], V["lipo_c1"], V["lipi_c0"], V["lipi_c1"] = oc0, oc1, ic0, ic1
+    for k in range(7):
+        V[f"lipo_u{k + 1}"], V[f"lipo_d{k + 1}"] = ou[k], od[k]
+        V[f"lipi_u{k + 1}"], V[f"lipi_d{k + 1}"] = iu[k], idn[k]
+    for k in (2, 4, 6):
+        V[f"lipb_u{k}"] = 0.5 * (ou[k - 1] + iu[k - 1])
+        V[f"lipb_d{k}"] = 0.5 * (od[k - 1] + idn[k - 1])
+
+    # ---------------- face contour (33) ----------------
+    J = P[0:17]
+    segs = [_vparabola(J[0], J[4], J[1:4], K8), parabola(J[4], J[8], J[5:8], K8),
+            parabola(J[8], J[12], J[9:12], K8), _vparabola(J[12], J[16], J[13:16], K8)]
+    contour = [J[0]]
+    for i, seg in enumerate(segs):
+        contour.extend(seg)
+        contour.append(J[4 * (i + 1)])
+    contour_a = np.array(contour)
+    for i, q in enumerate(contour_a):
+        V[f"contour_{i}"] = q
+    chin = J[8]
+
+    # ---------------- forehead ----------------
+    g = 0.5 * (P[21] + P[22])
+    hair_mid = g - 0.5 * (chin - g)
+    cl, cr = contour_a[0], contour_a[-1]
+    cx, cy = 0.5 * (cl[0] + cr[0]), 0.5 * (cl[1] + cr[1])
+    a_ax = 0.5 * (cr[0] - cl[0])
+    b_ax = cy - hair_mid[1]
+    th = np.deg2rad(180.0 - 15.0 * np.arange(1, 12))
+    hair = np.stack([cx + a_ax * np.cos(th) + (hair_mid[0] - cx) * np.sin(th),
+                     cy - b_ax * np.sin(th)], 1)
+    # keep the hairline clear of the contour ends' neighbours
+    for k, q in enumerate(hair, 1):
+        V[f"hair_{k}"] = q
+    brow_top = np.vstack([brow_upper["r"], brow_upper["l"]])
+    xs_f1 = np.linspace(0.1, 0.9, 9)
+    xs_f2 = np.linspace(0.17, 0.83, 7)
+    for row, (frac, xs) in enumerate(((0.36, xs_f1), (0.7, xs_f2)), 1):
+        for k, fx in enumerate(xs, 1):
+            x = cl[0] + fx * (cr[0] - cl[0])
+            yb = _interp_y(brow_top, x)
+            t = np.clip((x - cx) / max(a_ax, 1e-6), -0.999, 0.999)
+            yh = cy - b_ax * np.sqrt(1 - t * t)
+            V[f"forehead_{row}_{k}"] = np.array([x, yb + frac * (yh - yb)])
+    V["glabella"] = np.array([g[0], g[1] + 0.35 * (thick["r"] + thick["l"]) / 2])
+
+    # ---------------- cheeks ----------------
+    ring_lo = {s: V[f"eyering_{s}_d3"][1] for s in "rl"}
+    nose_base = P[33, 1]
+    mouth_y = 0.5 * (oc0[1] + oc1[1])
+    lip_bottom = od[3, 1]
+    for s, sign in (("r", -1.0), ("l", 1.0)):
+        side = contour_a[:17] if s == "r" else contour_a[16:]
+        eye_lo = ring_lo[s]
+        corner = oc0 if s == "r" else oc1
+        ala = V[f"ala_{s}"]
+        rows = [
+            (eye_lo + 0.3 * (nose_base - eye_lo), V[f"nose_side_{s}"][0] + sign * 0.06 * iod),
+            (eye_lo + 0.68 * (nose_base - eye_lo), ala[0] + sign * 0.1 * iod),
+            (nose_base + 0.1 * (mouth_y - nose_base), ala[0] + sign * 0.16 * iod),
+            (mouth_y, corner[0] + sign * 0.14 * iod),
+            (lip_bottom + 0.15 * (chin[1] - lip_bottom), corner[0] + sign * 0.1 * iod),
+        ]
+        for r, (y, x_in) in enumerate(rows, 1):
+            x_out = _interp_x(side, y)
+            for c, f in enumerate((0.28, 0.55, 0.8) if r < 5 else (0.3, 0.65), 1):
+                V[f"cheek_{s}_{r}_{c}"] = np.array([x_in + f * (x_out - x_in), y])
+        V[f"nlab_{s}_1"] = np.array([ala[0] + sign * 0.05 * iod, nose_base + 0.3 * (
+            mouth_y - nose_base)])
+        V[f"nlab_{s}_2"] = np.array([corner[0] + sign * 0.07 * iod, ou[0 if s == "r" else 6][1]])
+        V[f"mcorner_{s}"] = corner + (sign * 0.07 * iod, 0.02 * iod)
+        # temples: beside the eye ring and beside the brow's outer end
+        oc = V[f"eyering_{s}_c{0 if s == 'r' else 1}"]
+        xo = _interp_x(side, oc[1])
+        V[f"temple_{s}_1"] = np.array([0.5 * (oc[0] + xo), oc[1]])
+        be = V[f"brow_{s}_e{0 if s == 'r' else 1}"]
+        hx = hair[1] if s == "r" else hair[9]
+        V[f"temple_{s}_2"] = np.array([0.5 * (be[0] + hx[0]) + sign * 0.03 * iod,
+                                       0.5 * (be[1] + hx[1]) + 0.08 * iod])
+    # philtrum row between the nose base and the upper lip
+    for k, (ni, lk) in enumerate(((31, 1), (32, 2), (33, 3), (34, 4), (35, 5)), 1):
+        top = P[ni]
+        bot = ou[[0, 2, 3, 4, 6][k - 1]]
+        V[f"phil_{k}"] = np.array([0.5 * (top[0] + bot[0]), top[1] + 0.5 * (bot[1] - top[1])])
+        del lk
+
+    # ---------------- jaw (between the lower lip and the chin) ----------------
+    for row, frac in ((1, 0.38), (2, 0.7)):
+        y = lip_bottom + frac * (chin[1] - lip_bottom)
+        xl = _interp_x(contour_a[:17], y)
+        xr = _interp_x(contour_a[16:], y)
+        for k, f in enumerate(np.linspace(0.14, 0.86, 7), 1):
+            x = xl + f * (xr - xl)
+            if row == 2 and k == 4:
+                x = chin[0]
+            V[f"jaw_{row}_{k}"] = np.array([x, y])
+
+    # ---------------- ears ----------------
+    for s, sign, idx in (("r", -1.0, (0, 2, 5)), ("l", 1.0, (32, 30, 27))):
+        top, mid, low = (contour_a[i] for i in idx)
+        be = V[f"brow_{s}_e{0 if s == 'r' else 1}"]
+        V[f"ear_{s}_top"] = np.array([top[0] + sign * 0.13 * iod, be[1] + 0.05 * iod])
+        V[f"ear_{s}_back"] = mid + (sign * 0.24 * iod, 0.0)
+        V[f"ear_{s}_mid"] = 0.5 * (top + mid) + (sign * 0.1 * iod, 0.0)
+        V[f"ear_{s}_lobe"] = low + (sign * 0.12 * iod, 0.0)
+
+    # ---------------- margin ring and image-border ring ----------------
+    centre = np.array([cx, 0.5 * (hair_mid[1] + chin[1])])
+    half_w = 0.5 * (cr[0] - cl[0]) + 0.35 * iod
+    half_h = 0.5 * (chin[1] - hair_mid[1])
+    corners_img = np.array([[0, 0], [image_size[0], 0], [image_size[0], image_size[1]],
+                            [0, image_size[1]]], np.float64)
+    corners_fr = fr.to_frame(corners_img)
+    n = MARGIN_COUNT
+    for k in range(n):
+        phi = 2 * np.pi * k / n
+        d = np.array([np.cos(phi), np.sin(phi)])
+        r_face = 1.0 / np.sqrt((d[0] / half_w) ** 2 + (d[1] / half_h) ** 2)
+        r_border = _ray_exit(centre, d, corners_fr)
+        r_m = max(min(1.3 * r_face, 0.85 * r_border), 1.08 * r_face)
+        V[f"margin_{k}"] = centre + r_m * d
+        phi_b = phi + np.pi / n
+        db = np.array([np.cos(phi_b), np.sin(phi_b)])
+        r_b = max(_ray_exit(centre, db, corners_fr), 1.25 * r_m)
+        V[f"border_{k}"] = centre + r_b * db
+    return {k: fr.to_image(v) for k, v in V.items()}, fr
+
+
+MARGIN_COUNT = 20
+
+
+def _ray_exit(c: np.ndarray, d: np.ndarray, quad: np.ndarray) -> float:
+    """Distance from ``c`` along ``d`` to the boundary of the convex quadrilateral ``quad``."""
+    best = np.inf
+    for i in range(4):
+        a, b = quad[i], quad[(i + 1) % 4]
+        e = b - a
+        m = np.array([[d[0], -e[0]], [d[1], -e[1]]])
+        det = np.linalg.det(m)
+        if abs(det) < 1e-12:
+            continue
+        t, u = np.linalg.solve(m, a - c)
+        if t > 0 and -1e-9 <= u <= 1 + 1e-9:
+            best = min(best, t)
+    return float(best if np.isfinite(best) else 0.0)

@@ -1,0 +1,183 @@
+"""Influence rectangles of the feature points (SPEC §2.1, eq. 2) and the weights they give.
+
+Each FAP moves its feature point p0 by ``s = value x FAPU``; a point (x, y) inside the point's
+rectangle moves by ``w·s`` with ``w = wx(x)·wy(y)``. Eq. 2 of the paper is the tent
+``wx = (x - xe)/(x0 - xe)`` (xe the rectangle side on the point's side), likewise wy. Only the
+rectangle of FAP 52 is given in the paper; all others are ours, written below per feature point
+with corners taken from named mesh vertices (face frame, offsets in inter-ocular distances).
+
+Two documented extensions of eq. 2 (both reduce to it when unused):
+
+* a *plateau* ``[c1, c2]`` around x0 (or y0) where the weight is 1, ramping linearly to 0 at the
+  rectangle's sides: the jaw moves the whole lower lip and chin rigidly, an ear moves whole;
+* a *parabolic* profile across an eye (``w = 1 - ((x - x0)/(xe - x0))^2``): the lids are parabolas
+  through the eye corners, so a closing lid keeps its shape and meets the other lid all along.
+
+A *side* filter keeps a FAP from dragging the opposite lip or lid: on a closed mouth the inner
+upper and lower lip vertices coincide, and only their tags tell them apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Rect:
+    """An influence rectangle in face-frame pixels."""
+
+    x1: float
+    y1: float
+    x2: float
+    y2: float
+    px: tuple[float, float] | None = None
+    py: tuple[float, float] | None = None
+    parabolic_x: bool = False
+    side: str | None = None  # "mouth_up", "mouth_low", "eye_l_up", "eye_l_low", ...
+
+
+def _axis_weight(v: np.ndarray, lo: float, hi: float, c0: float,
+                 plateau: tuple[float, float] | None, parabolic: bool) -> np.ndarray:
+    a, b = (c0, c0) if plateau is None else (min(plateau), max(plateau))
+    a, b = max(a, lo + 1e-6), min(b, hi - 1e-6)
+    w = np.zeros_like(v)
+    left = (v > lo) & (v < a)
+    right = (v > b) & (v < hi)
+    mid = (v >= a) & (v <= b)
+    if parabolic:
+        w[left] = 1.0 - ((v[left] - a) / (lo - a)) ** 2
+        w[right] = 1.0 - ((v[right] - b) / (hi - b)) ** 2
+    else:
+        w[left] = (v[left] - lo) / (a - lo)
+        w[right] = (hi - v[right]) / (hi - b)
+    w[mid] = 1.0
+    return w
+
+
+def weights(rect: Rect, p0: np.ndarray, pts: np.ndarray, sides: dict[str, np.ndarray],
+            movable: np.ndarray) -> np.ndarray:
+    """Eq. 2 weights (N,) of the points ``pts`` (N, 2, face frame) for a rectangle around p0."""
+    x1, x2 = min(rect.x1, rect.x2), max(rect.x1, rect.x2)
+    y1, y2 = min(rect.y1, rect.y2), max(rect.y1, rect.y2)
+    # p0 must lie strictly inside (SPEC: x1 < x0 < x2, y1 < y0 < y2)
+    eps = 1e-3
+    x1, x2 = min(x1, p0[0] - eps), max(x2, p0[0] + eps)
+    y1, y2 = min(y1, p0[1] - eps), max(y2, p0[1] + eps)
+    wx = _axis_weight(pts[:, 0], x1, x2, float(p0[0]), rect.px, rect.parabolic_x)
+    wy = _axis_weight(pts[:, 1], y1, y2, float(p0[1]), rect.py, False)
+    w = wx * wy * movable
+    if rect.side is not None:
+        w = w * ~sides[_opposite(rect.side)]
+    return w
+
+
+def _opposite(side: str) -> str:
+    return side.replace("_up", "_LOW").replace("_low", "_up").replace("_LOW", "_low")
+
+
+def side_tags(names: list[str]) -> dict[str, np.ndarray]:
+    """Boolean masks of the points tagged upper/lower lip and upper/lower lid of each eye."""
+    n = np.array(names)
+
+    def starts(*prefixes: str) -> np.ndarray:
+        return np.array([any(x.startswith(p) for p in prefixes) for x in n])
+
+    return {
+        "mouth_up": starts("lipi_u", "lipo_u", "lipb_u", "phil_", "nose"),
+        "mouth_low": starts("lipi_d", "lipo_d", "lipb_d", "tongue"),
+        "eye_l_up": starts("eye_l_u", "eyering_l_u"),
+        "eye_l_low": starts("eye_l_d", "eyering_l_d"),
+        "eye_r_up": starts("eye_r_u", "eyering_r_u"),
+        "eye_r_low": starts("eye_r_d", "eyering_r_d"),
+    }
+
+
+def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
+    """The influence rectangle of every FAP-driven feature point, from frame positions ``P``."""
+
+    def X(n: str, off: float = 0.0) -> float:
+        return float(P[n][0] + off * iod)
+
+    def Y(n: str, off: float = 0.0) -> float:
+        return float(P[n][1] + off * iod)
+
+    slit = 0.5 * (Y("lipi_c0") + Y("lipi_c1"))
+    chin = Y("contour_16")
+    nose_base = Y("nose_33")
+    labiomental = Y("jaw_1_4")
+    R: dict[str, Rect] = {}
+    # jaw: the lower lip and chin move rigidly in the middle, less towards the jaw angles
+    R["2.1"] = Rect(X("contour_4"), nose_base, X("contour_28"), chin + 0.6 * (chin - slit),
+                    px=(X("lipi_u3"), X("lipi_u5")), py=(slit - 0.03 * iod, chin),
+                    side="mouth_low")
+    R["2.2"] = Rect(X("lipi_c0"), nose_base, X("lipi_c1"), slit + 0.1 * iod, side="mouth_up")
+    R["2.3"] = Rect(X("lipi_c0"), slit - 0.1 * iod, X("lipi_c1"), labiomental, side="mouth_low")
+    R["2.10"] = Rect(X("lipo_d2"), Y("lipo_d4"), X("lipo_d6"), chin, side="mouth_low")
+    # paper's FAP 52 rectangle: outer corners to the chin, upper lip unaffected
+    R["8.2"] = Rect(X("lipo_c0"), Y("lipo_c0"), X("lipo_c1"), chin, side="mouth_low")
+    R["8.1"] = Rect(X("lipo_c0"), nose_base, X("lipo_c1"), slit + 0.1 * iod, side="mouth_up")
+    eyes = {"l": ("eye_l_c0", "eye_l_c1"), "r": ("eye_r_c0", "eye_r_c1")}
+    for s, sign in (("l", 1.0), ("r", -1.0)):
+        c_out = "c1" if s == "l" else "c0"
+        lo_mid, lo_c = ("lipi_u4", f"lipi_{c_out}")
+        # inner lip: corners, mid-points
+        corner_x = X(f"lipi_{c_out}")
+        far = corner_x + sign * 0.45 * iod
+        lip_low = Y("lipo_d4") + 0.5 * (chin - Y("lipo_d4"))
+        fdp_c = "2.4" if s == "l" else "2.5"
+        R[fdp_c] = Rect(X(lo_mid), nose_base, far, lip_low)
+        fdp_c_o = "8.3" if s == "l" else "8.4"
+        R[fdp_c_o] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}") + sign * 0.45 * iod, lip_low)
+        fdp_um = "2.6" if s == "l" else "2.7"
+        R[fdp_um] = Rect(X(lo_mid), nose_base, X(lo_c), slit + 0.1 * iod, side="mouth_up")
+        fdp_lm = "2.8" if s == "l" else "2.9"
+        R[fdp_lm] = Rect(X("lipi_d4"), slit - 0.1 * iod, X(lo_c), labiomental, side="mouth_low")
+        fdp_uo = "8.5" if s == "l" else "8.6"
+        R[fdp_uo] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}"), slit + 0.1 * iod,
+                         side="mouth_up")
+        fdp_lo = "8.7" if s == "l" else "8.8"
+        R[fdp_lo] = Rect(X("lipo_d4"), slit, X(f"lipo_{c_out}"), labiomental, side="mouth_low")
+        # eyelids: parabolic across the eye, corners fixed
+        c0, c1 = eyes[s]
+        up, low = ("3.1", "3.3") if s == "l" else ("3.2", "3.4")
+        R[up] = Rect(X(c0), Y(f"brow_{s}_d2"), X(c1), Y(f"eye_{s}_d3") + 0.02 * iod,
+                     parabolic_x=True, side=f"eye_{s}_up")
+        ring_lo = Y(f"eyering_{s}_d3")
+        R[low] = Rect(X(c0), Y(f"eye_{s}_u3") - 0.02 * iod, X(c1),
+                      ring_lo + 0.8 * (ring_lo - Y(f"eye_{s}_d3")), parabolic_x=True,
+                      side=f"eye_{s}_low")
+        # brows
+        inner_e, outer_e = (f"brow_{s}_e0", f"brow_{s}_e1") if s == "l" else (
+            f"brow_{s}_e1", f"brow_{s}_e0")
+        fh_top = Y("forehead_2_4")
+        eye_top = Y(f"eye_{s}_u3")
+        b_in, b_mid, b_out = (("4.1", "4.3", "4.5") if s == "l" else ("4.2", "4.4", "4.6"))
+        R[b_in] = Rect(X("glabella", -sign * 0.08), fh_top, X(outer_e), eye_top)
+        R[b_mid] = Rect(X(inner_e, -sign * 0.1), fh_top, X(outer_e, sign * 0.25), eye_top)
+        R[b_out] = Rect(X(f"brow_{s}_u3"), fh_top, X(outer_e, sign * 0.4),
+                        Y(f"eye_{s}_{c_out if s == 'l' else 'c0'}"))
+        # cheeks
+        cheek_c, cheek_b = (("5.1", "5.3") if s == "l" else ("5.2", "5.4"))
+        ci = 27 if s == "l" else 5
+        R[cheek_c] = Rect(X(f"lipo_{c_out}"), Y(f"eyering_{s}_d3"), X(f"contour_{ci}", sign * 0.15),
+                          chin)
+        cb = 30 if s == "l" else 2
+        R[cheek_b] = Rect(X("nose_35" if s == "l" else "nose_31"), Y(f"eye_{s}_u3"),
+                          X(f"contour_{cb}", sign * 0.1), Y(f"lipo_{c_out}"))
+        # nose wings
+        wing = "9.1" if s == "l" else "9.2"
+        wn = "nose_35" if s == "l" else "nose_31"
+        R[wing] = Rect(X("nose_33"), Y("nose_29"), X(wn, sign * 0.3), Y("lipo_u4"))
+        # ears: the ear moves whole
+        top, back = ("10.1", "10.3") if s == "l" else ("10.2", "10.4")
+        ct = "contour_32" if s == "l" else "contour_0"
+        ear = Rect(X(ct, -sign * 0.02), Y(f"ear_{s}_top", -0.4), X(f"ear_{s}_back", sign * 0.3),
+                   Y(f"ear_{s}_lobe", 0.15),
+                   px=tuple(sorted((X(f"ear_{s}_mid"), X(f"ear_{s}_back")))),
+                   py=(Y(f"ear_{s}_top"), Y(f"ear_{s}_lobe")))
+        R[top] = ear
+        R[back] = ear
+    R["9.3"] = Rect(X("nose_31", -0.1), Y("nose_28"), X("nose_35", 0.1), Y("lipo_u4"))
+    return R

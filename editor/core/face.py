@@ -86,7 +86,10 @@ class Face:
             rgb, source = as_rgb8(image), None
         else:
             rgb, source = load_image(image), str(Path(image))
-        lm = detect_landmarks(rgb, detector)
+        try:
+            lm = detect_landmarks(rgb, detector)
+        except NoFaceError as e:
+            raise NoFaceError(f"{source}: {e}" if source else str(e)) from None
         return cls.from_landmarks(rgb, lm, source=source)
 
     @classmethod

@@ -112,12 +112,15 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
     R["2.1"] = Rect(X("contour_4"), nose_base, X("contour_28"), chin + 0.6 * (chin - slit),
                     px=(X("lipi_u3"), X("lipi_u5")), py=(slit - 0.03 * iod, chin),
                     side="mouth_low")
-    R["2.2"] = Rect(X("lipi_c0"), nose_base, X("lipi_c1"), slit + 0.1 * iod, side="mouth_up")
-    R["2.3"] = Rect(X("lipi_c0"), slit - 0.1 * iod, X("lipi_c1"), labiomental, side="mouth_low")
+    # Along a contour the tents of neighbouring feature points form a partition of unity (each
+    # reaches 0 at the next point), so driving all of them by one value moves the contour
+    # uniformly instead of overshooting where tents overlap.
+    R["2.2"] = Rect(X("lipi_u2"), nose_base, X("lipi_u6"), slit + 0.1 * iod, side="mouth_up")
+    R["2.3"] = Rect(X("lipi_d2"), slit - 0.1 * iod, X("lipi_d6"), labiomental, side="mouth_low")
     R["2.10"] = Rect(X("lipo_d2"), Y("lipo_d4"), X("lipo_d6"), chin, side="mouth_low")
     # paper's FAP 52 rectangle: outer corners to the chin, upper lip unaffected
     R["8.2"] = Rect(X("lipo_c0"), Y("lipo_c0"), X("lipo_c1"), chin, side="mouth_low")
-    R["8.1"] = Rect(X("lipo_c0"), nose_base, X("lipo_c1"), slit + 0.1 * iod, side="mouth_up")
+    R["8.1"] = Rect(X("lipo_u2"), nose_base, X("lipo_u6"), slit + 0.1 * iod, side="mouth_up")
     eyes = {"l": ("eye_l_c0", "eye_l_c1"), "r": ("eye_r_c0", "eye_r_c1")}
     for s, sign in (("l", 1.0), ("r", -1.0)):
         c_out = "c1" if s == "l" else "c0"
@@ -127,9 +130,13 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         far = corner_x + sign * 0.45 * iod
         lip_low = Y("lipo_d4") + 0.5 * (chin - Y("lipo_d4"))
         fdp_c = "2.4" if s == "l" else "2.5"
-        R[fdp_c] = Rect(X(lo_mid), nose_base, far, lip_low)
+        # the corner region (upper to lower lip at the corner) moves together
+        k_near = 7 if s == "l" else 1
+        corner_py = (Y(f"lipo_u{k_near}"), Y(f"lipo_d{k_near}"))
+        R[fdp_c] = Rect(X(lo_mid), nose_base, far, lip_low, py=corner_py)
         fdp_c_o = "8.3" if s == "l" else "8.4"
-        R[fdp_c_o] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}") + sign * 0.45 * iod, lip_low)
+        R[fdp_c_o] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}") + sign * 0.45 * iod, lip_low,
+                          py=corner_py)
         fdp_um = "2.6" if s == "l" else "2.7"
         R[fdp_um] = Rect(X(lo_mid), nose_base, X(lo_c), slit + 0.1 * iod, side="mouth_up")
         fdp_lm = "2.8" if s == "l" else "2.9"
@@ -154,10 +161,17 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         fh_top = Y("forehead_2_4")
         eye_top = Y(f"eye_{s}_u3")
         b_in, b_mid, b_out = (("4.1", "4.3", "4.5") if s == "l" else ("4.2", "4.4", "4.6"))
-        R[b_in] = Rect(X("glabella", -sign * 0.08), fh_top, X(outer_e), eye_top)
-        R[b_mid] = Rect(X(inner_e, -sign * 0.1), fh_top, X(outer_e, sign * 0.25), eye_top)
+        # the brow body (upper to lower edge) moves as a whole: a plateau across its thickness
+        body = (Y(f"brow_{s}_u3"), Y(f"brow_{s}_d2"))
+        R[b_in] = Rect(X("glabella", -sign * 0.08), fh_top, X(f"brow_{s}_u3"), eye_top,
+                       py=(Y(inner_e) - 0.5 * (body[1] - body[0]), Y(inner_e) + 0.5 * (
+                           body[1] - body[0])))
+        R[b_mid] = Rect(X(inner_e), fh_top, X(outer_e), eye_top,
+                        py=body)
         R[b_out] = Rect(X(f"brow_{s}_u3"), fh_top, X(outer_e, sign * 0.4),
-                        Y(f"eye_{s}_{c_out if s == 'l' else 'c0'}"))
+                        Y(f"eye_{s}_{c_out if s == 'l' else 'c0'}"),
+                        py=(Y(outer_e) - 0.5 * (body[1] - body[0]), Y(outer_e) + 0.5 * (
+                            body[1] - body[0])))
         # cheeks
         cheek_c, cheek_b = (("5.1", "5.3") if s == "l" else ("5.2", "5.4"))
         ci = 27 if s == "l" else 5

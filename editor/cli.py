@@ -1,0 +1,201 @@
+"""Command line of FAP Studio: ``fap-studio COMMAND ...`` (``--help`` on every command).
+
+Every user error (bad file, no face, malformed value) prints one line
+``fap-studio: error: ...`` on stderr and exits with code 2; no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from . import __version__
+from .core.errors import FapStudioError
+
+SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # usage errors: exit 2 with one line
+        self.print_usage(sys.stderr)
+        self.exit(2, f"fap-studio: error: {message}\n")
+
+
+def _fap_pairs(items: Sequence[str] | None) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for it in items or []:
+        if "=" not in it:
+            raise FapStudioError(f"--fap {it!r}: expected NAME=VALUE or NUMBER=VALUE")
+        k, v = it.split("=", 1)
+        try:
+            out[k.strip()] = float(v)
+        except ValueError as e:
+            raise FapStudioError(f"--fap {it!r}: {v!r} is not a number") from e
+    return out
+
+
+def _load_face(photo: str):
+    from .core import Face
+
+    return Face.from_image(photo)
+
+
+def cmd_landmarks(a: argparse.Namespace) -> int:
+    from .core import save_image
+    from .core.overlay import draw_landmarks
+
+    face = _load_face(a.photo)
+    lm = face.landmarks
+    if a.output:
+        save_image(a.output, draw_landmarks(face.image, lm, a.scale))
+    if a.json:
+        data = {
+            "image": str(a.photo), "size": list(face.image.shape[1::-1]),
+            "detector": lm.detector, "box": [round(float(x), 2) for x in lm.box],
+            "points": {str(i): [float(x), float(y)] for i, (x, y) in enumerate(lm.points)},
+            "fdp": {k: [round(x, 2), round(y, 2)] for k, (x, y) in lm.fdp_points().items()},
+            "iris": {"3.5": lm.iris_left.as_list(), "3.6": lm.iris_right.as_list()},
+        }
+        _write_json(a.json, data)
+    if not a.output and not a.json:
+        print(json.dumps({k: [round(x, 1), round(y, 1)] for k, (x, y) in lm.fdp_points().items()}))
+    return 0
+
+
+def _mesh_json(face, v=None) -> dict:
+    verts = face.vertices if v is None else v
+    return {
+        "vertices": [[round(float(x), 3), round(float(y), 3)] for x, y in verts],
+        "triangles": face.triangles.tolist(),
+        "names": list(face.mesh.names),
+        "regions": [str(r) for r in face.mesh.regions],
+        "fdp": {k: [round(float(verts[i, 0]), 3), round(float(verts[i, 1]), 3)]
+                for k, i in face.fdp.items()},
+        "fdp_index": dict(face.fdp),
+        "fapu": {k: float(v) for k, v in face.fapu.items()},
+    }
+
+
+def cmd_mesh(a: argparse.Namespace) -> int:
+    from .core import save_image
+    from .core.overlay import draw_mesh
+
+    face = _load_face(a.photo)
+    if a.output:
+        save_image(a.output, draw_mesh(face.image, face.vertices, face.triangles, face.fdp,
+                                       a.scale, face.mesh.holes))
+    if a.json:
+        _write_json(a.json, _mesh_json(face))
+    if not a.output and not a.json:
+        print(json.dumps({k: round(v * 1024, 2) for k, v in face.fapu.items() if k != "AU"}))
+    return 0
+
+
+def cmd_render(a: argparse.Namespace) -> int:
+    from .core import FAPS, save_image
+
+    faps = _fap_pairs(a.fap)
+    try:
+        FAPS.vector(faps)
+    except ValueError as e:
+        raise FapStudioError(str(e)) from e
+    face = _load_face(a.photo)
+    save_image(a.output, face.render(faps))
+    if a.mesh_json:
+        v, extra = face.deform_all(faps)
+        data = _mesh_json(face, v)
+        data["vertices_neutral"] = _mesh_json(face)["vertices"]
+        data["fdp_neutral"] = _mesh_json(face)["fdp"]
+        data["fdp"].update({k: [round(float(p[0]), 3), round(float(p[1]), 3)]
+                            for k, p in extra.items()})
+        data["faps"] = {FAPS[k].name: v for k, v in faps.items()}
+        _write_json(a.mesh_json, data)
+    return 0
+
+
+def cmd_gui(a: argparse.Namespace) -> int:
+    try:
+        from .ui.app import run
+    except ImportError as e:  # pragma: no cover - depends on the installation
+        raise FapStudioError(f"the editor window is not available ({e})") from e
+    return run(photo=a.photo, faps=_fap_pairs(a.fap), screenshot=a.screenshot,
+               project=getattr(a, "project", None))
+
+
+def _write_json(path: str, data: dict) -> None:
+    p = Path(path)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(json.dumps(data))
+    except OSError as e:
+        raise FapStudioError(f"{p}: cannot write ({e.strerror or e})") from e
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="fap-studio", description="MPEG-4 facial animation of a single photo. "
+                "With no command, opens the editor on the sample face.")
+    p.add_argument("--version", action="version", version=f"fap-studio {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    s = sub.add_parser("landmarks", help="detect landmarks, MPEG-4 feature points and irises")
+    s.add_argument("photo")
+    s.add_argument("-o", "--output", help="PNG with the points drawn over the photo")
+    s.add_argument("--json", help="points by detector index and FDP id, iris circles")
+    s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
+    s.set_defaults(func=cmd_landmarks)
+
+    s = sub.add_parser("mesh", help="fit the personalized MPEG-4 mesh and draw it")
+    s.add_argument("photo")
+    s.add_argument("-o", "--output", help="PNG with the mesh drawn over the photo")
+    s.add_argument("--json", help="vertices, triangles, fdp, fapu")
+    s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
+    s.set_defaults(func=cmd_mesh)
+
+    s = sub.add_parser("render", help="render the photo with FAP values")
+    s.add_argument("photo")
+    s.add_argument("--fap", action="append", metavar="NAME=VALUE",
+                   help="FAP by name or number and its value in FAPU (repeatable)")
+    s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
+    s.add_argument("--mesh-json", help="write the neutral and deformed mesh as JSON")
+    s.set_defaults(func=cmd_render)
+
+    s = sub.add_parser("gui", help="open the editor window")
+    s.add_argument("photo", nargs="?")
+    s.add_argument("--fap", action="append", metavar="NAME=VALUE")
+    s.add_argument("--project", help="open a project file")
+    s.add_argument("--screenshot", help="save a screenshot of the window and exit")
+    s.set_defaults(func=cmd_gui)
+
+    for mod, fn in (("study_cli", "add_study_parser"), ("bilinear_cli", "add_bilinear_parser")):
+        try:
+            module = __import__(f"editor.{mod}", fromlist=[fn])
+        except ImportError:  # pragma: no cover
+            continue
+        getattr(module, fn)(sub)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    if not args_list:
+        args_list = ["gui"]
+    a = parser.parse_args(args_list)
+    if not getattr(a, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(a.func(a) or 0)
+    except FapStudioError as e:
+        print(f"fap-studio: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fap-studio: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,38 @@
+"""Shared fixtures. Qt runs offscreen unless a display platform is set explicitly."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+import pytest  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "resources" / "sample_face.png"
+JAFFE = ROOT.parent / "shared" / "data" / "jaffe"
+
+
+@pytest.fixture(scope="session")
+def sample_face():
+    from editor.core import Face
+
+    return Face.from_image(SAMPLE)
+
+
+def jaffe_images(pattern: str = "*.tiff") -> list[Path]:
+    if not (JAFFE / "images").is_dir():
+        return []
+    return sorted((JAFFE / "images").glob(pattern))
+
+
+@pytest.fixture(scope="session")
+def jaffe_faces():
+    """Five JAFFE neutral faces (different people); skipped when the data is absent."""
+    from editor.core import Face
+
+    paths = jaffe_images("*.NE1.*.tiff")[:5]
+    if len(paths) < 5:
+        pytest.skip("../shared/data/jaffe is not available")
+    return [Face.from_image(p) for p in paths]

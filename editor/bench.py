@@ -1,0 +1,115 @@
+"""Benchmarks: ``python -m editor.bench`` prints one JSON object per line.
+
+All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same run:
+
+* ``fap_to_image``: FAP vector -> finished image (deform + guard + warp), after fitting, at the
+  sample's 512 x 512 scaled to 431 x 591 (the paper's size) and to 1920 x 1080;
+* ``remap_full_frame``: the floor, one ``cv2.remap`` of the whole frame;
+* ``skimage_piecewise_affine``: scikit-image's PiecewiseAffineTransform + warp on the same
+  meshes (optional: skipped when scikit-image is not installed);
+* ``face_from_image``: detection + fitting on the sample and on a 1920-px photo.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+
+EXPRESSION = {"open_jaw": 500, "raise_l_cornerlip_o": 250, "raise_r_cornerlip_o": 250,
+              "raise_l_cornerlip": 250, "raise_r_cornerlip": 250, 31: 200, 32: 200, 33: 200,
+              34: 200, 35: 150, 36: 150, 19: -100, 20: -100}
+
+
+def _time(fn: Callable[[], object], n: int, warm: int = 3) -> dict[str, float]:
+    for _ in range(warm):
+        fn()
+    t = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        t.append((time.perf_counter() - t0) * 1000)
+    a = np.array(t)
+    return {"median_ms": round(float(np.median(a)), 3),
+            "p95_ms": round(float(np.percentile(a, 95)), 3), "n": n}
+
+
+def _emit(d: dict) -> None:
+    print(json.dumps(d), flush=True)
+
+
+def _face_at(size: tuple[int, int]):
+    from editor.core import Face, load_image
+
+    img = load_image(SAMPLE)
+    w, h = size
+    # keep the aspect ratio: scale the square photo to cover, then centre-crop
+    s = max(w / img.shape[1], h / img.shape[0])
+    big = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
+    y0 = (big.shape[0] - h) // 2
+    x0 = (big.shape[1] - w) // 2
+    return Face.from_image(np.ascontiguousarray(big[y0:y0 + h, x0:x0 + w]))
+
+
+def main() -> None:
+    cv2.setNumThreads(1)
+    from editor.core import FAPS, Face, load_image
+
+    _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
+    img = load_image(SAMPLE)
+    t = _time(lambda: Face.from_image(img), 5, warm=1)
+    _emit({"bench": "face_from_image", "size": "512x512", **t})
+    for size in ((431, 591), (1920, 1080)):
+        face = _face_at(size)
+        vec = FAPS.clamp(FAPS.vector(EXPRESSION))
+        face.render(vec)
+        n = 40 if size[0] < 1000 else 20
+        res = {"size": f"{size[0]}x{size[1]}"}
+        ours = _time(lambda f=face, v=vec: f.render(v), n)
+        _emit({"bench": "fap_to_image", **res, **ours,
+               "fps": round(1000 / ours["median_ms"], 1)})
+        h, w = face.image.shape[:2]
+        mx, my = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+        mx += 0.3
+        floor = _time(lambda: cv2.remap(face.image, mx, my, cv2.INTER_LINEAR), n)
+        _emit({"bench": "remap_full_frame", **res, **floor})
+        _emit({"bench": "ratio_fap_to_image_vs_remap", **res,
+               "ratio": round(ours["median_ms"] / floor["median_ms"], 2)})
+        if size[0] > 1000:
+            t = _time(lambda f=face: Face.from_image(f.image), 3, warm=1)
+            _emit({"bench": "face_from_image", **res, **t})
+        try:
+            from skimage.transform import PiecewiseAffineTransform
+            from skimage.transform import warp as sk_warp
+        except ImportError:
+            _emit({"bench": "skimage_piecewise_affine", **res, "skipped": "no scikit-image"})
+            continue
+        dst = face.deform(vec)
+        src = face.vertices
+
+        def sk(face=face, src=src, dst=dst) -> None:
+            tf = PiecewiseAffineTransform()
+            tf.estimate(dst, src)  # output -> input mapping, like ours
+            sk_warp(face.image, tf, preserve_range=True)
+
+        peer = _time(sk, 3 if size[0] < 1000 else 1, warm=1 if size[0] < 1000 else 0)
+        _emit({"bench": "skimage_piecewise_affine", **res, **peer})
+        _emit({"bench": "speedup_vs_skimage", **res,
+               "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
+    # deformation alone, batched (presets, sequences)
+    face = _face_at((431, 591))
+    batch = np.tile(FAPS.clamp(FAPS.vector(EXPRESSION)), (100, 1))
+    from editor.core.deform import deform_points
+
+    t = _time(lambda: deform_points(face.plan, batch), 5)
+    _emit({"bench": "deform_batch100", **t, "per_vector_ms": round(t["median_ms"] / 100, 4)})
+
+
+if __name__ == "__main__":
+    main()

@@ -38,6 +38,7 @@ _DEPTH = {
     45: [("6.1", 0.0, 0.5)],
 }
 _NONLINEAR = {23, 24, 25, 26, 27, 28, 29, 30, 47, 48, 49, 50}
+_NONLINEAR_IDX = np.array(sorted(x - 1 for x in _NONLINEAR))
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,6 +69,13 @@ class DeformPlan:
     neutral_sigma: np.ndarray  # (T,)
     movable: np.ndarray  # (V,) bool: can move for some FAP vector (not border)
     extra_names: tuple[str, ...] = EXTRA_POINTS
+
+    def __post_init__(self) -> None:
+        # float64 copies used on every call (the hot path avoids per-call conversions)
+        object.__setattr__(self, "neutral64", self.neutral.astype(np.float64))
+        object.__setattr__(self, "basis_flat",
+                           self.basis.astype(np.float64).reshape(68, -1))
+        object.__setattr__(self, "tri_neutral", self.neutral64[self.triangles])
 
 
 def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
@@ -244,7 +252,7 @@ def _tau(plan: DeformPlan, X0: np.ndarray, D: np.ndarray) -> np.ndarray:
 
 def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
     """Scale displacements (B, V, 2) so that no triangle inverts or degenerates (SPEC §2.3)."""
-    X0 = plan.neutral[: plan.n_vertices].astype(np.float64)
+    X0 = plan.neutral64[: plan.n_vertices]
     B = D.shape[0]
     pairs = plan.pairs
     for _ in range(rounds):
@@ -278,22 +286,22 @@ def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
     f = np.asarray(faps, np.float64)
     single = f.ndim == 1
     f = np.atleast_2d(f)
-    lin = np.tensordot(f, plan.basis.astype(np.float64), axes=(1, 0))  # (B, N, 2)
-    pos = plan.neutral.astype(np.float64)[None] + lin
+    B = f.shape[0]
+    n0 = plan.neutral64
+    lin = (f @ plan.basis_flat).reshape(B, -1, 2)  # (B, N, 2)
+    pos = n0[None] + lin
     _pair_rule(plan, pos)
-    if f[:, list(x - 1 for x in _NONLINEAR)].any():
+    if f[:, _NONLINEAR_IDX].any():
         pos = _nonlinear(plan, f, pos)
     V = plan.n_vertices
-    D = pos[:, :V] - plan.neutral[None, :V]
+    D = pos[:, :V] - n0[None, :V]
     Dg = guard(plan, D)
-    scale = np.ones(f.shape[0])
-    nz = np.abs(D).sum((1, 2)) > 0
-    if nz.any():
-        ratio = np.abs(Dg).sum((1, 2)) / np.maximum(np.abs(D).sum((1, 2)), 1e-12)
-        scale = np.where(nz, np.minimum(ratio, 1.0), 1.0)
-    pos[:, :V] = plan.neutral[None, :V] + Dg
-    extra = pos[:, V:] - plan.neutral[None, V:]
-    pos[:, V:] = plan.neutral[None, V:] + extra * scale[:, None, None]
+    if Dg is not D:  # the guard scaled something: extra points follow the overall scale
+        a = np.abs(D).sum((1, 2))
+        ratio = np.abs(Dg).sum((1, 2)) / np.maximum(a, 1e-12)
+        scale = np.where(a > 0, np.minimum(ratio, 1.0), 1.0)
+        pos[:, :V] = n0[None, :V] + Dg
+        pos[:, V:] = n0[None, V:] + (pos[:, V:] - n0[None, V:]) * scale[:, None, None]
     out = pos.astype(np.float32)
     return out[0] if single else out
 

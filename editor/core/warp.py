@@ -58,9 +58,7 @@ class WarpPlan:
         poly = np.round(self.src[self.holes["mouth"]] * _ONE).astype(np.int32)
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self.neutral_mouth = m.astype(bool)
-        # source triangle vertices with a homogeneous row, for the batched affine fit
-        s = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
-        self._S = np.concatenate([s.transpose(0, 2, 1), np.ones((len(s), 1, 3))], 1)
+        self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
 
 
 @dataclass
@@ -68,24 +66,36 @@ class WarpResult:
     """Output of :func:`warp`.
 
     image : (H, W, 3) uint8 warped photo
-    mouth_mask, eye_mask : (H, W) bool openings in the deformed face (None if unchanged)
-    bbox : (x0, y0, x1, y1) region that was recomputed, or None
+    bbox : (x0, y0, x1, y1) region that was recomputed, or None when nothing moved
+    mouth_local, eyes_local : bool masks of the openings inside ``bbox`` (None if unchanged)
     """
 
     image: np.ndarray
-    mouth_mask: np.ndarray | None
-    eye_mask: np.ndarray | None
     bbox: tuple[int, int, int, int] | None
+    mouth_local: np.ndarray | None = None
+    eyes_local: np.ndarray | None = None
 
+    def _full(self, local: np.ndarray | None) -> np.ndarray | None:
+        if local is None or self.bbox is None:
+            return None
+        m = np.zeros(self.image.shape[:2], bool)
+        x0, y0, x1, y1 = self.bbox
+        m[y0:y1, x0:x1] = local
+        return m
 
-def _fill_ids(ids: np.ndarray, dst: np.ndarray, tris: np.ndarray, which: np.ndarray,
-              ox: int, oy: int) -> None:
-    pts = np.round((dst[tris[which]] - (ox, oy)) * _ONE).astype(np.int32)  # (n, 3, 2)
-    for k, t in enumerate(which):
-        cv2.fillConvexPoly(ids, pts[k], int(t), cv2.LINE_8, _SHIFT)
+    @property
+    def mouth_mask(self) -> np.ndarray | None:
+        """(H, W) bool: the mouth opening of the deformed face."""
+        return self._full(self.mouth_local)
+
+    @property
+    def eye_mask(self) -> np.ndarray | None:
+        """(H, W) bool: the eye openings of the deformed face."""
+        return self._full(self.eyes_local)
 
 
 LAYERS = ("eye_l", "eye_r", "mouth")
+_IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None = None,
@@ -103,81 +113,92 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     V = len(plan.src)
     moved_v = np.abs(dst[:V] - plan.src).max(1) > tol
     if not moved_v.any():
-        return WarpResult(img.copy(), None, None, None)
+        return WarpResult(img.copy(), None)
     tris = plan.triangles
     moved_t = np.flatnonzero(moved_v[tris].any(1))
-    p = dst[tris[moved_t]].reshape(-1, 2)
+    tri_pts = dst[tris[moved_t]]  # (n, 3, 2)
+    p = tri_pts.reshape(-1, 2)
     x0 = int(np.clip(np.floor(p[:, 0].min()) - 1, 0, w))
     y0 = int(np.clip(np.floor(p[:, 1].min()) - 1, 0, h))
     x1 = int(np.clip(np.ceil(p[:, 0].max()) + 2, 0, w))
     y1 = int(np.clip(np.ceil(p[:, 1].max()) + 2, 0, h))
     out = img.copy()
     if x1 <= x0 or y1 <= y0:
-        return WarpResult(out, None, None, None)
-    bw, bh = x1 - x0, y1 - y0
-    ids = np.full((bh, bw), -1, np.int32)
+        return WarpResult(out, None)
     T = len(tris)
-    layer_rows = {}
-    for k, name in enumerate(LAYERS):
-        if layers and name in layers:
-            poly = np.round((dst[plan.holes[name]] - (x0, y0)) * _ONE).astype(np.int32)
-            cv2.fillPoly(ids, [poly], T + 1 + k, cv2.LINE_8, _SHIFT)
-            fwd = np.vstack([np.asarray(layers[name], np.float64), [0.0, 0.0, 1.0]])
-            layer_rows[T + 1 + k] = np.linalg.inv(fwd)[:2]
-    _fill_ids(ids, dst, tris, moved_t, x0, y0)
-
-    # inverse affine per moved triangle: src = M @ [x, y, 1] (M is 2x3)
-    d = dst[tris[moved_t]].astype(np.float64)
-    Dm = np.concatenate([d.transpose(0, 2, 1), np.ones((len(d), 1, 3))], 1)
-    det = np.linalg.det(Dm)
-    ok = np.abs(det) > 1e-9
-    Dinv = np.zeros_like(Dm)
-    Dinv[ok] = np.linalg.inv(Dm[ok])
-    M = plan._S[moved_t][:, :2, :] @ Dinv  # (n, 2, 3)
-    # degenerate destination triangles (never produced by the guard): identity
-    M[~ok] = np.array([[1, 0, 0], [0, 1, 0]], np.float64)
+    # id image: row T = identity (static triangles, uncovered pixels); T+1.. = opening layers
+    ids = np.full((y1 - y0, x1 - x0), T, np.int32)
     table = np.zeros((T + 1 + len(LAYERS), 6), np.float32)
     table[:, 0] = 1.0
-    table[:, 4] = 1.0  # identity for unmoved triangles and uncovered pixels (row T)
-    table[moved_t] = M.reshape(-1, 6).astype(np.float32)
-    for row, m in layer_rows.items():
-        table[row] = m.reshape(-1)
-    c = table[np.where(ids < 0, T, ids)]  # (bh, bw, 6)
+    table[:, 4] = 1.0
+    off = np.array([x0, y0], np.float32)
+    for k, name in enumerate(LAYERS):
+        poly = np.round((dst[plan.holes[name]] - off) * _ONE).astype(np.int32)
+        cv2.fillPoly(ids, [poly], T + 1 + k, cv2.LINE_8, _SHIFT)
+        fwd = layers.get(name, _IDENTITY) if layers else _IDENTITY
+        table[T + 1 + k] = cv2.invertAffineTransform(np.asarray(fwd, np.float64)).reshape(-1)
+    fill = cv2.fillConvexPoly
+    for q, t in zip(np.round((tri_pts - off) * _ONE).astype(np.int32), moved_t.tolist(),
+                    strict=True):
+        fill(ids, q, t, cv2.LINE_8, _SHIFT)
+
+    # inverse affine per moved triangle (destination -> source), closed form: with edge
+    # vectors e1 = d1 - d0, e2 = d2 - d0 (destination) and f1, f2 (source),
+    # src(p) = s0 + [f1 f2] [e1 e2]^-1 (p - d0)
+    d = tri_pts.astype(np.float64)
+    sv = plan._src_tri[moved_t]
+    e1, e2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
+    f1, f2 = sv[:, 1] - sv[:, 0], sv[:, 2] - sv[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    ok = np.abs(det) > 1e-9  # degenerate destinations are never produced by the guard
+    inv = 1.0 / np.where(ok, det, 1.0)
+    # [e1 e2]^-1 = [[e2y, -e2x], [-e1y, e1x]] / det
+    a11, a12, a21, a22 = e2[:, 1] * inv, -e2[:, 0] * inv, -e1[:, 1] * inv, e1[:, 0] * inv
+    m00 = f1[:, 0] * a11 + f2[:, 0] * a21
+    m01 = f1[:, 0] * a12 + f2[:, 0] * a22
+    m10 = f1[:, 1] * a11 + f2[:, 1] * a21
+    m11 = f1[:, 1] * a12 + f2[:, 1] * a22
+    m02 = sv[:, 0, 0] - m00 * d[:, 0, 0] - m01 * d[:, 0, 1]
+    m12 = sv[:, 0, 1] - m10 * d[:, 0, 0] - m11 * d[:, 0, 1]
+    M = np.stack([m00, m01, m02, m10, m11, m12], 1)
+    table[moved_t[ok]] = M[ok]
+    # per-pixel coefficients: a nearest-neighbour remap from a 1 x rows table is the fastest
+    # gather OpenCV/numpy offer (ids are exact integers in float32)
+    fid = ids.astype(np.float32)
+    zero = np.zeros_like(fid)
+    cx = cv2.remap(np.ascontiguousarray(table[None, :, :3]), fid, zero, cv2.INTER_NEAREST)
+    cy = cv2.remap(np.ascontiguousarray(table[None, :, 3:]), fid, zero, cv2.INTER_NEAREST)
     xs = np.arange(x0, x1, dtype=np.float32)[None, :]
     ys = np.arange(y0, y1, dtype=np.float32)[:, None]
-    map_x = c[..., 0] * xs + c[..., 1] * ys + c[..., 2]
-    map_y = c[..., 3] * xs + c[..., 4] * ys + c[..., 5]
+    map_x = cx[..., 0] * xs
+    map_x += cx[..., 1] * ys
+    map_x += cx[..., 2]
+    map_y = cy[..., 0] * xs
+    map_y += cy[..., 1] * ys
+    map_y += cy[..., 2]
     out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
                                   borderMode=cv2.BORDER_REPLICATE)
 
-    # openings of the deformed face
-    mouth = np.zeros((h, w), np.uint8)
-    poly = np.round(dst[plan.holes["mouth"]] * _ONE).astype(np.int32)
-    cv2.fillPoly(mouth, [poly], 1, cv2.LINE_8, _SHIFT)
-    mouth_b = mouth.astype(bool)
-    eyes = np.zeros((h, w), np.uint8)
-    for k in ("eye_l", "eye_r"):
-        poly = np.round(dst[plan.holes[k]] * _ONE).astype(np.int32)
-        cv2.fillPoly(eyes, [poly], 1, cv2.LINE_8, _SHIFT)
-    # mouth pixels whose source lies outside the photo's own opening: the cavity
-    sub = (ids < 0) | (ids > T)
-    sx = np.clip(np.round(map_x).astype(np.int32), 0, w - 1)
-    sy = np.clip(np.round(map_y).astype(np.int32), 0, h - 1)
-    cav = mouth_b[y0:y1, x0:x1] & sub & ~plan.neutral_mouth[sy, sx]
-    if cav.any():
-        region = out[y0:y1, x0:x1]
-        region[cav] = _cavity(dst, plan.holes["mouth"], x0, y0, cav.shape)[cav]
-    return WarpResult(out, mouth_b, eyes.astype(bool), (x0, y0, x1, y1))
+    mouth = ids == T + 1 + LAYERS.index("mouth")
+    eyes = (ids == T + 1) | (ids == T + 2)
+    # mouth pixels whose source lies outside the photo's own opening: the dark cavity
+    yy, xx = np.nonzero(mouth)
+    if len(yy):
+        sx = np.clip(np.rint(map_x[yy, xx]).astype(np.int32), 0, w - 1)
+        sy = np.clip(np.rint(map_y[yy, xx]).astype(np.int32), 0, h - 1)
+        dark = ~plan.neutral_mouth[sy, sx]
+        if dark.any():
+            yy, xx = yy[dark], xx[dark]
+            out[y0 + yy, x0 + xx] = _cavity(dst, plan.holes["mouth"], x0 + xx, y0 + yy)
+    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes)
 
 
-def _cavity(dst: np.ndarray, loop: np.ndarray, x0: int, y0: int,
-            shape: tuple[int, int]) -> np.ndarray:
-    """A dark mouth cavity, lighter near the lips and darker towards the throat."""
+def _cavity(dst: np.ndarray, loop: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Colours (n, 3) of a dark mouth cavity at pixels (xs, ys): lighter near the lips."""
     poly = dst[loop]
     cx, cy = poly.mean(0)
     half_w = max(float(np.ptp(poly[:, 0])) / 2.0, 1.0)
     half_h = max(float(np.ptp(poly[:, 1])) / 2.0, 1.0)
-    ys, xs = np.mgrid[y0:y0 + shape[0], x0:x0 + shape[1]].astype(np.float32)
     r = np.sqrt(((xs - cx) / half_w) ** 2 + ((ys - cy) / half_h) ** 2)
-    shade = np.clip(0.35 + 0.65 * r, 0.35, 1.0)[..., None]
+    shade = np.clip(0.35 + 0.65 * r, 0.35, 1.0)[:, None]
     return (CAVITY_RGB * shade).astype(np.uint8)

@@ -40,6 +40,13 @@ _DEPTH = {
 _NONLINEAR = {23, 24, 25, 26, 27, 28, 29, 30, 47, 48, 49, 50}
 _NONLINEAR_IDX = np.array(sorted(x - 1 for x in _NONLINEAR))
 
+#: Inner/outer lip FAP pairs that drive (almost) the same part of the lips. Alone, each moves
+#: its own point by value x FAPU; together, the part of the face both reach is moved by the
+#: larger common value once, not twice: D = w_in v_in + w_out v_out - min(w_in, w_out) m, with
+#: m the common same-sign part of the two values (0 when their signs differ).
+LIP_PAIRS = np.array([(4, 51), (5, 52), (6, 53), (7, 54), (8, 55), (9, 56), (10, 57), (11, 58),
+                      (12, 59), (13, 60)]) - 1
+
 
 @dataclass(frozen=True, eq=False)
 class DeformPlan:
@@ -55,6 +62,7 @@ class DeformPlan:
 
     neutral: np.ndarray
     basis: np.ndarray
+    pair_basis: np.ndarray  # (10, N*2) shared influence of the inner/outer lip FAP pairs
     n_vertices: int
     triangles: np.ndarray
     incidence: np.ndarray  # (V, maxdeg) triangle ids, padded with T (a dummy)
@@ -105,6 +113,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
         fdp_pos[k] = P[V + i]
     N = len(P)
     basis = np.zeros((68, N, 2), np.float64)
+    single_w: dict[int, np.ndarray] = {}
     for f in FAPS.values():
         if f.number < 3 or f.number in _NONLINEAR:
             continue
@@ -117,13 +126,20 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
             else:
                 w = weights(rects[fdp], fdp_pos[fdp], P, sides, movable_lin)
             basis[f.number - 1] += unit * w[:, None] * np.array([dx, dy])[None, :]
+            single_w[f.number - 1] = w
     # tongue points follow the jaw (they sit behind the lower teeth)
     tongue = np.arange(V + 2, N)
     basis[2, tongue] = basis[2, mesh.fdp["2.1"]]
     basis[13, tongue] += basis[13, mesh.fdp["2.1"]]
     basis[14, tongue] = basis[14, mesh.fdp["2.1"]]
+    pair_basis = np.zeros((len(LIP_PAIRS), N, 2))
+    for k, (a, b) in enumerate(LIP_PAIRS):
+        fa = FAPS[int(a) + 1]
+        shared = np.minimum(single_w[int(a)], single_w[int(b)])
+        pair_basis[k] = fapu[fa.unit] * shared[:, None] * np.array(_DIRS[fa.direction])[None, :]
     # frame -> image directions
     basis = basis @ frame.rot.T
+    pair_basis = pair_basis @ frame.rot.T
 
     # head rotation: face 1, margin 0.4, border 0; dome depth for pitch/yaw
     head_w = np.where(regions == "border", 0.0, np.where(regions == "margin", 0.4, 1.0))
@@ -148,6 +164,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     return DeformPlan(
         neutral=pts_img.astype(np.float32),
         basis=basis.astype(np.float32),
+        pair_basis=pair_basis.reshape(len(LIP_PAIRS), -1),
         n_vertices=V,
         triangles=tri,
         incidence=inc,
@@ -288,7 +305,12 @@ def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
     f = np.atleast_2d(f)
     B = f.shape[0]
     n0 = plan.neutral64
-    lin = (f @ plan.basis_flat).reshape(B, -1, 2)  # (B, N, 2)
+    lin = f @ plan.basis_flat
+    va, vb = f[:, LIP_PAIRS[:, 0]], f[:, LIP_PAIRS[:, 1]]
+    common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
+    if common.any():
+        lin -= common @ plan.pair_basis
+    lin = lin.reshape(B, -1, 2)  # (B, N, 2)
     pos = n0[None] + lin
     _pair_rule(plan, pos)
     if f[:, _NONLINEAR_IDX].any():

@@ -158,7 +158,7 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         # brows
         inner_e, outer_e = (f"brow_{s}_e0", f"brow_{s}_e1") if s == "l" else (
             f"brow_{s}_e1", f"brow_{s}_e0")
-        fh_top = Y("forehead_2_4")
+        fh_top = Y("hair_6")  # the forehead up to the hairline absorbs a brow raise
         eye_top = Y(f"eye_{s}_u3")
         b_in, b_mid, b_out = (("4.1", "4.3", "4.5") if s == "l" else ("4.2", "4.4", "4.6"))
         # the brow body (upper to lower edge) moves as a whole: a plateau across its thickness

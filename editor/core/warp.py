@@ -59,6 +59,16 @@ class WarpPlan:
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self.neutral_mouth = m.astype(bool)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
+        # source bounding box of every triangle (+1 px), to clamp the edge pixels that the
+        # rasterizer assigns to a triangle although their centre is just outside it: for a
+        # thin, stretched triangle the affine map would extrapolate them far away (speckles)
+        se = self._src_tri[:, 1:] - self._src_tri[:, :1]
+        self._src_area = np.maximum(
+            np.abs(se[:, 0, 0] * se[:, 1, 1] - se[:, 0, 1] * se[:, 1, 0]), 1e-9)
+        lo = self._src_tri.min(1) - 1.0
+        hi = self._src_tri.max(1) + 1.0
+        full = np.array([[-1.0, -1.0, w + 1.0, h + 1.0]] * (1 + 3))  # identity row + layers
+        self._src_box = np.vstack([np.hstack([lo, hi]), full]).astype(np.float32)
 
 
 @dataclass
@@ -137,9 +147,16 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         cv2.fillPoly(ids, [poly], T + 1 + k, cv2.LINE_8, _SHIFT)
         fwd = layers.get(name, _IDENTITY) if layers else _IDENTITY
         table[T + 1 + k] = cv2.invertAffineTransform(np.asarray(fwd, np.float64)).reshape(-1)
+    # Draw the most compressed triangles first: the rasterizer also gives a triangle the pixels
+    # its edges touch, and the last triangle drawn keeps them. Well-conditioned neighbours drawn
+    # later then own the shared boundary pixels, so a squashed triangle's large inverse gain
+    # never extrapolates them (which shows as one-pixel lines along its edges).
+    e = tri_pts[:, 1:] - tri_pts[:, :1]
+    dst_area = np.abs(e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0])
+    order = np.argsort(dst_area / plan._src_area[moved_t], kind="stable")
     fill = cv2.fillConvexPoly
-    for q, t in zip(np.round((tri_pts - off) * _ONE).astype(np.int32), moved_t.tolist(),
-                    strict=True):
+    q_all = np.round((tri_pts[order] - off) * _ONE).astype(np.int32)
+    for q, t in zip(q_all, moved_t[order].tolist(), strict=True):
         fill(ids, q, t, cv2.LINE_8, _SHIFT)
 
     # inverse affine per moved triangle (destination -> source), closed form: with edge
@@ -176,6 +193,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     map_y = cy[..., 0] * xs
     map_y += cy[..., 1] * ys
     map_y += cy[..., 2]
+    box = cv2.remap(np.ascontiguousarray(plan._src_box[None]), fid, zero, cv2.INTER_NEAREST)
+    np.clip(map_x, box[..., 0], box[..., 2], out=map_x)
+    np.clip(map_y, box[..., 1], box[..., 3], out=map_y)
     out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
                                   borderMode=cv2.BORDER_REPLICATE)
 

@@ -95,23 +95,24 @@ def cmd_mesh(a: argparse.Namespace) -> int:
 
 
 def cmd_render(a: argparse.Namespace) -> int:
+    from .anim_cli import preset_vector
     from .core import FAPS, save_image
 
     faps = _fap_pairs(a.fap)
     try:
-        FAPS.vector(faps)
+        vec = preset_vector(a.preset) + FAPS.vector(faps)
     except ValueError as e:
         raise FapStudioError(str(e)) from e
     face = _load_face(a.photo)
-    save_image(a.output, face.render(faps))
+    save_image(a.output, face.render(vec))
     if a.mesh_json:
-        v, extra = face.deform_all(faps)
+        v, extra = face.deform_all(vec)
         data = _mesh_json(face, v)
         data["vertices_neutral"] = _mesh_json(face)["vertices"]
         data["fdp_neutral"] = _mesh_json(face)["fdp"]
         data["fdp"].update({k: [round(float(p[0]), 3), round(float(p[1]), 3)]
                             for k, p in extra.items()})
-        data["faps"] = {FAPS[k].name: v for k, v in faps.items()}
+        data["faps"] = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
         _write_json(a.mesh_json, data)
     return 0
 
@@ -158,6 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("photo")
     s.add_argument("--fap", action="append", metavar="NAME=VALUE",
                    help="FAP by name or number and its value in FAPU (repeatable)")
+    s.add_argument("--preset", action="append", metavar="NAME[:INTENSITY]",
+                   help="emotion or viseme preset, intensity 0-1.5 (repeatable; adds up)")
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--mesh-json", help="write the neutral and deformed mesh as JSON")
     s.set_defaults(func=cmd_render)
@@ -169,7 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--screenshot", help="save a screenshot of the window and exit")
     s.set_defaults(func=cmd_gui)
 
-    for mod, fn in (("study_cli", "add_study_parser"), ("bilinear_cli", "add_bilinear_parser")):
+    for mod, fn in (("anim_cli", "add_anim_parser"), ("study_cli", "add_study_parser"),
+                    ("bilinear_cli", "add_bilinear_parser")):
         try:
             module = __import__(f"editor.{mod}", fromlist=[fn])
         except ImportError:  # pragma: no cover

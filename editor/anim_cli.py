@@ -1,0 +1,122 @@
+"""CLI commands for presets, .fap files and animation: ``animate``, ``fap export``, ``fap info``.
+
+``render --preset`` lives in :mod:`editor.cli`; this module registers the rest.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from .core.errors import FapStudioError
+
+
+def parse_preset(spec: str) -> tuple[str, float]:
+    """``joy`` or ``joy:0.8`` -> (name, intensity)."""
+    name, _, inten = spec.partition(":")
+    if not name:
+        raise FapStudioError(f"--preset {spec!r}: expected NAME or NAME:INTENSITY")
+    try:
+        value = float(inten) if inten else 1.0
+    except ValueError as e:
+        raise FapStudioError(f"--preset {spec!r}: {inten!r} is not a number") from e
+    if not 0.0 <= value <= 1.5:
+        raise FapStudioError(f"--preset {spec!r}: intensity must be within 0 … 1.5")
+    return name, value
+
+
+def preset_vector(specs: list[str] | None) -> np.ndarray:
+    """Sum of presets ``NAME[:INTENSITY]`` as a (68,) vector (clamped)."""
+    from .core.expressions import apply_preset, get_preset
+    from .core.faps import FAPS
+
+    total = np.zeros(68, np.float32)
+    for spec in specs or []:
+        name, value = parse_preset(spec)
+        total += apply_preset(get_preset(name), value)
+    return FAPS.clamp(total)
+
+
+class _Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, label: str) -> None:
+        self.label = label
+        self.t0 = time.perf_counter()
+
+    def __call__(self, done: int, total: int) -> bool:
+        width = 30
+        k = int(width * done / max(total, 1))
+        rate = done / max(time.perf_counter() - self.t0, 1e-6)
+        sys.stderr.write(f"\r{self.label} [{'#' * k}{'.' * (width - k)}] {done}/{total} "
+                         f"{rate:.0f} frames/s")
+        if done == total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+        return True
+
+
+def cmd_animate(a: argparse.Namespace) -> int:
+    from .core import Face
+    from .core.fapfile import read_fap
+    from .core.video import export_sequence
+
+    seq = read_fap(a.fap_file)
+    face = Face.from_image(a.photo)
+    res = export_sequence(face, seq, a.output, progress=None if a.quiet else _Progress("render"))
+    print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
+    return 0
+
+
+def cmd_fap_export(a: argparse.Namespace) -> int:
+    from .core.expressions import sequence_from_keyframes
+    from .core.fapfile import FapSequence, write_fap
+
+    vec = preset_vector(a.preset)
+    if a.keyframes:
+        # neutral -> expression -> neutral over the given duration
+        d = a.duration
+        seq = sequence_from_keyframes([(0.0, np.zeros(68, np.float32)), (d / 2, vec),
+                                       (d, np.zeros(68, np.float32))], fps=a.fps,
+                                      interpolation="smoothstep", name=a.name)
+    else:
+        seq = FapSequence.single(vec, fps=a.fps, frames=a.frames, name=a.name)
+    write_fap(seq, a.output)
+    print(f"{seq.n_frames} frames at {a.fps:g} fps -> {a.output}", file=sys.stderr)
+    return 0
+
+
+def cmd_fap_info(a: argparse.Namespace) -> int:
+    from .core.expressions import fap_info
+    from .core.fapfile import read_fap
+
+    print(fap_info(read_fap(a.fap_file)))
+    return 0
+
+
+def add_anim_parser(sub) -> None:
+    s = sub.add_parser("animate", help="render a .fap sequence on a photo to MP4 or PNG frames")
+    s.add_argument("photo")
+    s.add_argument("fap_file")
+    s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_animate)
+
+    f = sub.add_parser("fap", help=".fap files: export presets, show information")
+    fs = f.add_subparsers(dest="fap_command", metavar="COMMAND")
+    e = fs.add_parser("export", help="write a preset (or a mix) as a .fap file")
+    e.add_argument("--preset", action="append", required=True, metavar="NAME[:INTENSITY]")
+    e.add_argument("--frames", type=int, default=1, help="frames holding the expression")
+    e.add_argument("--fps", type=float, default=25.0)
+    e.add_argument("--keyframes", action="store_true",
+                   help="neutral -> expression -> neutral over --duration seconds")
+    e.add_argument("--duration", type=float, default=2.0)
+    e.add_argument("--name", default="fap-studio")
+    e.add_argument("-o", "--output", required=True)
+    e.set_defaults(func=cmd_fap_export)
+    i = fs.add_parser("info", help="version, name, fps, frames and the FAPs a file uses")
+    i.add_argument("fap_file")
+    i.set_defaults(func=cmd_fap_info)

@@ -1,0 +1,71 @@
+"""Presets on the command line, .fap export/info, and rendering sequences to video/PNG."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from conftest import SAMPLE
+
+from editor.core import FapStudioError, load_image
+from editor.core.expressions import apply_preset, get_preset
+from editor.core.fapfile import FapSequence, read_fap
+from editor.core.video import export_sequence
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "editor", *args], capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_render_preset_equals_api(tmp_path, sample_face):
+    r = _cli("render", str(SAMPLE), "--preset", "joy:0.8", "-o", str(tmp_path / "j.png"))
+    assert r.returncode == 0, r.stderr
+    expected = sample_face.render(apply_preset(get_preset("joy"), 0.8))
+    assert np.array_equal(load_image(tmp_path / "j.png"), expected)
+    assert not np.array_equal(expected, sample_face.image)
+
+
+def test_bad_preset_is_one_line_error(tmp_path):
+    for spec in ("nope", "joy:2", "joy:x"):
+        r = _cli("render", str(SAMPLE), "--preset", spec, "-o", str(tmp_path / "x.png"))
+        assert r.returncode == 2 and r.stderr.startswith("fap-studio: error:"), spec
+        assert "Traceback" not in r.stderr
+
+
+def test_fap_export_info_and_animate(tmp_path):
+    fap = tmp_path / "joy.fap"
+    r = _cli("fap", "export", "--preset", "joy", "--keyframes", "--duration", "0.4", "--fps",
+             "25", "-o", str(fap))
+    assert r.returncode == 0, r.stderr
+    seq = read_fap(fap)
+    assert seq.n_frames == 11 and seq.fps == 25
+    peak = seq.frames[5]
+    assert np.allclose(peak, np.round(apply_preset(get_preset("joy"), 1.0)), atol=1)
+    assert not seq.frames[0].any() and not seq.frames[-1].any()
+    r = _cli("fap", "info", str(fap))
+    assert r.returncode == 0 and "frames:   11" in r.stdout and "open_jaw" in r.stdout
+    r = _cli("animate", str(SAMPLE), str(fap), "-o", str(tmp_path / "a.mp4"))
+    assert r.returncode == 0, r.stderr
+    cap = cv2.VideoCapture(str(tmp_path / "a.mp4"))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 11
+    assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(25)
+    ok, frame = cap.read()
+    assert ok and frame.shape == (512, 512, 3)
+
+
+def test_export_png_frames_and_cancel(tmp_path, sample_face):
+    vec = apply_preset(get_preset("surprise"), 1.0)
+    seq = FapSequence.single(vec, fps=10, frames=4)
+    res = export_sequence(sample_face, seq, tmp_path / "frames")
+    assert res.frames == 4 and not res.cancelled
+    files = sorted((tmp_path / "frames").glob("frame_*.png"))
+    assert len(files) == 4
+    assert np.array_equal(load_image(files[0]), sample_face.render(seq.frames[0]))
+    res = export_sequence(sample_face, seq, tmp_path / "c.mp4", progress=lambda d, n: d < 2)
+    assert res.cancelled and res.frames == 2 and not (tmp_path / "c.mp4").exists()
+    with pytest.raises(FapStudioError):
+        export_sequence(sample_face, seq, "/proc/forbidden/out")

@@ -125,6 +125,10 @@ def test_exif_orientation_is_applied(tmp_path):
     (tmp_path / "r.jpg").write_bytes(data[:2] + app1 + data[2:])
     out = load_image(tmp_path / "r.jpg")
     assert out.shape == rgb.shape
+    # upright again (JPEG is lossy: compare the mean difference, and against the wrong turn)
+    right = np.abs(out.astype(int) - rgb).mean()
+    assert right < 6.0
+    assert np.abs(np.rot90(out, 2).astype(int) - rgb).mean() > 3 * right
 
 
 def test_bad_inputs(tmp_path):

@@ -2,8 +2,8 @@
 
 Besides the argparse sub-command (:func:`add_study_parser`) this module holds the study builders
 and the CSV export that both the CLI and the rating panel use: :func:`from_folder` (images + a
-CSV of true labels), :func:`create_from_renders` (already-rendered faces x presets; the CLI route
-that renders them is not wired yet) and :func:`export_answers_csv` (long format).
+CSV of true labels), :func:`create_from_renders` (rendered faces x presets, see
+:func:`render_stimuli`) and :func:`export_answers_csv` (long format).
 (They live here rather than in ``editor/core/mos.py`` to keep that module under 400 lines.)
 """
 
@@ -136,12 +136,55 @@ def _guarded(handler: Callable[[argparse.Namespace], int]) -> Callable[[argparse
     return run
 
 
+#: The paper's design (SPEC §4): these five expressions on every face, full intensity.
+PAPER_EXPRESSIONS = ("joy", "sadness", "anger", "fear", "surprise")
+
+
+def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
+                   intensities: Sequence[float]) -> list[tuple[str, str, float, np.ndarray]]:
+    """Render faces x presets x intensities: (face name, expression, intensity, RGB image)."""
+    from editor.core import Face
+    from editor.core.expressions import apply_preset, get_preset
+
+    out = []
+    names: set[str] = set()
+    for path in faces:
+        face = Face.from_image(path)
+        name = Path(path).stem
+        while name in names:
+            name += "_"
+        names.add(name)
+        for p in presets:
+            preset = get_preset(p)
+            for k in intensities:
+                out.append((name, preset.name, float(k), face.render(apply_preset(preset, k))))
+    return out
+
+
 @_guarded
 def _cmd_create(args: argparse.Namespace) -> int:
-    """``study create STUDY.db --folder DIR --labels-csv CSV``."""
+    """``study create STUDY.db (--folder DIR --labels-csv CSV | --faces PHOTO ... [--presets])``."""
     labels = None if args.labels is None else [x.strip() for x in args.labels.split(",")]
-    study = from_folder(args.study, args.folder, args.labels_csv, name=args.name, labels=labels,
-                        allow_revise=args.allow_revise, break_every=args.break_every)
+    if (args.folder is None) == (not args.faces):
+        raise StudyError("give either --folder with --labels-csv, or --faces (render route)")
+    if args.faces:
+        presets = [x.strip() for x in args.presets.split(",") if x.strip()]
+        try:
+            ks = [float(x) for x in args.intensities.split(",") if x.strip()]
+        except ValueError as e:
+            raise StudyError(f"--intensities {args.intensities!r}: not a list of numbers") from e
+        if not ks or any(not 0 <= k <= 1.5 for k in ks):
+            raise StudyError("--intensities must be numbers within 0 … 1.5")
+        renders = render_stimuli(args.faces, presets, ks)
+        study = create_from_renders(args.study, args.name or Path(args.study).stem,
+                                    labels or presets, renders, args.allow_revise,
+                                    args.break_every)
+    else:
+        if args.labels_csv is None:
+            raise StudyError("--folder needs --labels-csv")
+        study = from_folder(args.study, args.folder, args.labels_csv, name=args.name,
+                            labels=labels, allow_revise=args.allow_revise,
+                            break_every=args.break_every)
     with study:
         print(f"created study {study.name!r} in {study.path}: {len(study.stimuli())} stimuli, "
               f"labels {', '.join(study.labels)} (+ cannot tell)")
@@ -186,10 +229,18 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
     """
     study = subparsers.add_parser("study", help="MOS rating studies: create, report, export")
     sub = study.add_subparsers(dest="study_command", required=True, metavar="COMMAND")
-    create = sub.add_parser("create", help="create a study from a folder of images + labels CSV")
+    create = sub.add_parser(
+        "create", help="create a study: render faces x presets x intensities (default: the "
+        "paper's five expressions), or from a folder of images + labels CSV")
     create.add_argument("study", type=Path, help="new study database (must not exist)")
-    create.add_argument("--folder", type=Path, required=True, help="folder of stimulus images")
-    create.add_argument("--labels-csv", type=Path, required=True,
+    create.add_argument("--faces", nargs="+", metavar="PHOTO",
+                        help="neutral face photos to render the stimuli from")
+    create.add_argument("--presets", default=",".join(PAPER_EXPRESSIONS),
+                        help="comma-separated presets (default: %(default)s)")
+    create.add_argument("--intensities", default="1.0",
+                        help="comma-separated preset intensities 0-1.5 (default 1.0)")
+    create.add_argument("--folder", type=Path, help="folder of stimulus images")
+    create.add_argument("--labels-csv", type=Path,
                         help="CSV with columns file,label[,face,intensity]")
     create.add_argument("--name", help="study name (default: the database file's stem)")
     create.add_argument("--labels", help="comma-separated labels in display order "

@@ -1,0 +1,33 @@
+"""The render route of ``study create``: faces x presets x intensities, stored in the study."""
+
+from __future__ import annotations
+
+import argparse
+
+import cv2
+import numpy as np
+from conftest import SAMPLE
+
+from editor.core.expressions import apply_preset, get_preset
+from editor.core.mos import Study
+from editor.study_cli import PAPER_EXPRESSIONS, add_study_parser
+
+
+def test_paper_design_from_one_face(tmp_path, sample_face):
+    p = argparse.ArgumentParser()
+    add_study_parser(p.add_subparsers())
+    db = tmp_path / "s.db"
+    a = p.parse_args(["study", "create", str(db), "--faces", str(SAMPLE), "--intensities",
+                      "0.5,1"])
+    assert a.func(a) == 0
+    with Study.open(db) as s:
+        stim = s.stimuli()
+        assert s.labels == list(PAPER_EXPRESSIONS)
+        assert len(stim) == 5 * 2
+        joy = next(x for x in stim if x.label == "joy" and x.intensity == 1.0)
+        data = np.frombuffer(s.image_bytes(joy.id), np.uint8)
+        img = cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        assert np.array_equal(img, sample_face.render(apply_preset(get_preset("joy"), 1.0)))
+    bad = p.parse_args(["study", "create", str(tmp_path / "t.db"), "--faces", str(SAMPLE),
+                        "--intensities", "3"])
+    assert bad.func(bad) == 2 and not (tmp_path / "t.db").exists()

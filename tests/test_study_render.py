@@ -22,7 +22,7 @@ def test_paper_design_from_one_face(tmp_path, sample_face):
     assert a.func(a) == 0
     with Study.open(db) as s:
         stim = s.stimuli()
-        assert s.labels == list(PAPER_EXPRESSIONS)
+        assert tuple(s.labels) == PAPER_EXPRESSIONS
         assert len(stim) == 5 * 2
         joy = next(x for x in stim if x.label == "joy" and x.intensity == 1.0)
         data = np.frombuffer(s.image_bytes(joy.id), np.uint8)

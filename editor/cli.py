@@ -122,7 +122,16 @@ def cmd_gui(a: argparse.Namespace) -> int:
         from .ui.app import run
     except ImportError as e:  # pragma: no cover - depends on the installation
         raise FapStudioError(f"the editor window is not available ({e})") from e
-    return run(photo=a.photo, faps=_fap_pairs(a.fap), screenshot=a.screenshot,
+    from .anim_cli import preset_vector
+    from .core import FAPS
+
+    faps = _fap_pairs(a.fap)
+    try:
+        vec = preset_vector(a.preset) + FAPS.vector(faps)
+    except ValueError as e:
+        raise FapStudioError(str(e)) from e
+    named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
+    return run(photo=a.photo, faps=named, screenshot=a.screenshot,
                project=getattr(a, "project", None))
 
 
@@ -168,6 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("gui", help="open the editor window")
     s.add_argument("photo", nargs="?")
     s.add_argument("--fap", action="append", metavar="NAME=VALUE")
+    s.add_argument("--preset", action="append", metavar="NAME[:INTENSITY]")
     s.add_argument("--project", help="open a project file")
     s.add_argument("--screenshot", help="save a screenshot of the window and exit")
     s.set_defaults(func=cmd_gui)

@@ -36,3 +36,15 @@ def jaffe_faces():
     if len(paths) < 5:
         pytest.skip("../shared/data/jaffe is not available")
     return [Face.from_image(p) for p in paths]
+
+
+@pytest.fixture
+def isolated_settings(tmp_path):
+    """Point QSettings (INI format) at a folder under ``tmp_path``, never the user's."""
+    from PySide6.QtCore import QSettings
+
+    folder = tmp_path / "settings"
+    QSettings.setDefaultFormat(QSettings.Format.IniFormat)
+    QSettings.setPath(QSettings.Format.IniFormat, QSettings.Scope.UserScope, str(folder))
+    QSettings.setPath(QSettings.Format.IniFormat, QSettings.Scope.SystemScope, str(folder))
+    return folder

@@ -1,0 +1,144 @@
+"""Starting the editor: ``run()`` opens the window (or saves a headless screenshot).
+
+``fap-studio`` (no argument) and ``fap-studio gui [PHOTO] [--fap NAME=VALUE ...]
+[--screenshot out.png]`` call :func:`run`.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import traceback
+from pathlib import Path
+from types import TracebackType
+
+from PySide6.QtCore import QEventLoop
+from PySide6.QtWidgets import QApplication, QMessageBox
+
+from .main_window import MainWindow
+from .qt_utils import APPLICATION, ORGANIZATION, settings
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE_FACE = ROOT / "resources" / "sample_face.png"
+SCREENSHOT_SIZE = (1400, 860)
+
+
+def application() -> QApplication:
+    """The QApplication (created on first use) with FAP Studio's names set."""
+    app = QApplication.instance()
+    if app is None:
+        app = QApplication(sys.argv[:1])
+    assert isinstance(app, QApplication)
+    app.setOrganizationName(ORGANIZATION)
+    app.setApplicationName(APPLICATION)
+    app.setApplicationDisplayName(APPLICATION)
+    return app
+
+
+def _excepthook(kind: type[BaseException], value: BaseException,
+                tb: TracebackType | None) -> None:
+    """Unexpected errors in a slot: print them and tell the user; never abort."""
+    traceback.print_exception(kind, value, tb)
+    app = QApplication.instance()
+    if isinstance(app, QApplication) and app.activeWindow() is not None:
+        QMessageBox.critical(app.activeWindow(), "Unexpected error",
+                             f"{kind.__name__}: {value}\n\nFAP Studio keeps running; saving "
+                             "your work is recommended.")
+
+
+def _pump(app: QApplication, seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 20)
+        time.sleep(0.005)
+
+
+def open_initial(window: MainWindow, photo: str | None = None,
+                 project: str | None = None) -> bool:
+    """Open what the editor starts with: ``project``, else ``photo``, else the last project
+    (QSettings ``lastProject``), else the bundled sample face. False if the requested file
+    could not be opened (the sample face is shown instead, after an error message)."""
+    ok = True
+    if project is not None:
+        ok = window.docs.open_project(project, ask=False)
+    elif photo is not None:
+        ok = window.docs.open_photo(photo, ask=False)
+    else:
+        last = str(settings().value("lastProject", "") or "")
+        if last and Path(last).is_file():
+            window.docs.open_project(last, ask=False)
+    if window.model.doc is None:
+        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False) and ok
+    return ok
+
+
+def run(photo: str | None = None, faps: dict[str, float] | None = None,
+        screenshot: str | None = None, project: str | None = None) -> int:
+    """Open the editor window; returns the exit code.
+
+    Parameters
+    ----------
+    photo : a neutral frontal photo to open; without ``photo`` and ``project``, the last
+        project saved or opened (QSettings), else the bundled sample face
+    faps : FAP name (or number) -> value in FAPU, applied after opening (one undo step)
+    screenshot : if given, lay the window out (offscreen works), render, save a PNG of the
+        whole window there and return 0 without entering the event loop
+    project : a project file to open (takes precedence over ``photo``)
+
+    A file that cannot be opened is reported (message box, or stderr and exit code 2 when
+    headless); the interactive window then shows the sample face.
+    """
+    app = application()
+    headless = screenshot is not None
+    window = MainWindow()
+
+    def fail(message: str) -> int:
+        print(f"fap-studio: error: {message}", file=sys.stderr)
+        window.close_without_prompt()
+        return 2
+
+    if headless:  # no dialogs (errors go to stderr), no recent files
+        window.docs.remember = False
+        window.docs.error = lambda _title, msg: print(f"fap-studio: error: {msg}",
+                                                      file=sys.stderr)
+    ok = open_initial(window, photo, project)
+    if not ok and headless:
+        return fail(f"cannot open {project or photo or SAMPLE_FACE}")
+    if faps:
+        try:
+            window.model.set_faps(faps, "Apply FAPs")
+        except ValueError as e:
+            if headless:
+                return fail(str(e))
+            QMessageBox.warning(window, "Cannot apply the FAPs", str(e))
+
+    if headless:
+        return _screenshot(app, window, str(screenshot))
+    sys.excepthook = _excepthook
+    window.restore_layout()
+    window.show()
+    return app.exec()
+
+
+def _screenshot(app: QApplication, window: MainWindow, path: str) -> int:
+    window.resize(*SCREENSHOT_SIZE)
+    window.show()
+    _pump(app, 0.15)
+    window.canvas.fit_face()
+    rendered = window.scheduler.wait(15000)
+    _pump(app, 0.15)
+    image = window.grab()
+    window.close_without_prompt()
+    if not rendered:
+        print("fap-studio: error: the preview did not render in time", file=sys.stderr)
+        return 2
+    out = Path(path)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        print(f"fap-studio: error: {out}: cannot write ({e.strerror or e})", file=sys.stderr)
+        return 2
+    if not image.save(str(out), "PNG"):
+        print(f"fap-studio: error: {out}: cannot write the screenshot", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,277 @@
+"""The editor's single source of truth: an immutable ``Document`` and the ``DocumentModel``.
+
+A :class:`Document` is a frozen snapshot (photo path, edited neutral mesh, FAP vector) whose
+arrays are read-only, so undo keeps two references per command and a render request needs no
+lock. The :class:`DocumentModel` holds the current snapshot, the fitted :class:`Face` of the
+photo, and a ``QUndoStack``; every change goes through it and is announced once as
+``changed(old, new)``. Gestures (slider or vertex drags) preview freely and push one command on
+release.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+from PySide6.QtGui import QUndoStack
+
+from editor.core import FAPS, Face, signed_areas
+
+from .commands import SetDocument
+
+
+def _frozen(a: object, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``a`` as a read-only C-contiguous float32 array (the same object if it already is one)."""
+    arr = np.asarray(a, np.float32)
+    if arr.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, arr.shape,
+                                                                              strict=True)):
+        raise ValueError(f"expected an array of shape {shape}, got {arr.shape}")
+    if arr.flags.writeable or not arr.flags.c_contiguous or arr is not a:
+        arr = np.array(arr, np.float32, order="C")
+        arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Document:
+    """One state of the editor.
+
+    Attributes
+    ----------
+    photo : str | None
+        Path of the neutral frontal photo.
+    vertices : (V, 2) float32, read-only
+        The neutral personalized mesh (possibly edited), image pixels (x, y), y down.
+    faps : (68,) float32, read-only
+        FAP values in FAPU (index i = FAP i + 1), clamped to the FAP table's ranges.
+    """
+
+    photo: str | None
+    vertices: np.ndarray
+    faps: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vertices", _frozen(self.vertices, (None, 2)))
+        object.__setattr__(self, "faps", _frozen(self.faps, (68,)))
+
+    @classmethod
+    def neutral(cls, face: Face) -> Document:
+        """The fitted mesh of ``face`` with every FAP at 0."""
+        return cls(face.source, face.vertices, np.zeros(68, np.float32))
+
+    def replace(self, **changes: object) -> Document:
+        return dataclasses.replace(self, **changes)
+
+    def equals(self, other: Document | None) -> bool:
+        """Same photo, mesh and FAP values (array ``==`` is ambiguous, hence a method)."""
+        if other is self:
+            return True
+        return (other is not None and self.photo == other.photo
+                and np.array_equal(self.vertices, other.vertices)
+                and np.array_equal(self.faps, other.faps))
+
+    def fap(self, key: object) -> float:
+        """Value of one FAP (name or number) in FAPU."""
+        return float(self.faps[FAPS.number(key) - 1])
+
+    def with_faps(self, values: Mapping[object, float]) -> Document:
+        """A copy with some FAPs set (names or numbers), clamped; ``self`` if nothing changes."""
+        v = self.faps.copy()
+        for key, val in values.items():
+            v[FAPS.number(key) - 1] = float(val)
+        v = FAPS.clamp(v)
+        return self if np.array_equal(v, self.faps) else self.replace(faps=v)
+
+    def with_fap_vector(self, faps: np.ndarray) -> Document:
+        v = FAPS.clamp(FAPS.vector(np.asarray(faps, np.float32)))
+        return self if np.array_equal(v, self.faps) else self.replace(faps=v)
+
+    def with_vertex(self, index: int, xy: tuple[float, float] | np.ndarray) -> Document:
+        """A copy with one neutral mesh vertex moved to ``xy`` (image pixels)."""
+        v = self.vertices.copy()
+        v[index] = np.asarray(xy, np.float32)
+        return self if np.array_equal(v, self.vertices) else self.replace(vertices=v)
+
+
+class DocumentModel(QObject):
+    """Current document, its face, the undo stack and gestures.
+
+    Signals
+    -------
+    changed(old, new)
+        After every change of the current document (``old`` is None after a load: views
+        refresh everything).
+    loaded()
+        A new photo or project replaced the document (views reset the image and fit).
+    pathChanged(str)
+        The project file path changed ('' for an unsaved document).
+    """
+
+    changed = Signal(object, object)
+    loaded = Signal()
+    pathChanged = Signal(str)
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.undo_stack = QUndoStack(self)
+        self._doc: Document | None = None
+        self._fitted: Face | None = None
+        self._faces: OrderedDict[int, tuple[np.ndarray, Face]] = OrderedDict()
+        self._start: Document | None = None
+        self._path: str | None = None
+
+    # ------------------------------------------------------------------ state
+    @property
+    def doc(self) -> Document | None:
+        return self._doc
+
+    @property
+    def fitted(self) -> Face | None:
+        """The face as detected and fitted (target of *Reset mesh*)."""
+        return self._fitted
+
+    @property
+    def face(self) -> Face | None:
+        """The face for the current (possibly edited) mesh: FAPU and rendering follow it."""
+        return None if self._doc is None else self.face_for(self._doc.vertices)
+
+    @property
+    def path(self) -> str | None:
+        """Project file of the document, None until it is saved or opened as a project."""
+        return self._path
+
+    def set_path(self, path: str | None) -> None:
+        self._path = path
+        self.pathChanged.emit(path or "")
+
+    def is_dirty(self) -> bool:
+        return not self.undo_stack.isClean()
+
+    def mark_clean(self) -> None:
+        self.undo_stack.setClean()
+
+    def face_for(self, vertices: np.ndarray) -> Face:
+        """A Face for a neutral mesh (cached by array identity; arrays are read-only)."""
+        assert self._fitted is not None
+        hit = self._faces.get(id(vertices))
+        if hit is not None and hit[0] is vertices:
+            self._faces.move_to_end(id(vertices))
+            return hit[1]
+        if np.array_equal(vertices, self._fitted.vertices):
+            face = self._fitted
+        else:
+            face = self._fitted.with_vertices(vertices)
+        self._faces[id(vertices)] = (vertices, face)
+        while len(self._faces) > 8:
+            self._faces.popitem(last=False)
+        return face
+
+    # ------------------------------------------------------------------ loading
+    def load(self, face: Face, doc: Document | None = None, path: str | None = None) -> None:
+        """Replace the document by a new photo (``doc`` None) or a project's document.
+
+        The undo history is cleared and the new document is clean.
+        """
+        doc = doc if doc is not None else Document.neutral(face)
+        if doc.vertices.shape != face.vertices.shape:
+            raise ValueError(f"the mesh has {len(doc.vertices)} vertices, expected "
+                             f"{len(face.vertices)}")
+        self._start = None
+        self.undo_stack.clear()
+        self._fitted = face
+        self._faces.clear()
+        self._doc = doc
+        self.undo_stack.setClean()
+        self.set_path(path)
+        self.loaded.emit()
+        self.changed.emit(None, doc)
+
+    def set_document(self, doc: Document) -> None:
+        """Show ``doc`` without touching the history (commands and previews use this)."""
+        if doc is self._doc:
+            return
+        old, self._doc = self._doc, doc
+        self.changed.emit(old, doc)
+
+    # ------------------------------------------------------------------ history
+    def push(self, doc: Document, text: str, key: str | None = None) -> None:
+        """Make ``doc`` current as one undo command; commands with the same ``key`` merge."""
+        if self._doc is None:
+            return
+        if self._start is not None:
+            self.commit_gesture(text)
+        if not doc.equals(self._doc):  # an empty push would still drop the redo branch
+            self.undo_stack.push(SetDocument(self, self._doc, doc, text, key))
+
+    def seal(self) -> None:
+        """Stop the top command from merging with the next one (end of a key/spin edit)."""
+        top = self.undo_stack.command(self.undo_stack.index() - 1)
+        if isinstance(top, SetDocument):
+            top.committed = True
+
+    @property
+    def in_gesture(self) -> bool:
+        return self._start is not None
+
+    def begin_gesture(self) -> None:
+        """Start a drag: previews follow, and :meth:`commit_gesture` pushes one command."""
+        if self._doc is not None and self._start is None:
+            self._start = self._doc
+
+    def preview(self, doc: Document) -> None:
+        """Show an intermediate state of the running gesture (no history)."""
+        if self._start is None:
+            self.begin_gesture()
+        self.set_document(doc)
+
+    def commit_gesture(self, text: str) -> None:
+        """End the gesture with one undo command (none if nothing changed)."""
+        start, self._start = self._start, None
+        if start is None or self._doc is None or start.equals(self._doc):
+            return
+        self.undo_stack.push(SetDocument(self, start, self._doc, text))
+
+    def abort_gesture(self) -> None:
+        """Cancel the gesture: back to the state before it, no history."""
+        start, self._start = self._start, None
+        if start is not None:
+            self.set_document(start)
+
+    # ------------------------------------------------------------------ edits
+    def set_faps(self, values: Mapping[object, float], text: str,
+                 key: str | None = None) -> None:
+        """Set FAPs (names or numbers -> FAPU) as one command (clamped to the table)."""
+        if self._doc is not None:
+            self.push(self._doc.with_faps(values), text, key)
+
+    def preview_faps(self, values: Mapping[object, float]) -> None:
+        """During a gesture: show FAP values without history."""
+        if self._doc is not None:
+            self.preview(self._doc.with_faps(values))
+
+    def preview_vertex(self, index: int, xy: tuple[float, float] | np.ndarray) -> None:
+        """During a gesture: move one neutral mesh vertex (FAPU and rendering follow)."""
+        if self._doc is not None:
+            self.preview(self._doc.with_vertex(index, xy))
+
+    def folded_triangles(self) -> int:
+        """How many triangles of the current mesh are inside out (0 for a valid mesh)."""
+        if self._doc is None or self._fitted is None:
+            return 0
+        return int((signed_areas(self._doc.vertices, self._fitted.triangles) <= 0).sum())
+
+    def reset_faps(self, numbers: list[int] | None = None, text: str = "Reset all FAPs") -> None:
+        """Set the given FAPs (all when None) back to 0 as one command."""
+        if self._doc is None:
+            return
+        nums = range(1, 69) if numbers is None else numbers
+        self.push(self._doc.with_faps(dict.fromkeys(nums, 0.0)), text)
+
+    def reset_mesh(self) -> None:
+        """Put the mesh back to the fitted one (one command)."""
+        if self._doc is not None and self._fitted is not None:
+            self.push(self._doc.replace(vertices=self._fitted.vertices), "Reset mesh")

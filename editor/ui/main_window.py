@@ -1,0 +1,255 @@
+"""The editor window: canvas in the middle, FAP panel and gaze pad docked on the right.
+
+Wiring (one way): widgets -> :class:`DocumentModel` -> ``changed(old, new)`` -> views; every
+change submits the current face + FAP vector to the latest-only :class:`RenderScheduler`, whose
+frames go to the preview and whose timing goes to the status bar.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from PySide6.QtCore import QByteArray, Qt
+from PySide6.QtGui import (
+    QAction,
+    QCloseEvent,
+    QDragEnterEvent,
+    QDropEvent,
+    QKeySequence,
+)
+from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMessageBox, QWidget
+
+from editor import __version__
+from editor.core import Face
+
+from .canvas import Canvas
+from .document_model import Document, DocumentModel
+from .documents import Documents
+from .fap_panel import FapPanel
+from .gaze_pad import GazePad
+from .qt_utils import settings
+from .render_scheduler import RenderResult, RenderScheduler
+
+FAPU_SHOWN = ("MNS", "MW", "ENS", "ES", "IRISD")
+
+
+class MainWindow(QMainWindow):
+    """FAP Studio's main window."""
+
+    def __init__(self, model: DocumentModel | None = None,
+                 scheduler: RenderScheduler | None = None,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.model = model or DocumentModel(self)
+        self.scheduler = scheduler or RenderScheduler(parent=self)
+        self.docs = Documents(self, self.model)
+        self.canvas = Canvas(self.model)
+        self.setCentralWidget(self.canvas)
+        self.fap_panel = FapPanel(self.model)
+        self.gaze_pad = GazePad(self.model)
+        self.fap_dock = self._dock("FAPs", self.fap_panel, "fapDock")
+        self.gaze_dock = self._dock("Eye gaze", self.gaze_pad, "gazeDock")
+        self.splitDockWidget(self.fap_dock, self.gaze_dock, Qt.Orientation.Vertical)
+        self.resizeDocks([self.fap_dock], [470], Qt.Orientation.Horizontal)
+        self.resizeDocks([self.fap_dock, self.gaze_dock], [640, 190], Qt.Orientation.Vertical)
+
+        self.render_label = QLabel("render – ms")
+        self.fapu_label = QLabel("")
+        self.statusBar().addPermanentWidget(self.fapu_label)
+        self.statusBar().addPermanentWidget(self.render_label)
+        self.last_result: RenderResult | None = None
+        self._closing_ok = False
+
+        self._make_actions()
+        self._make_menus()
+        self.setAcceptDrops(True)
+        self.resize(1400, 860)
+
+        m = self.model
+        m.loaded.connect(self.scheduler.cancel)
+        m.changed.connect(self._on_changed)
+        m.pathChanged.connect(self._update_title)
+        m.undo_stack.cleanChanged.connect(self._update_title)
+        self.docs.recentChanged.connect(self._fill_recent)
+        self.scheduler.resultReady.connect(self._on_result)
+        self.scheduler.failed.connect(self._on_render_failed)
+        self._update_title()
+        if m.doc is not None:
+            self._on_changed(None, m.doc)
+
+    # ------------------------------------------------------------------ construction
+    def _dock(self, title: str, widget: QWidget, name: str) -> QDockWidget:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(name)
+        dock.setWidget(widget)
+        dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
+                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
+        return dock
+
+    def _action(self, text: str, slot: object, shortcut: str | QKeySequence.StandardKey |
+                None = None, tip: str = "") -> QAction:
+        a = QAction(text, self)
+        if shortcut is not None:
+            a.setShortcut(QKeySequence(shortcut))
+        if tip:
+            a.setStatusTip(tip)
+        a.triggered.connect(slot)
+        self.addAction(a)
+        return a
+
+    def _make_actions(self) -> None:
+        d = self.docs
+        self.act_open = self._action("&Open Photo…", lambda: d.open_photo(),
+                                     QKeySequence.StandardKey.Open, "Open a neutral frontal photo")
+        self.act_open_project = self._action("Open &Project…", lambda: d.open_project(),
+                                             "Ctrl+Shift+O")
+        self.act_save = self._action("&Save Project", d.save, QKeySequence.StandardKey.Save)
+        self.act_save_as = self._action("Save Project &As…", d.save_as, "Ctrl+Shift+S")
+        self.act_export = self._action("&Export Image…", lambda: d.export(), "Ctrl+E",
+                                       "Save the rendered expression as PNG or JPEG")
+        self.act_quit = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        stack = self.model.undo_stack
+        self.act_undo = stack.createUndoAction(self, "&Undo")
+        self.act_undo.setShortcut(QKeySequence("Ctrl+Z"))
+        self.act_redo = stack.createRedoAction(self, "&Redo")
+        self.act_redo.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        self.addActions([self.act_undo, self.act_redo])
+        self.act_reset_faps = self._action(
+            "Reset All &FAPs", lambda: self.model.reset_faps(None, "Reset all FAPs"))
+        self.act_reset_mesh = self._action("Reset &Mesh", self.model.reset_mesh,
+                                           tip="Put every vertex back where it was fitted")
+        self.act_overlay = self._action("Show &Mesh", self.canvas.set_overlay_visible, "M")
+        self.act_overlay.setCheckable(True)
+        self.act_overlay.setChecked(True)
+        self.act_fit = self._action("&Fit to View", self.canvas.fit, "F",
+                                    "Show the whole photo")
+        self.act_fit_face = self._action("Zoom to F&ace", self.canvas.fit_face, "Shift+F",
+                                         "Zoom onto the face")
+        self.act_about = self._action("&About FAP Studio", self._about)
+
+    def _make_menus(self) -> None:
+        mb = self.menuBar()
+        f = mb.addMenu("&File")
+        f.addActions([self.act_open, self.act_open_project])
+        self.recent_menu = f.addMenu("Open &Recent")
+        f.addSeparator()
+        f.addActions([self.act_save, self.act_save_as, self.act_export])
+        f.addSeparator()
+        f.addAction(self.act_quit)
+        e = mb.addMenu("&Edit")
+        e.addActions([self.act_undo, self.act_redo])
+        e.addSeparator()
+        e.addActions([self.act_reset_faps, self.act_reset_mesh])
+        v = mb.addMenu("&View")
+        v.addActions([self.act_overlay, self.act_fit, self.act_fit_face])
+        v.addSeparator()
+        v.addActions([self.fap_dock.toggleViewAction(), self.gaze_dock.toggleViewAction()])
+        mb.addMenu("&Help").addAction(self.act_about)
+        self._fill_recent()
+
+    def _fill_recent(self) -> None:
+        self.recent_menu.clear()
+        items = self.docs.recent()
+        for path in items:
+            a = self.recent_menu.addAction(Path(path).name)
+            a.setToolTip(path)
+            a.setStatusTip(path)
+            a.triggered.connect(lambda _c=False, p=path: self.docs.open_path(p))
+        if items:
+            self.recent_menu.addSeparator()
+            self.recent_menu.addAction("Clear Menu", self.docs.clear_recent)
+        self.recent_menu.setEnabled(bool(items))
+
+    # ------------------------------------------------------------------ documents
+    def load_face(self, face: Face, doc: Document | None = None) -> None:
+        """Show an already detected face (a new, clean document)."""
+        self.model.load(face, doc)
+
+    def _on_changed(self, old: Document | None, new: Document) -> None:
+        face = self.model.face
+        if face is None:
+            return
+        if old is None or old.faps is not new.faps or old.vertices is not new.vertices:
+            self.scheduler.submit(face, new.faps)
+        if old is None or old.vertices is not new.vertices:
+            self._show_fapu(face)
+            folded = self.model.folded_triangles()
+            if folded:
+                self.statusBar().showMessage(
+                    f"Warning: {folded} mesh triangles are folded (inside out); move the vertex "
+                    "back or use Edit > Reset Mesh", 8000)
+        if old is None:
+            self._update_title()
+
+    def _on_result(self, result: RenderResult) -> None:
+        self.last_result = result
+        self.canvas.set_result(result)
+        self.render_label.setText(f"render {result.ms:.1f} ms · shown after "
+                                  f"{result.latency_ms:.1f} ms")
+
+    def _on_render_failed(self, message: str) -> None:
+        self.statusBar().showMessage(message, 5000)
+
+    def _show_fapu(self, face: Face) -> None:
+        parts = [f"{k}0 {face.fapu[k] * 1024:.1f}" for k in FAPU_SHOWN]
+        self.fapu_label.setText("FAPU (px): " + "  ".join(parts))
+        self.fapu_label.setToolTip("Facial Animation Parameter Units of this face, in pixels "
+                                   "per 1024 units:\n" + "\n".join(
+                                       f"{k}: {v:.6g} px/unit" for k, v in face.fapu.items()))
+
+    def _update_title(self, *_args: object) -> None:
+        doc = self.model.doc
+        if self.model.path:
+            name = Path(self.model.path).name
+        elif doc is not None and doc.photo:
+            name = Path(doc.photo).name
+        else:
+            name = "untitled"
+        self.setWindowTitle(f"{name}[*] — FAP Studio")
+        self.setWindowModified(self.model.is_dirty())
+
+    def _about(self) -> None:
+        QMessageBox.about(self, "About FAP Studio",
+                          f"FAP Studio {__version__}\nOne neutral frontal photo, any expression, "
+                          "through the MPEG-4 Facial Animation Parameters.")
+
+    # ------------------------------------------------------------------ events
+    def dragEnterEvent(self, e: QDragEnterEvent) -> None:
+        if e.mimeData().hasUrls() and any(u.isLocalFile() for u in e.mimeData().urls()):
+            e.acceptProposedAction()
+        else:
+            e.ignore()
+
+    def dropEvent(self, e: QDropEvent) -> None:
+        files = [u.toLocalFile() for u in e.mimeData().urls() if u.isLocalFile()]
+        if not files:
+            e.ignore()
+            return
+        e.acceptProposedAction()
+        self.docs.open_path(files[0])
+
+    def closeEvent(self, e: QCloseEvent) -> None:
+        if not self._closing_ok and not self.docs.maybe_save():
+            e.ignore()
+            return
+        if not self._closing_ok:  # a user's close: remember the layout
+            s = settings()
+            s.setValue("window/geometry", self.saveGeometry())
+            s.setValue("window/state", self.saveState())
+        self.scheduler.shutdown()
+        e.accept()
+
+    def close_without_prompt(self) -> None:
+        """Close even with unsaved changes (headless screenshots, tests)."""
+        self._closing_ok = True
+        self.close()
+
+    def restore_layout(self) -> None:
+        """Restore the window geometry and dock layout saved at the last close."""
+        s = settings()
+        geo, state = s.value("window/geometry"), s.value("window/state")
+        if isinstance(geo, QByteArray):
+            self.restoreGeometry(geo)
+        if isinstance(state, QByteArray):
+            self.restoreState(state)

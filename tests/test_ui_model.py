@@ -1,0 +1,213 @@
+"""Document model, undo commands and the latest-only render scheduler (editor/ui)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pytestqt")
+
+from editor.core import FAPS  # noqa: E402
+from editor.ui.document_model import Document, DocumentModel  # noqa: E402
+from editor.ui.render_scheduler import RenderRequest, RenderResult, RenderScheduler  # noqa: E402
+
+pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
+
+
+@pytest.fixture
+def model(qtbot, sample_face) -> DocumentModel:
+    m = DocumentModel()
+    m.load(sample_face)
+    return m
+
+
+# ---------------------------------------------------------------------- Document
+def test_document_is_immutable_and_clamped(sample_face):
+    doc = Document.neutral(sample_face)
+    assert not doc.vertices.flags.writeable and not doc.faps.flags.writeable
+    with pytest.raises(ValueError):
+        doc.faps[0] = 1.0
+    hi = FAPS["open_jaw"].range[1]
+    d2 = doc.with_faps({"open_jaw": 10 * hi, 4: -1e9})
+    assert d2.fap("open_jaw") == hi and d2.fap(4) == FAPS[4].range[0]
+    assert doc.fap("open_jaw") == 0.0  # the original is untouched
+    assert doc.with_faps({"open_jaw": 0}) is doc  # no change, same object
+    assert doc.equals(doc.replace()) and not doc.equals(d2)
+    with pytest.raises(ValueError, match="unknown FAP"):
+        doc.with_faps({"no_such_fap": 1})
+
+
+def test_document_rejects_wrong_shapes(sample_face):
+    with pytest.raises(ValueError):
+        Document(None, np.zeros((5, 3)), np.zeros(68))
+    with pytest.raises(ValueError):
+        Document(None, sample_face.vertices, np.zeros(67))
+
+
+# ---------------------------------------------------------------------- model + commands
+def test_gesture_is_one_undo_entry(model):
+    changes = []
+    model.changed.connect(lambda old, new: changes.append(new))
+    model.begin_gesture()
+    for v in range(0, 500, 10):
+        model.preview_faps({"open_jaw": v})
+    model.commit_gesture("Set open_jaw")
+    assert model.undo_stack.count() == 1 and model.doc.fap("open_jaw") == 490
+    assert len(changes) == 49  # every preview is shown (v=0 changes nothing)
+    model.undo_stack.undo()
+    assert model.doc.fap("open_jaw") == 0
+    model.undo_stack.redo()
+    assert model.doc.fap("open_jaw") == 490
+
+
+def test_empty_gesture_and_abort_leave_no_history(model):
+    model.set_faps({"open_jaw": 100}, "a")
+    model.set_faps({"open_jaw": 200}, "b")
+    model.undo_stack.undo()  # a redo branch exists now
+    model.begin_gesture()
+    model.commit_gesture("nothing")
+    assert model.undo_stack.count() == 2 and model.undo_stack.canRedo()
+    model.begin_gesture()
+    model.preview_faps({"open_jaw": 999})
+    model.abort_gesture()
+    assert model.doc.fap("open_jaw") == 100 and model.undo_stack.count() == 2
+
+
+def test_keyed_edits_merge_until_sealed_and_vanish_when_undone(model):
+    for v in (10, 20, 30):
+        model.set_faps({3: v}, "Set open_jaw", key="fap3")
+    assert model.undo_stack.count() == 1
+    model.set_faps({3: 0}, "Set open_jaw", key="fap3")  # back to the start: obsolete
+    assert model.undo_stack.count() == 0 and not model.is_dirty()
+    model.set_faps({3: 50}, "Set open_jaw", key="fap3")
+    model.seal()
+    model.set_faps({3: 60}, "Set open_jaw", key="fap3")
+    model.set_faps({4: 60}, "Set lower_t_midlip", key="fap4")
+    assert model.undo_stack.count() == 3
+
+
+def test_vertex_edit_changes_face_and_fapu(model, sample_face):
+    i = sample_face.fdp["8.3"]  # a lip corner: MW follows
+    mw0 = model.face.fapu["MW"]
+    model.begin_gesture()
+    for dx in (1, 2, 3, 4):
+        model.preview_vertex(i, sample_face.vertices[i] + (dx, 0))
+    model.commit_gesture("Move vertex")
+    assert model.undo_stack.count() == 1
+    assert model.face is not sample_face
+    assert model.face.fapu["MW"] == pytest.approx(mw0 + 4 / 1024, rel=1e-3)
+    model.reset_mesh()
+    assert model.face is sample_face and np.array_equal(model.doc.vertices, sample_face.vertices)
+    model.undo_stack.undo()
+    assert model.face.fapu["MW"] > mw0
+
+
+def test_folded_mesh_is_reported(model, sample_face):
+    i = sample_face.fdp["8.3"]
+    assert model.folded_triangles() == 0
+    model.begin_gesture()
+    model.preview_vertex(i, sample_face.vertices[sample_face.fdp["8.4"]])  # across the mouth
+    model.commit_gesture("Move vertex")
+    assert model.folded_triangles() > 0
+    model.undo_stack.undo()
+    assert model.folded_triangles() == 0
+
+
+def test_load_clears_history(model, sample_face):
+    model.set_faps({3: 100}, "x")
+    assert model.is_dirty()
+    seen = []
+    model.changed.connect(lambda old, new: seen.append(old))
+    model.load(sample_face)
+    assert model.undo_stack.count() == 0 and not model.is_dirty() and seen == [None]
+
+
+def test_pyside_singleton_refcount_guard(qtbot):
+    """PySide6 6.12 on Python 3.11 drops a reference to None/True per call; editor.ui guards."""
+    import sys
+
+    from PySide6.QtWidgets import QSlider
+
+    from editor.ui.qt_compat import bindings_drop_singletons
+
+    slider = QSlider()
+    for i in range(20_000):  # would abort the interpreter (none_dealloc) without the guard
+        slider.setValue(i % 7)
+    assert not bindings_drop_singletons() or sys.getrefcount(None) > 2**39
+
+
+# ---------------------------------------------------------------------- scheduler
+def _fake_result(req: RenderRequest) -> RenderResult:
+    return RenderResult(req, np.zeros((4, 4, 3), np.uint8), np.zeros((2, 3), np.float32))
+
+
+def test_scheduler_renders_only_the_latest(qtbot):
+    gate, started, ran = threading.Event(), threading.Event(), []
+
+    def render(req: RenderRequest) -> RenderResult:
+        ran.append(int(req.faps[0]))
+        if len(ran) == 1:
+            started.set()
+            gate.wait(5)
+        return _fake_result(req)
+
+    sched = RenderScheduler(render)
+    shown = []
+    sched.resultReady.connect(lambda r: shown.append(int(r.request.faps[0])))
+    sched.submit(None, np.array([1.0]))  # type: ignore[arg-type]
+    assert started.wait(2)
+    t0 = time.perf_counter()
+    sched.submit(None, np.array([2.0]))  # type: ignore[arg-type]
+    sched.submit(None, np.array([3.0]))  # type: ignore[arg-type]
+    assert time.perf_counter() - t0 < 0.05  # the GUI thread never waits for the worker
+    gate.set()
+    assert sched.wait(3000)
+    assert ran == [1, 3]  # the middle request never ran
+    assert shown == [1, 3]
+    sched.shutdown()
+
+
+def test_scheduler_drops_results_after_cancel(qtbot):
+    gate, started = threading.Event(), threading.Event()
+
+    def render(req: RenderRequest) -> RenderResult:
+        started.set()
+        gate.wait(5)
+        return _fake_result(req)
+
+    sched = RenderScheduler(render)
+    shown = []
+    sched.resultReady.connect(shown.append)
+    sched.submit(None, np.array([1.0]))  # type: ignore[arg-type]
+    assert started.wait(2)
+    sched.cancel()  # e.g. another photo was opened
+    gate.set()
+    qtbot.wait(100)
+    assert shown == [] and sched.is_idle()
+    sched.shutdown()
+
+
+def test_scheduler_reports_render_errors(qtbot):
+    def render(req: RenderRequest) -> RenderResult:
+        raise ValueError("boom")
+
+    sched = RenderScheduler(render)
+    with qtbot.waitSignal(sched.failed, timeout=2000) as blocker:
+        sched.submit(None, np.zeros(68))  # type: ignore[arg-type]
+    assert "boom" in blocker.args[0]
+    assert sched.is_idle()
+    sched.shutdown()
+
+
+def test_scheduler_renders_real_face(qtbot, sample_face):
+    sched = RenderScheduler()
+    faps = FAPS.vector({"open_jaw": 400})
+    with qtbot.waitSignal(sched.rendered, timeout=5000) as blocker:
+        sched.submit(sample_face, faps)
+    image, ms = blocker.args
+    assert image.shape == sample_face.image.shape and ms > 0
+    assert np.array_equal(image, sample_face.render(faps))
+    sched.shutdown()

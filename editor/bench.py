@@ -7,7 +7,9 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
 * ``remap_full_frame``: the floor, one ``cv2.remap`` of the whole frame;
 * ``skimage_piecewise_affine``: scikit-image's PiecewiseAffineTransform + warp on the same
   meshes (optional: skipped when scikit-image is not installed);
-* ``face_from_image``: detection + fitting on the sample and on a 1920-px photo.
+* ``face_from_image``: detection + fitting on the sample and on a 1920-px photo;
+* ``gui_slider_latency`` (with ``--gui``): slider change -> frame in the preview, in the real
+  window (offscreen unless QT_QPA_PLATFORM is set), on the sample face.
 """
 
 from __future__ import annotations
@@ -57,7 +59,26 @@ def _face_at(size: tuple[int, int]):
     return Face.from_image(np.ascontiguousarray(big[y0:y0 + h, x0:x0 + w]))
 
 
+def gui_bench() -> None:
+    import os
+    import sys
+
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from editor.ui.latency import slider_latency
+
+    for fap in ("open_jaw", "raise_l_m_eyebrow"):
+        r = slider_latency(SAMPLE, fap=fap)
+        _emit({"bench": "gui_slider_latency", "fap": fap, **r,
+               "platform": os.environ["QT_QPA_PLATFORM"]})
+    sys.stdout.flush()
+
+
 def main() -> None:
+    import sys
+
+    if "--gui" in sys.argv[1:]:
+        gui_bench()
+        return
     cv2.setNumThreads(1)
     from editor.core import FAPS, Face, load_image
 

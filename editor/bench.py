@@ -47,16 +47,23 @@ def _emit(d: dict) -> None:
 
 
 def _face_at(size: tuple[int, int]):
+    """The sample face scaled to fit ``size`` (aspect kept), padded by reflection."""
     from editor.core import Face, load_image
 
     img = load_image(SAMPLE)
     w, h = size
-    # keep the aspect ratio: scale the square photo to cover, then centre-crop
-    s = max(w / img.shape[1], h / img.shape[0])
-    big = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
-    y0 = (big.shape[0] - h) // 2
-    x0 = (big.shape[1] - w) // 2
-    return Face.from_image(np.ascontiguousarray(big[y0:y0 + h, x0:x0 + w]))
+    s = min(w / img.shape[1], h / img.shape[0])
+    fit = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
+    top = (h - fit.shape[0]) // 2
+    left = (w - fit.shape[1]) // 2
+    canvas = cv2.copyMakeBorder(fit, top, h - fit.shape[0] - top, left,
+                                w - fit.shape[1] - left, cv2.BORDER_REFLECT_101)
+    face = Face.from_image(np.ascontiguousarray(canvas))
+    # the detector must have found the sample's face, not something else in the padding
+    expected = Face.from_image(img).interocular * s
+    if abs(face.interocular - expected) > 0.15 * expected:
+        raise RuntimeError(f"benchmark face at {w}x{h} is not the sample's face")
+    return face
 
 
 def gui_bench() -> None:
@@ -91,7 +98,7 @@ def main() -> None:
         vec = FAPS.clamp(FAPS.vector(EXPRESSION))
         face.render(vec)
         n = 40 if size[0] < 1000 else 20
-        res = {"size": f"{size[0]}x{size[1]}"}
+        res = {"size": f"{size[0]}x{size[1]}", "interocular_px": round(face.interocular, 1)}
         ours = _time(lambda f=face, v=vec: f.render(v), n)
         _emit({"bench": "fap_to_image", **res, **ours,
                "fps": round(1000 / ours["median_ms"], 1)})
@@ -102,6 +109,13 @@ def main() -> None:
         _emit({"bench": "remap_full_frame", **res, **floor})
         _emit({"bench": "ratio_fap_to_image_vs_remap", **res,
                "ratio": round(ours["median_ms"] / floor["median_ms"], 2)})
+        from editor.core.layers import layers_cost_ms
+
+        lc = layers_cost_ms(face, vec, n=n)
+        _emit({"bench": "layers_cost", **res, **lc})
+        _emit({"bench": "ratio_deform_warp_vs_remap", **res,
+               "ratio": round(lc["without_ms"] / floor["median_ms"], 2),
+               "note": "FAP vector -> warped image without the mouth/eye layers"})
         if size[0] > 1000:
             t = _time(lambda f=face: Face.from_image(f.image), 3, warm=1)
             _emit({"bench": "face_from_image", **res, **t})

@@ -182,8 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--screenshot", help="save a screenshot of the window and exit")
     s.set_defaults(func=cmd_gui)
 
-    for mod, fn in (("anim_cli", "add_anim_parser"), ("study_cli", "add_study_parser"),
-                    ("bilinear_cli", "add_bilinear_parser")):
+    for mod, fn in (("anim_cli", "add_anim_parser"), ("clone_cli", "add_clone_parser"),
+                    ("study_cli", "add_study_parser"), ("bilinear_cli", "add_bilinear_parser")):
         try:
             module = __import__(f"editor.{mod}", fromlist=[fn])
         except ImportError:  # pragma: no cover

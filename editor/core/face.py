@@ -21,6 +21,7 @@ from .fapu import measure_fapu
 from .fitting import FaceFrame, fit_vertices
 from .imageio import as_rgb8, load_image
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
+from .layers import render_layers
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .warp import WarpPlan, WarpResult, warp
 
@@ -163,9 +164,25 @@ class Face:
         return eye_state(self.plan, self.fap_vector(faps), r)
 
     def render_full(self, faps: FapInput) -> WarpResult:
-        """Warp result with the opening masks (for compositing layers)."""
-        v = self.deform(faps)
-        return warp(self.warp_plan, v, self.layer_transforms(v))
+        """Warp result with the opening masks, mouth interior and eyeballs composited."""
+        vec = self.fap_vector(faps)
+        pts = deform_points(self.plan, vec)
+        V = self.plan.n_vertices
+        return self.render_mesh(pts[:V], pts[V:], vec)
+
+    def render_mesh(self, vertices: np.ndarray, extra: np.ndarray | None = None,
+                    faps: np.ndarray | None = None) -> WarpResult:
+        """Render the photo on any deformed mesh (e.g. from cloning), layers included.
+
+        ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: at
+        rest); ``faps`` the (68,) vector that drives the eyes and tongue (default: zeros).
+        """
+        v = np.asarray(vertices, np.float32)
+        if extra is None:
+            extra = self.plan.neutral[self.plan.n_vertices:]
+        vec = np.zeros(68, np.float32) if faps is None else np.asarray(faps, np.float32)
+        tf = self.layer_transforms(v)
+        return render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
         """2x3 source->destination maps of what lies behind the openings (see ``warp``).

@@ -109,13 +109,15 @@ _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None = None,
-         tol: float = 1e-3) -> WarpResult:
+         tol: float = 1e-3, cavity: bool = True) -> WarpResult:
     """Warp the photo so that the neutral mesh ``plan.src`` lands on ``dst`` (V, 2).
 
     Only triangles with a vertex that moved by more than ``tol`` pixels are re-filled.
     ``layers`` optionally gives, for each opening (``eye_l``, ``eye_r``, ``mouth``), the 2x3
     affine map (source -> destination) of what lies behind it: the eyeball follows its eye's
     corners, the mouth interior follows the skull. Without it the openings are static.
+    ``cavity=False`` skips the flat dark cavity (the caller composites its own mouth interior,
+    see :mod:`layers`).
     """
     img = plan.image
     h, w = img.shape[:2]
@@ -202,7 +204,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     mouth = ids == T + 1 + LAYERS.index("mouth")
     eyes = (ids == T + 1) | (ids == T + 2)
     # mouth pixels whose source lies outside the photo's own opening: the dark cavity
-    yy, xx = np.nonzero(mouth)
+    yy, xx = np.nonzero(mouth) if cavity else ((), ())
     if len(yy):
         sx = np.clip(np.rint(map_x[yy, xx]).astype(np.int32), 0, w - 1)
         sy = np.clip(np.rint(map_y[yy, xx]).astype(np.int32), 0, h - 1)

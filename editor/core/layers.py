@@ -1,0 +1,399 @@
+"""Layered rendering behind the warped face (SPEC §3): mouth interior and eyeballs. No Qt.
+
+Depth order (SPEC §3.1): tongue 3, lower teeth 2, upper teeth 1, warped face 0, over a dark
+shaded cavity (:mod:`mouth`); the eyeball (white + iris, :mod:`gaze`) behind each eye opening.
+
+:func:`render_layers` runs after :func:`warp`. For each opening that changed (its polygon moved,
+the skull turned, or, for an eye, a gaze / thrust / pupil FAP is set) it
+
+1. computes the opening's pixel coverage ``a`` on the deformed polygon (4x4 supersampling);
+2. gets the interior colours from the mouth or eye model for the opening's box (+1 px);
+3. gives the pixels the warp assigned to the opening a face colour continued from their
+   neighbours (normalised box filter), so that edge pixels can blend lip/lid with interior;
+4. writes ``a * interior + (1 - a) * face``: edges along the inner lips and the eyelids are
+   anti-aliased, and a closed opening (zero area) shows only skin.
+
+An outline that has not moved uses the warp's own pixel set as ``a`` (the photo's edges are
+already smooth); the supersampled coverage fades in over the outline's first pixel of motion,
+and the eye and mouth models reproduce the photo at rest, so small FAPs change the image
+continuously. Openings that did not change are left exactly as the warp made them (a zero FAP
+vector reproduces the photo); every written pixel lies in the returned ``bbox``.
+
+:func:`layer_plan` builds the eye and mouth models once per face and analyses the photo for
+them (skin lighting, its own teeth, what its mouth opening shows: :func:`_own_interior`).
+"""
+
+from __future__ import annotations
+
+import time
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from .deform import eye_state
+from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
+from .mouth import MouthPlan, _lum, _poly_mask, _sat, _smoothstep
+from .warp import WarpResult
+
+if TYPE_CHECKING:
+    from .face import Face
+
+_SHIFT = 4
+_TOL = 1e-3
+_SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
+_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+
+
+@dataclass(eq=False)
+class LayerPlan:
+    mouth: MouthPlan
+    eyes: dict[str, EyePlan]
+
+
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def layer_plan(face: Face) -> LayerPlan:
+    """The per-face precomputation (cached for the face's lifetime)."""
+    p = _PLANS.get(face)
+    if p is None:
+        lm = face.landmarks
+        img, v, mesh = face.image, face.vertices.astype(np.float64), face.mesh
+        irises = {"eye_l": lm.iris_left, "eye_r": lm.iris_right}
+        eyes = {k: EyePlan.build(img, v, mesh.holes[k], k,
+                                 (irises[k].cx, irises[k].cy, irises[k].r), face.plan.frame_rot)
+                for k in ("eye_l", "eye_r")}
+        # the photo's lighting: the cheeks' skin, its own teeth when the mouth shows some
+        cheek = np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)
+        skin_mask = np.zeros(img.shape[:2], np.uint8)
+        for t in mesh.triangles[cheek]:
+            cv2.fillConvexPoly(skin_mask, np.round(v[t] * 16).astype(np.int32), 1,
+                               cv2.LINE_8, 4)
+        skin = (np.median(img[skin_mask > 0], axis=0).astype(np.float32)
+                if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
+        skin_l = float(max(_lum(skin), 20.0))
+        sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
+        poly = v[mesh.holes["mouth"]]
+        mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l))
+        lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
+        mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
+        p = LayerPlan(mouth, eyes)
+        _PLANS[face] = p
+    return p
+
+
+def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
+    h, w = shape[:2]
+    lo, hi = poly.min(0), poly.max(0)
+    x0 = min(max(int(np.floor(lo[0])) - pad, 0), w)
+    y0 = min(max(int(np.floor(lo[1])) - pad, 0), h)
+    x1 = min(max(int(np.ceil(hi[0])) + pad + 1, 0), w)
+    y1 = min(max(int(np.ceil(hi[1])) + pad + 1, 0), h)
+    return x0, y0, x1, y1
+
+
+def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+    """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
+    x0, y0, x1, y1 = box
+    m = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    q = np.round((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
+    cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
+    return m.astype(bool)
+
+
+def _is_identity(m: np.ndarray, tol: float = 1e-4) -> bool:
+    return bool(np.abs(np.asarray(m) - np.array([[1, 0, 0], [0, 1, 0]])).max() < tol)
+
+
+def _union(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int]
+           ) -> tuple[int, int, int, int]:
+    if a is None:
+        return b
+    return min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
+
+
+def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
+               hole: np.ndarray, interior: np.ndarray) -> None:
+    """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole``."""
+    x0, y0, x1, y1 = box
+    face = out[y0:y1, x0:x1].astype(np.float32)
+    if hole.any():
+        keep = (~hole).astype(np.float32)
+        num = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
+                            borderType=cv2.BORDER_REPLICATE)
+        den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
+        ext = num / np.maximum(den, 1e-6)[..., None]
+        face = np.where(hole[..., None] & (den[..., None] > 0.5), ext, face)
+    a = alpha[..., None]
+    res = interior * a + face * (1.0 - a)
+    out[y0:y1, x0:x1] = np.clip(res + 0.5, 0, 255).astype(np.uint8)
+
+
+def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
+                  faps: np.ndarray, transforms: dict[str, np.ndarray]) -> WarpResult:
+    """Composite the mouth interior and the eyeballs into a warp result (in place).
+
+    ``v`` deformed vertices (V, 2), ``extra`` the deformed extra points (3.5, 3.6, 6.1-6.4),
+    ``faps`` the clamped FAP vector, ``transforms`` :meth:`Face.layer_transforms` of ``v``.
+    """
+    plan_src = face.vertices
+    out = res.image
+    img = face.image
+    jobs = []
+    # ---- eyes
+    state = None
+    for name in ("eye_l", "eye_r"):
+        hole_idx = face.mesh.holes[name]
+        poly = v[hole_idx]
+        moved = float(np.abs(poly - plan_src[hole_idx]).max())
+        idx = list(EYE_FAPS[name])
+        eye_faps = bool(np.any(faps[idx]))
+        iris_dst = extra[EXTRA_INDEX[name]]
+        iris_moved = bool(np.abs(iris_dst - face.plan.neutral[face.plan.n_vertices
+                                                               + EXTRA_INDEX[name]]).max() > _TOL)
+        sim = transforms[name]
+        if not (moved > _TOL or eye_faps or iris_moved or not _is_identity(sim)):
+            continue
+        jobs.append(("eye", name, poly, sim, eye_faps or iris_moved, moved))
+        if state is None and (eye_faps or iris_moved):
+            lm = face.landmarks
+            state = eye_state(face.plan, faps, np.array([lm.iris_left.r, lm.iris_right.r]))
+    # ---- mouth
+    hole_idx = face.mesh.holes["mouth"]
+    poly = v[hole_idx]
+    skull = transforms["mouth"]
+    moved = float(np.abs(poly - plan_src[hole_idx]).max())
+    if moved > _TOL or not _is_identity(skull):
+        jobs.append(("mouth", "mouth", poly, skull, True, moved))
+    if not jobs:
+        return res
+    lp = layer_plan(face)
+    bbox = res.bbox
+    drawn: dict[str, tuple[tuple[int, int, int, int], np.ndarray]] = {}
+    for kind, name, poly, tf, active, moved in jobs:
+        box = _box(poly, out.shape)
+        if box[2] <= box[0] or box[3] <= box[1]:
+            continue
+        hole = _raster(poly, box)
+        # an outline that did not move keeps the photo's own edge pixels; the anti-aliased
+        # coverage takes over within its first pixel of motion (no jump at small FAPs)
+        alpha = hole.astype(np.float32)
+        if moved > _TOL:
+            t = min(moved, 1.0)
+            alpha += (t * t * (3.0 - 2.0 * t)) * (_coverage(poly, box) - alpha)
+        if kind == "mouth":
+            interior = lp.mouth.render(box, v, faps, tf)
+        else:
+            ep = lp.eyes[name]
+            k = EXTRA_INDEX[name]
+            if active:
+                r_new, p_new = (float(x) for x in state[k])
+                shift = ep.gaze_shift(extra[k], tf)
+            else:
+                r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
+            if active:
+                interior = ep.render(box, tf, shift, r_new, p_new)
+            else:  # the photo's own eye, moved with the corners (as the warp does)
+                interior = photo_through(img, tf, box)
+        _composite(out, box, alpha, hole, interior)
+        drawn[name] = (box, hole)
+        bbox = _union(bbox, box)
+    if bbox == res.bbox:
+        return res
+    return _rebox(res, bbox, drawn)
+
+
+# ---------------------------------------------------------------------------- photo analysis
+def _bright(patch: np.ndarray, skin_l: float) -> np.ndarray:
+    """Teeth-like pixels: at least 0.8 of the skin's luminance, weakly coloured."""
+    mx = patch.max(2)
+    return (_lum(patch) >= 0.8 * skin_l) & ((mx - patch.min(2)) < 0.35 * np.maximum(mx, 1.0))
+
+
+def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray | None:
+    """Median colour of the teeth visible in the photo's mouth opening, or None."""
+    x0, y0 = np.floor(poly.min(0)).astype(int)
+    x1, y1 = np.ceil(poly.max(0)).astype(int) + 1
+    x0, y0 = max(x0, 0), max(y0, 0)
+    patch = img[y0:y1, x0:x1].astype(np.float32)
+    if patch.size == 0:
+        return None
+    sel = (_poly_mask(patch.shape[:2], poly, np.array([x0, y0])) > 0) & _bright(patch, skin_l)
+    return np.median(patch[sel], axis=0) if sel.sum() >= 12 else None
+
+
+def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: float,
+                  skin_l: float, gum: np.ndarray):
+    """What the photo shows inside its own mouth opening, split into skull and jaw parts.
+
+    Per column of the opening: a run of teeth-like pixels starting at the top is the upper
+    teeth (skull); everything below it (lower teeth, the lower lip's edge) follows the jaw;
+    a column without teeth is split at its middle. Columns where the opening is a sliver (a
+    closed mouth's lip line, at most two pixels) are flagged: they fade out as the lips part.
+    Where the upper teeth start at the top, they are continued upwards
+    and fade into the gum, for when the upper lip is raised. Returns the patch offset, masks
+    (h, w, 2), colours (h, w, 6), whether the photo shows upper / lower teeth, the sliver
+    weight per column (w,) and where the upper teeth were continued (h, w).
+    """
+    h, w = img.shape[:2]
+    m, up_m = 3, int(np.ceil(0.6 * D)) + 3
+    x0 = int(max(0, np.floor(poly[:, 0].min()) - m))
+    y0 = int(max(0, np.floor(poly[:, 1].min()) - up_m))
+    x1 = int(min(w, np.ceil(poly[:, 0].max()) + m + 1))
+    y1 = int(min(h, np.ceil(poly[:, 1].max()) + m + 1))
+    off = np.array([x0, y0], np.float64)
+    patch = img[y0:y1, x0:x1].astype(np.float32)
+    ph, pw = patch.shape[:2]
+    binary = _poly_mask((ph, pw), poly, off) > 0
+    cov = _coverage(poly, (x0, y0, x1, y1), dilate=1)
+    bright = binary & _bright(patch, skin_l)
+    order = np.argsort(lower_lip[:, 0])
+    split = np.full(pw, np.nan)
+    weight = np.zeros(pw)
+    first = np.full(pw, -1)
+    gap = np.zeros(pw, bool)
+    col_top = np.zeros(pw, np.int64)
+    sliver = np.zeros(pw, bool)
+    for j in np.flatnonzero(binary.any(0)):
+        rows = np.flatnonzero(binary[:, j])
+        top, bot = int(rows[0]), int(rows[-1])
+        weight[j] = 1.0
+        sliver[j] = bot - top < 2
+        col_top[j] = top
+        b = bright[top:bot + 1, j].copy()
+        if b.any():
+            b[1:-1] |= b[:-2] & b[2:]  # bridge one-pixel dips
+            f = int(np.argmax(b))
+            e = f
+            while e + 1 < len(b) and b[e + 1]:
+                e += 1
+            if top + e + 1 > bot:  # teeth down to the lower lip: split on the lip itself
+                split[j] = np.interp(x0 + j, lower_lip[order, 0], lower_lip[order, 1]) - y0 - 1
+            else:
+                split[j] = top + e + 0.5
+                gap[j] = True
+            if f <= 1:
+                first[j] = top + f
+        else:
+            split[j] = 0.5 * (top + bot)
+    ok = np.flatnonzero(~np.isnan(split))
+    kern = np.ones(5) / 5.0
+    if len(ok):
+        split = np.interp(np.arange(pw), ok, split[ok])
+        split = np.convolve(np.pad(split, 2, mode="edge"), kern, mode="valid")
+    else:
+        split[:] = ph
+    ys = np.arange(ph, dtype=np.float64)[:, None]
+    up = np.clip(split[None, :] - ys + 0.5, 0.0, 1.0)
+    own_up = cov * up * weight[None, :]
+    own_low = cov * (1.0 - up) * weight[None, :]
+    rgb_up = patch.copy()
+    ext = first >= 0
+    ext_mask = np.zeros((ph, pw), np.float32)
+    if ext.sum() >= 3:
+        # every column between the outermost ones whose teeth start at the top is continued
+        # (a column in between takes the top teeth colour of its nearest such column)
+        cols = np.flatnonzero(ext)
+        span = np.arange(cols.min(), cols.max() + 1)
+        span = span[binary[:, span].any(0)]
+        near = cols[np.abs(span[:, None] - cols[None, :]).argmin(1)]
+        full = np.zeros(pw)
+        full[span] = 1.0
+        ext_w = np.convolve(np.pad(full, 2), kern, mode="valid")
+        fade = max(0.15 * D, 1.0)
+        for j, jn in zip(span, near, strict=True):
+            top = col_top[j]  # first row of the opening in this column
+            g = _smoothstep((top - np.arange(top)) / fade)[:, None]
+            rgb_up[:top, j] = (1.0 - g) * patch[first[jn], jn] + g * gum
+            own_up[:top, j] = np.maximum(own_up[:top, j], ext_w[j])
+            ext_mask[:top, j] = 1.0
+    below = ys >= split[None, :]
+    has_low = int((bright & below & gap[None, :]).sum()) >= 12
+    own = np.dstack([own_up, own_low]).astype(np.float32)
+    sliver = np.convolve(np.pad(sliver.astype(np.float64), 2, mode="edge"), kern, mode="valid")
+    return (off, own, np.dstack([rgb_up, patch]).astype(np.float32), bool(ext.sum() >= 3),
+            has_low, sliver.astype(np.float32), ext_mask)
+
+
+
+
+def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
+              dilate: int = 0) -> np.ndarray:
+    """Fraction (h, w) float32 of each pixel of ``box`` covered by the polygon (supersampled).
+
+    ``dilate`` grows the polygon by that many pixels first (used for the photo's own interior).
+    """
+    x0, y0, x1, y1 = box
+    h, w = y1 - y0, x1 - x0
+    if h <= 0 or w <= 0:
+        return np.zeros((max(h, 0), max(w, 0)), np.float32)
+    big = np.zeros((h * ss, w * ss), np.uint8)
+    q = ((np.asarray(poly, np.float64) - (x0, y0)) + 0.5) * ss - 0.5
+    cv2.fillPoly(big, [np.round(q * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
+    # OpenCV also fills every sample the outline touches: remove that rim (a zero-area polygon,
+    # e.g. closed lids, then covers nothing)
+    if not dilate:
+        big = cv2.erode(big, _CROSS)
+    else:
+        k = 2 * dilate * ss + 1
+        big = cv2.dilate(big, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    return cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
+
+
+def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
+           drawn: dict[str, tuple[tuple[int, int, int, int], np.ndarray]]) -> WarpResult:
+    """The result with a grown ``bbox``; the opening masks re-embedded in it."""
+    x0, y0, x1, y1 = bbox
+    shape = (y1 - y0, x1 - x0)
+    masks = {}
+    for key, local in (("mouth", res.mouth_local), ("eyes", res.eyes_local)):
+        m = np.zeros(shape, bool)
+        if local is not None and res.bbox is not None:
+            a0, b0, a1, b1 = res.bbox
+            m[b0 - y0:b1 - y0, a0 - x0:a1 - x0] = local
+        masks[key] = m
+    for name, (box, hole) in drawn.items():
+        key = "mouth" if name == "mouth" else "eyes"
+        a0, b0, a1, b1 = box
+        masks[key][b0 - y0:b1 - y0, a0 - x0:a1 - x0] |= hole
+    return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"])
+
+
+def layers_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:
+    """Median time (ms) of ``face.render(faps)`` with and without the layers.
+
+    ``without`` = deform + warp with its flat cavity (what ``render`` did before the layers),
+    ``with`` = ``face.render``; the two are timed alternately so that machine load affects
+    both alike; ``layers`` is the difference of the medians. For ``python -m editor.bench``.
+    """
+    from .deform import deform_points
+    from .warp import warp
+
+    vec = face.fap_vector(faps)
+
+    def bare() -> None:
+        pts = deform_points(face.plan, vec)
+        vv = pts[: face.plan.n_vertices]
+        warp(face.warp_plan, vv, face.layer_transforms(vv))
+
+    def full() -> None:
+        face.render(vec)
+
+    layer_plan(face)
+    for _ in range(warm):
+        bare()
+        full()
+    ta, tb = [], []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        bare()
+        t1 = time.perf_counter()
+        full()
+        t2 = time.perf_counter()
+        ta.append(t1 - t0)
+        tb.append(t2 - t1)
+    a, b = float(np.median(ta) * 1000.0), float(np.median(tb) * 1000.0)
+    return {"without_ms": round(a, 3), "with_ms": round(b, 3), "layers_ms": round(b - a, 3)}

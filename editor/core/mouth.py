@@ -1,0 +1,345 @@
+"""The mouth interior behind the inner lips (SPEC §3.1, eqs. 6-8). No Qt.
+
+Layers, back to front: dark cavity (softly shaded), tongue (depth 3), lower teeth (2), upper
+teeth (1); the warped face (0) is composited over them by :mod:`layers`.
+
+Sizes and placement (eqs. 6-8), on the deformed mesh, in the face frame turned with the skull:
+
+* ``D`` = the paper's mouth-nose distance, lip line minus y(9.3) on the neutral mesh. The FAPU
+  MNS0 of this project is measured from 9.15 (MPEG-4 convention, SPEC §1.4) and is ~0.62 D;
+  with it the lower teeth of eq. 8 would stay behind the lower lip for every jaw opening
+  (exposure 0 px on all ten JAFFE faces), so eqs. 6-8 use the paper's own quantity;
+* teeth height D/2, widths from the textures' aspect ratio; upper teeth: top edge at
+  y(9.3) + 0.25 D, centred on x(9.3) (fixed to the skull); lower teeth: bottom edge at
+  0.25 y(2.1) + 0.75 y(2.3), centred on x(2.1) (follow the jaw);
+* tongue: width MW0, aspect kept, centred on x(2.1), top edge level with the top of the lower
+  teeth; the tongue FAPs (43-47) bend it through the displacements of its points 6.1-6.4
+  (smooth partition-of-unity field, root fixed; tip and sides ride on the body 6.2).
+
+The photo's own mouth interior (when its mouth is open, e.g. smiling teeth) is kept: per column
+of the photo's opening, the bright teeth run from the top follows the skull, the rest (lower
+teeth, the lower lip's edge) follows the jaw anchor of eq. 8; the synthetic layers show only
+where neither covers (``layers._own_interior`` analyses the photo, :meth:`attach_own`).
+Textures (``resources/mouth``) are tinted to the photo: saturation and brightness from the
+cheeks' skin, teeth colour from the photo's own teeth when it shows some.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .deform import DeformPlan
+from .mesh import StandardMesh
+
+TEXTURES = Path(__file__).resolve().parents[2] / "resources" / "mouth"
+NAMES = ("upper_teeth", "lower_teeth", "tongue")
+#: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
+CAVITY_RGB = np.array([70, 26, 30], np.float32)
+_LUM = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+@lru_cache(maxsize=1)
+def load_textures() -> dict[str, np.ndarray]:
+    """The three textures as straight RGBA float32 (colour 0-255, alpha 0-1)."""
+    out = {}
+    for name in NAMES:
+        path = TEXTURES / f"{name}.png"
+        bgra = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if bgra is None or bgra.ndim != 3 or bgra.shape[2] != 4:
+            raise FileNotFoundError(f"missing or not RGBA: {path} "
+                                    "(run scripts/draw_mouth_textures.py)")
+        rgba = bgra[..., [2, 1, 0, 3]].astype(np.float32)
+        rgba[..., 3] /= 255.0
+        out[name] = rgba
+    return out
+
+
+def _lum(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(rgb, np.float32) @ _LUM
+
+
+def _sat(rgb: np.ndarray) -> float:
+    c = np.asarray(rgb, np.float64)
+    return float((c.max() - c.min()) / max(c.max(), 1e-6))
+
+
+def _tint(rgba: np.ndarray, sat: float, gain: np.ndarray) -> np.ndarray:
+    """Desaturate to ``sat`` and scale per channel; returns premultiplied RGBA."""
+    c = rgba[..., :3]
+    lum = _lum(c)[..., None]
+    c = (lum + sat * (c - lum)) * gain[None, None, :]
+    c = np.clip(c, 0, 255) * rgba[..., 3:4]
+    return np.dstack([c, rgba[..., 3:4]]).astype(np.float32)
+
+
+def _opaque_mean(rgba: np.ndarray, sat: float) -> np.ndarray:
+    a = rgba[..., 3] > 0.9
+    c = rgba[..., :3][a]
+    lum = _lum(c)[:, None]
+    return (lum + sat * (c - lum)).mean(0)
+
+
+def _poly_mask(shape: tuple[int, int], poly: np.ndarray, off: np.ndarray) -> np.ndarray:
+    m = np.zeros(shape, np.uint8)
+    cv2.fillPoly(m, [np.round((poly - off) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+    return m
+
+
+@dataclass(eq=False)
+class MouthPlan:
+    """Precomputed mouth interior of one face (see module docstring)."""
+
+    hole: np.ndarray
+    i93: int
+    i21: int
+    i23: int
+    upper_lip: np.ndarray  # vertex indices of the inner upper lip, corner to corner
+    ex: np.ndarray  # neutral face frame axes (image coords)
+    ey: np.ndarray
+    mouth_nose: float  # D, px
+    mw: float  # MW0, px
+    tex: dict[str, np.ndarray]  # premultiplied RGBA at the neutral pixel size
+    size: dict[str, tuple[float, float]]  # neutral (width, height) px of each layer
+    anchor0: np.ndarray  # neutral jaw anchor (eq. 8 point), image px
+    cavity: np.ndarray  # (3,) float32
+    tongue_basis: np.ndarray  # (4 FAPs, 4 points, 2) px per unit, image coords
+    tongue_roll: float  # px at full roll, see deform._nonlinear
+    lip_pairs: np.ndarray  # (7, 2) inner upper / lower lip vertices
+    gap0: np.ndarray  # (7,) their neutral gaps, px
+    gum: np.ndarray  # (3,) tinted gum colour
+    # the photo's own interior (attach_own)
+    own_off: np.ndarray | None = None  # (2,) image position of own[0, 0]
+    own: np.ndarray | None = None  # (h, w, 2) float32: photo interior following skull / jaw
+    own_rgb: np.ndarray | None = None  # (h, w, 6) float32: its colours
+    photo_upper: bool = False  # the photo shows its own upper teeth: they replace the texture
+    photo_lower: bool = False  # likewise for the lower teeth
+    sliver: np.ndarray | None = None  # (w,) columns where the opening is a closed lip line
+    ext: np.ndarray | None = None  # (h, w) where the photo's upper teeth were continued
+
+    def attach_own(self, off, own, own_rgb, has_up, has_low, sliver, ext) -> None:
+        """Add the photo's own interior (see ``layers._own_interior``)."""
+        self.own_off, self.own, self.own_rgb = off, own, own_rgb
+        self.photo_upper, self.photo_lower, self.sliver, self.ext = has_up, has_low, sliver, ext
+        self._own_a = [np.ascontiguousarray(own[..., k]) for k in (0, 1)]
+        self._own_c = [np.ascontiguousarray(own_rgb[..., 3 * k:3 * k + 3]) for k in (0, 1)]
+        self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
+
+    @classmethod
+    def build(cls, vertices: np.ndarray, mesh: StandardMesh, plan: DeformPlan, skin_l: float,
+              sat: float, teeth: np.ndarray | None) -> MouthPlan:
+        """Sizes, anchors and tinted textures; the photo's own interior is added by
+        :meth:`attach_own` (``layers.layer_plan`` analyses the photo).
+
+        ``skin_l``, ``sat``: luminance and relative saturation of the photo's skin;
+        ``teeth``: colour of the photo's own visible teeth, or None.
+        """
+        v = vertices.astype(np.float64)
+        ex, ey = plan.frame_rot[:, 0].copy(), plan.frame_rot[:, 1].copy()
+        fdp = mesh.fdp
+        i93, i21, i22, i23 = fdp["9.3"], fdp["2.1"], fdp["2.2"], fdp["2.3"]
+        yf = v @ ey
+        D = max(0.5 * (yf[i22] + yf[i23]) - yf[i93], 4.0)
+        mw = max(plan.fapu["MW"] * 1024.0, 4.0)
+        hole = np.asarray(mesh.holes["mouth"])
+        # ---- textures, tinted and scaled to the face
+        raw = load_textures()
+        H = 0.5 * D
+        size = {}
+        for name in ("upper_teeth", "lower_teeth"):
+            th, tw = raw[name].shape[:2]
+            size[name] = (H * tw / th, H)
+        th, tw = raw["tongue"].shape[:2]
+        size["tongue"] = (mw, mw * th / tw)
+        ivory = _opaque_mean(raw["upper_teeth"], sat)
+        if teeth is not None:
+            target = teeth.astype(np.float64)
+        else:  # teeth in an open mouth: a little darker than the lit skin
+            target = ivory * (0.9 * skin_l / float(_lum(ivory)))
+        gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
+        tongue_mean = _opaque_mean(raw["tongue"], sat)
+        gain_g = np.full(3, 0.7 * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
+        tex = {}
+        for name, gain, shade in (("upper_teeth", gain_t, 1.0), ("lower_teeth", gain_t, 0.8),
+                                  ("tongue", gain_g, 1.0)):
+            t = _tint(raw[name], sat, gain * shade)
+            wpx, hpx = size[name]
+            tw_, th_ = max(int(round(wpx)), 2), max(int(round(hpx)), 2)
+            tex[name] = cv2.resize(t, (tw_, th_), interpolation=cv2.INTER_AREA)
+        t = _tint(raw["upper_teeth"], sat, gain_t)
+        gum = t[: max(1, t.shape[0] // 8)].reshape(-1, 4)
+        gum = gum[gum[:, 3] > 0.5]
+        gum_rgb = (gum[:, :3] / gum[:, 3:4]).mean(0) if len(gum) else 0.6 * target
+        cav_l = float(_lum(CAVITY_RGB))
+        cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)
+        anchor0 = _jaw_anchor(v, i21, i23, ex, ey)
+        V = plan.n_vertices
+        tongue_basis = plan.basis[42:46, V + 2:V + 6].astype(np.float64)  # FAPs 43-46
+        lip_pairs = np.array([[mesh.index(f"lipi_u{k}"), mesh.index(f"lipi_d{k}")]
+                              for k in range(1, 8)])
+        gap0 = (v[lip_pairs[:, 1]] - v[lip_pairs[:, 0]]) @ ey
+        up_lip = np.concatenate([[mesh.index("lipi_c0")],
+                                 [mesh.index(f"lipi_u{k}") for k in range(1, 8)],
+                                 [mesh.index("lipi_c1")]])
+        return cls(hole=hole, i93=i93, i21=i21, i23=i23, upper_lip=up_lip, ex=ex, ey=ey,
+                   mouth_nose=float(D), mw=float(mw), tex=tex, size=size, anchor0=anchor0,
+                   cavity=cavity.astype(np.float32), tongue_basis=tongue_basis,
+                   tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs, gap0=gap0,
+                   gum=gum_rgb.astype(np.float32))
+
+    # ------------------------------------------------------------------ per frame
+    def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
+               skull: np.ndarray) -> np.ndarray:
+        """Colours (h, w, 3) float32 of the mouth interior over ``box`` of the output."""
+        x0, y0, x1, y1 = box
+        S = np.asarray(skull, np.float64)
+        L = S[:, :2]
+        sc = float(np.sqrt(abs(np.linalg.det(L)))) or 1.0
+        ex = L @ self.ex
+        ex /= np.linalg.norm(ex)
+        ey = L @ self.ey
+        ey /= np.linalg.norm(ey)
+        xs = np.arange(x0, x1, dtype=np.float64)[None, :]
+        ys = np.arange(y0, y1, dtype=np.float64)[:, None]
+        O = v[self.i93].astype(np.float64)
+        Qx = (xs - O[0]) * ex[0] + (ys - O[1]) * ex[1]
+        Qy = (xs - O[0]) * ey[0] + (ys - O[1]) * ey[1]
+
+        def fr(p: np.ndarray) -> np.ndarray:
+            d = np.asarray(p, np.float64) - O
+            return np.stack([d @ ex, d @ ey], -1)
+
+        q21, q23 = fr(v[self.i21]), fr(v[self.i23])
+        D = self.mouth_nose * sc
+        # shading of the synthetic layers: shadow under the upper lip, darker corners
+        lip = fr(v[self.upper_lip])
+        order = np.argsort(lip[:, 0])
+        y_up = np.interp(Qx, lip[order, 0], lip[order, 1])
+        hole = fr(v[self.hole])
+        cxm = 0.5 * (hole[:, 0].min() + hole[:, 0].max())
+        hw = max(0.5 * float(np.ptp(hole[:, 0])), 1.0)
+        hh = max(0.5 * float(np.ptp(hole[:, 1])), 1.0)
+        cym = 0.5 * (hole[:, 1].min() + hole[:, 1].max())
+        side = np.clip(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        shade = (1.0 - 0.5 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
+        shade = (shade * (1.0 - 0.45 * side * side)).astype(np.float32)[..., None]
+        rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
+        # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
+        cav = (0.3 + 0.7 * np.clip(rr, 0.0, 1.0) ** 1.5).astype(np.float32)[..., None]
+        out = cav * self.cavity[None, None, :]
+        # lower teeth and tongue (jaw), upper teeth (skull)
+        y_lb = 0.25 * q21[1] + 0.75 * q23[1]
+        wl, hl = (s * sc for s in self.size["lower_teeth"])
+        wu, hu = (s * sc for s in self.size["upper_teeth"])
+        wt, ht = (s * sc for s in self.size["tongue"])
+        top_l = y_lb - hl
+        tq_x, tq_y = Qx, Qy
+        dlt = self._tongue_shift(faps, ex, ey)
+        if dlt is not None:
+            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_l, wt, ht)
+        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_l, wt, ht, shade)
+        if not self.photo_lower:
+            out = self._over(out, "lower_teeth", Qx, Qy, q21[0] - 0.5 * wl, top_l, wl, hl,
+                             shade)
+        # the photo's own interior: jaw part, then upper teeth, then the skull part
+        Si = cv2.invertAffineTransform(S)
+        sx = Si[0, 0] * xs + Si[0, 1] * ys + Si[0, 2]
+        sy = Si[1, 0] * xs + Si[1, 1] * ys + Si[1, 2]
+        anchor = O + q21[0] * ex + y_lb * ey
+        tj = anchor - (L @ self.anchor0 + S[:, 2])
+        tjs = Si[:, :2] @ tj
+        if not self.photo_upper:
+            out = self._over(out, "upper_teeth", Qx, Qy, -0.5 * wu, 0.25 * D, wu, hu, shade)
+        # the two photo parts share each pixel (skull part in front where they overlap); a
+        # closed mouth's lip line fades out over the first two pixels the lips part
+        gap = (v[self.lip_pairs[:, 1]] - v[self.lip_pairs[:, 0]]).astype(np.float64) @ ey
+        fade = 1.0 - _smoothstep(float((gap - self.gap0).max()) / 2.0)
+        a_up, p_up = self._own(sx, sy, 0, fade)
+        a_lo, p_lo = self._own(sx - tjs[0], sy - tjs[1], 1, fade)
+        if a_up is not None and self.photo_upper:  # the continued teeth: lip shadow too
+            e = cv2.remap(self.ext, (sx - self.own_off[0]).astype(np.float32),
+                          (sy - self.own_off[1]).astype(np.float32), cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)[..., None]
+            p_up = p_up * (1.0 - e * (1.0 - shade))
+        if a_up is None and a_lo is None:
+            return out
+        rest = np.ones_like(out[..., :1])
+        if a_up is not None:
+            out = out * (1.0 - a_up) + p_up * a_up
+            rest = 1.0 - a_up
+        if a_lo is not None:
+            a_lo = np.minimum(a_lo, rest)
+            out = out + (p_lo - out) * (a_lo / np.maximum(rest, 1e-6))
+        return out
+
+    def _over(self, out, name, qx, qy, left, top, ww, hh, shade):
+        t = self.tex[name]
+        th, tw = t.shape[:2]
+        mx = ((qx - left) * (tw / ww) - 0.5).astype(np.float32)
+        my = ((qy - top) * (th / hh) - 0.5).astype(np.float32)
+        s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=(0, 0, 0, 0))
+        return s[..., :3] * shade + (1.0 - s[..., 3:4]) * out
+
+    def _own(self, sx, sy, k, fade):
+        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part."""
+        mx = (sx - self.own_off[0]).astype(np.float32)
+        my = (sy - self.own_off[1]).astype(np.float32)
+        src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
+            self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
+        a = cv2.remap(src, mx, my, cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        if not a.any():
+            return None, None
+        px = cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_REPLICATE)
+        return a[..., None], px
+
+    def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
+        """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
+        f = np.asarray(faps, np.float64)
+        if not (np.any(f[42:46]) or f[46]):
+            return None
+        d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
+        lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)
+        d[2:] -= lift * self.ey
+        # the tip and the sides ride on the body (6.2): raise_tongue lifts the whole dorsum
+        d[[0, 2, 3]] += d[1]
+        return np.stack([d @ ex, d @ ey], -1)
+
+    @staticmethod
+    def _tongue_field(Qx, Qy, dlt, left, top, ww, hh):
+        """Sampling positions for the tongue bent by the displacements of its points."""
+        # 6.1 tip, 6.2 body, 6.3 image-right side, 6.4 image-left side; root fixed
+        uv = np.array([[0.5, 0.06], [0.5, 0.45], [0.8, 0.3], [0.2, 0.3], [0.5, 1.3],
+                       [0.0, 1.1], [1.0, 1.1]])
+        pts = np.stack([left + uv[:, 0] * ww, top + uv[:, 1] * hh], 1)
+        dd = np.vstack([dlt, np.zeros((3, 2))])
+        s2 = 2.0 * (0.28 * ww) ** 2
+        num_x = np.zeros_like(Qx)
+        num_y = np.zeros_like(Qx)
+        den = np.zeros_like(Qx)
+        for (px, py), (dx, dy) in zip(pts, dd, strict=True):
+            phi = np.exp(-((Qx - px) ** 2 + (Qy - py) ** 2) / s2)
+            num_x += phi * dx
+            num_y += phi * dy
+            den += phi
+        den = np.maximum(den, 1e-12)
+        return Qx - num_x / den, Qy - num_y / den
+
+
+def _smoothstep(t: np.ndarray | float) -> np.ndarray:
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def _jaw_anchor(v: np.ndarray, i21: int, i23: int, ex: np.ndarray, ey: np.ndarray) -> np.ndarray:
+    """Eq. 8 point: x(2.1), 0.25 y(2.1) + 0.75 y(2.3), in the frame given by ex, ey."""
+    p21, p23 = v[i21], v[i23]
+    x = p21 @ ex
+    y = 0.25 * (p21 @ ey) + 0.75 * (p23 @ ey)
+    return x * ex + y * ey

@@ -1,0 +1,279 @@
+"""Issue 6: the layered mouth interior (teeth, tongue) and the eyeballs (gaze, lids, pupils)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from editor.core import Face
+from editor.core.layers import layer_plan, layers_cost_ms
+
+LUM = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def _lum(img: np.ndarray) -> np.ndarray:
+    return img.astype(np.float32) @ LUM
+
+
+def _mask(shape, poly: np.ndarray, grow: int = 0) -> np.ndarray:
+    m = np.zeros(shape[:2], np.uint8)
+    cv2.fillPoly(m, [np.round(poly * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+    if grow > 0:
+        m = cv2.dilate(m, np.ones((2 * grow + 1, 2 * grow + 1), np.uint8))
+    elif grow < 0:
+        m = cv2.erode(m, np.ones((-2 * grow + 1, -2 * grow + 1), np.uint8))
+    return m.astype(bool)
+
+
+def _skin_lum(face: Face) -> float:
+    """Median luminance of the photo around the mouth (cheeks, chin)."""
+    v = face.vertices
+    x0, y0 = v[face.fdp["8.4"]] - 0.3 * face.interocular
+    x1, y1 = v[face.fdp["8.3"]] + 0.3 * face.interocular
+    return float(np.median(_lum(face.image[int(y0):int(y1), int(x0):int(x1)])))
+
+
+def _column_profile(face: Face, img: np.ndarray, faps: dict, half: int = 2):
+    """Luminance down the mouth's centre column, restricted to the deformed opening."""
+    v = face.deform(faps)
+    poly = v[face.mesh.holes["mouth"]]
+    inside = _mask(img.shape, poly, -1)
+    xc = int(round(v[face.fdp["2.1"], 0]))
+    cols = slice(xc - half, xc + half + 1)
+    rows = np.flatnonzero(inside[:, cols].all(1))
+    return rows, _lum(img[rows, cols]).mean(1)
+
+
+def _edge_from_top(rows, prof, thr) -> float:
+    """First bright-to-dark crossing going down (bottom edge of the upper teeth)."""
+    seen = False
+    for i in range(len(prof) - 1):
+        seen |= prof[i] > thr
+        if seen and prof[i] > thr >= prof[i + 1]:
+            return rows[i] + (prof[i] - thr) / (prof[i] - prof[i + 1])
+    raise AssertionError("no upper teeth edge")
+
+
+def _edge_from_bottom(rows, prof, thr) -> float:
+    """Top edge of the lowest bright run of at least 3 rows (the lower teeth)."""
+    bright = prof > thr
+    i = len(prof) - 1
+    while i >= 0:
+        if bright[i]:
+            j = i
+            while j > 0 and bright[j - 1]:
+                j -= 1
+            if i - j + 1 >= 3 and j > 0:
+                return rows[j] - (prof[j] - thr) / (prof[j] - prof[j - 1])
+            i = j - 1
+        else:
+            i -= 1
+    raise AssertionError("no lower teeth edge")
+
+
+# ---------------------------------------------------------------------------- neutrality
+def test_zero_faps_reproduce_the_photo(sample_face):
+    assert np.array_equal(sample_face.render({}), sample_face.image)
+    assert np.array_equal(sample_face.render(np.zeros(68, np.float32)), sample_face.image)
+
+
+def test_unrelated_faps_leave_the_openings_alone(sample_face):
+    f = sample_face
+    # brows only: the mouth interior (the photo's teeth) is not touched
+    out = f.render({31: 250, 32: 250, 33: 200, 34: 200})
+    m = _mask(f.image.shape, f.vertices[f.mesh.holes["mouth"]], 2)
+    assert np.array_equal(out[m], f.image[m])
+    # jaw only: the eyes are not touched
+    out = f.render({"open_jaw": 600})
+    for k in ("eye_l", "eye_r"):
+        m = _mask(f.image.shape, f.vertices[f.mesh.holes[k]], 2)
+        assert np.array_equal(out[m], f.image[m])
+
+
+def test_changes_stay_inside_the_bbox(sample_face):
+    for faps in ({23: 30000, 24: 30000}, {29: 300}, {"open_jaw": 700, 25: -20000},
+                 {"head_roll": 8000, 44: 400}):
+        r = sample_face.render_full(faps)
+        assert r.bbox is not None
+        diff = np.any(r.image != sample_face.image, axis=2)
+        x0, y0, x1, y1 = r.bbox
+        assert diff.any()
+        diff[y0:y1, x0:x1] = False
+        assert not diff.any(), faps
+
+
+# ---------------------------------------------------------------------------- mouth
+def test_open_jaw_exposes_teeth_on_closed_mouths(jaffe_faces):
+    for face in jaffe_faces[:2]:
+        closed = face.render_full({})
+        assert closed.mouth_mask is None
+        r = face.render_full({"open_jaw": 600})
+        inside = _mask(face.image.shape, face.deform({"open_jaw": 600})[
+            face.mesh.holes["mouth"]], -1)
+        lum = _lum(r.image)
+        skin = _skin_lum(face)
+        bright = inside & (lum > 0.55 * skin)
+        dark = inside & (lum < 0.35 * skin)
+        assert bright.sum() >= 25, bright.sum()  # teeth
+        assert dark.sum() >= 25, dark.sum()  # the cavity above them
+        # the lower teeth sit in the lower part of the opening
+        ys = np.nonzero(inside)[0]
+        assert np.nonzero(bright)[0].mean() > ys.mean()
+
+
+def test_lower_teeth_follow_the_jaw(jaffe_faces):
+    face = jaffe_faces[0]
+    thr = 0.45 * _skin_lum(face)
+    edges, anchors = [], []
+    for jaw in (400, 800):
+        faps = {"open_jaw": jaw}
+        rows, prof = _column_profile(face, face.render(faps), faps)
+        edges.append(_edge_from_bottom(rows, prof, thr))
+        v = face.deform(faps)
+        anchors.append(0.25 * v[face.fdp["2.1"], 1] + 0.75 * v[face.fdp["2.3"], 1])
+    assert anchors[1] - anchors[0] > 4.0
+    assert abs((edges[1] - edges[0]) - (anchors[1] - anchors[0])) < 1.0, (edges, anchors)
+
+
+def test_upper_teeth_stay_with_the_skull(sample_face, jaffe_faces):
+    # the sample shows its own upper teeth: their lower edge does not move with the jaw
+    f = sample_face
+    thr = 0.6 * _skin_lum(f)
+    e = []
+    for jaw in (400, 900):
+        faps = {"open_jaw": jaw}
+        rows, prof = _column_profile(f, f.render(faps), faps)
+        e.append(_edge_from_top(rows, prof, thr))
+    assert abs(e[1] - e[0]) < 0.6, e
+    # a closed mouth with the upper lip raised shows the drawn upper teeth (eq. 7): same
+    face = jaffe_faces[0]
+    lip = {4: -600, 8: -500, 9: -500}
+    thr = 0.45 * _skin_lum(face)
+    e = []
+    for jaw in (400, 800):
+        faps = {"open_jaw": jaw, **lip}
+        rows, prof = _column_profile(face, face.render(faps), faps)
+        e.append(_edge_from_top(rows, prof, thr))
+    assert abs(e[1] - e[0]) < 0.6, e
+    mp = layer_plan(face).mouth
+    y93 = face.vertices[face.fdp["9.3"], 1]
+    expected = y93 + 0.75 * mp.mouth_nose  # bottom of the upper teeth, eq. 7 + height D/2
+    assert abs(e[0] - expected) < 2.0, (e[0], expected)
+
+
+def test_tongue_rises_with_its_faps(jaffe_faces):
+    face = jaffe_faces[0]
+    base = {"open_jaw": 700}
+    up = {**base, 44: 500, 46: 500}
+    a, b = face.render(base), face.render(up)
+    inside = _mask(a.shape, face.deform(base)[face.mesh.holes["mouth"]], -1)
+    skin = _skin_lum(face)
+    # the raised tongue covers part of the dark cavity above the lower teeth
+    dark_a = (inside & (_lum(a) < 0.3 * skin)).sum()
+    dark_b = (inside & (_lum(b) < 0.3 * skin)).sum()
+    assert dark_b < 0.8 * dark_a, (dark_a, dark_b)
+
+
+# ---------------------------------------------------------------------------- eyes
+def _iris_runs(img: np.ndarray, opening: np.ndarray, thr: float, x_ref: float, cy: float,
+               half: float) -> dict[int, tuple[int, int]]:
+    """Per row near ``cy``: the dark run (iris) through ``x_ref`` inside the eye opening."""
+    dark = ((_lum(img) < thr) & opening).astype(np.uint8)
+    # bridge the catch-lights (a few bright pixels on the iris)
+    dark = cv2.morphologyEx(dark, cv2.MORPH_CLOSE, np.ones((1, 5), np.uint8)).astype(bool)
+    dark &= opening
+    xr = int(round(x_ref))
+    out = {}
+    for y in range(int(np.floor(cy - half)), int(np.ceil(cy + half)) + 1):
+        if not dark[y, xr]:
+            continue
+        a = b = xr
+        while dark[y, a - 1]:
+            a -= 1
+        while dark[y, b + 1]:
+            b += 1
+        out[y] = (a, b)
+    return out
+
+
+def _centre(runs: dict, cy: float, half: float) -> float:
+    """Mean mid-point of the runs on the rows from the centre down to ``half`` below it (the
+    upper rows may touch the lashes of the upper lid)."""
+    return float(np.mean([0.5 * (a + b) for y, (a, b) in runs.items() if 0 <= y - cy <= half]))
+
+
+def test_gaze_right_moves_the_round_iris(jaffe_faces):
+    face = jaffe_faces[0]
+    R = face.fapu["IRISD"] * 1024
+    value = 20000
+    expected = R * np.sin(value * 1e-5) * face.frame.rot[0, 0]  # image x of the frame shift
+    assert expected > 1.5
+    a = face.render({})
+    b = face.render({23: value, 24: value})
+    for name, iris in (("eye_l", face.landmarks.iris_left),
+                       ("eye_r", face.landmarks.iris_right)):
+        opening = _mask(a.shape, face.vertices[face.mesh.holes[name]], -1)
+        thr = 0.5 * np.percentile(_lum(a)[opening], 90)
+        ra = _iris_runs(a, opening, thr, iris.cx, iris.cy, 0.8 * iris.r)
+        rb = _iris_runs(b, opening, thr, iris.cx + expected, iris.cy, 0.8 * iris.r)
+        half = 0.5 * iris.r
+        shift = _centre(rb, iris.cy, half) - _centre(ra, iris.cy, half)
+        assert abs(shift - expected) < 0.75, (name, shift, expected)
+        # rigid: the rows through the centre keep their widths (the iris is not stretched)
+        for y in set(ra) & set(rb):
+            if 0 <= y - iris.cy <= half:
+                assert abs((ra[y][1] - ra[y][0]) - (rb[y][1] - rb[y][0])) <= 1, (name, y)
+        # round: a circle fitted to the iris edges of the lower rows (the upper ones may be
+        # under the lid) fits them to a fraction of a pixel and has the iris's radius
+        pts = np.array([[x, y] for y, ab in rb.items() if 0 <= y - iris.cy <= 0.9 * iris.r
+                        for x in (ab[0] - 0.5, ab[1] + 0.5)], np.float64)
+        A = np.column_stack([2 * pts, np.ones(len(pts))])
+        (cx, cy, c), *_ = np.linalg.lstsq(A, (pts ** 2).sum(1), rcond=None)
+        rad = np.sqrt(c + cx * cx + cy * cy)
+        resid = np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - rad)
+        assert abs(rad - iris.r) < 0.25 * iris.r, (name, rad, iris.r)
+        assert resid.mean() < 0.6, (name, resid)
+
+
+def test_closed_lids_hide_the_iris(sample_face, jaffe_faces):
+    closed = {19: 1080, 20: 1080, 21: 600, 22: 600}
+    for face in (sample_face, jaffe_faces[1]):
+        a = face.render_full(closed)
+        b = face.render_full({**closed, 23: 40000, 24: -40000, 25: 30000, 29: 300, 30: -300})
+        # moving the irises behind closed lids changes nothing: no iris pixel shows
+        assert np.array_equal(a.image, b.image)
+        assert a.eye_mask is None or a.eye_mask.sum() <= 2
+        # and the lids really cover the neutral iris discs
+        for iris in (face.landmarks.iris_left, face.landmarks.iris_right):
+            y, x = int(round(iris.cy)), int(round(iris.cx))
+            r = max(1, int(iris.r // 2))
+            assert np.abs(a.image[y - r:y + r + 1, x - r:x + r + 1].astype(int)
+                          - face.image[y - r:y + r + 1, x - r:x + r + 1]).mean() > 5
+
+
+def test_pupils_dilate_and_contract(sample_face):
+    f = sample_face
+    yy, xx = np.mgrid[0:f.image.shape[0], 0:f.image.shape[1]]
+    cores = [np.hypot(xx - i.cx, yy - i.cy) <= 0.6 * i.r
+             for i in (f.landmarks.iris_left, f.landmarks.iris_right)]
+
+    def core_lum(img):  # mean luminance of the pupil region of both eyes
+        return float(np.mean([_lum(img[m]).mean() for m in cores]))
+
+    n = core_lum(f.render({}))
+    big = core_lum(f.render({29: 300, 30: 300}))
+    small = core_lum(f.render({29: -300, 30: -300}))
+    assert big < n - 8 and small > n + 2, (small, n, big)
+
+
+def test_layers_cost_reports(sample_face):
+    c = layers_cost_ms(sample_face, {"open_jaw": 500, 23: 20000}, n=3, warm=1)
+    assert set(c) == {"without_ms", "with_ms", "layers_ms"}
+    assert c["with_ms"] > 0 and c["without_ms"] > 0
+
+
+@pytest.mark.parametrize("value", [300, 1080])
+def test_open_jaw_renders_valid_images(sample_face, value):
+    img = sample_face.render({"open_jaw": value, 23: 20000, 25: -10000})
+    assert img.shape == sample_face.image.shape and img.dtype == np.uint8

@@ -17,7 +17,7 @@ from PySide6.QtGui import (
     QDropEvent,
     QKeySequence,
 )
-from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMessageBox, QWidget
+from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMenu, QMessageBox, QWidget
 
 from editor import __version__
 from editor.core import Face
@@ -31,6 +31,11 @@ from .qt_utils import settings
 from .render_scheduler import RenderResult, RenderScheduler
 
 FAPU_SHOWN = ("MNS", "MW", "ENS", "ES", "IRISD")
+
+#: Optional panels: modules of ``editor.ui`` with ``install(window) -> None``. Each adds its own
+#: docks, menus and actions (``window.add_panel_dock``, ``window.menu(title)``), so panels are
+#: developed and tested independently of this file. A module that is missing is skipped.
+EXTENSIONS = ("presets_panel", "playback_panel", "mos_panel", "model_panel")
 
 
 class MainWindow(QMainWindow):
@@ -62,6 +67,7 @@ class MainWindow(QMainWindow):
 
         self._make_actions()
         self._make_menus()
+        self._install_extensions()
         self.setAcceptDrops(True)
         self.resize(1400, 860)
 
@@ -147,6 +153,44 @@ class MainWindow(QMainWindow):
         v.addActions([self.fap_dock.toggleViewAction(), self.gaze_dock.toggleViewAction()])
         mb.addMenu("&Help").addAction(self.act_about)
         self._fill_recent()
+
+    def menu(self, title: str) -> QMenu:
+        """The top-level menu titled ``title`` (e.g. "&Tools"), created before Help if needed."""
+        mb = self.menuBar()
+        for a in mb.actions():
+            if a.menu() is not None and a.text().replace("&", "") == title.replace("&", ""):
+                return a.menu()
+        help_action = mb.actions()[-1] if mb.actions() else None
+        m = QMenu(title, self)
+        mb.insertMenu(help_action, m) if help_action else mb.addMenu(m)
+        return m
+
+    def add_panel_dock(self, title: str, widget: QWidget, name: str,
+                       area: Qt.DockWidgetArea = Qt.DockWidgetArea.RightDockWidgetArea
+                       ) -> QDockWidget:
+        """Add an extension's dock (tabbed with the gaze pad on the right by default); its
+        show/hide action goes into the View menu."""
+        dock = self._dock(title, widget, name)
+        if area == Qt.DockWidgetArea.RightDockWidgetArea:
+            self.tabifyDockWidget(self.gaze_dock, dock)
+            self.gaze_dock.raise_()
+        else:
+            self.addDockWidget(area, dock)
+        self.menu("&View").addAction(dock.toggleViewAction())
+        return dock
+
+    def _install_extensions(self) -> None:
+        import importlib
+
+        self.extensions: dict[str, object] = {}
+        for name in EXTENSIONS:
+            try:
+                mod = importlib.import_module(f"editor.ui.{name}")
+            except ModuleNotFoundError as e:
+                if e.name == f"editor.ui.{name}":
+                    continue
+                raise
+            self.extensions[name] = mod.install(self)
 
     def _fill_recent(self) -> None:
         self.recent_menu.clear()

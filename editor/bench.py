@@ -46,9 +46,9 @@ def _emit(d: dict) -> None:
     print(json.dumps(d), flush=True)
 
 
-def _face_at(size: tuple[int, int]):
-    """The sample face scaled to fit ``size`` (aspect kept), padded by reflection."""
-    from editor.core import Face, load_image
+def _canvas(size: tuple[int, int]) -> np.ndarray:
+    """The sample photo scaled to fit ``size`` (aspect kept), padded by reflection."""
+    from editor.core import load_image
 
     img = load_image(SAMPLE)
     w, h = size
@@ -56,27 +56,40 @@ def _face_at(size: tuple[int, int]):
     fit = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
     top = (h - fit.shape[0]) // 2
     left = (w - fit.shape[1]) // 2
-    canvas = cv2.copyMakeBorder(fit, top, h - fit.shape[0] - top, left,
-                                w - fit.shape[1] - left, cv2.BORDER_REFLECT_101)
-    face = Face.from_image(np.ascontiguousarray(canvas))
+    return np.ascontiguousarray(cv2.copyMakeBorder(
+        fit, top, h - fit.shape[0] - top, left, w - fit.shape[1] - left, cv2.BORDER_REFLECT_101))
+
+
+def _face_at(size: tuple[int, int]):
+    from editor.core import Face
+
+    face = Face.from_image(_canvas(size))
     # the detector must have found the sample's face, not something else in the padding
-    expected = Face.from_image(img).interocular * s
+    expected = Face.from_image(SAMPLE).interocular * min(size[0] / 512, size[1] / 512)
     if abs(face.interocular - expected) > 0.15 * expected:
-        raise RuntimeError(f"benchmark face at {w}x{h} is not the sample's face")
+        raise RuntimeError(f"benchmark face at {size} is not the sample's face")
     return face
 
 
 def gui_bench() -> None:
     import os
     import sys
+    import tempfile
 
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from editor.core import save_image
     from editor.ui.latency import slider_latency
 
-    for fap in ("open_jaw", "raise_l_m_eyebrow"):
-        r = slider_latency(SAMPLE, fap=fap)
-        _emit({"bench": "gui_slider_latency", "fap": fap, **r,
-               "platform": os.environ["QT_QPA_PLATFORM"]})
+    with tempfile.TemporaryDirectory() as tmp:
+        for size in ((431, 591), (1920, 1080)):
+            photo = Path(tmp) / f"sample_{size[0]}x{size[1]}.png"
+            save_image(photo, _canvas(size))
+            for fap in ("open_jaw", "raise_l_m_eyebrow"):
+                r = slider_latency(photo, fap=fap)
+                r.pop("photo", None)
+                target = 16.0 if size[0] < 1000 else 40.0
+                _emit({"bench": "gui_slider_latency", "fap": fap, **r, "target_median_ms": target,
+                       "platform": os.environ["QT_QPA_PLATFORM"]})
     sys.stdout.flush()
 
 

@@ -236,10 +236,11 @@ def _pair_rule(plan: DeformPlan, pos: np.ndarray) -> None:
         pos[:, u], pos[:, lo] = pu, pl
 
 
-def _tau(plan: DeformPlan, X0: np.ndarray, D: np.ndarray) -> np.ndarray:
+def _tau(plan: DeformPlan, D: np.ndarray) -> np.ndarray:
     """First t in (0, 1] where a triangle's area reaches EPS_SOLVE of its neutral area. (B, T)."""
     t = plan.triangles
-    A0, B0, C0 = X0[t[:, 0]], X0[t[:, 1]], X0[t[:, 2]]
+    tn = plan.tri_neutral  # (T, 3, 2) neutral corners, precomputed
+    A0, B0, C0 = tn[:, 0], tn[:, 1], tn[:, 2]
     dA, dB, dC = D[:, t[:, 0]], D[:, t[:, 1]], D[:, t[:, 2]]
     u0, w0 = C0 - A0, C0 - B0
     du, dw = dC - dA, dC - dB
@@ -252,7 +253,6 @@ def _tau(plan: DeformPlan, X0: np.ndarray, D: np.ndarray) -> np.ndarray:
     a2 = sg * cross(du, dw)
     a1 = sg * (cross(u0, dw) + cross(du, w0))
     a0 = (1.0 - EPS_SOLVE) * np.abs(c0) * np.ones_like(a1)
-    tau = np.ones_like(a1)
     lin = np.abs(a2) < 1e-12
     with np.errstate(divide="ignore", invalid="ignore"):
         r_lin = np.where(lin & (a1 < 0), -a0 / a1, np.inf)
@@ -263,17 +263,15 @@ def _tau(plan: DeformPlan, X0: np.ndarray, D: np.ndarray) -> np.ndarray:
     q1 = np.where(~lin & (disc >= 0) & (q1 > 0), q1, np.inf)
     q2 = np.where(~lin & (disc >= 0) & (q2 > 0), q2, np.inf)
     first = np.minimum(np.minimum(q1, q2), r_lin)
-    tau = np.where(first <= 1.0, first * 0.999, 1.0)
-    return tau
+    return np.where(first <= 1.0, first * 0.999, 1.0)
 
 
 def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
     """Scale displacements (B, V, 2) so that no triangle inverts or degenerates (SPEC §2.3)."""
-    X0 = plan.neutral64[: plan.n_vertices]
     B = D.shape[0]
     pairs = plan.pairs
     for _ in range(rounds):
-        tau = _tau(plan, X0, D)
+        tau = _tau(plan, D)
         if (tau >= 1.0).all():
             return D
         tau_pad = np.concatenate([tau, np.ones((B, 1))], 1)
@@ -283,7 +281,7 @@ def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
         f[:, pairs[:, 0]] = fp
         f[:, pairs[:, 1]] = fp
         D = D * f[..., None]
-    tau = _tau(plan, X0, D)
+    tau = _tau(plan, D)
     t_star = tau.min(1)
     return D * t_star[:, None, None]
 

@@ -140,9 +140,24 @@ def _guarded(handler: Callable[[argparse.Namespace], int]) -> Callable[[argparse
 PAPER_EXPRESSIONS = ("joy", "sadness", "anger", "fear", "surprise")
 
 
+def face_crop(face) -> tuple[int, int, int, int]:
+    """Box ``(x0, y0, x1, y1)`` around the face with hair, chin and some background."""
+    b = face.landmarks.box
+    w, h = float(b[2] - b[0]), float(b[3] - b[1])
+    H, W = face.image.shape[:2]
+    x0, x1 = int(max(0, b[0] - 0.55 * w)), int(min(W, b[2] + 0.55 * w))
+    y0, y1 = int(max(0, b[1] - 0.8 * h)), int(min(H, b[3] + 0.45 * h))
+    return x0, y0, x1, y1
+
+
 def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
-                   intensities: Sequence[float]) -> list[tuple[str, str, float, np.ndarray]]:
-    """Render faces x presets x intensities: (face name, expression, intensity, RGB image)."""
+                   intensities: Sequence[float], crop: bool = True
+                   ) -> list[tuple[str, str, float, np.ndarray]]:
+    """Render faces x presets x intensities: (face name, expression, intensity, RGB image).
+
+    With ``crop`` (default) each stimulus is cut to the face region (:func:`face_crop`), so
+    that raters judge the face, not the photo around it.
+    """
     from editor.core import Face
     from editor.core.expressions import apply_preset, get_preset
 
@@ -154,10 +169,13 @@ def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
         while name in names:
             name += "_"
         names.add(name)
+        x0, y0, x1, y1 = face_crop(face) if crop else (0, 0, face.image.shape[1],
+                                                          face.image.shape[0])
         for p in presets:
             preset = get_preset(p)
             for k in intensities:
-                out.append((name, preset.name, float(k), face.render(apply_preset(preset, k))))
+                img = face.render(apply_preset(preset, k))[y0:y1, x0:x1]
+                out.append((name, preset.name, float(k), np.ascontiguousarray(img)))
     return out
 
 
@@ -175,7 +193,7 @@ def _cmd_create(args: argparse.Namespace) -> int:
             raise StudyError(f"--intensities {args.intensities!r}: not a list of numbers") from e
         if not ks or any(not 0 <= k <= 1.5 for k in ks):
             raise StudyError("--intensities must be numbers within 0 … 1.5")
-        renders = render_stimuli(args.faces, presets, ks)
+        renders = render_stimuli(args.faces, presets, ks, crop=args.crop == "face")
         study = create_from_renders(args.study, args.name or Path(args.study).stem,
                                     labels or presets, renders, args.allow_revise,
                                     args.break_every)
@@ -239,6 +257,8 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="comma-separated presets (default: %(default)s)")
     create.add_argument("--intensities", default="1.0",
                         help="comma-separated preset intensities 0-1.5 (default 1.0)")
+    create.add_argument("--crop", choices=("face", "full"), default="face",
+                        help="stimuli cut to the face region (default) or the full photo")
     create.add_argument("--folder", type=Path, help="folder of stimulus images")
     create.add_argument("--labels-csv", type=Path,
                         help="CSV with columns file,label[,face,intensity]")

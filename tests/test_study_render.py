@@ -10,7 +10,7 @@ from conftest import SAMPLE
 
 from editor.core.expressions import apply_preset, get_preset
 from editor.core.mos import Study
-from editor.study_cli import PAPER_EXPRESSIONS, add_study_parser
+from editor.study_cli import PAPER_EXPRESSIONS, add_study_parser, face_crop
 
 
 def test_paper_design_from_one_face(tmp_path, sample_face):
@@ -27,7 +27,13 @@ def test_paper_design_from_one_face(tmp_path, sample_face):
         joy = next(x for x in stim if x.label == "joy" and x.intensity == 1.0)
         data = np.frombuffer(s.image_bytes(joy.id), np.uint8)
         img = cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-        assert np.array_equal(img, sample_face.render(apply_preset(get_preset("joy"), 1.0)))
+        x0, y0, x1, y1 = face_crop(sample_face)
+        full = sample_face.render(apply_preset(get_preset("joy"), 1.0))
+        assert np.array_equal(img, full[y0:y1, x0:x1])
+        # the crop holds the whole face and is much smaller than the photo
+        b = sample_face.landmarks.box
+        assert x0 < b[0] and y0 < b[1] and x1 > b[2] and y1 > b[3]
+        assert img.size < 0.6 * full.size
     bad = p.parse_args(["study", "create", str(tmp_path / "t.db"), "--faces", str(SAMPLE),
                         "--intensities", "3"])
     assert bad.func(bad) == 2 and not (tmp_path / "t.db").exists()

@@ -1,0 +1,163 @@
+"""MOS rating studies in the editor: the "Study" menu (new / open / rate / results).
+
+``install(window)`` adds the menu and returns the :class:`MosPanel` controller. The rating
+session (:mod:`editor.ui.mos_rating`) and the results (:mod:`editor.ui.mos_results`) open in
+their own top-level windows; the study data lives in one SQLite file per study
+(:mod:`editor.core.mos`), so nothing here needs saving.
+"""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+
+from PySide6.QtCore import QObject, Qt
+from PySide6.QtGui import QAction
+from PySide6.QtWidgets import QApplication, QFileDialog, QMainWindow, QMessageBox, QWidget
+
+from editor.core.errors import FapStudioError
+from editor.core.mos import Study
+
+from .mos_new import NewStudyDialog
+from .mos_rating import RatingWindow, ask_rater
+from .mos_results import ResultsWindow
+from .qt_utils import settings
+
+STUDY_FILTER = "FAP Studio study (*.db);;All files (*)"
+_LAST = "mos/lastStudy"
+
+
+class MosPanel(QObject):
+    """Owns the Study menu actions, the current study path and the windows it opened."""
+
+    def __init__(self, window: QMainWindow) -> None:
+        super().__init__(window)
+        self.window = window
+        self.path: Path | None = None
+        self.windows: list[QWidget] = []
+        last = settings().value(_LAST, "")
+        if last and Path(str(last)).is_file():
+            self.path = Path(str(last))
+        menu = window.menu("&Study")  # type: ignore[attr-defined]
+        self.act_new = self._action(menu, "&New Study from Faces…", self.new_study)
+        self.act_open = self._action(menu, "&Open Study…", self.open_study)
+        menu.addSeparator()
+        self.act_rate = self._action(menu, "&Rate…", self.rate)
+        self.act_results = self._action(menu, "Re&sults…", self.results)
+        self._update()
+
+    def _action(self, menu: object, text: str, slot: Callable[[], object]) -> QAction:
+        a = QAction(text, self.window)
+        a.triggered.connect(lambda _=False: slot())
+        menu.addAction(a)  # type: ignore[attr-defined]
+        return a
+
+    def _update(self) -> None:
+        for a in (self.act_rate, self.act_results):
+            a.setEnabled(self.path is not None)
+        name = self.path.name if self.path else "no study open"
+        self.act_rate.setStatusTip(f"Rate the study {name}")
+
+    def guarded(self, title: str, action: Callable[[], object]) -> object | None:
+        """Run ``action`` with a wait cursor; errors become a one-line message box."""
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            return action()
+        except FapStudioError as e:
+            message = str(e)
+        except Exception as e:  # a bug must not take the editor down
+            traceback.print_exc()
+            message = f"unexpected error: {type(e).__name__}: {e}"
+        finally:
+            QApplication.restoreOverrideCursor()
+        QMessageBox.warning(self.window, title, message.splitlines()[0] if message else title)
+        return None
+
+    def set_study(self, path: str | Path) -> bool:
+        """Check that ``path`` is a study (message box if not) and make it the current one."""
+        def check() -> Path:
+            Study.open(path).close()
+            return Path(path)
+
+        ok = self.guarded("Cannot open the study", check)
+        if ok is None:
+            return False
+        self.path = Path(path)
+        settings().setValue(_LAST, str(self.path))
+        self._update()
+        return True
+
+    # ------------------------------------------------------------------ actions
+    def current_photo(self) -> str | None:
+        doc = getattr(getattr(self.window, "model", None), "doc", None)
+        photo = getattr(doc, "photo", None)
+        return str(photo) if photo else None
+
+    def new_study(self, dialog: NewStudyDialog | None = None) -> Path | None:
+        """Ask for faces × presets × intensities, render them and create the study."""
+        photo = self.current_photo()
+        dialog = dialog or NewStudyDialog([photo] if photo else [], self.window)
+        if dialog.exec() != NewStudyDialog.DialogCode.Accepted:
+            return None
+        return self.create_study(dialog)
+
+    def create_study(self, dialog: NewStudyDialog) -> Path | None:
+        def make() -> Path:
+            from editor.study_cli import create_from_renders, render_stimuli
+
+            faces, presets, ks, name, path, every, revise = dialog.values()
+            renders = render_stimuli(faces, presets, ks)
+            create_from_renders(path, name, presets, renders, revise, every).close()
+            return path
+
+        path = self.guarded("Cannot create the study", make)
+        if isinstance(path, Path) and self.set_study(path):
+            self.window.statusBar().showMessage(f"Created study {path.name}", 5000)
+            return path
+        return None
+
+    def open_study(self, path: str | None = None) -> bool:
+        if not path:
+            start = str(self.path.parent) if self.path else ""
+            path, _ = QFileDialog.getOpenFileName(self.window, "Open study", start, STUDY_FILTER)
+        return bool(path) and self.set_study(path)
+
+    def rate(self, rater: str | None = None, seed: int | None = None) -> RatingWindow | None:
+        """Ask for the rater id and open the rating window (resumes a known rater)."""
+        if self.path is None and not self.open_study():
+            return None
+        rater = rater or ask_rater(self.window)
+        if not rater:
+            return None
+        path = self.path
+        win = self.guarded("Cannot start the rating session",
+                           lambda: RatingWindow(str(path), rater, seed))
+        if not isinstance(win, RatingWindow):
+            return None
+        self._keep(win)
+        return win
+
+    def results(self) -> ResultsWindow | None:
+        if self.path is None and not self.open_study():
+            return None
+        path = self.path
+        win = self.guarded("Cannot show the results", lambda: ResultsWindow(path))
+        if not isinstance(win, ResultsWindow):
+            return None
+        self._keep(win)
+        return win
+
+    def _keep(self, win: QWidget) -> None:
+        win.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        self.windows.append(win)
+        win.destroyed.connect(lambda _=None, w=win: self.windows.remove(w)
+                              if w in self.windows else None)
+        win.show()
+        win.raise_()
+        win.activateWindow()
+
+
+def install(window: QMainWindow) -> MosPanel:
+    """Add the Study menu to the editor window (called by ``MainWindow``)."""
+    return MosPanel(window)

@@ -1,0 +1,213 @@
+"""Results window of a MOS study: the paper's Tables 4-6, confusion heatmap, bar charts with
+95 % CIs, rater agreement/screening, Fleiss' kappa, CSV and PNG export."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (
+    QAbstractItemView,
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QMessageBox,
+    QPlainTextEdit,
+    QPushButton,
+    QTableWidget,
+    QTableWidgetItem,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from editor.core.errors import FapStudioError
+from editor.core.mos import CANNOT_TELL, Study
+from editor.core.mos_stats import StudyReport, Summary, analyse, format_report
+from editor.study_cli import export_answers_csv
+
+from .plots import BarPlot, ConfusionPlot
+
+SUMMARY_HEADER = ["n", "recog %", "95 % CI", "natural", "95 % CI", ">=3 %", "=5 %"]
+
+
+def pct(x: float) -> str:
+    return "-" if math.isnan(x) else f"{100 * x:.1f}"
+
+
+def nat(x: float) -> str:
+    return "-" if math.isnan(x) else f"{x:.2f}"
+
+
+def ci(c: tuple[float, float], scale: float = 1.0, digits: int = 1) -> str:
+    return "-" if math.isnan(c[0]) else f"[{c[0] * scale:.{digits}f}, {c[1] * scale:.{digits}f}]"
+
+
+def summary_cells(s: Summary) -> list[str]:
+    """The table cells of one summary (same columns as :data:`SUMMARY_HEADER`)."""
+    return [str(s.n), pct(s.recognition), ci(s.recognition_ci, 100), nat(s.naturalness),
+            ci(s.naturalness_ci, 1, 2), pct(s.share_ge3), pct(s.share_eq5)]
+
+
+def make_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> QTableWidget:
+    """A read-only table; text columns left, numbers right-aligned."""
+    table = QTableWidget(len(rows), len(header))
+    table.setHorizontalHeaderLabels(list(header))
+    table.verticalHeader().setVisible(False)
+    table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+    for i, row in enumerate(rows):
+        for j, text in enumerate(row):
+            item = QTableWidgetItem(text)
+            numeric = text[:1].isdigit() or text[:1] in "-[" and text != "-"
+            if numeric:
+                item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+            table.setItem(i, j, item)
+    table.resizeColumnsToContents()
+    return table
+
+
+class ResultsWindow(QWidget):
+    """Reads the study once (:meth:`reload`), shows tables and plots; the file stays closed
+    in between, so raters can keep rating while the results are open."""
+
+    def __init__(self, study_path: str | Path, parent: QWidget | None = None) -> None:
+        super().__init__(parent, Qt.WindowType.Window)
+        self.path = Path(study_path)
+        self.report: StudyReport | None = None
+        self.text = ""
+        self.tabs = QTabWidget()
+        self.summary_label = QLabel()
+        self.summary_label.setWordWrap(True)
+        buttons = QHBoxLayout()
+        for text, slot in (("Reload", self.reload_guarded), ("Export CSV…", self.export_csv),
+                           ("Save Plots PNG…", self.save_plots)):
+            b = QPushButton(text)
+            b.clicked.connect(slot)
+            buttons.addWidget(b)
+        buttons.addStretch(1)
+        lay = QVBoxLayout(self)
+        lay.addWidget(self.summary_label)
+        lay.addWidget(self.tabs, 1)
+        lay.addLayout(buttons)
+        self.plots = QWidget()
+        grid = QGridLayout(self.plots)
+        self.confusion = ConfusionPlot()
+        self.nat_plot = BarPlot("Mean naturalness per expression (95 % CI)", "naturalness 1–5",
+                                (0.0, 5.0))
+        self.rec_plot = BarPlot("Recognition per expression (95 % CI)", "recognition %",
+                                (0.0, 100.0))
+        grid.addWidget(self.confusion, 0, 0, 1, 2)
+        grid.addWidget(self.rec_plot, 1, 0)
+        grid.addWidget(self.nat_plot, 1, 1)
+        grid.setRowStretch(0, 3)
+        grid.setRowStretch(1, 2)
+        self.tables: dict[str, QTableWidget] = {}
+        self.resize(1100, 850)
+        self.reload()
+
+    # ------------------------------------------------------------------ data
+    def reload(self) -> None:
+        """Re-read the study and rebuild every tab (raises :class:`FapStudioError`)."""
+        with Study.open(self.path) as study:
+            answers, stimuli, labels = study.answers(), study.stimuli(), study.labels
+            name, n_raters = study.name, len(study.raters())
+        report = analyse(answers, labels, stimuli)
+        title = (f"Study {name!r}: {len(stimuli)} stimuli, {n_raters} raters, "
+                 f"{len(answers)} answers")
+        self.setWindowTitle(f"Results – {name}")
+        self.report, self.text = report, format_report(report, title)
+        k = report.kappa
+        kappa = "-" if math.isnan(k.kappa) else f"{k.kappa:.3f}"
+        o = report.overall
+        self.summary_label.setText(
+            f"<b>{title}</b><br>Overall recognition {pct(o.recognition)} % "
+            f"{ci(o.recognition_ci, 100)}, naturalness {nat(o.naturalness)} "
+            f"{ci(o.naturalness_ci, 1, 2)}; Fleiss' kappa (labels incl. '{CANNOT_TELL}') "
+            f"{kappa} over {k.n_subjects} stimuli")
+        self._fill(report)
+
+    def reload_guarded(self) -> None:
+        try:
+            self.reload()
+        except FapStudioError as e:
+            QMessageBox.warning(self, "Cannot read the study", str(e))
+
+    def _fill(self, r: StudyReport) -> None:
+        current = self.tabs.currentIndex()
+        while self.tabs.count():
+            w = self.tabs.widget(0)
+            self.tabs.removeTab(0)
+            if w is not self.plots:
+                w.deleteLater()
+        t4 = [[f, *(f"{pct(c.recognition)} / {nat(c.naturalness)}"
+                    if (c := r.cells.get((f, e))) else "" for e in r.labels)] for f in r.faces]
+        stim = [[str(s.stimulus_id), s.face, s.true_label, *summary_cells(s.summary)]
+                for s in r.stimuli]
+        expr = [[e, *summary_cells(s)] for e, s in r.per_expression.items()]
+        face = [[f, *summary_cells(s)] for f, s in r.per_face.items()]
+        overall = [["all", *summary_cells(r.overall)]]
+        raters = [[x.rater, str(x.n), pct(x.accuracy), nat(x.mean_naturalness),
+                   "-" if math.isnan(x.r_panel) else f"{x.r_panel:.2f}", str(x.n_panel),
+                   str(x.p), str(x.q), "REJECT" if x.rejected else "keep"] for x in r.raters]
+        self.tables = {
+            "Table 4: face × expression (recog % / natural)": make_table(
+                ["face", *r.labels], t4),
+            "Per stimulus": make_table(["id", "face", "expression", *SUMMARY_HEADER], stim),
+            "Table 5: per expression": make_table(["expression", *SUMMARY_HEADER], expr),
+            "Table 6: per face": make_table(["face", *SUMMARY_HEADER], face),
+            "Overall": make_table(["", *SUMMARY_HEADER], overall),
+            "Raters": make_table(["rater", "n", "recog %", "mean nat", "r panel", "n panel",
+                                  "P", "Q", "BT.500"], raters),
+        }
+        self.tabs.addTab(self.plots, "Plots")
+        for name, table in self.tables.items():
+            self.tabs.addTab(table, name.split(":")[0])
+            self.tabs.setTabToolTip(self.tabs.count() - 1, name)
+        text = QPlainTextEdit(self.text)
+        text.setReadOnly(True)
+        text.setStyleSheet("font-family: monospace;")
+        self.tabs.addTab(text, "Report text")
+        self.tabs.setCurrentIndex(max(current, 0))
+        self.confusion.set_confusion(r.confusion)
+        names = list(r.per_expression)
+        sums = list(r.per_expression.values())
+        self.nat_plot.set_data(names, [s.naturalness for s in sums],
+                               [s.naturalness_ci for s in sums])
+        self.rec_plot.set_data(names, [100 * s.recognition for s in sums],
+                               [(100 * s.recognition_ci[0], 100 * s.recognition_ci[1])
+                                for s in sums])
+
+    # ------------------------------------------------------------------ export
+    def export_csv(self, path: str | None = None) -> int | None:
+        """Write all answers in long format; returns the number of rows (None if cancelled)."""
+        if not path:
+            path, _ = QFileDialog.getSaveFileName(self, "Export answers",
+                                                  str(self.path.with_suffix(".csv")),
+                                                  "CSV (*.csv)")
+        if not path:
+            return None
+        try:
+            with Study.open(self.path) as study:
+                return export_answers_csv(study, path)
+        except FapStudioError as e:
+            QMessageBox.warning(self, "Cannot export the answers", str(e))
+            return None
+
+    def save_plots(self, path: str | None = None) -> bool:
+        """Save a PNG of the plots tab (confusion + bar charts) as shown."""
+        if not path:
+            path, _ = QFileDialog.getSaveFileName(self, "Save plots",
+                                                  str(self.path.with_suffix(".png")),
+                                                  "PNG (*.png)")
+        if not path:
+            return False
+        shown = self.tabs.currentWidget()
+        self.tabs.setCurrentWidget(self.plots)  # a hidden tab may have no valid geometry
+        ok = self.plots.grab().save(str(path), "PNG")
+        self.tabs.setCurrentWidget(shown)
+        if not ok:
+            QMessageBox.warning(self, "Cannot save the plots", f"{path}: cannot write PNG")
+        return ok

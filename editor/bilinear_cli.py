@@ -1,7 +1,10 @@
-"""``fap-studio bilinear`` sub-commands: ``train`` and ``eval``.
+"""``fap-studio bilinear`` sub-commands: ``train``, ``eval`` and ``synth``.
 
-``bilinear synth`` (photo -> landmarks -> synthesized expression -> warped photo) needs the
-face-photo pipeline and is not provided here. Each handler is registered with
+``train`` fits the Stasm-77 model on a landmark set, or (``--detect IMAGES_DIR``, or a directory
+of images without ``all_features.txt``) the dlib-68 photo model on landmarks detected in
+JAFFE-style images (:mod:`editor.core.bilinear_photo`). ``synth`` detects the photo's landmarks,
+synthesizes the target expression with a dlib-68 model, maps it onto the personalized mesh and
+warps the photo. Each handler is registered with
 ``set_defaults(func=handler)``; it takes the parsed namespace and returns an exit code
 (0 success, 2 for a :class:`~editor.core.errors.FapStudioError`, printed as one line
 ``fap-studio: error: ...`` on stderr).
@@ -87,7 +90,11 @@ def add_bilinear_parser(subparsers: Any) -> None:
         description="Train on every person × 7 expressions of a Stasm-77 landmark set (the "
                     "JAFFE landmarks_stasm77 layout: all_features.txt, all_names.txt, "
                     "all_labels.txt) and store λ chosen by cross-validation in the model.")
-    t.add_argument("landmarks", metavar="LANDMARKS_DIR_OR_FILE")
+    t.add_argument("landmarks", metavar="LANDMARKS_DIR_OR_FILE", nargs="?", default=None)
+    t.add_argument("--detect", metavar="IMAGES_DIR", default=None,
+                   help="train the dlib-68 photo model on landmarks detected in JAFFE-style "
+                        "images (PERSON.EXPRn.ID.tiff); detections are cached outside the "
+                        "project")
     t.add_argument("-o", "--output", required=True, metavar="MODEL.npz")
     t.add_argument("--people", default=None, metavar="P1,P2,...",
                    help="train on these person codes only (default: all)")
@@ -113,13 +120,39 @@ def add_bilinear_parser(subparsers: Any) -> None:
     _model_options(e)
     e.set_defaults(func=_guard(run_eval))
 
+    y = sub.add_parser(
+        "synth", help="synthesize an expression on a photo",
+        description="Detect the photo's 68 landmarks, translate them with a dlib-68 model "
+                    "(bilinear train --detect), rebuild the target expression with the face's "
+                    "identity, map it onto the personalized mesh and warp the photo.")
+    y.add_argument("photo", metavar="PHOTO")
+    y.add_argument("--model", required=True, metavar="MODEL.npz")
+    y.add_argument("--expression", default="joy", metavar="NAME|NAME:W,...",
+                   help="target expression or a mix, e.g. joy or joy:0.5,surprise:0.5")
+    y.add_argument("--method", choices=("plain", "ridge", "mals"), default="mals")
+    y.add_argument("--lambda", dest="lam", type=_positive_float, default=None, metavar="λ",
+                   help="λ for ridge / MALS (default: the model's)")
+    y.add_argument("--keep-residual", action="store_true",
+                   help="keep the part of the input shape the model does not reconstruct")
+    y.add_argument("--faps-json", default=None, metavar="FILE.json",
+                   help="also write the FAP vector that best reproduces the shape (a preset)")
+    y.add_argument("-o", "--output", required=True, metavar="OUT.png")
+    y.set_defaults(func=_guard(run_synth))
+
 
 def run_train(args: argparse.Namespace) -> int:
     """``bilinear train``: fit, choose λ, save."""
+    from pathlib import Path
+
     from editor.core.bilinear import save_model
     from editor.core.bilinear_data import load_stasm77, train_model
     from editor.core.bilinear_eval import DEFAULT_GRID, choose_lambdas
 
+    if args.detect or (args.landmarks and Path(args.landmarks).is_dir()
+                       and not (Path(args.landmarks) / "all_features.txt").exists()):
+        return _train_detect(args, args.detect or args.landmarks)
+    if not args.landmarks:
+        raise ModelError("give a landmark set or --detect IMAGES_DIR")
     data = load_stasm77(args.landmarks)
     people = data.people
     if args.people:
@@ -162,4 +195,59 @@ def run_eval(args: argparse.Namespace) -> int:
                       fixed_lambda=fixed, I=args.expression_dim, J=args.identity_dim,
                       tol=args.tol, max_iter=args.max_iter)
     print(format_report(result))
+    return 0
+
+
+def _train_detect(args: argparse.Namespace, images: str) -> int:
+    """``bilinear train --detect``: dlib-68 detections -> photo model."""
+    from editor.core.bilinear import save_model
+    from editor.core.bilinear_photo import detect_training_set, train_model68
+
+    people = (tuple(p.strip() for p in args.people.split(",") if p.strip())
+              if args.people else None)
+    data = detect_training_set(images, people)
+    model = train_model68(data, None, args.expression_dim, args.identity_dim)
+    model.meta["training"] = f"dlib-68 detections on {len(data.names)} images"
+    save_model(model, args.output)
+    print(f"trained the dlib-68 photo model on {len(model.identities)} people × "
+          f"{len(model.expressions)} expressions ({len(data.names)} images with a face)")
+    print("  λ: " + ", ".join(f"{m} {v:g}" for m, v in model.meta["lambda"].items())
+          + " (fixed defaults)")
+    print(f"wrote {args.output} (derived from the training images: do not commit it)")
+    return 0
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    """``bilinear synth``: photo -> synthesized expression -> PNG."""
+    import json
+
+    from editor.core import Face, save_image
+    from editor.core.bilinear import load_model
+    from editor.core.bilinear_photo import (
+        check_model68,
+        faps_for_points,
+        parse_mix,
+        synthesize_on_face,
+    )
+
+    model = load_model(args.model)
+    check_model68(model)
+    target = parse_mix(args.expression)
+    face = Face.from_image(args.photo)
+    res = synthesize_on_face(face, model, target, args.method, args.lam,
+                             keep_residual=args.keep_residual, render=True)
+    assert res.image is not None
+    save_image(args.output, res.image)
+    if args.faps_json:
+        from editor.clone_cli import faps_document
+
+        faps = faps_for_points(face, res.points68)
+        doc = faps_document(faps, f"bilinear_{args.expression}_{args.method}",
+                            f"bilinear synth {args.photo}")
+        try:
+            with open(args.faps_json, "w", encoding="utf-8") as fh:
+                fh.write(json.dumps(doc, indent=2) + "\n")
+        except OSError as exc:
+            raise ModelError(f"cannot write {args.faps_json}: {exc.strerror or exc}") from exc
+    print(f"{args.expression} ({args.method}) -> {args.output}")
     return 0

@@ -1,0 +1,162 @@
+"""Tools-menu actions of issue 10: "Clone from Photo…" and "Track Video…".
+
+Both measure FAPs from a performer (:mod:`editor.core.fap_estimate`, the FAP route of SPEC §6):
+the neutral/expression pair or every video frame against the first, in the performer's own
+FAPU, so the vector applies unchanged to the current photo. Clone results land on the sliders as
+one undo entry; a tracked video is saved as a .fap sequence (frames without a face are filled by
+interpolation and reported). Errors become a message box with the one-line error text.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QCoreApplication, Qt
+from PySide6.QtGui import QGuiApplication
+from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressDialog, QWidget
+
+from editor.core.errors import FapStudioError
+
+IMAGE_FILTER = "Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff);;All files (*)"
+VIDEO_FILTER = "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
+
+
+class WaitCursor:
+    """Context manager: the wait cursor while a long computation runs."""
+
+    def __enter__(self) -> WaitCursor:
+        QGuiApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        QGuiApplication.restoreOverrideCursor()
+
+
+def report_error(parent: QWidget | None, title: str, exc: BaseException) -> None:
+    """One-line FapStudioError text (or the exception's type and text) in a warning box."""
+    text = str(exc) if isinstance(exc, FapStudioError) else f"{type(exc).__name__}: {exc}"
+    QMessageBox.warning(parent, title, text.splitlines()[0] if text else title)
+
+
+def guarded(parent: QWidget | None, title: str, fn: Callable[[], Any]) -> Any:
+    """Run ``fn`` with the wait cursor; any exception becomes a message box (returns None)."""
+    try:
+        with WaitCursor():
+            return fn()
+    except Exception as exc:  # noqa: BLE001 - the GUI must never crash on a bad input
+        report_error(parent, title, exc)
+        return None
+
+
+def estimate_clone_faps(neutral: str | Path, expression: str | Path) -> np.ndarray:
+    """(68,) FAPs (performer FAPU) of the performer's expression photo against the neutral."""
+    from editor.core import Face, load_image
+    from editor.core.errors import NoFaceError
+    from editor.core.fap_estimate import FapEstimator
+    from editor.core.landmarks import detect_landmarks
+
+    src = Face.from_image(neutral)
+    try:
+        lm = detect_landmarks(load_image(expression))
+    except NoFaceError as exc:
+        raise NoFaceError(f"{expression}: {exc}") from None
+    return np.asarray(FapEstimator(src).estimate(lm.points).faps, np.float32)
+
+
+class CloneTools:
+    """The two Tools-menu actions, bound to a main window."""
+
+    def __init__(self, window: Any) -> None:
+        self.window = window
+        tools = window.menu("&Tools")
+        self.act_clone = tools.addAction("Clone from &Photo…")
+        self.act_clone.setStatusTip("Measure FAPs from a performer's neutral and expression "
+                                    "photos and put them on the sliders")
+        self.act_clone.triggered.connect(lambda _c=False: self.clone_from_photos())
+        self.act_track = tools.addAction("&Track Video…")
+        self.act_track.setStatusTip("Measure FAPs in every frame of a performer video and save "
+                                    "them as a .fap animation")
+        self.act_track.triggered.connect(lambda _c=False: self.track_video())
+        self.last_track: Any = None
+
+    # ------------------------------------------------------------------ clone
+    def clone_from_photos(self, neutral: str | None = None, expression: str | None = None
+                          ) -> np.ndarray | None:
+        """Ask for the two photos (unless given), estimate, apply as one undo entry."""
+        w = self.window
+        if w.model.doc is None:
+            QMessageBox.warning(w, "Clone from Photo", "Open a photo first.")
+            return None
+        if neutral is None:
+            neutral, _ = QFileDialog.getOpenFileName(w, "Performer's neutral photo", "",
+                                                     IMAGE_FILTER)
+            if not neutral:
+                return None
+        if expression is None:
+            expression, _ = QFileDialog.getOpenFileName(w, "Performer's expression photo",
+                                                        str(Path(neutral).parent), IMAGE_FILTER)
+            if not expression:
+                return None
+        faps = guarded(w, "Clone from Photo", lambda: estimate_clone_faps(neutral, expression))
+        if faps is None:
+            return None
+        values = {i + 1: float(v) for i, v in enumerate(faps) if i >= 2}
+        w.model.set_faps(values, f"Clone from {Path(expression).name}")
+        w.statusBar().showMessage(f"Cloned {Path(expression).name}: "
+                                  f"{int(np.count_nonzero(np.round(faps)))} FAPs set", 6000)
+        return faps
+
+    # ------------------------------------------------------------------ track
+    def track_video(self, video: str | None = None, output: str | None = None) -> Any:
+        """Ask for a video and a .fap file (unless given), track with a cancellable progress
+        dialog, save, and report the frames without a face. Returns the TrackReport."""
+        from editor.core.fap_estimate import track_video
+        from editor.core.fapfile import write_fap
+
+        w = self.window
+        if video is None:
+            video, _ = QFileDialog.getOpenFileName(w, "Performer video", "", VIDEO_FILTER)
+            if not video:
+                return None
+        if output is None:
+            output, _ = QFileDialog.getSaveFileName(w, "Save FAP animation",
+                                                    str(Path(video).with_suffix(".fap")),
+                                                    "FAP animation (*.fap)")
+            if not output:
+                return None
+        dlg = QProgressDialog("Tracking the video…", "Cancel", 0, 100, w)
+        dlg.setWindowTitle("Track Video")
+        dlg.setWindowModality(Qt.WindowModality.WindowModal)
+        dlg.setMinimumDuration(300)
+
+        def progress(done: int, total: int) -> bool:
+            dlg.setMaximum(max(total, 1))
+            dlg.setValue(min(done, max(total, 1)))
+            dlg.setLabelText(f"Tracking frame {done} of {total}…")
+            QCoreApplication.processEvents()
+            return not dlg.wasCanceled()
+
+        try:
+            seq, rep = track_video(video, progress=progress)
+            if rep.cancelled:
+                w.statusBar().showMessage("Tracking cancelled: nothing saved", 6000)
+                self.last_track = rep
+                return rep
+            path = write_fap(seq, output)
+        except Exception as exc:  # noqa: BLE001
+            report_error(w, "Track Video", exc)
+            return None
+        finally:
+            dlg.reset()
+            dlg.close()
+            dlg.deleteLater()
+        self.last_track = rep
+        dropped = (f"{len(rep.missing)} frame(s) without a face were interpolated."
+                   if rep.missing else "A face was found in every frame.")
+        QMessageBox.information(w, "Track Video",
+                                f"Saved {rep.frames} frames to {path}.\n{dropped}\n"
+                                f"{rep.summary()}")
+        return rep

@@ -309,4 +309,7 @@ def install(window) -> PresetsPanel:
     panel = PresetsPanel(window.model)
     window.presets_panel = panel
     window.presets_dock = window.add_panel_dock("Presets", panel, "presetsDock")
+    from .preset_gallery import install as install_gallery
+
+    install_gallery(window, panel)
     return panel

@@ -13,11 +13,11 @@ warps the photo. Each handler is registered with
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable
 from typing import Any
 
-from editor.core.errors import FapStudioError, ModelError
+from editor.cli_util import guarded
+from editor.core.errors import ModelError
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -50,19 +50,6 @@ def _grid(text: str) -> tuple[float, ...]:
     if not values or any(not v > 0 or v == float("inf") for v in values):
         raise argparse.ArgumentTypeError(f"expected comma-separated positive λ values: {text!r}")
     return values
-
-
-def _guard(handler: Handler) -> Handler:
-    def run(args: argparse.Namespace) -> int:
-        try:
-            return handler(args)
-        except FapStudioError as exc:
-            print(f"fap-studio: error: {exc}", file=sys.stderr)
-            return 2
-
-    run.__name__ = handler.__name__
-    run.__doc__ = handler.__doc__
-    return run
 
 
 def _model_options(p: argparse.ArgumentParser) -> None:
@@ -101,7 +88,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
     t.add_argument("--no-cv", action="store_true",
                    help="skip choosing λ (the model then stores none)")
     _model_options(t)
-    t.set_defaults(func=_guard(run_train))
+    t.set_defaults(func=guarded(run_train))
 
     e = sub.add_parser(
         "eval", help="rotated train/test evaluation, printed as a table",
@@ -118,7 +105,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
     e.add_argument("--lambda-mals", type=_positive_float, default=None, metavar="λ",
                    help="fixed MALS λ (default: cross-validation)")
     _model_options(e)
-    e.set_defaults(func=_guard(run_eval))
+    e.set_defaults(func=guarded(run_eval))
 
     y = sub.add_parser(
         "synth", help="synthesize an expression on a photo",
@@ -137,7 +124,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
     y.add_argument("--faps-json", default=None, metavar="FILE.json",
                    help="also write the FAP vector that best reproduces the shape (a preset)")
     y.add_argument("-o", "--output", required=True, metavar="OUT.png")
-    y.set_defaults(func=_guard(run_synth))
+    y.set_defaults(func=guarded(run_synth))
 
 
 def run_train(args: argparse.Namespace) -> int:

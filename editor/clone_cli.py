@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_util import guarded
 from .core.errors import FapStudioError
 
 SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
@@ -48,21 +49,6 @@ class _Bar:
         if self.open:
             sys.stderr.write("\n")
             self.open = False
-
-
-def _handler(fn):
-    """Run a command; a FapStudioError becomes one line ``fap-studio: error: ...`` and code 2."""
-
-    def run(a: argparse.Namespace) -> int:
-        try:
-            return int(fn(a) or 0)
-        except FapStudioError as e:
-            print(f"fap-studio: error: {e}", file=sys.stderr)
-            return 2
-
-    run.__name__ = run.__qualname__ = fn.__name__
-    run.__doc__ = fn.__doc__
-    return run
 
 
 def _write_text(path: str | Path, text: str) -> None:
@@ -387,7 +373,7 @@ def add_clone_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--faps-json", metavar="OUT.json",
                    help="write the estimated FAPs as a preset file")
-    s.set_defaults(func=_handler(cmd_clone))
+    s.set_defaults(func=guarded(cmd_clone))
 
     t = sub.add_parser("track", help="FAP sequence (.fap) from a performer video")
     t.add_argument("video")
@@ -397,7 +383,7 @@ def add_clone_parser(sub) -> None:
                    "default savgol:5) | ema:A (forward-backward exponential, 0 < A <= 1)")
     t.add_argument("--fps", type=float, help="frame rate (default: the video's)")
     t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    t.set_defaults(func=_handler(cmd_track))
+    t.set_defaults(func=guarded(cmd_track))
 
     e = sub.add_parser("clone-eval", help="evaluate FAP recovery and cloning (JAFFE)")
     e.add_argument("--jaffe", default=str(JAFFE), help="JAFFE folder (with images/)")
@@ -409,4 +395,4 @@ def add_clone_parser(sub) -> None:
     e.add_argument("--skip-roundtrip", action="store_true")
     e.add_argument("--skip-jaffe", action="store_true")
     e.add_argument("-q", "--quiet", action="store_true")
-    e.set_defaults(func=_handler(cmd_clone_eval))
+    e.set_defaults(func=guarded(cmd_clone_eval))

@@ -12,14 +12,14 @@ from __future__ import annotations
 import argparse
 import csv
 import struct
-import sys
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from editor.core.errors import FapStudioError, ImageError, StudyError
+from editor.cli_util import guarded
+from editor.core.errors import ImageError, StudyError
 from editor.core.mos import StimulusSpec, Study
 
 
@@ -122,20 +122,6 @@ def export_answers_csv(study: Study, out: str | Path) -> int:
     return len(answers)
 
 
-def _guarded(handler: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
-    """Turn a :class:`FapStudioError` into one ``fap-studio: error: ...`` line and exit code 2."""
-
-    def run(args: argparse.Namespace) -> int:
-        try:
-            return handler(args)
-        except FapStudioError as e:
-            print(f"fap-studio: error: {e}", file=sys.stderr)
-            return 2
-
-    run.__doc__ = handler.__doc__
-    return run
-
-
 #: The paper's design (SPEC §4): these five expressions on every face, full intensity.
 PAPER_EXPRESSIONS = ("joy", "sadness", "anger", "fear", "surprise")
 
@@ -179,7 +165,7 @@ def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
     return out
 
 
-@_guarded
+@guarded
 def _cmd_create(args: argparse.Namespace) -> int:
     """``study create STUDY.db (--folder DIR --labels-csv CSV | --faces PHOTO ... [--presets])``."""
     labels = None if args.labels is None else [x.strip() for x in args.labels.split(",")]
@@ -209,7 +195,7 @@ def _cmd_create(args: argparse.Namespace) -> int:
     return 0
 
 
-@_guarded
+@guarded
 def _cmd_report(args: argparse.Namespace) -> int:
     """``study report STUDY.db``: print Tables 4-6, confusion matrix, kappa and raters."""
     from editor.core.mos_stats import analyse, format_report  # scipy: import lazily
@@ -223,7 +209,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-@_guarded
+@guarded
 def _cmd_export(args: argparse.Namespace) -> int:
     """``study export STUDY.db -o answers.csv``: one row per answer."""
     with Study.open(args.study) as study:

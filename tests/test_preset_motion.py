@@ -1,0 +1,68 @@
+"""Each emotion preset moves the feature points the expression table says (SPEC §4, Table 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from editor.core.expressions import apply_preset, get_preset
+
+
+@pytest.fixture(scope="module")
+def motion(sample_face):
+    """Feature point motion in the face frame (x to the face's left, y down), pixels."""
+    f = sample_face
+    p0 = {k: np.array(v) for k, v in f.feature_points().items()}
+
+    def run(name: str) -> dict[str, np.ndarray]:
+        p1 = f.feature_points(apply_preset(get_preset(name), 1.0))
+        return {k: f.frame.rot.T @ (np.array(p1[k]) - p0[k]) for k in p0}
+
+    return run
+
+
+def gap(m: dict[str, np.ndarray]) -> float:
+    """Change of the mouth opening (inner lower lip minus inner upper lip, frame y)."""
+    return float(m["2.3"][1] - m["2.2"][1])
+
+
+def test_joy(motion):
+    m = motion("joy")
+    assert m["8.3"][1] < -0.5 and m["8.4"][1] < -0.5      # mouth corners up
+    assert m["2.1"][1] > 0.3                              # jaw down
+    assert m["2.3"][1] > 0.3                              # lower lip down
+    assert m["4.5"][1] < 0 and m["4.6"][1] < 0            # outer brows up
+
+
+def test_sadness(motion):
+    m = motion("sadness")
+    assert m["8.3"][1] > 0.5 and m["8.4"][1] > 0.5        # mouth corners down
+    assert m["8.3"][0] > 0 and m["8.4"][0] < 0            # lips stretched outwards
+    assert m["4.5"][1] > 0 and m["4.6"][1] > 0            # outer brows down
+
+
+def test_surprise(motion):
+    m = motion("surprise")
+    for k in ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6"):  # whole brows up
+        assert m[k][1] < -1.0, k
+    assert m["8.1"][1] < 0                                # upper lip up
+    assert m["2.3"][1] > 1.0 and gap(m) > 1.5             # lower lip down, mouth opens
+
+
+def test_anger(motion):
+    m = motion("anger")
+    assert m["4.1"][0] < 0 and m["4.2"][0] > 0            # brows squeezed together
+    assert gap(m) <= 0.05                                 # lips pressed, not opened
+    assert m["4.5"][1] < 0 and m["4.6"][1] < 0            # outer brows up (table 3)
+
+
+def test_fear(motion):
+    m = motion("fear")
+    assert m["8.3"][1] > 0.5 and m["8.4"][1] > 0.5        # mouth corners down
+    assert gap(m) > 0.3                                   # lower lip slightly open
+    assert m["4.5"][1] > 0 and m["4.6"][1] > 0            # outer brows down
+
+
+def test_disgust(motion):
+    m = motion("disgust")
+    assert m["8.1"][1] < -0.3                             # upper lip raised

@@ -6,18 +6,17 @@ one-line message in a message box and leaves the current document as it was.
 
 from __future__ import annotations
 
-import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from PySide6.QtCore import QObject, Qt, Signal
-from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox, QWidget
+from PySide6.QtCore import QObject, Signal
+from PySide6.QtWidgets import QFileDialog, QMessageBox, QWidget
 
-from editor.core import Face, FapStudioError, save_image
+from editor.core import Face, save_image
 
 from .document_model import Document, DocumentModel
 from .project import SUFFIX, load_project, save_project
-from .qt_utils import settings
+from .qt_utils import run_guarded, settings
 
 PHOTO_FILTER = "Photos (*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp);;All files (*)"
 PROJECT_FILTER = f"FAP Studio projects (*{SUFFIX} *.json);;All files (*)"
@@ -51,21 +50,9 @@ class Documents(QObject):
 
     # ------------------------------------------------------------------ error handling
     def guarded(self, title: str, action: Callable[[], object]) -> bool:
-        """Run ``action``; on any error show a message box. True if it succeeded."""
-        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
-        try:
-            action()
-        except FapStudioError as e:
-            message = str(e)
-        except Exception as e:  # a bug must not take the user's work down
-            traceback.print_exc()
-            message = f"unexpected error: {type(e).__name__}: {e}"
-        else:
-            return True
-        finally:
-            QApplication.restoreOverrideCursor()
-        self.error(title, message)
-        return False
+        """Run ``action`` (wait cursor); on any error show a message box. True if it succeeded."""
+        return run_guarded(self.widget, title, action, busy=True,
+                           report=lambda t, m: self.error(t, m))[0]
 
     def error(self, title: str, message: str) -> None:
         QMessageBox.warning(self.widget, title, message)

@@ -18,7 +18,7 @@ from PySide6.QtCore import QCoreApplication, Qt
 from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressDialog, QWidget
 
-from editor.core.errors import FapStudioError
+from .qt_utils import error_text, run_guarded
 
 IMAGE_FILTER = "Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff);;All files (*)"
 VIDEO_FILTER = "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
@@ -36,19 +36,13 @@ class WaitCursor:
 
 
 def report_error(parent: QWidget | None, title: str, exc: BaseException) -> None:
-    """One-line FapStudioError text (or the exception's type and text) in a warning box."""
-    text = str(exc) if isinstance(exc, FapStudioError) else f"{type(exc).__name__}: {exc}"
-    QMessageBox.warning(parent, title, text.splitlines()[0] if text else title)
+    """One-line message box for an exception (see :func:`qt_utils.error_text`)."""
+    QMessageBox.warning(parent, title, error_text(exc))
 
 
 def guarded(parent: QWidget | None, title: str, fn: Callable[[], Any]) -> Any:
     """Run ``fn`` with the wait cursor; any exception becomes a message box (returns None)."""
-    try:
-        with WaitCursor():
-            return fn()
-    except Exception as exc:  # noqa: BLE001 - the GUI must never crash on a bad input
-        report_error(parent, title, exc)
-        return None
+    return run_guarded(parent, title, fn, busy=True)[1]
 
 
 def estimate_clone_faps(neutral: str | Path, expression: str | Path) -> np.ndarray:

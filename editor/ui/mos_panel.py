@@ -8,21 +8,19 @@ their own top-level windows; the study data lives in one SQLite file per study
 
 from __future__ import annotations
 
-import traceback
 from collections.abc import Callable
 from pathlib import Path
 
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtGui import QAction
-from PySide6.QtWidgets import QApplication, QFileDialog, QMainWindow, QMessageBox, QWidget
+from PySide6.QtWidgets import QFileDialog, QMainWindow, QWidget
 
-from editor.core.errors import FapStudioError
 from editor.core.mos import Study
 
 from .mos_new import NewStudyDialog
 from .mos_rating import RatingWindow, ask_rater
 from .mos_results import ResultsWindow
-from .qt_utils import settings
+from .qt_utils import run_guarded, settings
 
 STUDY_FILTER = "FAP Studio study (*.db);;All files (*)"
 _LAST = "mos/lastStudy"
@@ -61,18 +59,7 @@ class MosPanel(QObject):
 
     def guarded(self, title: str, action: Callable[[], object]) -> object | None:
         """Run ``action`` with a wait cursor; errors become a one-line message box."""
-        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
-        try:
-            return action()
-        except FapStudioError as e:
-            message = str(e)
-        except Exception as e:  # a bug must not take the editor down
-            traceback.print_exc()
-            message = f"unexpected error: {type(e).__name__}: {e}"
-        finally:
-            QApplication.restoreOverrideCursor()
-        QMessageBox.warning(self.window, title, message.splitlines()[0] if message else title)
-        return None
+        return run_guarded(self.window, title, action, busy=True)[1]
 
     def set_study(self, path: str | Path) -> bool:
         """Check that ``path`` is a study (message box if not) and make it the current one."""

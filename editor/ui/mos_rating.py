@@ -36,6 +36,8 @@ from PySide6.QtWidgets import (
 from editor.core.errors import FapStudioError
 from editor.core.mos import CANNOT_TELL, RaterSession, Stimulus, Study
 
+from .qt_utils import run_guarded
+
 #: The paper's naturalness wording (SPEC §4, ITU-T P.800 ACR style).
 NATURALNESS = {1: "very unnatural", 2: "rather unnatural", 3: "acceptable",
                4: "rather natural", 5: "very realistic"}
@@ -313,10 +315,7 @@ class RatingWindow(QWidget):
             self.choose_naturalness(_DIGITS[key])
 
     def _guard(self, action: Callable[[], object]) -> None:
-        try:
-            action()
-        except FapStudioError as e:
-            QMessageBox.warning(self, "Rating", str(e))
+        run_guarded(self, "Rating", action)
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt override)
         self.study.close()  # every answer is already committed

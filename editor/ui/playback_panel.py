@@ -37,8 +37,7 @@ from .document_model import DocumentModel
 from .playback_clock import Clock, Playhead
 from .playback_export import ExportJob
 from .playback_keys import KeyframeEditor, low_level
-from .preset_errors import run_guarded
-from .qt_utils import signals_blocked
+from .qt_utils import run_guarded, signals_blocked
 
 FAP_FILTER = "MPEG-4 FAP files (*.fap);;All files (*)"
 VIDEO_FILTER = "MP4 video (*.mp4);;AVI video (*.avi)"
@@ -133,7 +132,7 @@ class PlaybackPanel(QWidget):
 
     # ------------------------------------------------------------------ helpers
     def guarded(self, title: str, action: Callable[[], object]) -> bool:
-        return run_guarded(self, title, action)
+        return run_guarded(self, title, action)[0]
 
     def _update_enabled(self) -> None:
         has_seq, has_doc = self.seq is not None, self.model.doc is not None

@@ -43,7 +43,7 @@ from editor.core.expressions import (
 )
 
 from .document_model import DocumentModel
-from .preset_errors import run_guarded
+from .qt_utils import run_guarded
 
 REPLACE, ADD = "replace", "add"
 _SECTIONS = (("emotion", "Emotions"), ("viseme", "Visemes"), ("custom", "User presets"))
@@ -215,7 +215,7 @@ class PresetsPanel(QWidget):
 
     # ------------------------------------------------------------------ actions
     def _guard(self, title: str, action: Callable[[], object]) -> bool:
-        return run_guarded(self, title, action)
+        return run_guarded(self, title, action)[0]
 
     def _push(self, vector: np.ndarray, text: str, mode: str | None = None) -> None:
         doc = self.model.doc

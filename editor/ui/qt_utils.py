@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import traceback
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any
 
-from PySide6.QtCore import QObject, QSettings
+from PySide6.QtCore import QObject, QSettings, Qt
+from PySide6.QtWidgets import QApplication, QMessageBox, QWidget
+
+from editor.core.errors import FapStudioError
 
 ORGANIZATION = "FAP Studio"
 APPLICATION = "FAP Studio"
@@ -30,3 +35,39 @@ def settings() -> QSettings:
     """
     return QSettings(QSettings.defaultFormat(), QSettings.Scope.UserScope, ORGANIZATION,
                      APPLICATION)
+
+
+def error_text(exc: BaseException) -> str:
+    """One line for the user: a FapStudioError's own message, else the exception's type."""
+    if isinstance(exc, FapStudioError):
+        text = str(exc)
+    else:
+        text = f"unexpected error: {type(exc).__name__}: {exc}"
+    return text.strip().splitlines()[0] if text.strip() else type(exc).__name__
+
+
+def run_guarded(parent: QWidget | None, title: str, action: Callable[[], Any], *,
+                busy: bool = False,
+                report: Callable[[str, str], None] | None = None) -> tuple[bool, Any]:
+    """Run ``action``; any error becomes a one-line message and the GUI carries on.
+
+    Returns ``(True, result)`` or ``(False, None)``. ``busy`` shows the wait cursor meanwhile;
+    ``report(title, message)`` replaces the warning box (the headless CLI prints instead).
+    Unexpected exceptions (bugs) also print their traceback on stderr.
+    """
+    if busy:
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+    try:
+        return True, action()
+    except Exception as e:  # a bug must not take the user's work down
+        if not isinstance(e, FapStudioError):
+            traceback.print_exc()
+        message = error_text(e)
+    finally:
+        if busy:
+            QApplication.restoreOverrideCursor()
+    if report is not None:
+        report(title, message)
+    else:
+        QMessageBox.warning(parent, title, message)
+    return False, None

@@ -128,12 +128,7 @@ PAPER_EXPRESSIONS = ("joy", "sadness", "anger", "fear", "surprise")
 
 def face_crop(face) -> tuple[int, int, int, int]:
     """Box ``(x0, y0, x1, y1)`` around the face with hair, chin and some background."""
-    b = face.landmarks.box
-    w, h = float(b[2] - b[0]), float(b[3] - b[1])
-    H, W = face.image.shape[:2]
-    x0, x1 = int(max(0, b[0] - 0.55 * w)), int(min(W, b[2] + 0.55 * w))
-    y0, y1 = int(max(0, b[1] - 0.8 * h)), int(min(H, b[3] + 0.45 * h))
-    return x0, y0, x1, y1
+    return face.crop_box(0.55, 0.8, 0.55, 0.45)
 
 
 def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],

@@ -22,11 +22,7 @@ TILE = 170
 
 
 def crop(face: Face, img: np.ndarray) -> np.ndarray:
-    b = face.landmarks.box
-    iod = face.interocular
-    h, w = img.shape[:2]
-    x0, y0 = int(max(0, b[0] - 0.6 * iod)), int(max(0, b[1] - 1.0 * iod))
-    x1, y1 = int(min(w, b[2] + 0.6 * iod)), int(min(h, b[3] + 0.6 * iod))
+    x0, y0, x1, y1 = face.crop_box(0.6, 1.0, 0.6, 0.6)
     c = img[y0:y1, x0:x1]
     s = TILE / max(c.shape[:2])
     c = cv2.resize(c, None, fx=s, fy=s, interpolation=cv2.INTER_AREA if s < 1 else

@@ -203,6 +203,16 @@ class Face:
         """The photo with the expression: (H, W, 3) uint8, same size as the photo."""
         return self.render_full(faps).image
 
+    def crop_box(self, left: float, top: float, right: float, bottom: float
+                 ) -> tuple[int, int, int, int]:
+        """``(x0, y0, x1, y1)``: the detected face box grown by the given fractions of its width
+        (left, right) and height (top, bottom), clipped to the photo."""
+        b = self.landmarks.box
+        w, h = float(b[2] - b[0]), float(b[3] - b[1])
+        H, W = self.image.shape[:2]
+        return (int(max(0, b[0] - left * w)), int(max(0, b[1] - top * h)),
+                int(min(W, b[2] + right * w)), int(min(H, b[3] + bottom * h)))
+
     @property
     def interocular(self) -> float:
         return self.landmarks.interocular

@@ -191,10 +191,8 @@ class ModelPanel(QWidget):
         pix = QPixmap.fromImage(qimg)
         face = self.window.model.face
         if face is not None:  # crop to the face
-            x0, y0, x1, y1 = (float(v) for v in face.landmarks.box)
-            pad = 0.45 * (x1 - x0)
-            x, y = int(max(0, x0 - pad)), int(max(0, y0 - pad))
-            pix = pix.copy(x, y, int(min(w, x1 + pad)) - x, int(min(h, y1 + pad)) - y)
+            x0, y0, x1, y1 = face.crop_box(0.45, 0.45, 0.45, 0.45)
+            pix = pix.copy(x0, y0, x1 - x0, y1 - y0)
         self.preview.setPixmap(pix.scaled(max(self.preview.width(), 200),
                                           max(self.preview.height(), 200),
                                           Qt.AspectRatioMode.KeepAspectRatio,

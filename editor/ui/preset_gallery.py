@@ -17,20 +17,10 @@ from editor.core.expressions import apply_preset
 THUMB = 96
 
 
-def face_box(face) -> tuple[int, int, int, int]:
-    """A square-ish box around the face (brows to chin), clipped to the photo."""
-    b = face.landmarks.box
-    w, h = float(b[2] - b[0]), float(b[3] - b[1])
-    H, W = face.image.shape[:2]
-    x0, x1 = int(max(0, b[0] - 0.15 * w)), int(min(W, b[2] + 0.15 * w))
-    y0, y1 = int(max(0, b[1] - 0.25 * h)), int(min(H, b[3] + 0.15 * h))
-    return x0, y0, x1, y1
-
-
 def thumbnail(face, vector: np.ndarray, size: int = THUMB) -> QPixmap:
     import cv2
 
-    x0, y0, x1, y1 = face_box(face)
+    x0, y0, x1, y1 = face.crop_box(0.15, 0.25, 0.15, 0.15)  # brows to chin
     img = face.render(vector)[y0:y1, x0:x1]
     s = size / max(img.shape[:2])
     img = np.ascontiguousarray(cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA))

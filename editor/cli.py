@@ -94,22 +94,29 @@ def cmd_mesh(a: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_render(a: argparse.Namespace) -> int:
+def _requested_vector(a: argparse.Namespace):
+    """(68,) FAP vector of the command's ``--preset`` and ``--fap`` options (they add up)."""
     from .anim_cli import preset_vector
-    from .core import FAPS, save_image
+    from .core import FAPS
 
-    faps = _fap_pairs(a.fap)
     try:
-        vec = preset_vector(a.preset) + FAPS.vector(faps)
+        return preset_vector(a.preset) + FAPS.vector(_fap_pairs(a.fap))
     except ValueError as e:
         raise FapStudioError(str(e)) from e
+
+
+def cmd_render(a: argparse.Namespace) -> int:
+    from .core import FAPS, save_image
+
+    vec = _requested_vector(a)
     face = _load_face(a.photo)
     save_image(a.output, face.render(vec))
     if a.mesh_json:
         v, extra = face.deform_all(vec)
         data = _mesh_json(face, v)
-        data["vertices_neutral"] = _mesh_json(face)["vertices"]
-        data["fdp_neutral"] = _mesh_json(face)["fdp"]
+        neutral = _mesh_json(face)
+        data["vertices_neutral"] = neutral["vertices"]
+        data["fdp_neutral"] = neutral["fdp"]
         data["fdp"].update({k: [round(float(p[0]), 3), round(float(p[1]), 3)]
                             for k, p in extra.items()})
         data["faps"] = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
@@ -122,14 +129,9 @@ def cmd_gui(a: argparse.Namespace) -> int:
         from .ui.app import run
     except ImportError as e:  # pragma: no cover - depends on the installation
         raise FapStudioError(f"the editor window is not available ({e})") from e
-    from .anim_cli import preset_vector
     from .core import FAPS
 
-    faps = _fap_pairs(a.fap)
-    try:
-        vec = preset_vector(a.preset) + FAPS.vector(faps)
-    except ValueError as e:
-        raise FapStudioError(str(e)) from e
+    vec = _requested_vector(a)
     named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
     return run(photo=a.photo, faps=named, screenshot=a.screenshot,
                project=getattr(a, "project", None))

@@ -48,3 +48,26 @@ def isolated_settings(tmp_path):
     QSettings.setPath(QSettings.Format.IniFormat, QSettings.Scope.UserScope, str(folder))
     QSettings.setPath(QSettings.Format.IniFormat, QSettings.Scope.SystemScope, str(folder))
     return folder
+
+
+@pytest.fixture
+def warnings(monkeypatch) -> list[str]:
+    """Warning boxes never block: their texts are collected; "discard changes?" says Discard."""
+    from PySide6.QtWidgets import QMessageBox
+
+    got: list[str] = []
+    monkeypatch.setattr(QMessageBox, "warning",
+                        lambda _parent, _title, text, *a, **k: got.append(text))
+    monkeypatch.setattr(QMessageBox, "question",  # unsaved-changes prompt at teardown
+                        lambda *a, **k: QMessageBox.StandardButton.Discard)
+    return got
+
+
+@pytest.fixture
+def model(qtbot, sample_face):
+    """A DocumentModel holding the sample face."""
+    from editor.ui.document_model import DocumentModel
+
+    m = DocumentModel()
+    m.load(sample_face)
+    return m

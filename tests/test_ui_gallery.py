@@ -21,9 +21,9 @@ pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
 SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
 
 
-@pytest.fixture(scope="module")
-def face() -> Face:
-    return Face.from_image(SAMPLE)
+@pytest.fixture
+def face(sample_face) -> Face:
+    return sample_face
 
 
 @pytest.fixture

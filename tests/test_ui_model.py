@@ -11,17 +11,12 @@ import pytest
 pytest.importorskip("pytestqt")
 
 from editor.core import FAPS  # noqa: E402
-from editor.ui.document_model import Document, DocumentModel  # noqa: E402
+from editor.ui.document_model import Document  # noqa: E402
 from editor.ui.render_scheduler import RenderRequest, RenderResult, RenderScheduler  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
 
 
-@pytest.fixture
-def model(qtbot, sample_face) -> DocumentModel:
-    m = DocumentModel()
-    m.load(sample_face)
-    return m
 
 
 # ---------------------------------------------------------------------- Document

@@ -11,18 +11,12 @@ from PySide6.QtCore import QPoint, Qt  # noqa: E402
 from PySide6.QtWidgets import QStyle, QStyleOptionSlider  # noqa: E402
 
 from editor.core import FAPS  # noqa: E402
-from editor.ui.document_model import DocumentModel  # noqa: E402
 from editor.ui.fap_panel import FapPanel  # noqa: E402
 from editor.ui.gaze_pad import GazePad  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
 
 
-@pytest.fixture
-def model(qtbot, sample_face) -> DocumentModel:
-    m = DocumentModel()
-    m.load(sample_face)
-    return m
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("pytestqt")
 
-from PySide6.QtWidgets import QMessageBox, QPushButton  # noqa: E402
+from PySide6.QtWidgets import QPushButton  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
 from editor.core.fapfile import FapSequence, read_fap, write_fap  # noqa: E402
@@ -31,19 +31,11 @@ class FakeClock:
         return self.t
 
 
-@pytest.fixture(scope="module")
-def face() -> Face:
-    return Face.from_image(SAMPLE)
-
-
 @pytest.fixture
-def warnings(monkeypatch) -> list[str]:
-    got: list[str] = []
-    monkeypatch.setattr(QMessageBox, "warning",
-                        lambda _parent, _title, text, *a, **k: got.append(text))
-    monkeypatch.setattr(QMessageBox, "question",  # unsaved-changes prompt at teardown
-                        lambda *a, **k: QMessageBox.StandardButton.Discard)
-    return got
+def face(sample_face) -> Face:
+    return sample_face
+
+
 
 
 @pytest.fixture

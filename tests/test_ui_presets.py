@@ -27,19 +27,11 @@ LIP_CORNERS = ("raise_l_cornerlip", "raise_r_cornerlip", "raise_l_cornerlip_o",
                "raise_r_cornerlip_o")
 
 
-@pytest.fixture(scope="module")
-def face() -> Face:
-    return Face.from_image(SAMPLE)
-
-
 @pytest.fixture
-def warnings(monkeypatch) -> list[str]:
-    got: list[str] = []
-    monkeypatch.setattr(QMessageBox, "warning",
-                        lambda _parent, _title, text, *a, **k: got.append(text))
-    monkeypatch.setattr(QMessageBox, "question",  # unsaved-changes prompt at teardown
-                        lambda *a, **k: QMessageBox.StandardButton.Discard)
-    return got
+def face(sample_face) -> Face:
+    return sample_face
+
+
 
 
 @pytest.fixture

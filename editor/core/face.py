@@ -190,13 +190,17 @@ class Face:
         Each eyeball follows its two eye corners (a similarity); the mouth interior (teeth)
         follows the skull: a least-squares similarity of the inner eye corners and the nose.
         """
+        return {name: _similarity(self.vertices[idx], v[idx])
+                for name, idx in self._layer_anchors.items()}
+
+    @cached_property
+    def _layer_anchors(self) -> dict[str, np.ndarray]:
+        """Vertex indices each opening's layer follows (computed once per face)."""
         m = self.mesh
-        out = {}
-        for s in "lr":
-            idx = [m.index(f"eye_{s}_c0"), m.index(f"eye_{s}_c1")]
-            out[f"eye_{s}"] = _similarity(self.vertices[idx], v[idx])
-        idx = [self.fdp[k] for k in ("3.8", "3.11", "9.3", "9.15", "9.1", "9.2")]
-        out["mouth"] = _similarity(self.vertices[idx], v[idx])
+        out = {f"eye_{s}": np.array([m.index(f"eye_{s}_c0"), m.index(f"eye_{s}_c1")])
+               for s in "lr"}
+        out["mouth"] = np.array([self.fdp[k] for k in ("3.8", "3.11", "9.3", "9.15", "9.1",
+                                                       "9.2")])
         return out
 
     def render(self, faps: FapInput) -> np.ndarray:

@@ -26,7 +26,7 @@ from editor.core.imageio import load_image, save_image  # noqa: E402
 from editor.core.landmarks import MIRROR_68, detect_landmarks  # noqa: E402
 
 
-def template_landmarks() -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+def template_landmarks() -> tuple[np.ndarray, tuple[int, int]]:
     img = load_image(ROOT / "resources" / "sample_face.png")
     lm = detect_landmarks(img)
     fr = FaceFrame.from_points(lm.points)
@@ -37,11 +37,7 @@ def template_landmarks() -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
     iod = np.linalg.norm(sym[42:48].mean(0) - sym[36:42].mean(0))
     sym *= 100.0 / iod
     size = (420, 520)
-    pts = sym + np.array([210.0, 200.0])
-    r = 0.5 * (lm.iris_left.r + lm.iris_right.r) * 100.0 / iod
-    ir = np.array([[pts[36:42, 0].mean(), pts[36:42, 1].mean(), r],
-                   [pts[42:48, 0].mean(), pts[42:48, 1].mean(), r]])
-    return pts, ir, size
+    return sym + np.array([210.0, 200.0]), size
 
 
 def chain(names: list[str], closed: bool) -> list[tuple[str, str]]:
@@ -54,8 +50,8 @@ def chain(names: list[str], closed: bool) -> list[tuple[str, str]]:
 def main() -> None:
     import triangle
 
-    pts, irises, size = template_landmarks()
-    verts, _ = fit_vertices(pts, irises, size)
+    pts, size = template_landmarks()
+    verts, _ = fit_vertices(pts, size)
     names = list(verts)
     xy = np.array([verts[n] for n in names])
     idx = {n: i for i, n in enumerate(names)}

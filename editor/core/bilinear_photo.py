@@ -16,7 +16,7 @@ detected on the training images instead of the Stasm-77 points of
 Synthesis on a photo (:func:`synthesize_on_face`): translate the photo's 68 points (plain /
 ridge / MALS), pin the gauge, replace ``a`` by the target mix ``A α``, rebuild with the face's
 own ``b``, undo the normalisation, keep the jaw contour; then fit the personalized mesh to the
-synthesized points (:func:`editor.core.fitting.fit_vertices`, same irises) and apply the
+synthesized points (:func:`editor.core.fitting.fit_vertices`) and apply the
 displacement between that fit and the fit of the neutral points to the face's (possibly edited)
 mesh, through the crossing rule and the fold guard (:func:`editor.core.cloning.finish`).
 
@@ -329,12 +329,10 @@ def mesh_for_points(face: Any, points68: np.ndarray) -> np.ndarray:
     from .fitting import fit_vertices
 
     lm = face.landmarks
-    irises = np.array([[lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r],
-                       [lm.iris_left.cx, lm.iris_left.cy, lm.iris_left.r]])
     h, w = face.image.shape[:2]
     names = face.mesh.names
-    fit_new, _ = fit_vertices(np.asarray(points68, np.float64), irises, (w, h))
-    fit_old, _ = fit_vertices(np.asarray(lm.points, np.float64), irises, (w, h))
+    fit_new, _ = fit_vertices(np.asarray(points68, np.float64), (w, h))
+    fit_old, _ = fit_vertices(np.asarray(lm.points, np.float64), (w, h))
     D = np.array([fit_new[n] - fit_old[n] for n in names], np.float64)
     D[face.mesh.regions == "border"] = 0.0
     return finish(face, face.vertices.astype(np.float64) + D)

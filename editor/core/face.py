@@ -96,10 +96,8 @@ class Face:
     @classmethod
     def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:
         mesh = standard_mesh()
-        irises = np.array([[lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r],
-                           [lm.iris_left.cx, lm.iris_left.cy, lm.iris_left.r]])
         h, w = rgb.shape[:2]
-        named, _ = fit_vertices(lm.points, irises, (w, h))
+        named, _ = fit_vertices(lm.points, (w, h))
         verts = np.array([named[n] for n in mesh.names], np.float32)
         sig = signed_areas(verts.astype(np.float64), mesh.triangles)
         if lm.interocular < 6:

@@ -96,7 +96,7 @@ K6 = np.arange(1, 6) / 6.0
 K8 = np.arange(1, 8) / 8.0
 
 
-def fit_vertices(points68: np.ndarray, irises: np.ndarray, image_size: tuple[int, int]
+def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
                  ) -> tuple[dict[str, np.ndarray], FaceFrame]:
     """Place every named vertex of the standard mesh on a face.
 
@@ -104,8 +104,6 @@ def fit_vertices(points68: np.ndarray, irises: np.ndarray, image_size: tuple[int
     ----------
     points68 : (68, 2) array
         iBUG-68 landmarks, image pixels (x, y), y down.
-    irises : (2, 3) array
-        ``(cx, cy, r)`` of the image-left (subject's right) and image-right iris.
     image_size : (width, height)
 
     Returns

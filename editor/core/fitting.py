@@ -273,11 +273,9 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
         V[f"temple_{s}_2"] = np.array([0.5 * (be[0] + hx[0]) + sign * 0.03 * iod,
                                        0.5 * (be[1] + hx[1]) + 0.08 * iod])
     # philtrum row between the nose base and the upper lip
-    for k, (ni, lk) in enumerate(((31, 1), (32, 2), (33, 3), (34, 4), (35, 5)), 1):
-        top = P[ni]
-        bot = ou[[0, 2, 3, 4, 6][k - 1]]
+    for k, (ni, lip) in enumerate(zip((31, 32, 33, 34, 35), (0, 2, 3, 4, 6), strict=True), 1):
+        top, bot = P[ni], ou[lip]
         V[f"phil_{k}"] = np.array([0.5 * (top[0] + bot[0]), top[1] + 0.5 * (bot[1] - top[1])])
-        del lk
 
     # ---------------- jaw (between the lower lip and the chin) ----------------
     for row, frac in ((1, 0.38), (2, 0.7)):

@@ -124,7 +124,24 @@ def cmd_render(a: argparse.Namespace) -> int:
     return 0
 
 
+def _ensure_display(headless_ok: bool) -> None:
+    """Without a display Qt aborts (and blames xcb-cursor0): use the offscreen platform for a
+    screenshot, or say clearly what is missing."""
+    import os
+
+    if os.environ.get("QT_QPA_PLATFORM") or not sys.platform.startswith("linux"):
+        return
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+        return
+    if headless_ok:
+        os.environ["QT_QPA_PLATFORM"] = "offscreen"
+        return
+    raise FapStudioError("no display (DISPLAY is not set): run it in a desktop session, use "
+                         "--screenshot for a headless picture, or set QT_QPA_PLATFORM=offscreen")
+
+
 def cmd_gui(a: argparse.Namespace) -> int:
+    _ensure_display(headless_ok=bool(a.screenshot))
     try:
         from .ui.app import run
     except ImportError as e:  # pragma: no cover - depends on the installation

@@ -246,3 +246,17 @@ def test_malformed_json_and_structure(tmp_path):
     assert preset_from_dict(GOOD).vector[2] == 100
     with pytest.raises(PresetError, match="unknown preset"):
         get_preset("no_such_preset")
+
+
+def test_broken_user_preset_is_named_not_unknown(tmp_path, monkeypatch):
+    from editor.core.errors import PresetError
+    from editor.core.expressions import get_preset
+
+    monkeypatch.setenv("FAP_STUDIO_DATA_DIR", str(tmp_path))
+    (tmp_path / "presets").mkdir()
+    (tmp_path / "presets" / "grin.json").write_text(
+        '{"format": "fap-studio-preset", "version": 1, "kind": "emotion", "name": "grin", '
+        '"faps": {"open_jaw": "lots"}}')
+    with pytest.raises(PresetError, match=r"grin\.json: open_jaw"):
+        get_preset("grin")
+    assert get_preset("joy").name == "joy"  # shipped presets still load beside it

@@ -214,8 +214,13 @@ def all_presets(problems: list[str] | None = None) -> dict[str, Preset]:
 
 def get_preset(name: str) -> Preset:
     """A shipped or user preset by name (case-insensitive); :class:`PresetError` if unknown."""
-    found = {k.lower(): p for k, p in all_presets([]).items()}
+    problems: list[str] = []
+    found = {k.lower(): p for k, p in all_presets(problems).items()}
     if name.lower() not in found:
+        # a user preset file of that name that failed to load: say why, not just "unknown"
+        broken = [m for m in problems if m.lower().startswith(f"{name.lower()}.json")]
+        if broken:
+            raise PresetError(broken[0])
         raise PresetError(f"unknown preset {name!r}; expected one of {', '.join(found)}")
     return found[name.lower()]
 

@@ -1,0 +1,30 @@
+"""`fap-studio gui` without a display: screenshots work, the window says what is missing."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+
+def _env() -> dict[str, str]:
+    return {k: v for k, v in os.environ.items()
+            if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="display rules are Linux's")
+def test_headless_screenshot_and_clear_error_without_display(tmp_path):
+    env = _env()
+    env["XDG_CONFIG_HOME"] = str(tmp_path / "config")  # never touch the user's settings
+    shot = tmp_path / "s.png"
+    r = subprocess.run([sys.executable, "-m", "editor", "gui", "--fap", "open_jaw=300",
+                        "--screenshot", str(shot)], env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert shot.stat().st_size > 50_000
+    r = subprocess.run([sys.executable, "-m", "editor"], env=env, capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2
+    assert r.stderr.startswith("fap-studio: error: no display")

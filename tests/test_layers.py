@@ -126,7 +126,7 @@ def test_lower_teeth_follow_the_jaw(jaffe_faces):
     face = jaffe_faces[0]
     thr = 0.45 * _skin_lum(face)
     edges, anchors = [], []
-    for jaw in (400, 800):
+    for jaw in (600, 1080):  # both open past the upper teeth
         faps = {"open_jaw": jaw}
         rows, prof = _column_profile(face, face.render(faps), faps)
         edges.append(_edge_from_bottom(rows, prof, thr))

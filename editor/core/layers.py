@@ -115,11 +115,41 @@ def _union(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int]
     return min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
 
 
+def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray,
+               alpha: np.ndarray, D: float, strength: float = 1.0
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the lips around an opening give its interior, and their own shading.
+
+    Returns the colour of the nearest lip pixel (h, w, 3) and the distance (px) to the lips
+    (h, w) at every pixel of ``box`` (one distance transform with labels), and a factor
+    (h, w) that darkens the lips' inner edge (their surface turning into the mouth) over about
+    a pixel outside the opening, in proportion to how open it is there.
+    """
+    x0, y0, x1, y1 = box
+    face = out[y0:y1, x0:x1]
+    inside = hole.astype(np.uint8)
+    depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
+                                                    labelType=cv2.DIST_LABEL_PIXEL)
+    lips = face[inside == 0].astype(np.float32)  # labels number the zero pixels row by row
+    rim = lips[np.clip(labels - 1, 0, len(lips) - 1)] if len(lips) else \
+        np.zeros(face.shape, np.float32)
+    rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
+    # the inner edge of the lips: darker close to the opening, scaled with its local width
+    # (the coverage blurred over the lip band), nothing where the lips meet
+    s = float(np.clip(0.03 * D, 0.7, 1.5))
+    spread = cv2.GaussianBlur(alpha, (0, 0), s)
+    shade = 1.0 - 0.35 * strength * np.clip(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
+    return rim, depth, shade.astype(np.float32)
+
+
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
-               hole: np.ndarray, interior: np.ndarray) -> None:
-    """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole``."""
+               hole: np.ndarray, interior: np.ndarray, shade: np.ndarray | None = None) -> None:
+    """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole``;
+    ``shade`` (h, w) multiplies the face (the lips' inner edge)."""
     x0, y0, x1, y1 = box
     face = out[y0:y1, x0:x1].astype(np.float32)
+    if shade is not None:
+        face *= shade[..., None]
     if hole.any():
         keep = (~hole).astype(np.float32)
         num = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
@@ -174,7 +204,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     bbox = res.bbox
     drawn: dict[str, tuple[tuple[int, int, int, int], np.ndarray]] = {}
     for kind, name, poly, tf, active, moved in jobs:
-        box = _box(poly, out.shape)
+        box = _box(poly, out.shape, 4 if kind == "mouth" else 2)
         if box[2] <= box[0] or box[3] <= box[1]:
             continue
         hole = _raster(poly, box)
@@ -184,8 +214,11 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         if moved > _TOL:
             t = min(moved, 1.0)
             alpha += (t * t * (3.0 - 2.0 * t)) * (_coverage(poly, box) - alpha)
+        lip_shade = None
         if kind == "mouth":
-            interior = lp.mouth.render(box, v, faps, tf)
+            rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
+                                               _smoothstep(min(moved, 1.0)))
+            interior = lp.mouth.render(box, v, faps, tf, rim, depth)
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -198,7 +231,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 interior = ep.render(box, tf, shift, r_new, p_new)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
-        _composite(out, box, alpha, hole, interior)
+        _composite(out, box, alpha, hole, interior, lip_shade)
         drawn[name] = (box, hole)
         bbox = _union(bbox, box)
     if bbox == res.bbox:
@@ -312,6 +345,12 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
             ext_mask[:top, j] = 1.0
     below = ys >= split[None, :]
     has_low = int((bright & below & gap[None, :]).sum()) >= 12
+    if not has_low:
+        # no lower teeth: the teeth-like pixels under the split are the upper teeth's edge
+        # (they stay with the skull, not a bright sliver riding on the lower lip)
+        tip = bright & below
+        own_up[tip] = np.maximum(own_up[tip], (cov * weight[None, :])[tip])
+        own_low[tip] = 0.0
     own = np.dstack([own_up, own_low]).astype(np.float32)
     sliver = np.convolve(np.pad(sliver.astype(np.float64), 2, mode="edge"), kern, mode="valid")
     return (off, own, np.dstack([rgb_up, patch]).astype(np.float32), bool(ext.sum() >= 3),

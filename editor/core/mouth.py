@@ -193,8 +193,14 @@ class MouthPlan:
 
     # ------------------------------------------------------------------ per frame
     def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
-               skull: np.ndarray) -> np.ndarray:
-        """Colours (h, w, 3) float32 of the mouth interior over ``box`` of the output."""
+               skull: np.ndarray, rim: np.ndarray | None = None,
+               depth: np.ndarray | None = None) -> np.ndarray:
+        """Colours (h, w, 3) float32 of the mouth interior over ``box`` of the output.
+
+        ``rim`` (h, w, 3): colour of the nearest lip pixel, ``depth`` (h, w): distance (px) to
+        the lips (``layers._mouth_rim``); with them the cavity is shaded from the lips' inner
+        surface (their colour, darkened) into a dark back over a depth of ~0.1 D.
+        """
         x0, y0, x1, y1 = box
         S = np.asarray(skull, np.float64)
         L = S[:, :2]
@@ -227,10 +233,22 @@ class MouthPlan:
         side = np.clip(np.abs(Qx - cxm) / hw, 0.0, 1.0)
         shade = (1.0 - 0.5 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
         shade = (shade * (1.0 - 0.45 * side * side)).astype(np.float32)[..., None]
-        rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
-        # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
-        cav = (0.3 + 0.7 * np.clip(rr, 0.0, 1.0) ** 1.5).astype(np.float32)[..., None]
-        out = cav * self.cavity[None, None, :]
+        if rim is None or depth is None:
+            rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
+            # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
+            cav = (0.3 + 0.7 * np.clip(rr, 0.0, 1.0) ** 1.5).astype(np.float32)[..., None]
+            out = cav * self.cavity[None, None, :]
+        else:
+            # the lips' inner surface turns away from the light (their colour, darkened), the
+            # cavity behind darkens with depth and towards the corners (cheeks' shadow)
+            g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))[..., None]
+            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)[..., None]
+            deep = back * self.cavity[None, None, :]
+            out = deep + (0.45 * rim - deep) * g
+            # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
+            # reads as a dark edge, not as a bright sliver
+            g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
+            shade = shade * (1.0 - 0.45 * g1)[..., None]
         # lower teeth and tongue (jaw), upper teeth (skull)
         y_lb = 0.25 * q21[1] + 0.75 * q23[1]
         wl, hl = (s * sc for s in self.size["lower_teeth"])

@@ -2,6 +2,14 @@
 
 Data flow: photo -> :func:`detect_landmarks` -> :func:`fit_vertices` (personalized mesh) ->
 :func:`measure_fapu` -> FAP vector -> :func:`deform_points` -> :func:`warp` -> image.
+
+The photo's own expression (issue 21): a photo that smiles is the neutral face plus a FAP vector
+f0 (:attr:`Face.expression`, estimated by :func:`~editor.core.own_expression.estimate_own`).
+The mesh fitted to the photo (:attr:`Face.vertices`) is where the texture comes from; the
+neutral mesh (:attr:`Face.neutral_vertices`) is that mesh moved by -f0, and every FAP vector f
+is applied to the neutral mesh: ``deform(f) = N + D_N(f) + r`` with the small constant ``r``
+that makes ``deform(f0)`` equal the photo's mesh exactly (so f0 renders the photo unchanged and
+f = 0 the neutralised face). FAPU are measured on the neutral mesh.
 """
 
 from __future__ import annotations
@@ -61,25 +69,62 @@ class Face:
     vertices: np.ndarray
     mesh: StandardMesh = field(default_factory=standard_mesh)
     source: str | None = None
+    expression: np.ndarray | None = None
+    expression_words: str = "neutral"
 
     def __post_init__(self) -> None:
         self.image = np.ascontiguousarray(self.image)
         self.image.setflags(write=False)
         self.vertices = np.asarray(self.vertices, np.float32)
         self.frame = FaceFrame.from_points(self.landmarks.points)
-        irises = np.array([[self.landmarks.iris_right.cx, self.landmarks.iris_right.cy,
-                            self.landmarks.iris_right.r],
-                           [self.landmarks.iris_left.cx, self.landmarks.iris_left.cy,
-                            self.landmarks.iris_left.r]])
-        self.fapu: dict[str, float] = measure_fapu(self.vertices.astype(np.float64), self.mesh,
-                                                   self.frame, irises)
+        f0 = np.zeros(68, np.float32) if self.expression is None else \
+            FAPS.clamp(FAPS.vector(self.expression))
+        self.expression = f0
+        self.expression.setflags(write=False)
+        self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(f0)
+
+    def _measure_fapu(self, vertices: np.ndarray) -> dict[str, float]:
+        lm = self.landmarks
+        irises = np.array([[lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r],
+                           [lm.iris_left.cx, lm.iris_left.cy, lm.iris_left.r]])
+        return measure_fapu(vertices.astype(np.float64), self.mesh, self.frame, irises)
+
+    def _build(self, vertices: np.ndarray) -> tuple[dict[str, float], DeformPlan]:
+        fapu = self._measure_fapu(vertices)
+        plan = build_plan(self.mesh, vertices, self.frame, fapu,
+                          _extra_points(self.mesh, vertices, self.landmarks, fapu))
+        return fapu, plan
+
+    def _neutralise(self, f0: np.ndarray, rounds: int = 4
+                    ) -> tuple[np.ndarray, dict[str, float], DeformPlan, np.ndarray | None]:
+        """Neutral mesh N with ``N + D_N(f0) ~ P`` (fixed point), its FAPU and plan, and the
+        offset ``r = P - (N + D_N(f0))`` over all points (None when f0 = 0)."""
+        P = self.vertices
+        fapu, plan = self._build(P)
+        if not f0.any():
+            return P, fapu, plan, None
+        V = len(P)
+        target = plan.neutral.astype(np.float64)  # photo mesh + extra points at rest
+        N = target.copy()
+        for _ in range(rounds):
+            moved = deform_points(plan, f0).astype(np.float64)
+            N = N + (target - moved)  # move the neutral until f0 lands on the photo's mesh
+            N[V:] = np.where(np.isfinite(N[V:]), N[V:], target[V:])
+            fapu, plan = self._build(N[:V].astype(np.float32))
+            N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
+        offset = target - deform_points(plan, f0).astype(np.float64)
+        return plan.neutral[:V].copy(), fapu, plan, offset.astype(np.float32)
 
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_image(cls, image: str | os.PathLike[str] | np.ndarray,
-                   detector: LandmarkDetector | None = None) -> Face:
+                   detector: LandmarkDetector | None = None, *,
+                   own_expression: bool = True) -> Face:
         """Detect the face in a photo (path or RGB array) and fit the personalized mesh.
 
+        With ``own_expression`` (default) the expression the photo already shows is estimated
+        (:attr:`expression`) and FAPs apply to the neutralised face; ``False`` declares the
+        photo neutral (a performer's neutral photo, a JAFFE neutral).
         Raises ImageError for unreadable/corrupt/too-large files and NoFaceError when no face
         is found.
         """
@@ -91,7 +136,26 @@ class Face:
             lm = detect_landmarks(rgb, detector)
         except NoFaceError as e:
             raise NoFaceError(f"{source}: {e}" if source else str(e)) from None
-        return cls.from_landmarks(rgb, lm, source=source)
+        face = cls.from_landmarks(rgb, lm, source=source)
+        return face.with_own_expression() if own_expression else face
+
+    def with_own_expression(self) -> Face:
+        """A copy whose :attr:`expression` is the estimate of what the photo shows."""
+        from .own_expression import estimate_own
+
+        base = self if not self.expression.any() else self.with_expression(None)
+        own = estimate_own(base)
+        if not own.faps.any():
+            return base
+        return self.with_expression(own.faps, own.words)
+
+    def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
+        """A copy with another own expression f0 (None or zeros: the photo is neutral)."""
+        vec = None if expression is None else self.fap_vector(expression)
+        if words is None:
+            words = "neutral" if vec is None or not vec.any() else "edited"
+        return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, vec,
+                    words)
 
     @classmethod
     def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:
@@ -108,9 +172,9 @@ class Face:
         return cls(rgb, lm, verts, mesh, source)
 
     def with_vertices(self, vertices: np.ndarray) -> Face:
-        """A copy with an edited neutral mesh (FAPU and rendering follow)."""
+        """A copy with an edited photo mesh (FAPU and rendering follow; same own expression)."""
         return Face(self.image, self.landmarks, np.asarray(vertices, np.float32), self.mesh,
-                    self.source)
+                    self.source, self.expression, self.expression_words)
 
     # ------------------------------------------------------------------ API
     @property
@@ -122,10 +186,14 @@ class Face:
         """Feature point id -> vertex index (mesh vertices only)."""
         return self.mesh.fdp
 
-    @cached_property
-    def plan(self) -> DeformPlan:
-        return build_plan(self.mesh, self.vertices, self.frame, self.fapu,
-                          _extra_points(self.mesh, self.vertices, self.landmarks, self.fapu))
+    @property
+    def has_expression(self) -> bool:
+        """True when the photo is not neutral (its own expression is non-zero)."""
+        return bool(self.expression.any())
+
+    def _deform(self, vec: np.ndarray) -> np.ndarray:
+        pts = deform_points(self.plan, vec)
+        return pts if self._offset is None else pts + self._offset
 
     @cached_property
     def warp_plan(self) -> WarpPlan:
@@ -141,12 +209,12 @@ class Face:
         Keys are FAP names or numbers; unknown keys and non-finite values raise ValueError;
         out-of-range values are clamped to the FAP table's range.
         """
-        pts = deform_points(self.plan, self.fap_vector(faps))
+        pts = self._deform(self.fap_vector(faps))
         return pts[: self.plan.n_vertices]
 
     def deform_all(self, faps: FapInput) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Deformed vertices (V, 2) and the extra feature points (irises 3.5/3.6, tongue 6.x)."""
-        pts = deform_points(self.plan, self.fap_vector(faps))
+        pts = self._deform(self.fap_vector(faps))
         V = self.plan.n_vertices
         return pts[:V], {k: pts[V + i] for i, k in enumerate(EXTRA_POINTS)}
 
@@ -165,7 +233,7 @@ class Face:
     def render_full(self, faps: FapInput) -> WarpResult:
         """Warp result with the opening masks, mouth interior and eyeballs composited."""
         vec = self.fap_vector(faps)
-        pts = deform_points(self.plan, vec)
+        pts = self._deform(vec)
         V = self.plan.n_vertices
         return self.render_mesh(pts[:V], pts[V:], vec)
 
@@ -173,13 +241,14 @@ class Face:
                     faps: np.ndarray | None = None) -> WarpResult:
         """Render the photo on any deformed mesh (e.g. from cloning), layers included.
 
-        ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: at
-        rest); ``faps`` the (68,) vector that drives the eyes and tongue (default: zeros).
+        ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: as
+        in the photo); ``faps`` the (68,) vector that drives the eyes and tongue (default: the
+        photo's own expression).
         """
         v = np.asarray(vertices, np.float32)
         if extra is None:
-            extra = self.plan.neutral[self.plan.n_vertices:]
-        vec = np.zeros(68, np.float32) if faps is None else np.asarray(faps, np.float32)
+            extra = self._deform(self.expression)[self.plan.n_vertices:]
+        vec = self.expression if faps is None else np.asarray(faps, np.float32)
         tf = self.layer_transforms(v)
         return render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
 

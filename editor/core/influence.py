@@ -205,6 +205,10 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
 BROW_FDPS = {"l": ("4.1", "4.3", "4.5"), "r": ("4.2", "4.4", "4.6")}
 
 
+#: Fraction of the brow-to-lid gap below the brow's fitted lower edge that moves with the brow.
+BROW_SKIRT = 0.35
+
+
 def _ramp(u: np.ndarray, a: float | np.ndarray, b: float | np.ndarray) -> np.ndarray:
     """0 at ``a``, 1 at ``b``, linear between (clamped); ``a < b``."""
     return np.clip((u - a) / np.maximum(b - a, 1e-6), 0.0, 1.0)
@@ -244,7 +248,12 @@ def brow_weights(P: dict[str, np.ndarray], pts: np.ndarray, iod: float) -> dict[
     top, bot = _curve(P, tops, x), _curve(P, bots, x)
     up = np.minimum(_curve(P, hair, x), top - 0.3 * iod)
     low = np.maximum(_curve(P, lids, x), bot + 0.1 * iod)
-    across = np.where(y < top, _ramp(y, up, top), np.where(y > bot, 1.0 - _ramp(y, bot, low), 1.0))
+    # the fitted lower edge often sits inside the brow hair: the body stays rigid a little below
+    # it (BROW_SKIRT of the gap to the lid) so that the hair is not stretched into spikes
+    rigid = bot + BROW_SKIRT * (low - bot)
+    top = top - 0.1 * BROW_SKIRT * (top - up)  # likewise a little above the fitted upper edge
+    across = np.where(y < top, _ramp(y, up, top),
+                      np.where(y > rigid, 1.0 - _ramp(y, rigid, low), 1.0))
     out: dict[str, np.ndarray] = {}
     for s, sign in (("l", 1.0), ("r", -1.0)):
         other = P["brow_r_e1" if s == "l" else "brow_l_e0"][0]

@@ -19,7 +19,7 @@ import numpy as np
 
 from .faps import FAPS
 from .fitting import FaceFrame
-from .influence import rectangles, side_tags, weights
+from .influence import OUTLINE_FDPS, brow_weights, face_mask, rectangles, side_tags, weights
 from .mesh import StandardMesh, signed_areas
 
 EXTRA_POINTS = ("3.5", "3.6", "6.1", "6.2", "6.3", "6.4")
@@ -76,6 +76,7 @@ class DeformPlan:
     tongue_roll_scale: float
     neutral_sigma: np.ndarray  # (T,)
     movable: np.ndarray  # (V,) bool: can move for some FAP vector (not border)
+    brow_gap: float = np.inf  # frame distance between the inner brow ends 4.1 and 4.2, pixels
     extra_names: tuple[str, ...] = EXTRA_POINTS
 
     def __post_init__(self) -> None:
@@ -103,6 +104,8 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     byname = {n: P[i] for i, n in enumerate(names)}
     iod = float(np.linalg.norm(P[mesh.index("eye_l_u3")] - P[mesh.index("eye_r_u3")]))
     rects = rectangles(byname, iod)
+    brows = brow_weights(byname, P, iod)
+    on_face = face_mask(byname, P, iod)
     sides = side_tags(names)
     regions = np.concatenate([mesh.regions, np.array(["extra"] * len(EXTRA_POINTS))])
     movable = ~np.isin(regions, ("margin", "border"))
@@ -123,8 +126,12 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
             if fdp.startswith("6."):
                 w = np.zeros(N)
                 w[V + EXTRA_POINTS.index(fdp)] = 1.0
+            elif fdp in brows:
+                w = brows[fdp] * movable_lin
             else:
                 w = weights(rects[fdp], fdp_pos[fdp], P, sides, movable_lin)
+            if fdp not in OUTLINE_FDPS:
+                w = w * on_face  # the motion stays inside the contour and the hairline
             basis[f.number - 1] += unit * w[:, None] * np.array([dx, dy])[None, :]
             single_w[f.number - 1] = w
     # tongue points follow the jaw (they sit behind the lower teeth)
@@ -178,6 +185,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
         tongue_roll_scale=0.3 * fapu["MW"] * 1024.0,
         neutral_sigma=signed_areas(pts_img[:V].astype(np.float64), tri),
         movable=movable[:V],
+        brow_gap=float(abs(fdp_pos["4.1"][0] - fdp_pos["4.2"][0])),
     )
 
 
@@ -286,6 +294,30 @@ def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
     return D * t_star[:, None, None]
 
 
+#: The squeezed brows keep at least 1 - SQUEEZE_MAX of the gap between their inner ends: beyond
+#: SQUEEZE_KNEE x SQUEEZE_MAX of it the squeeze saturates smoothly (the brow heads bunch the
+#: glabella skin; they cannot meet or cross).
+SQUEEZE_MAX = 0.55
+SQUEEZE_KNEE = 0.6
+
+
+def limit_squeeze(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
+    """FAP rows (B, 68) with squeeze_l/r_eyebrow (37/38) softly limited to the brow gap."""
+    sq = f[:, 36:38]
+    t = np.clip(sq, 0.0, None).sum(1) * plan.fapu["ES"]  # how far the brow heads approach, px
+    lim = SQUEEZE_MAX * plan.brow_gap
+    knee = SQUEEZE_KNEE * lim
+    over = t > knee
+    if not over.any():
+        return f
+    span = lim - knee
+    t2 = np.where(over, knee + span * np.tanh((t - knee) / span), t)
+    scale = np.where(over, t2 / np.maximum(t, 1e-12), 1.0)
+    f = f.copy()
+    f[:, 36:38] = np.where(sq > 0, sq * scale[:, None], sq)
+    return f
+
+
 def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
     """Deformed positions of all points (mesh vertices + extra feature points).
 
@@ -302,6 +334,7 @@ def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
     single = f.ndim == 1
     f = np.atleast_2d(f)
     B = f.shape[0]
+    f = limit_squeeze(plan, f)
     n0 = plan.neutral64
     lin = f @ plan.basis_flat
     va, vb = f[:, LIP_PAIRS[:, 0]], f[:, LIP_PAIRS[:, 1]]

@@ -195,3 +195,121 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         R[back] = ear
     R["9.3"] = Rect(X("nose_31", -0.1), Y("nose_28"), X("nose_35", 0.1), Y("lipo_u4"))
     return R
+
+
+# ---------------------------------------------------------------------------------------------
+# Brows: a band that follows the brow curve, with a partition of unity along it (SPEC §7)
+# ---------------------------------------------------------------------------------------------
+
+#: Brow feature points of each side, inner -> middle -> outer.
+BROW_FDPS = {"l": ("4.1", "4.3", "4.5"), "r": ("4.2", "4.4", "4.6")}
+
+
+#: Fraction of the brow-to-lid gap below the brow's fitted lower edge that moves with the brow.
+BROW_SKIRT = 0.35
+
+
+def _ramp(u: np.ndarray, a: float | np.ndarray, b: float | np.ndarray) -> np.ndarray:
+    """0 at ``a``, 1 at ``b``, linear between (clamped); ``a < b``."""
+    return np.clip((u - a) / np.maximum(b - a, 1e-6), 0.0, 1.0)
+
+
+def _curve(P: dict[str, np.ndarray], names: list[str], x: np.ndarray) -> np.ndarray:
+    """y of the polyline through the named points at abscissae ``x`` (clamped at its ends)."""
+    q = np.array([P[n] for n in names])
+    order = np.argsort(q[:, 0], kind="stable")
+    return np.interp(x, q[order, 0], q[order, 1])
+
+
+def brow_weights(P: dict[str, np.ndarray], pts: np.ndarray, iod: float) -> dict[str, np.ndarray]:
+    """Weights (N,) of the six brow feature points 4.1-4.6 for the points ``pts`` (face frame).
+
+    Replaces the three separate tents per brow (which peaked the arch into a tent when the brow
+    was raised, and left a V-shaped seam between the brows when both were lowered):
+
+    * *along* the brow (frame x) the inner, middle and outer weights are the linear hat
+      functions on the knots (other brow's inner end, 4.1, 4.3, 4.5, 4.5 + 0.35 IOD): they sum
+      to 1 from the inner to the outer end, so equal values move the brow as a rigid curve and
+      unequal ones bend it along a smooth polyline through the three points. Across the gap
+      between the brows the two inner hats meet: equal values move the glabella with the brows
+      (no seam), a squeeze compresses the gap evenly instead of in one triangle;
+    * *across* it (frame y) one profile shared by the six: 1 on the brow body (between its upper
+      and lower edge, which follow the brow's own curve), falling linearly to 0 at the hairline
+      above and at the upper lid below; between the brows it reaches down the nose bridge to
+      9.12 (nose_29), so lowering the inner brows takes the glabella skin down with them instead
+      of folding it against the nose.
+    """
+    x, y = pts[:, 0], pts[:, 1]
+    tops = [f"brow_{s}_{k}" for s in "rl" for k in ("e0", "u1", "u2", "u3", "u4", "u5", "e1")]
+    bots = [f"brow_{s}_{k}" for s in "rl" for k in ("e0", "d1", "d2", "d3", "e1")]
+    hair = ["contour_0"] + [f"hair_{k}" for k in range(1, 12)] + ["contour_32"]
+    lids = ([f"eye_r_{k}" for k in ("c0", "u1", "u2", "u3", "u4", "u5", "c1")] + ["nose_29"]
+            + [f"eye_l_{k}" for k in ("c0", "u1", "u2", "u3", "u4", "u5", "c1")])
+    top, bot = _curve(P, tops, x), _curve(P, bots, x)
+    up = np.minimum(_curve(P, hair, x), top - 0.3 * iod)
+    low = np.maximum(_curve(P, lids, x), bot + 0.1 * iod)
+    # the fitted lower edge often sits inside the brow hair: the body stays rigid a little below
+    # it (BROW_SKIRT of the gap to the lid) so that the hair is not stretched into spikes
+    rigid = bot + BROW_SKIRT * (low - bot)
+    top = top - 0.1 * BROW_SKIRT * (top - up)  # likewise a little above the fitted upper edge
+    across = np.where(y < top, _ramp(y, up, top),
+                      np.where(y > rigid, 1.0 - _ramp(y, rigid, low), 1.0))
+    out: dict[str, np.ndarray] = {}
+    for s, sign in (("l", 1.0), ("r", -1.0)):
+        other = P["brow_r_e1" if s == "l" else "brow_l_e0"][0]
+        b_in, b_mid, b_out = BROW_FDPS[s]
+        ends = (f"brow_{s}_e0", f"brow_{s}_u3", f"brow_{s}_e1") if s == "l" else (
+            f"brow_{s}_e1", f"brow_{s}_u3", f"brow_{s}_e0")
+        # u grows from the middle of the face outwards on both sides
+        u = sign * x
+        k = [sign * other] + [sign * float(P[n][0]) for n in ends]
+        k.append(k[-1] + 0.35 * iod)
+        for j, fdp in enumerate((b_in, b_mid, b_out)):
+            a, c, b = k[j], k[j + 1], k[j + 2]
+            hat = np.where(u <= c, _ramp(u, a, c), 1.0 - _ramp(u, c, b))
+            hat = hat * (u > a) * (u < b)
+            out[fdp] = hat * across
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# The face region: motion stays inside the contour and the hairline
+# ---------------------------------------------------------------------------------------------
+
+#: Feature points whose FAPs may move the face outline itself: the jaw (2.1: open, thrust,
+#: shift), the puffed cheeks (5.1/5.2) and the ears (10.x). Every other FAP leaves the contour
+#: and the hairline where they are, so hair, ears and background never move with it.
+OUTLINE_FDPS = frozenset({"2.1", "5.1", "5.2", "10.1", "10.2", "10.3", "10.4"})
+
+#: Width of the band inside the contour/hairline over which the other FAPs fade out, in IOD.
+FACE_BAND = 0.08
+
+
+def face_polygon(P: dict[str, np.ndarray]) -> np.ndarray:
+    """The face outline (frame): the contour from ear to ear over the chin, then the hairline."""
+    names = [f"contour_{i}" for i in range(33)] + [f"hair_{k}" for k in range(11, 0, -1)]
+    return np.array([P[n] for n in names], np.float64)
+
+
+def inside_distance(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Signed distance (N,) of the points to the closed polygon: > 0 inside, < 0 outside."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a  # (S, 2)
+    ap = pts[:, None, :] - a[None]  # (N, S, 2)
+    t = np.clip((ap * ab[None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12)[None], 0.0, 1.0)
+    d = np.linalg.norm(ap - t[..., None] * ab[None], axis=-1).min(1)
+    # even-odd rule: a ray towards +x crosses the edges whose y-span holds the point
+    py, px = pts[:, 1:2], pts[:, 0:1]
+    ay, by, ax, bx = a[None, :, 1], b[None, :, 1], a[None, :, 0], b[None, :, 0]
+    spans = (ay > py) != (by > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = ax + (py - ay) * (bx - ax) / (by - ay)
+    inside = (spans & (px < xc)).sum(1) % 2 == 1
+    return np.where(inside, d, -d)
+
+
+def face_mask(P: dict[str, np.ndarray], pts: np.ndarray, iod: float) -> np.ndarray:
+    """(N,) 1 inside the face, falling linearly to 0 at the contour/hairline (FACE_BAND)."""
+    dist = inside_distance(face_polygon(P), pts)
+    return np.clip(dist / (FACE_BAND * iod), 0.0, 1.0)

@@ -1,0 +1,172 @@
+"""No tears: the glabella deforms smoothly, brows keep their shape, motion stays on the face."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from conftest import ROOT, jaffe_images
+
+from editor.core import Face
+from editor.core.faps import FAPS
+from editor.core.mesh import signed_areas
+
+PRESETS = sorted((ROOT / "presets").glob("*.json"))
+BROW_FAPS = ("raise_{s}_i_eyebrow", "raise_{s}_m_eyebrow", "raise_{s}_o_eyebrow")
+
+
+def _vec(values: dict[str, float]) -> np.ndarray:
+    return FAPS.clamp(FAPS.vector(values))
+
+
+def _preset(path, k: float) -> np.ndarray:
+    return _vec({n: k * v for n, v in json.loads(path.read_text())["faps"].items()})
+
+
+def _brows(inner: float, mid: float, outer: float, squeeze: float = 0.0) -> np.ndarray:
+    d = {}
+    for s in "lr":
+        for name, v in zip(BROW_FAPS, (inner, mid, outer), strict=True):
+            d[name.format(s=s)] = v
+        d[f"squeeze_{s}_eyebrow"] = squeeze
+    return _vec(d)
+
+
+#: Strong hand-made brow vectors (FAPU): frown, worry, raised and drawn together, one brow.
+HAND_MADE = {
+    "frown": _brows(-300, -150, 100, 200),
+    "worry": _brows(300, 150, -100, 150),
+    "up_together": _brows(400, 400, 400, 200),
+    "down_apart": _brows(-150, -150, -150, -200),
+    "one_up_one_down": _vec({"raise_l_i_eyebrow": 300, "raise_r_i_eyebrow": -150,
+                             "squeeze_l_eyebrow": 100}),
+}
+
+
+@pytest.fixture(scope="module")
+def faces(sample_face):
+    out = [sample_face]
+    for who in ("KA", "KM", "NA", "TM", "YM"):
+        paths = jaffe_images(f"{who}.NE*.tiff")
+        if paths:
+            out.append(Face.from_image(paths[0]))
+    return out
+
+
+def _glabella_triangles(face: Face) -> np.ndarray:
+    """Triangles touching the glabella, the inner brow ends or the nose root (not the lids)."""
+    m = face.mesh
+    ids = [m.index(n) for n in ("glabella", "brow_l_e0", "brow_r_e1", "nose_27")]
+    eye = np.array([n.startswith(("eye_", "eyering_")) for n in m.names])
+    t = m.triangles
+    near = np.isin(t, ids).any(1) & ~eye[t].any(1)
+    return np.nonzero(near)[0]
+
+
+def test_glabella_keeps_its_area(faces):
+    """No triangle between the brows shrinks below 30 % of its area: presets at 150 %, strong
+    hand-made brow vectors."""
+    vectors = {f"{p.stem}@{int(k * 100)}": _preset(p, k) for p in PRESETS for k in (1.0, 1.5)}
+    vectors.update(HAND_MADE)
+    worst = []
+    for face in faces:
+        tri = _glabella_triangles(face)
+        a0 = signed_areas(face.vertices.astype(np.float64), face.triangles)[tri]
+        for name, v in vectors.items():
+            a = signed_areas(face.deform(v).astype(np.float64), face.triangles)[tri]
+            worst.append((float((a / a0).min()), name, face.source))
+    worst.sort()
+    assert worst[0][0] >= 0.3, worst[:5]
+
+
+def _chain(face: Face, s: str) -> list[np.ndarray]:
+    m = face.mesh
+    top = [f"brow_{s}_e0"] + [f"brow_{s}_u{k}" for k in range(1, 6)] + [f"brow_{s}_e1"]
+    bottom = [f"brow_{s}_e0"] + [f"brow_{s}_d{k}" for k in range(1, 4)] + [f"brow_{s}_e1"]
+    return [np.array([m.index(n) for n in c]) for c in (top, bottom)]
+
+
+@pytest.mark.parametrize("value", [-150.0, 150.0, 300.0])
+def test_equal_brow_faps_move_the_brow_rigidly(faces, value):
+    """Inner = middle = outer: the brow moves as a whole (second difference ~ 0), no tent."""
+    for face in faces:
+        for s in "lr":
+            v = _vec({name.format(s=s): value for name in BROW_FAPS})
+            d = face.deform(v) - face.vertices
+            for idx in _chain(face, s):
+                dd = d[idx]
+                d2 = np.abs(dd[:-2] - 2 * dd[1:-1] + dd[2:]).max()
+                assert d2 <= 0.03 * np.abs(dd).max(), (face.source, s, value, d2)
+
+
+def test_surprise_keeps_a_smooth_arch(faces):
+    """At 150 % surprise the brow's upper edge bends no more than its three FAP values ask."""
+    p = ROOT / "presets" / "surprise.json"
+    v = _preset(p, 1.5)
+    for face in faces:
+        d = face.deform(v) - face.vertices
+        for s in "lr":
+            dd = d[_chain(face, s)[0]]
+            d2 = np.abs(dd[:-2] - 2 * dd[1:-1] + dd[2:]).max()
+            assert d2 <= 0.14 * np.abs(dd).max(), (face.source, s, d2)
+
+
+def _outline(face: Face) -> np.ndarray:
+    m = face.mesh
+    names = [f"contour_{i}" for i in range(33)] + [f"hair_{k}" for k in range(11, 0, -1)]
+    return face.vertices[[m.index(n) for n in names]].astype(np.float32)
+
+
+def _outside_changes(face: Face, img: np.ndarray) -> tuple[float, float]:
+    """How far (IOD) outside the contour/hairline, and below the chin, pixels changed."""
+    ys, xs = np.nonzero(np.abs(img.astype(int) - face.image.astype(int)).max(-1) > 0)
+    if len(xs) == 0:
+        return 0.0, 0.0
+    poly = _outline(face)
+    dist = np.array([cv2.pointPolygonTest(poly, (float(x), float(y)), True)
+                     for x, y in zip(xs, ys, strict=True)])
+    chin_y = face.vertices[face.fdp["2.1"], 1]
+    return (float(max(-dist.min(), 0.0)) / face.interocular,
+            float(max(ys.max() - chin_y, 0.0)) / face.interocular)
+
+
+@pytest.fixture(scope="module")
+def padded_face():
+    """The sample with 400 px of replicated border below and beside it and a drawn collar."""
+    img = cv2.imread(str(ROOT / "resources" / "sample_face.png"))[:, :, ::-1]
+    p = cv2.copyMakeBorder(img, 0, 400, 200, 200, cv2.BORDER_REPLICATE)
+    cx, y0 = p.shape[1] // 2, img.shape[0] - 40
+    for sgn in (-1, 1):
+        cv2.fillConvexPoly(p, np.array([[cx + sgn * 150, y0], [cx + sgn * 5, y0 + 40],
+                                        [cx + sgn * 60, y0 + 170]]), (235, 235, 240))
+    cv2.fillConvexPoly(p, np.array([[cx - 18, y0 + 45], [cx + 18, y0 + 45], [cx + 30, y0 + 380],
+                                    [cx - 30, y0 + 380]]), (120, 20, 30))
+    return Face.from_image(np.ascontiguousarray(p))
+
+
+def test_brows_lids_lips_leave_hair_and_background_alone(padded_face):
+    """FAPs that do not move the jaw, cheeks' outline or ears change nothing outside the face
+    outline (contour + hairline) beyond antialiasing (0.05 IOD)."""
+    face = padded_face
+    vectors = {p.stem: _preset(p, 1.5) for p in PRESETS
+               if not {"open_jaw", "puff_l_cheek", "puff_r_cheek"}
+               & set(json.loads(p.read_text())["faps"])}
+    vectors.update(HAND_MADE)
+    vectors["lips_corners"] = _vec({"stretch_l_cornerlip": 400, "stretch_r_cornerlip": 400,
+                                    "raise_l_cornerlip": 600, "raise_r_cornerlip": 600,
+                                    "lift_l_cheek": 600, "lift_r_cheek": 600})
+    assert len(vectors) > 5
+    for name, v in vectors.items():
+        out, below = _outside_changes(face, face.render(v))
+        assert out <= 0.05 and below <= 0.05, (name, out, below)
+
+
+def test_open_jaw_stays_near_the_chin(padded_face):
+    """open_jaw at its maximum: below the chin pixels change within the falloff band (the
+    margin ring, 0.5 IOD at most); the collar further down and the sides are untouched."""
+    face = padded_face
+    out, below = _outside_changes(face, face.render({"open_jaw": 1080}))
+    assert 0.2 < below <= 0.5
+    assert out <= 0.75

@@ -48,6 +48,12 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         41: (120, "AU6 cheek raiser; no landmark on the cheek (Xface joy.fap 100-150); it also "
                   "lifts the lower lids, which the fit of 21/22 accounts for"),
         42: (120, "as 41"),
+        "jaw": (100, "small AU25/26 (lips parted, teeth shown as in most JAFFE smiles); the chin "
+                     "point is noisy (median 38 MNS, p10..p90 -176..322, noise 92): fixed so the "
+                     "fit cannot trade the corner lift for jaw drop"),
+        "c_raise": (420, "AU12, joy's defining action: set so the outer corners rise ~0.11 "
+                         "pupil distances, the real median (the plain fit gave 355, held down "
+                         "by the inner corners' smaller rise)"),
     },
     "sadness": {
         18: (100, "AU17 chin raiser, common in sadness (MPEG-4 FAP 18 'as in sadness'); no "

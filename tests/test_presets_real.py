@@ -150,3 +150,35 @@ def test_preset_files_match_the_derivation(real):
                         "--jaffe", str(JAFFE), "--table", "/dev/null"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+
+
+def _inner_gaps(face, vec) -> np.ndarray:
+    """Inner lower minus inner upper lip (face frame y, px) at the 7 inner-lip columns."""
+    q = (face.deform(vec).astype(np.float64) - face.frame.origin) @ face.frame.rot
+    n = face.mesh.names
+    return np.array([q[n.index(f"lipi_d{k}"), 1] - q[n.index(f"lipi_u{k}"), 1]
+                     for k in range(1, 8)])
+
+
+def test_viseme_pbm_closes_the_lips_over_the_whole_width(real, sample_face):
+    closed = 0
+    for face in real.faces.values():
+        g0 = _inner_gaps(face, None)
+        if g0.max() / face.fapu["MNS"] > 80:  # parted lips in the photo: needs neutralisation
+            continue
+        closed += 1
+        assert _inner_gaps(face, apply_preset("viseme_pbm")).max() < 0.05, face.source
+    assert closed >= 8
+    # the sample smiles with teeth (~540 MNS): pbm narrows the gap but cannot close it alone
+    g0, g1 = _inner_gaps(sample_face, None), _inner_gaps(sample_face, apply_preset("viseme_pbm"))
+    assert g1.max() < g0.max() - 1.0
+
+
+def test_viseme_u_rounds_the_lips(real):
+    for face in list(real.faces.values())[:4]:
+        n = face.mesh.names
+        v0, v1 = face.deform(None), face.deform(apply_preset("viseme_u"))
+        w0, w1 = (np.linalg.norm(v[n.index("lipo_c0")] - v[n.index("lipo_c1")]) for v in (v0, v1))
+        assert w1 < 0.85 * w0  # corners pulled in
+        g = _inner_gaps(face, apply_preset("viseme_u"))
+        assert g.min() > 0.5 and g[3] > 1.4 * g[[1, 5]].mean()  # small, round opening

@@ -31,7 +31,8 @@ def test_joy(motion):
     assert m["8.3"][1] < -0.5 and m["8.4"][1] < -0.5      # mouth corners up
     assert m["2.1"][1] > 0.3                              # jaw down
     assert m["2.3"][1] > 0.3                              # lower lip down
-    assert m["4.5"][1] < 0 and m["4.6"][1] < 0            # outer brows up
+    assert abs(m["4.5"][1]) < 0.5 and abs(m["4.6"][1]) < 0.5  # brows still (JAFFE)
+    assert m["3.3"][1] < -0.3 and m["3.4"][1] < -0.3      # lower lids pushed up (AU6)
 
 
 def test_sadness(motion):
@@ -43,9 +44,10 @@ def test_sadness(motion):
 
 def test_surprise(motion):
     m = motion("surprise")
-    for k in ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6"):  # whole brows up
+    for k in ("4.1", "4.2", "4.3", "4.4"):                # brows up, the inner half most
         assert m[k][1] < -1.0, k
-    assert m["8.1"][1] < 0                                # upper lip up
+    assert m["4.5"][1] < -0.3 and m["4.6"][1] < -0.3
+    assert abs(m["8.1"][1]) < 0.2 * m["2.3"][1]           # the lower lip opens the mouth
     assert m["2.3"][1] > 1.0 and gap(m) > 1.5             # lower lip down, mouth opens
 
 
@@ -53,7 +55,8 @@ def test_anger(motion):
     m = motion("anger")
     assert m["4.1"][0] < 0 and m["4.2"][0] > 0            # brows squeezed together
     assert gap(m) <= 0.05                                 # lips pressed, not opened
-    assert m["4.5"][1] < 0 and m["4.6"][1] < 0            # outer brows up (table 3)
+    assert m["4.5"][1] > 0 and m["4.6"][1] > 0            # outer brows down (JAFFE, AU4)
+    assert m["4.1"][1] > 1.0 and m["4.2"][1] > 1.0        # inner brows clearly down
 
 
 def test_fear(motion):

@@ -83,7 +83,7 @@ def cmd_clone(a: argparse.Namespace) -> int:
     from .core.fap_estimate import FapEstimator
     from .core.landmarks import detect_landmarks
 
-    src_neutral = Face.from_image(a.source_neutral)
+    src_neutral = Face.from_image(a.source_neutral, own_expression=False)
     try:
         expr = detect_landmarks(load_image(a.source)).points
     except NoFaceError as e:
@@ -218,7 +218,7 @@ def jaffe_evaluation(images: Path, persons: list[str] | None = None,
     if not people:
         raise FapStudioError(f"{images}: no JAFFE neutral images found")
     sample = Face.from_image(SAMPLE)
-    neutral = {p: Face.from_image(files[p]["NE"][0]) for p in sorted(files) if "NE" in files[p]}
+    neutral = {p: Face.from_image(files[p]["NE"][0], own_expression=False) for p in sorted(files) if "NE" in files[p]}
     order = sorted(neutral)
     routes = ("nothing", "fap", "laplacian", "keys")
     cols = (("nothing", "do nothing"), ("fap_mesh", "FAP, mesh"), ("fap", "FAP, detected"),
@@ -338,7 +338,8 @@ def cmd_clone_eval(a: argparse.Namespace) -> int:
     if not a.skip_roundtrip:
         rgb = load_image(a.roundtrip_photo)
         base = Face.from_image(rgb)
-        face = Face.from_image(upscaled_face(rgb, base.landmarks.points, a.scale))
+        face = Face.from_image(upscaled_face(rgb, base.landmarks.points, a.scale),
+                               own_expression=False)
         names, vecs = roundtrip_vectors(a.random)
         table, _ = roundtrip_table(face, vecs)
         print(f"FAP recovery round trip on {Path(a.roundtrip_photo).name} (face crop x{a.scale:g},"

@@ -16,9 +16,20 @@ JAFFE = ROOT.parent / "shared" / "data" / "jaffe"
 
 @pytest.fixture(scope="session")
 def sample_face():
+    """The bundled sample as the product opens it: its own expression (an open smile) estimated,
+    FAPs applied to the neutralised face."""
     from editor.core import Face
 
     return Face.from_image(SAMPLE)
+
+
+@pytest.fixture(scope="session")
+def sample_neutral():
+    """The sample declared neutral (no own expression): FAP 0 = the photo's mesh. For tests of
+    the engine's mechanics relative to the photo."""
+    from editor.core import Face
+
+    return Face.from_image(SAMPLE, own_expression=False)
 
 
 def jaffe_images(pattern: str = "*.tiff") -> list[Path]:
@@ -35,7 +46,7 @@ def jaffe_faces():
     paths = jaffe_images("*.NE1.*.tiff")[:5]
     if len(paths) < 5:
         pytest.skip("../shared/data/jaffe is not available")
-    return [Face.from_image(p) for p in paths]
+    return [Face.from_image(p, own_expression=False) for p in paths]
 
 
 @pytest.fixture

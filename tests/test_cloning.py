@@ -40,7 +40,8 @@ def big_face():
     """The sample face cropped and enlarged 3x (inter-ocular ~130 px): dlib's integer landmarks
     are then fine compared with a FAP unit."""
     rgb = load_image(SAMPLE)
-    return Face.from_image(upscaled_face(rgb, Face.from_image(rgb).landmarks.points, 3.0))
+    return Face.from_image(upscaled_face(rgb, Face.from_image(rgb).landmarks.points, 3.0),
+                           own_expression=False)
 
 
 def _pixel_weights(face) -> np.ndarray:
@@ -63,16 +64,22 @@ def test_mean_value_weights_are_convex(sample_face):
         assert row.nnz >= 2 and (row.data > 0).all() and abs(row.sum() - 1) < 1e-12
 
 
-def test_rest_constraints_do_not_move_the_mesh(sample_face):
-    d = face_deformer(sample_face)
+def test_rest_constraints_do_not_move_the_mesh(sample_neutral, sample_face):
+    d = face_deformer(sample_neutral)
     v = d.solve(d.rest_targets)
-    assert np.abs(v - sample_face.vertices).max() < 1e-6
+    assert np.abs(v - sample_neutral.vertices).max() < 1e-6
     # the same through clone(): source expression = source neutral -> the photo, unchanged
-    res = clone(sample_face, sample_face.landmarks.points, sample_face, "laplacian")
-    assert np.abs(res.vertices - sample_face.vertices).max() < 1e-4
-    assert np.array_equal(res.image, sample_face.image)
-    res = clone(sample_face, sample_face.landmarks.points, sample_face, "fap")
-    assert not res.faps.any() and np.array_equal(res.image, sample_face.image)
+    res = clone(sample_neutral, sample_neutral.landmarks.points, sample_neutral, "laplacian")
+    assert np.abs(res.vertices - sample_neutral.vertices).max() < 1e-4
+    assert np.array_equal(res.image, sample_neutral.image)
+    res = clone(sample_neutral, sample_neutral.landmarks.points, sample_neutral, "fap")
+    assert not res.faps.any() and np.array_equal(res.image, sample_neutral.image)
+    # onto a smiling target a neutral clone is its neutralised face, by both routes
+    neutral = sample_face.render(None)
+    for method in ("laplacian", "fap"):
+        res = clone(sample_neutral, sample_neutral.landmarks.points, sample_face, method)
+        assert np.abs(res.vertices - sample_face.neutral_vertices).max() < 1e-3
+        assert np.abs(res.image.astype(int) - neutral).max() <= 2
 
 
 def test_laplacian_follows_constraints_and_never_folds(sample_face):
@@ -117,10 +124,10 @@ def test_key_models_nnls():
 
 
 # ---------------------------------------------------------------------------- estimation
-def test_estimator_inverts_the_model(sample_face):
+def test_estimator_inverts_the_model(sample_neutral):
     """Landmarks placed exactly where the renderer's mesh puts them -> the FAPs come back
     (no detector involved: this checks the maths, pair correction included)."""
-    f = sample_face
+    f = sample_neutral
     A = landmark_map(f.vertices, f.triangles, f.mesh.names, f.landmarks.points)
     est = FapEstimator(f)
     names, vecs = roundtrip_vectors(0)
@@ -274,7 +281,7 @@ def jaffe_ka():
 def test_jaffe_real_source(jaffe_ka, sample_face):
     from editor.core.landmarks import detect_landmarks
 
-    src = Face.from_image(jaffe_ka["NE"])
+    src = Face.from_image(jaffe_ka["NE"], own_expression=False)
     est = FapEstimator(src)
     pts = {k: detect_landmarks(load_image(jaffe_ka[k])).points for k in ("HA", "SU")}
     joy, sur = est.estimate(pts["HA"]), est.estimate(pts["SU"])

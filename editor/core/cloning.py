@@ -190,12 +190,16 @@ _DEFORMERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def face_deformer(face, mu: float = MU) -> LaplacianDeformer:
-    """The (cached) Laplacian deformer of a Face: landmark constraints, border ring fixed."""
+    """The (cached) Laplacian deformer of a Face: landmark constraints, border ring fixed.
+
+    It deforms the face's *neutral* mesh (the photo's own expression removed); the landmarks
+    are tied to it by their barycentric coordinates on the photo's mesh.
+    """
     key = (float(mu),)
     cache = _DEFORMERS.setdefault(face, {})
     if key not in cache:
         S = landmark_map(face.vertices, face.triangles, face.mesh.names, face.landmarks.points)
-        cache[key] = LaplacianDeformer(face.vertices, face.triangles, S,
+        cache[key] = LaplacianDeformer(face.neutral_vertices, face.triangles, S,
                                        face.mesh.regions == "border", mu, CONSTRAINT_WEIGHTS)
     return cache[key]
 
@@ -268,7 +272,7 @@ def key_models(source_face, key_points: dict[str, np.ndarray], target_face,
             tgt.append(deformer.solve(deformer.rest_targets
                                       + transfer_motion(source_face, d, target_face)))
     return KeyModels(names, np.array(src), np.array(tgt),
-                     target_face.vertices.astype(np.float64))
+                     target_face.neutral_vertices.astype(np.float64))
 
 
 # ---------------------------------------------------------------------------- clone
@@ -302,7 +306,9 @@ def clone(source_neutral, source_expr, target, method: str = "fap", *,
     neutral = np.asarray(source_neutral.landmarks.points, np.float64)
     aligned, _ = remove_head_motion(neutral, pts)
     d = aligned - neutral
-    expected = target.landmarks.points + transfer_motion(source_neutral, d, target)
+    deformer = face_deformer(target, mu)
+    base = deformer.rest_targets  # the target's landmarks on its neutralised face
+    expected = base + transfer_motion(source_neutral, d, target)
     if method == "fap":
         est = estimator or FapEstimator(source_neutral)
         faps = est.estimate(pts).faps
@@ -310,13 +316,12 @@ def clone(source_neutral, source_expr, target, method: str = "fap", *,
         return CloneResult(target.render(faps), v, expected, faps, None, method)
     if method != "laplacian":
         raise ValueError(f"method must be 'fap' or 'laplacian', got {method!r}")
-    deformer = face_deformer(target, mu)
     w = None
     if keys is not None:
         w = keys.weights(d)
         U = deformer.S @ keys.blend(w)
     else:
-        U = deformer.rest_targets + (expected - target.landmarks.points)
+        U = expected
     v = finish(target, deformer.solve(U))
     return CloneResult(render_vertices(target, v), v, expected, None, w, method)
 

@@ -129,7 +129,7 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
     faces: dict[str, tuple[Face, object]] = {}
     for k, (p, code, path) in enumerate(jobs):
         if p not in faces:
-            face = Face.from_image(files[p]["NE"][0])
+            face = Face.from_image(files[p]["NE"][0], own_expression=False)
             faces[p] = (face, make(face))
         face, est = faces[p]
         neutral = face.landmarks.points.astype(np.float64)

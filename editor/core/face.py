@@ -112,6 +112,15 @@ class Face:
             N[V:] = np.where(np.isfinite(N[V:]), N[V:], target[V:])
             fapu, plan = self._build(N[:V].astype(np.float32))
             N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
+        # lips and lids of the neutral meet but never cross (an overshooting estimate would
+        # leave the upper lip below the lower one); the offset absorbs the difference
+        pairs, ey = self.mesh.pairs, self.frame.rot[:, 1]
+        u, lo = pairs[:, 0], pairs[:, 1]
+        cross = (N[lo] - N[u]) @ ey < 0
+        if cross.any():
+            mean = 0.5 * (N[u[cross]] + N[lo[cross]])
+            N[u[cross]] = N[lo[cross]] = mean
+            fapu, plan = self._build(N[:V].astype(np.float32))
         offset = target - deform_points(plan, f0).astype(np.float64)
         return plan.neutral[:V].copy(), fapu, plan, offset.astype(np.float32)
 
@@ -241,14 +250,14 @@ class Face:
                     faps: np.ndarray | None = None) -> WarpResult:
         """Render the photo on any deformed mesh (e.g. from cloning), layers included.
 
-        ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: as
-        in the photo); ``faps`` the (68,) vector that drives the eyes and tongue (default: the
-        photo's own expression).
+        ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: where
+        ``faps`` puts them); ``faps`` the (68,) vector that drives the eyes and tongue (default:
+        zeros, the eyes and tongue at rest).
         """
         v = np.asarray(vertices, np.float32)
+        vec = np.zeros(68, np.float32) if faps is None else np.asarray(faps, np.float32)
         if extra is None:
-            extra = self._deform(self.expression)[self.plan.n_vertices:]
-        vec = self.expression if faps is None else np.asarray(faps, np.float32)
+            extra = self._deform(vec)[self.plan.n_vertices:]
         tf = self.layer_transforms(v)
         return render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
 

@@ -52,7 +52,7 @@ def estimate_clone_faps(neutral: str | Path, expression: str | Path) -> np.ndarr
     from editor.core.fap_estimate import FapEstimator
     from editor.core.landmarks import detect_landmarks
 
-    src = Face.from_image(neutral)
+    src = Face.from_image(neutral, own_expression=False)
     try:
         lm = detect_landmarks(load_image(expression))
     except NoFaceError as exc:

@@ -144,16 +144,21 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
             out[:, j] = out[:, full[np.argmin(np.abs(full - j))]]
     return out
 
+#: How much darker the white gets far above / below the lids' bands (a lit ball's top)
+BALL_SHADE = 0.12
+
+
 def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float,
                 band_low: float) -> np.ndarray:
     """The white continued past the lids as the rest of a ball, float32 (h, w, 3).
 
-    Per column of the opening, the white one lid-shadow band (``band_up`` below the upper lid,
-    ``band_low`` above the lower one) inside the opening is the reference (mean of 3 rows,
-    smoothed along the eye); above and below it the column repeats that colour, darkening
-    with the distance like the top and bottom of a lit ball (up to 25 %, 1/e at the iris
-    radius). Between the two references the plate is kept. Columns without opening take the
-    nearest column's values. Built once per face.
+    Per column of the opening, the reference rows lie one lid-shadow band (``band_up`` below
+    the upper lid, ``band_low`` above the lower one) inside the opening; the reference colour
+    is the mean of the column's brighter 40 % between them (the plate has no iris; smoothed
+    along the eye). Above / below the reference rows the column repeats that colour, darkening
+    with the distance like the top and bottom of a lit ball (up to :data:`BALL_SHADE`, 1/e
+    at the iris radius). Between the two references the plate is kept. Columns without
+    opening take the nearest column's values. Built once per face.
     """
     ph, pw = opening.shape
     cols = np.flatnonzero(opening.any(0))
@@ -191,8 +196,8 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     ref_t, ref_b = ref_t[near], ref_b[near]
     d_t = np.maximum(ref_t[None, :] - yy, 0.0)
     d_b = np.maximum(yy - ref_b[None, :], 0.0)
-    shade_t = (1.0 - 0.25 * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
-    shade_b = (1.0 - 0.25 * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
+    shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
+    shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
     above = (yy < ref_t[None, :])[..., None]
     below = (yy > ref_b[None, :])[..., None]
     out = np.where(above, c_t[None] * shade_t, out)
@@ -201,24 +206,38 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
 
 
 def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.ndarray,
-                   r_fill: float, cy: float) -> np.ndarray:
-    """The iris disc with its pixels outside ``keep`` completed from the ``vis`` ones (vertical
-    mirror about the iris centre row when that is visible, else the mean visible colour at the
-    same radius)."""
+                   r: float, r_fill: float, cy: float) -> np.ndarray:
+    """The iris disc with its hidden pixels completed from the visible ones (``vis``).
+
+    Kept: the pixels in ``keep`` (the opening) and, inside the radius ``r``, photo pixels that
+    look like the iris (no brighter than a third of the way from the iris's median luminance
+    to the white's): the iris often shows a little above the detected lid line. The others
+    take their vertical mirror about the iris centre row when that is visible and iris-like,
+    else the mean of the iris-like visible pixels at the same radius (beyond ``r``: of all
+    visible pixels there, the limbus and the white).
+    """
     ph, pw = vis.shape
     out = src.copy()
-    need = (rho <= r_fill + 1.5) & ~keep
+    lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
+    core = vis & (rho <= 0.8 * r)
+    if core.sum() >= 3 and vis.sum() >= 6:
+        med, white = float(np.median(lum[core])), float(np.percentile(lum[vis], 90))
+        like = lum <= med + max(white - med, 0.0) / 3.0
+    else:
+        like = np.ones(vis.shape, bool)
+    disc = rho <= r
+    need = (rho <= r_fill + 1.5) & ~keep & ~(like & disc)
     if not need.any():
         return out
     yy, xx = np.mgrid[0:ph, 0:pw]
     my = np.clip(np.rint(2 * cy - yy), 0, ph - 1).astype(np.int64)
-    mirror_ok = need & vis[my, xx]
+    mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
     out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
     rest = need & ~mirror_ok
     if rest.any():
         bins = np.minimum((rho * 2).astype(np.int64), int(2 * (r_fill + 2)))
         nb = int(bins.max()) + 1
-        sel = vis & (rho <= r_fill + 1.5)
+        sel = vis & (rho <= r_fill + 1.5) & (like | ~disc)
         cnt = np.bincount(bins[sel], minlength=nb)
         mean = np.zeros((nb, 3), np.float32)
         if cnt.any():
@@ -238,7 +257,7 @@ def _smooth01(t: np.ndarray) -> np.ndarray:
 
 
 #: Shadow the upper lid casts on the eyeball it uncovers: depth and 1/e fall-off (x iris r)
-LID_SHADOW, LID_SHADOW_FALL = 0.3, 0.35
+LID_SHADOW, LID_SHADOW_FALL = 0.2, 0.25
 
 
 @dataclass(eq=False)
@@ -302,7 +321,7 @@ class EyePlan:
         # iris sprite: visible = inside the opening, one pixel clear of the lid edge
         vis = cv2.erode(opening, np.ones((3, 3), np.uint8)) > 0
         src = patch.astype(np.float32)
-        out = _complete_iris(src, opening > 0, vis, rho, r_fill, cy - y0)
+        out = _complete_iris(src, opening > 0, vis, rho, r, r_fill, cy - y0)
         # for a raised lid: the bands along the lids (their shadow, the lashes) replaced too
         band_up, band_low = max(2.5, 0.5 * r), max(1.5, 0.25 * r)
         ball = _ball_white(plate, opening > 0, r, band_up, band_low)

@@ -243,13 +243,18 @@ def _gaze_lids(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
     if not f[:, pitch_idx].any():
         return f
     f = f.copy()
-    ey = plan.frame_rot[:, 1]
+    per = plan.__dict__.get("_lid_per_unit")
+    if per is None:
+        # px per FAP unit of each lid's feature point along the frame's down axis (the
+        # feature point carries weight 1: the largest motion of the basis); once per plan
+        ey = plan.frame_rot[:, 1]
+        per = {lid: float(np.abs(plan.basis[lid] @ ey).max())
+               for _p, up, low in _GAZE_LIDS for lid in (up, low)}
+        object.__setattr__(plan, "_lid_per_unit", per)
     for p, up, low in _GAZE_LIDS:
         dy = plan.eye_radius * np.sin(f[:, p] * 1e-5)  # iris motion, px, + = down
         for lid, follow, sign in ((up, _LID_FOLLOW_UP, 1.0), (low, _LID_FOLLOW_LOW, -1.0)):
-            # px per FAP unit of the lid's feature point along the frame's down axis (the
-            # feature point carries weight 1: the largest motion of the basis)
-            per_unit = float(np.abs(plan.basis[lid] @ ey).max())
+            per_unit = per[lid]
             if per_unit <= 1e-9:
                 continue
             k = np.where(dy > 0, follow[0], follow[1])

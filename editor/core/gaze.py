@@ -519,9 +519,9 @@ class EyePlan:
         """A closing eye's lash line over ``box``: (alpha (h, w) float32, colour (3,)), or None.
 
         The opening's area against the neutral one gives the closure c; from c = 0.6 to 0.9
-        a dark line fades in along the deformed upper lid (where the lids meet when closed),
-        anti-aliased, ``0.35 r`` thick in the middle (at least 1.2 px) tapering to 40 % at
-        the corners, in the photo's lash colour. It replaces the stretched, broken lash and
+        a dark line fades in along the deformed upper lid's edge (where the lids meet when
+        closed), anti-aliased, ``0.35 r`` thick in the middle (at least 1.2 px) tapering to
+        40 % at the corners, in the photo's lash colour. It replaces the stretched, broken lash and
         lid-margin texture of the warp by one clean, slightly curved line.
         """
         x, y = poly[:, 0], poly[:, 1]
@@ -532,8 +532,7 @@ class EyePlan:
             return None
         x0, y0, x1, y1 = box
         up = np.asarray(poly, np.float64)[[0, 1, 2, 3, 4, 5, 6]]
-        lo = np.asarray(poly, np.float64)[[0, 11, 10, 9, 8, 7, 6]]
-        line = up + 0.25 * (lo - up)  # the margin sits a little below the upper lid's edge
+        line = up  # the upper lid's margin (where the lids meet once closed)
         px = np.arange(x0, x1, dtype=np.float64)[:, None, None]
         py = np.arange(y0, y1, dtype=np.float64)[None, :, None]
         a, b = line[:-1], line[1:]  # segments

@@ -229,6 +229,50 @@ def _nonlinear(plan: DeformPlan, faps: np.ndarray, pos: np.ndarray) -> np.ndarra
     return pos
 
 
+#: Lids follow the eyeball's pitch (FAPs 25/26): per eye (pitch, upper lid, lower lid) FAP
+#: indices, and how far each lid moves per pixel of iris motion, looking down / up.
+_GAZE_LIDS = ((24, 18, 20), (25, 19, 21))
+_LID_FOLLOW_UP = (1.0, 0.5)  # upper lid: down 1:1 with the iris, up by half of it
+_LID_FOLLOW_LOW = (0.3, 0.2)  # lower lid: a little, both ways
+
+
+def _gaze_lids(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
+    """FAP vectors (B, 68) with the lids' share of the eyeball pitch added to FAPs 19-22.
+
+    The iris centre moves by ``R sin(pitch)`` px (R = :attr:`DeformPlan.eye_radius`); the upper
+    lid's feature point moves down by the same amount when the eye looks down (no white band
+    above the iris) and up by half of it when it looks up; the lower lid follows by 0.3 / 0.2.
+    Expressed as eyelid FAP values, so the lids' own influence regions carry the skin around
+    them, the pair rule keeps the lids from crossing and the fold guard applies as usual.
+    A lid that is nearly closed by its own FAP follows less (nothing from 70 % of its range's
+    maximum to the maximum): the eyeball turns behind closed lids without moving them.
+    """
+    pitch_idx = [p for p, _u, _l in _GAZE_LIDS]
+    if not f[:, pitch_idx].any():
+        return f
+    f = f.copy()
+    per = plan.__dict__.get("_lid_per_unit")
+    if per is None:
+        # px per FAP unit of each lid's feature point along the frame's down axis (the
+        # feature point carries weight 1: the largest motion of the basis); once per plan
+        ey = plan.frame_rot[:, 1]
+        per = {lid: float(np.abs(plan.basis[lid] @ ey).max())
+               for _p, up, low in _GAZE_LIDS for lid in (up, low)}
+        object.__setattr__(plan, "_lid_per_unit", per)
+    for p, up, low in _GAZE_LIDS:
+        dy = plan.eye_radius * np.sin(f[:, p] * 1e-5)  # iris motion, px, + = down
+        for lid, follow, sign in ((up, _LID_FOLLOW_UP, 1.0), (low, _LID_FOLLOW_LOW, -1.0)):
+            per_unit = per[lid]
+            if per_unit <= 1e-9:
+                continue
+            k = np.where(dy > 0, follow[0], follow[1])
+            hi = float(FAPS.hi[lid])
+            k = k * np.clip((hi - f[:, lid]) / (0.3 * hi), 0.0, 1.0)
+            # close_t (upper) moves down for +, close_b (lower) moves up for +
+            f[:, lid] += sign * k * dy / per_unit
+    return f
+
+
 def _pair_rule(plan: DeformPlan, pos: np.ndarray) -> None:
     """Upper/lower lips and lids meet but never cross (in the face frame's y), in place."""
     u, lo = plan.pairs[:, 0], plan.pairs[:, 1]
@@ -333,6 +377,7 @@ def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
     f = np.asarray(faps, np.float64)
     single = f.ndim == 1
     f = np.atleast_2d(f)
+    f = _gaze_lids(plan, f)
     B = f.shape[0]
     f = limit_squeeze(plan, f)
     n0 = plan.neutral64

@@ -144,6 +144,122 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
             out[:, j] = out[:, full[np.argmin(np.abs(full - j))]]
     return out
 
+#: How much darker the white gets far above / below the lids' bands (a lit ball's top)
+BALL_SHADE = 0.12
+
+
+def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float,
+                band_low: float) -> np.ndarray:
+    """The white continued past the lids as the rest of a ball, float32 (h, w, 3).
+
+    Per column of the opening, the reference rows lie one lid-shadow band (``band_up`` below
+    the upper lid, ``band_low`` above the lower one) inside the opening; the reference colour
+    is the mean of the column's brighter 40 % between them (the plate has no iris; smoothed
+    along the eye). Above / below the reference rows the column repeats that colour, darkening
+    with the distance like the top and bottom of a lit ball (up to :data:`BALL_SHADE`, 1/e
+    at the iris radius). Between the two references the plate is kept. Columns without
+    opening take the nearest column's values. Built once per face.
+    """
+    ph, pw = opening.shape
+    cols = np.flatnonzero(opening.any(0))
+    out = plate.copy()
+    if len(cols) == 0:
+        return out
+    top = np.argmax(opening, 0)
+    bot = ph - 1 - np.argmax(opening[::-1], 0)
+    mid = 0.5 * (top + bot)
+    ref_t = np.minimum(np.rint(top + band_up), np.floor(mid)).astype(np.int64)
+    ref_b = np.maximum(np.rint(bot - band_low), np.ceil(mid)).astype(np.int64)
+    ref_t, ref_b = np.clip(ref_t, 0, ph - 1), np.clip(ref_b, 0, ph - 1)
+    jj = np.arange(pw)
+
+    # the white of each column: its brighter part between the lids' shadow bands (the plate
+    # has no iris), as bright as the sclera near the eye's middle
+    yy = np.arange(ph, dtype=np.float32)[:, None]
+    mid_rows = opening & (yy >= ref_t[None, :]) & (yy <= ref_b[None, :])
+    mid_rows |= opening & ~mid_rows.any(0)[None, :]
+    lum = plate @ np.array([0.299, 0.587, 0.114], np.float32)
+    lum_m = np.where(mid_rows, lum, np.nan)
+    with np.errstate(all="ignore"):
+        thr = np.nanpercentile(lum_m[:, cols], 60, axis=0)
+    sel = np.zeros_like(opening)
+    sel[:, cols] = mid_rows[:, cols] & (lum[:, cols] >= thr[None, :] - 1e-3)
+    cnt = sel.sum(0)
+    ok = cnt > 0
+    ref = np.zeros((pw, 3), np.float32)
+    ref[ok] = (plate * sel[..., None]).sum(0)[ok] / cnt[ok, None]
+    for ch in range(3):
+        ref[:, ch] = np.interp(jj, jj[ok], ref[ok, ch])
+    ref = cv2.GaussianBlur(ref[None], (0, 0), max(0.8, 0.3 * r))[0]
+    c_t, c_b = ref, ref
+    near = cols[np.abs(jj[:, None] - cols[None, :]).argmin(1)]
+    ref_t, ref_b = ref_t[near], ref_b[near]
+    d_t = np.maximum(ref_t[None, :] - yy, 0.0)
+    d_b = np.maximum(yy - ref_b[None, :], 0.0)
+    shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
+    shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
+    above = (yy < ref_t[None, :])[..., None]
+    below = (yy > ref_b[None, :])[..., None]
+    out = np.where(above, c_t[None] * shade_t, out)
+    out = np.where(below, c_b[None] * shade_b, out)
+    return out.astype(np.float32)
+
+
+def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.ndarray,
+                   r: float, r_fill: float, cy: float) -> np.ndarray:
+    """The iris disc with its hidden pixels completed from the visible ones (``vis``).
+
+    Kept: the pixels in ``keep`` (the opening) and, inside the radius ``r``, photo pixels that
+    look like the iris (no brighter than a third of the way from the iris's median luminance
+    to the white's): the iris often shows a little above the detected lid line. The others
+    take their vertical mirror about the iris centre row when that is visible and iris-like,
+    else the mean of the iris-like visible pixels at the same radius (beyond ``r``: of all
+    visible pixels there, the limbus and the white).
+    """
+    ph, pw = vis.shape
+    out = src.copy()
+    lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
+    core = vis & (rho <= 0.8 * r)
+    if core.sum() >= 3 and vis.sum() >= 6:
+        med, white = float(np.median(lum[core])), float(np.percentile(lum[vis], 90))
+        like = lum <= med + max(white - med, 0.0) / 3.0
+    else:
+        like = np.ones(vis.shape, bool)
+    disc = rho <= r
+    need = (rho <= r_fill + 1.5) & ~keep & ~(like & disc)
+    if not need.any():
+        return out
+    yy, xx = np.mgrid[0:ph, 0:pw]
+    my = np.clip(np.rint(2 * cy - yy), 0, ph - 1).astype(np.int64)
+    mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
+    out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
+    rest = need & ~mirror_ok
+    if rest.any():
+        bins = np.minimum((rho * 2).astype(np.int64), int(2 * (r_fill + 2)))
+        nb = int(bins.max()) + 1
+        sel = vis & (rho <= r_fill + 1.5) & (like | ~disc)
+        cnt = np.bincount(bins[sel], minlength=nb)
+        mean = np.zeros((nb, 3), np.float32)
+        if cnt.any():
+            okb = cnt > 0
+            for ch in range(3):
+                sm = np.bincount(bins[sel], src[..., ch][sel], minlength=nb)
+                mean[:, ch] = np.interp(np.arange(nb), np.flatnonzero(okb), sm[okb] / cnt[okb])
+        else:
+            mean[:] = np.percentile(src.reshape(-1, 3), 10, axis=0)
+        out[rest] = mean[bins[rest]]
+    return out
+
+
+def _smooth01(t: np.ndarray) -> np.ndarray:
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+#: Shadow the upper lid casts on the eyeball it uncovers: depth and 1/e fall-off (x iris r)
+LID_SHADOW, LID_SHADOW_FALL = 0.2, 0.25
+
+
 @dataclass(eq=False)
 class EyePlan:
     """Precomputed eyeball of one eye (see module docstring)."""
@@ -169,6 +285,13 @@ class EyePlan:
     lim_l: float
     pupil: np.ndarray  # (3,) colour of the photo's pupil
     iris_lum: float  # median luminance of the visible iris
+    ball: np.ndarray  # (h, w, 3) float32 the white continued past the lids (_ball_white)
+    band_up: float  # width of the upper lid's shadow band inside the opening, px
+    lash: np.ndarray  # (3,) colour of the upper lash line (dark end along the upper lid)
+    area0: float  # neutral area of the opening, px^2
+    band_low: float
+    lid_up: np.ndarray  # (7, 2) neutral upper lid c0, u1..u5, c1 (frame, iris-centred)
+    lid_low: np.ndarray  # (7, 2) neutral lower lid c0, d1..d5, c1
 
     @classmethod
     def build(cls, image: np.ndarray, vertices: np.ndarray, hole: np.ndarray, name: str,
@@ -198,29 +321,11 @@ class EyePlan:
         # iris sprite: visible = inside the opening, one pixel clear of the lid edge
         vis = cv2.erode(opening, np.ones((3, 3), np.uint8)) > 0
         src = patch.astype(np.float32)
-        out = src.copy()
-        need = (rho <= r_fill + 1.5) & (opening == 0)  # the photo's own pixels stay
-        if need.any():
-            my = np.clip(np.rint(2 * (cy - y0) - yy), 0, ph - 1).astype(np.int64)
-            mx = xx.astype(np.int64)
-            mirror_ok = need & vis[my, mx]
-            out[mirror_ok] = src[my[mirror_ok], mx[mirror_ok]]
-            rest = need & ~mirror_ok
-            if rest.any():
-                bins = np.minimum((rho * 2).astype(np.int64), int(2 * (r_fill + 2)))
-                nb = int(bins.max()) + 1
-                sel = vis & (rho <= r_fill + 1.5)
-                cnt = np.bincount(bins[sel], minlength=nb)
-                mean = np.zeros((nb, 3), np.float32)
-                if cnt.any():
-                    for ch in range(3):
-                        s = np.bincount(bins[sel], src[..., ch][sel], minlength=nb)
-                        okb = cnt > 0
-                        mean[:, ch] = np.interp(np.arange(nb), np.flatnonzero(okb),
-                                                s[okb] / cnt[okb])
-                else:
-                    mean[:] = np.percentile(src.reshape(-1, 3), 10, axis=0)
-                out[rest] = mean[bins[rest]]
+        out = _complete_iris(src, opening > 0, vis, rho, r, r_fill, cy - y0)
+        # for a raised lid: the bands along the lids (their shadow, the lashes) replaced too
+        band_up, band_low = max(2.5, 0.5 * r), max(1.5, 0.25 * r)
+        ball = _ball_white(plate, opening > 0, r, band_up, band_low)
+        plate = np.where((opening > 0)[..., None], plate, ball)
         # corner / 1/5 points in frame coordinates centred on the iris
         names_u = [0, 1, 2, 3, 4, 5, 6]
         loop = poly
@@ -250,7 +355,21 @@ class EyePlan:
             iris_l = float(np.median(lum[ring]))
         else:
             pupil, iris_l = np.full(3, 20.0, np.float32), 60.0
-        return cls(pupil=pupil.astype(np.float32), iris_lum=iris_l, name=name,
+        # the lash line: the darkest fifth of a 2-px band along the upper lid, above it
+        up_mask = np.zeros((ph, pw), np.uint8)
+        upl = np.round((up - (x0, y0)) * 16).astype(np.int32)
+        cv2.polylines(up_mask, [upl], False, 1, max(2, int(round(0.3 * r))), cv2.LINE_8, 4)
+        band = (up_mask > 0) & (opening == 0)
+        if band.sum() >= 5:
+            lb = lum[band]
+            lash = src[band][lb <= np.percentile(lb, 20)].mean(0)
+        else:
+            lash = np.full(3, 30.0, np.float32)
+        x, y = poly[:, 0], poly[:, 1]
+        area0 = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        return cls(ball=ball, lash=lash.astype(np.float32), area0=area0, band_up=band_up,
+                   band_low=band_low, lid_up=upf, lid_low=lof,
+                   pupil=pupil.astype(np.float32), iris_lum=iris_l, name=name,
                    hole=np.asarray(hole), detected=detected, r_det=r_det, centre=c,
                    r0=r, p0=p0, ex=ex, ey=ey, off=np.array([x0, y0], np.float64), plate=plate,
                    photo=patch.astype(np.float32),
@@ -278,12 +397,33 @@ class EyePlan:
             du = max(du, min(0.0, self.lim_l))
         return np.array([du, dw])
 
+    def lid_frame(self, poly: np.ndarray, sim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Deformed opening ``poly`` (output px) as upper / lower lid lines (7, 2) in the
+        neutral eye's frame (iris-centred), through the inverse of ``sim``."""
+        inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
+        n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
+        f = np.stack([n @ self.ex, n @ self.ey], -1)
+        return f[[0, 1, 2, 3, 4, 5, 6]], f[[0, 11, 10, 9, 8, 7, 6]]
+
+    def lid_opening(self, poly: np.ndarray, sim: np.ndarray) -> float:
+        """How far (px, neutral frame) the lids moved away from the eye's centre at most:
+        > 0 when an upper lid was raised or a lower lid lowered."""
+        up, low = self.lid_frame(poly, sim)
+        return float(max((self.lid_up[1:-1, 1] - up[1:-1, 1]).max(),
+                         (low[1:-1, 1] - self.lid_low[1:-1, 1]).max()))
+
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
-               r_new: float, p_new: float) -> np.ndarray:
+               r_new: float, p_new: float, poly: np.ndarray | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
 
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
-        rescaled to the edge-refined iris radius).
+        rescaled to the edge-refined iris radius). ``poly``: the deformed opening (output px);
+        where its upper lid is above the neutral one (a raised lid) or its lower lid below, the
+        white is continued there (:attr:`ball`; the iris sprite is complete anyway): the
+        photo's shadow band along that lid is replaced by it as well (the shadow travels with
+        the lid; the iris keeps its own pixels and catch-lights) and the raised upper lid casts
+        a soft shadow on what it uncovers. Each column fades in over its lid's first
+        pixel of motion.
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
@@ -321,13 +461,34 @@ class EyePlan:
         t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
         plate = self.plate if t >= 1.0 else self.photo + t * (self.plate - self.photo)
         white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        # opened lids: per pixel, how far its column's lid moved away and the weight of the
+        # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
+        keep, shadow = None, None
+        if poly is not None:
+            up, low = self.lid_frame(poly, sim)
+            su, sl = self.lid_up, self.lid_low
+            w_up = np.interp(U, up[:, 0], up[:, 1])
+            w_up0 = np.interp(U, su[:, 0], su[:, 1])
+            w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
+            s_up = _smooth01(w_up0 - w_up)
+            s_lo = _smooth01(np.interp(U, low[:, 0], low[:, 1]) - w_lo0)
+            if s_up.any() or s_lo.any():
+                keep = ((1.0 - s_up * (1.0 - np.clip(W - w_up0 - self.band_up + 0.5, 0, 1)))
+                        * (1.0 - s_lo * (1.0 - np.clip(w_lo0 - W - self.band_low + 0.5, 0, 1)))
+                        ).astype(np.float32)[..., None]
+                ball = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
+                                 borderMode=cv2.BORDER_REPLICATE)
+                white = ball + keep * (white - ball)
+                fall = LID_SHADOW_FALL * self.r0
+                shadow = (1.0 - LID_SHADOW * s_up
+                          * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du
         Dw = W - dw
         rho = np.sqrt(Di * Di + Dw * Dw)
         a = np.clip(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
         if not a.any():
-            return white
+            return white if shadow is None else white * shadow[..., None]
         rn = rho / max(r_new, 1e-6)
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
@@ -349,7 +510,43 @@ class EyePlan:
             ap = ap[..., None]
             iris = iris * (1.0 - ap) + self.pupil * ap
         a = a.astype(np.float32)[..., None]
-        return iris * a + white * (1.0 - a)
+        col = iris * a + white * (1.0 - a)
+        return col if shadow is None else col * shadow[..., None]
+
+
+    def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+        """A closing eye's lash line over ``box``: (alpha (h, w) float32, colour (3,)), or None.
+
+        The opening's area against the neutral one gives the closure c; from c = 0.6 to 0.9
+        a dark line fades in along the deformed upper lid's edge (where the lids meet when
+        closed), anti-aliased, ``0.35 r`` thick in the middle (at least 1.2 px) tapering to
+        40 % at the corners, in the photo's lash colour. It replaces the stretched, broken lash and
+        lid-margin texture of the warp by one clean, slightly curved line.
+        """
+        x, y = poly[:, 0], poly[:, 1]
+        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        c = 1.0 - area / max(self.area0, 1e-6)
+        fade = float(_smooth01(np.array((c - 0.6) / 0.3)))
+        if fade <= 0.0:
+            return None
+        x0, y0, x1, y1 = box
+        up = np.asarray(poly, np.float64)[[0, 1, 2, 3, 4, 5, 6]]
+        line = up  # the upper lid's margin (where the lids meet once closed)
+        px = np.arange(x0, x1, dtype=np.float64)[:, None, None]
+        py = np.arange(y0, y1, dtype=np.float64)[None, :, None]
+        a, b = line[:-1], line[1:]  # segments
+        d = b - a
+        L2 = np.maximum((d * d).sum(1), 1e-9)
+        tt = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / L2, 0.0, 1.0)
+        qx = a[:, 0] + tt * d[:, 0] - px
+        qy = a[:, 1] + tt * d[:, 1] - py
+        dist = np.sqrt(qx * qx + qy * qy)  # (w, h, segments)
+        k = dist.argmin(-1)
+        s = (k + np.take_along_axis(tt, k[..., None], -1)[..., 0]) / len(a)  # 0..1 along
+        thick = max(1.2, 0.35 * self.r0) * (0.4 + 0.6 * np.sin(np.pi * s))
+        alpha = np.clip(0.5 * thick + 0.5 - dist.min(-1), 0.0, 1.0) * fade
+        return alpha.T.astype(np.float32), self.lash
 
 
 def photo_through(img: np.ndarray, sim: np.ndarray, box: tuple[int, int, int, int]

@@ -250,13 +250,22 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 shift = ep.gaze_shift(extra[k], tf)
             else:
                 r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-            if active:
-                interior = ep.render(box, tf, shift, r_new, p_new)
+            if active or ep.lid_opening(poly, tf) > _TOL:
+                # the eyeball layer; it also continues the eye under a raised lid
+                interior = ep.render(box, tf, shift, r_new, p_new, poly)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
         _composite(out, box, alpha, hole, interior, lip_shade)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, _smoothstep(min(moved, 1.0)))
+        else:
+            lash = lp.eyes[name].lash_line(box, poly)
+            if lash is not None:  # a closing eye: one clean lash line where the lids meet
+                la, col = lash
+                x0, y0, x1, y1 = box
+                o = out[y0:y1, x0:x1].astype(np.float32)
+                la = la[..., None]
+                out[y0:y1, x0:x1] = np.clip(o + la * (col - o) + 0.5, 0, 255).astype(np.uint8)
         drawn[name] = (box, hole)
         bbox = _union(bbox, box)
     if bbox == res.bbox:

@@ -10,8 +10,9 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
   deformed mesh it moves with the face.
 * **How strong.** Skin folds where it is compressed across the fold line. Per sample, the
   linear part ``A`` of the affine map of the triangles around it (deformed vs photo mesh)
-  gives the stretch ``|A n|`` across the line (``n`` its normal); the compression
-  ``c = max(0, 1 - |A n|)`` sets the strength ``depth * (1 - exp(-(c / c0)^2))``: zero at
+  gives the new spacing ``det(A) / |A t|`` of skin lines parallel to the fold (``t`` its
+  tangent; shear along the fold does not count); the compression ``c = max(0, 1 - spacing)``
+  sets the strength ``depth * (1 - exp(-(c / c0)^2))``: zero at
   rest (and for pure stretching, rotation or translation), growing smoothly, saturating.
   It fades out towards the fold's ends and is smoothed along the line.
 * **How it looks.** A multiplicative ratio image (SPEC §7.2-7.3), so the photo's own texture
@@ -43,6 +44,8 @@ if TYPE_CHECKING:
 
 #: below this darkening (fraction) a fold is not drawn (< 1 grey level on white)
 _MIN_STRENGTH = 0.004
+#: compression below this is float rounding (float32 vertices), not a fold
+_C_TOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -59,13 +62,13 @@ class FoldStyle:
 
 
 STYLES: dict[str, FoldStyle] = {
-    "nasolabial": FoldStyle(sigma=0.022, depth=0.20, c0=0.22, ridge=0.35, ridge_off=2.6,
+    "nasolabial": FoldStyle(sigma=0.026, depth=0.17, c0=0.38, ridge=0.35, ridge_off=2.6,
                             probe=0.07, spread=0.75),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
                       probe=0.05),
-    "forehead": FoldStyle(sigma=0.014, depth=0.11, c0=0.18, ridge=0.30, ridge_off=2.4,
+    "forehead": FoldStyle(sigma=0.014, depth=0.12, c0=0.25, ridge=0.30, ridge_off=2.4,
                           probe=0.06),
-    "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.22, ridge=0.30, ridge_off=2.4,
+    "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.30, ridge_off=2.4,
                           probe=0.05),
     "bridge": FoldStyle(sigma=0.011, depth=0.11, c0=0.08, ridge=0.25, ridge_off=2.2,
                         probe=0.04),
@@ -392,10 +395,14 @@ def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
     D = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)
     A = D @ p.tri_inv[fa.used]  # deformed = A @ photo (linear part per triangle)
     Ap = A[fa.probe]  # (N, 4, 2, 2)
-    nx, ny = p.normal[:, 0, None], p.normal[:, 1, None]
-    ax = Ap[..., 0, 0] * nx + Ap[..., 0, 1] * ny
-    ay = Ap[..., 1, 0] * nx + Ap[..., 1, 1] * ny
-    c = np.maximum(1.0 - np.sqrt(ax * ax + ay * ay).mean(1), 0.0)
+    # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
+    # along the fold and stretch along it do not change it
+    tx, ty = -p.normal[:, 1, None], p.normal[:, 0, None]
+    ax = Ap[..., 0, 0] * tx + Ap[..., 0, 1] * ty
+    ay = Ap[..., 1, 0] * tx + Ap[..., 1, 1] * ty
+    det = Ap[..., 0, 0] * Ap[..., 1, 1] - Ap[..., 0, 1] * Ap[..., 1, 0]
+    c = 1.0 - (det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)).mean(1)
+    c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
     c = (1.0 - fa.spread) * c + fa.spread * cmax
@@ -505,3 +512,13 @@ def creases_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dic
             tb.append(t2 - t1)
     a, b = float(np.median(ta) * 1000.0), float(np.median(tb) * 1000.0)
     return {"without_ms": round(a, 3), "with_ms": round(b, 3), "creases_ms": round(b - a, 3)}
+
+
+def fold_lines(face: Face, vertices: np.ndarray) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """``(kind, points (n, 2), darkening (n,))`` of every fold on a deformed mesh."""
+    p = crease_plan(face)
+    s = fold_strength(face, vertices)
+    V = np.asarray(vertices, np.float64)
+    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    return [(p.kinds[f], pos[p.start[f]:p.start[f + 1]], s[p.start[f]:p.start[f + 1]])
+            for f in range(p.n_folds)]

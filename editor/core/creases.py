@@ -42,8 +42,8 @@ from .warp import WarpResult
 if TYPE_CHECKING:
     from .face import Face
 
-#: below this darkening (fraction) a fold is not drawn (< 1 grey level on white)
-_MIN_STRENGTH = 0.004
+#: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
+_MIN_STRENGTH = 0.008
 #: compression below this is float rounding (float32 vertices), not a fold
 _C_TOL = 1e-4
 
@@ -221,9 +221,10 @@ def _fold_lines(face: Face) -> list[_Line]:
     ri, li = q("brow_r_e1"), q("brow_l_e0")
     g = q("glabella")
     half = 0.5 * abs(li[0] - ri[0])
-    for sg, tilt in ((-1.0, 0.03), (1.0, -0.03)):
-        x = g[0] + sg * 0.32 * half
-        y_top, y_bot = min(ri[1], li[1]) - 0.16, g[1] + 0.02
+    for sg, tilt in ((-1.0, -0.01), (1.0, 0.01)):
+        x = g[0] + sg * max(0.32 * half, 0.07)
+        y_brow = 0.5 * (ri[1] + li[1])
+        y_top, y_bot = y_brow - 0.24, max(g[1], y_brow + 0.04)
         ys = np.linspace(y_top, y_bot, 14)
         u = (ys - y_top) / (y_bot - y_top)
         pts = np.stack([x + tilt * u - sg * 0.02 * u * u, ys], 1)
@@ -320,13 +321,17 @@ def _build_plan(face: Face) -> CreasePlan:
     fold = np.repeat(np.arange(len(kinds)), np.diff(starts))
     tri = np.concatenate(all_tri)
     bary = np.concatenate(all_bary)
-    # skin colour around each fold in the photo (its median on the line's samples)
+    # skin colour around each fold in the photo: the median of a box around the line (the
+    # majority of it is skin unless hair covers the place)
     pos = (V[mesh.triangles[tri]] * bary[..., None]).sum(1)
     h, w = img.shape[:2]
-    xi = np.clip(np.round(pos[:, 0]).astype(int), 0, w - 1)
-    yi = np.clip(np.round(pos[:, 1]).astype(int), 0, h - 1)
-    col = img[yi, xi].astype(np.float64)
-    skin = np.array([np.median(col[fold == f], axis=0) for f in range(len(kinds))])
+    m = 0.06 * iod
+    skin = np.zeros((len(kinds), 3))
+    for f in range(len(kinds)):
+        q = pos[fold == f]
+        x0, y0 = np.clip(np.floor(q.min(0) - m).astype(int), 0, [w - 1, h - 1])
+        x1, y1 = np.clip(np.ceil(q.max(0) + m).astype(int) + 1, 1, [w, h])
+        skin[f] = np.median(img[y0:y1, x0:x1].reshape(-1, 3), axis=0)
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),
                       np.concatenate(all_taper), fold, inv, iod, tint, skin)

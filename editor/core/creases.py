@@ -68,7 +68,7 @@ STYLES: dict[str, FoldStyle] = {
                       probe=0.05),
     "forehead": FoldStyle(sigma=0.014, depth=0.12, c0=0.25, ridge=0.30, ridge_off=2.4,
                           probe=0.06),
-    "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.30, ridge_off=2.4,
+    "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
                           probe=0.05),
     "bridge": FoldStyle(sigma=0.011, depth=0.11, c0=0.08, ridge=0.25, ridge_off=2.2,
                         probe=0.04),
@@ -228,7 +228,7 @@ def _fold_lines(face: Face) -> list[_Line]:
         ys = np.linspace(y_top, y_bot, 14)
         u = (ys - y_top) / (y_bot - y_top)
         pts = np.stack([x + tilt * u - sg * 0.02 * u * u, ys], 1)
-        lines.append(_Line("glabella", "glabella", pts, _fade(u, 0.4, 0.3), (-sg, 0.0)))
+        lines.append(_Line("glabella", "glabella", pts, _fade(u, 0.4, 0.3), (sg, 0.0)))
     # ---- nose bridge: short wrinkles across the nasal root, driven by the nose wrinkler's
     # pull on the upper lip and the nose wings (the mesh does not bunch the bridge itself)
     n27, n28 = q("nose_27"), q("nose_28")

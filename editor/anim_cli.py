@@ -66,7 +66,8 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
     seq = read_fap(a.fap_file)
     face = Face.from_image(a.photo)
-    res = export_sequence(face, seq, a.output, progress=None if a.quiet else _Progress("render"))
+    res = export_sequence(face, seq, a.output, progress=None if a.quiet else _Progress("render"),
+                          creases=not a.no_creases)
     print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
     return 0
 
@@ -103,6 +104,7 @@ def add_anim_parser(sub) -> None:
     s.add_argument("fap_file")
     s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    s.add_argument("--no-creases", action="store_true", help="geometry only: no skin folds")
     s.set_defaults(func=cmd_animate)
 
     f = sub.add_parser("fap", help=".fap files: export presets, show information")

@@ -137,6 +137,13 @@ def main() -> None:
         _emit({"bench": "layers_cost", **res,
                "median_ms": round(ours["median_ms"] - eng["median_ms"], 3),
                "note": "fap_to_image minus deform_warp_no_layers"})
+        # skin creases (editor/core/creases.py): render with minus without, timed alternately
+        from editor.core.creases import creases_cost_ms
+        from editor.core.expressions import apply_preset
+
+        for emo in ("joy", "fear"):
+            _emit({"bench": "creases_cost", **res, "preset": emo,
+                   **creases_cost_ms(face, apply_preset(emo, 1.0), n=n)})
         if size[0] > 1000:
             t = _time(lambda f=face: Face.from_image(f.image), 3, warm=1)
             _emit({"bench": "face_from_image", **res, **t})

@@ -110,7 +110,7 @@ def cmd_render(a: argparse.Namespace) -> int:
 
     vec = _requested_vector(a)
     face = _load_face(a.photo)
-    save_image(a.output, face.render(vec))
+    save_image(a.output, face.render(vec, creases=not a.no_creases))
     if a.mesh_json:
         v, extra = face.deform_all(vec)
         data = _mesh_json(face, v)
@@ -191,6 +191,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="emotion or viseme preset, intensity 0-1.5 (repeatable; adds up)")
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--mesh-json", help="write the neutral and deformed mesh as JSON")
+    s.add_argument("--no-creases", action="store_true",
+                   help="geometry only: no skin folds (nasolabial, forehead, ...)")
     s.set_defaults(func=cmd_render)
 
     s = sub.add_parser("gui", help="open the editor window")

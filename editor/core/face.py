@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .creases import apply_creases
 from .deform import EXTRA_POINTS, DeformPlan, build_plan, deform_points, eye_state
 from .errors import NoFaceError
 from .faps import FAPS
@@ -239,27 +240,29 @@ class Face:
         r = np.array([self.landmarks.iris_left.r, self.landmarks.iris_right.r])
         return eye_state(self.plan, self.fap_vector(faps), r)
 
-    def render_full(self, faps: FapInput) -> WarpResult:
+    def render_full(self, faps: FapInput, creases: bool = True) -> WarpResult:
         """Warp result with the opening masks, mouth interior and eyeballs composited."""
         vec = self.fap_vector(faps)
         pts = self._deform(vec)
         V = self.plan.n_vertices
-        return self.render_mesh(pts[:V], pts[V:], vec)
+        return self.render_mesh(pts[:V], pts[V:], vec, creases=creases)
 
     def render_mesh(self, vertices: np.ndarray, extra: np.ndarray | None = None,
-                    faps: np.ndarray | None = None) -> WarpResult:
+                    faps: np.ndarray | None = None, creases: bool = True) -> WarpResult:
         """Render the photo on any deformed mesh (e.g. from cloning), layers included.
 
         ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: where
         ``faps`` puts them); ``faps`` the (68,) vector that drives the eyes and tongue (default:
-        zeros, the eyes and tongue at rest).
+        zeros, the eyes and tongue at rest); ``creases``: darken the skin folds the deformation
+        compresses (:mod:`creases`).
         """
         v = np.asarray(vertices, np.float32)
         vec = np.zeros(68, np.float32) if faps is None else np.asarray(faps, np.float32)
         if extra is None:
             extra = self._deform(vec)[self.plan.n_vertices:]
         tf = self.layer_transforms(v)
-        return render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
+        res = render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
+        return apply_creases(self, res, v) if creases else res
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
         """2x3 source->destination maps of what lies behind the openings (see ``warp``).
@@ -280,9 +283,9 @@ class Face:
                                                        "9.2")])
         return out
 
-    def render(self, faps: FapInput) -> np.ndarray:
+    def render(self, faps: FapInput, creases: bool = True) -> np.ndarray:
         """The photo with the expression: (H, W, 3) uint8, same size as the photo."""
-        return self.render_full(faps).image
+        return self.render_full(faps, creases=creases).image
 
     def crop_box(self, left: float, top: float, right: float, bottom: float
                  ) -> tuple[int, int, int, int]:

@@ -43,7 +43,8 @@ def sequence_vectors(seq) -> np.ndarray:
 
 
 def export_sequence(face, seq, out: str | os.PathLike[str],
-                    progress: Callable[[int, int], bool | None] | None = None) -> ExportResult:
+                    progress: Callable[[int, int], bool | None] | None = None,
+                    creases: bool = True) -> ExportResult:
     """Render ``seq`` on ``face`` into an MP4 file or a folder of PNG frames."""
     vecs = sequence_vectors(seq)
     n = len(vecs)
@@ -68,7 +69,7 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
     cancelled = False
     try:
         for i, vec in enumerate(vecs):
-            img = face.render(vec)
+            img = face.render(vec, creases=creases)
             if writer is not None:
                 writer.write(cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
             else:

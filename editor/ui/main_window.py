@@ -128,6 +128,11 @@ class MainWindow(QMainWindow):
         self.act_overlay = self._action("Show &Mesh", self.canvas.set_overlay_visible, "M")
         self.act_overlay.setCheckable(True)
         self.act_overlay.setChecked(True)
+        self.act_creases = self._action("Skin &Creases", self._set_creases, tip=(
+            "Darken the skin folds the expression compresses (nasolabial, crow's feet, "
+            "forehead, glabella, nose)"))
+        self.act_creases.setCheckable(True)
+        self.act_creases.setChecked(True)
         self.act_fit = self._action("&Fit to View", self.canvas.fit, "F",
                                     "Show the whole photo")
         self.act_fit_face = self._action("Zoom to F&ace", self.canvas.fit_face, "Shift+F",
@@ -148,7 +153,7 @@ class MainWindow(QMainWindow):
         e.addSeparator()
         e.addActions([self.act_reset_faps, self.act_reset_mesh])
         v = mb.addMenu("&View")
-        v.addActions([self.act_overlay, self.act_fit, self.act_fit_face])
+        v.addActions([self.act_overlay, self.act_creases, self.act_fit, self.act_fit_face])
         v.addSeparator()
         v.addActions([self.fap_dock.toggleViewAction(), self.gaze_dock.toggleViewAction()])
         mb.addMenu("&Help").addAction(self.act_about)
@@ -215,7 +220,7 @@ class MainWindow(QMainWindow):
         if face is None:
             return
         if old is None or old.faps is not new.faps or old.vertices is not new.vertices:
-            self.scheduler.submit(face, new.faps)
+            self.scheduler.submit(face, new.faps, creases=self.act_creases.isChecked())
         if old is None or old.vertices is not new.vertices:
             self._show_fapu(face)
             folded = self.model.folded_triangles()
@@ -225,6 +230,12 @@ class MainWindow(QMainWindow):
                     "back or use Edit > Reset Mesh", 8000)
         if old is None:
             self._update_title()
+
+    def _set_creases(self, on: bool) -> None:
+        """View > Skin Creases: re-render the preview with or without the folds."""
+        face, doc = self.model.face, self.model.doc
+        if face is not None and doc is not None:
+            self.scheduler.submit(face, doc.faps, creases=bool(on))
 
     def _on_result(self, result: RenderResult) -> None:
         self.last_result = result

@@ -28,6 +28,7 @@ class RenderRequest:
     face: Face
     faps: np.ndarray
     generation: int = 0
+    creases: bool = True  # darken the skin folds (View > Skin Creases)
     submitted: float = field(default_factory=time.perf_counter)
 
 
@@ -56,7 +57,7 @@ class RenderResult:
 
 def render_request(req: RenderRequest) -> RenderResult:
     """Default renderer: the warped photo and the deformed irises (gaze, eyeball FAPs)."""
-    img = req.face.render(req.faps)
+    img = req.face.render(req.faps, creases=req.creases)
     pts = req.face.feature_points(req.faps)
     radii = req.face.eye_state(req.faps)[:, 0]
     irises = np.array([[*pts["3.5"], radii[0]], [*pts["3.6"], radii[1]]], np.float32)
@@ -98,11 +99,11 @@ class RenderScheduler(QObject):
         self._thread.start()
 
     # ------------------------------------------------------------------ GUI thread
-    def submit(self, face: Face, faps: np.ndarray) -> int:
+    def submit(self, face: Face, faps: np.ndarray, creases: bool = True) -> int:
         """Queue a render of ``faps`` on ``face``; returns its generation. Never blocks."""
         with self._cond:
             self._generation += 1
-            self._slot = RenderRequest(face, faps, self._generation)
+            self._slot = RenderRequest(face, faps, self._generation, creases=creases)
             self._cond.notify()
             return self._generation
 

@@ -1,0 +1,529 @@
+"""Skin creases where the deformation compresses the skin (SPEC §7.3). No Qt.
+
+A geometry-only warp moves the skin but never folds it. This module adds the folds an
+expression makes, procedurally (no example images): nasolabial folds, crow's feet, horizontal
+forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
+
+* **Where.** Each fold is a polyline laid out once per face on the photo's mesh, from its
+  feature points and vertices (face frame, units of the inter-ocular distance). Every sample
+  of it is stored as barycentric coordinates of the mesh triangle it lies in, so on the
+  deformed mesh it moves with the face.
+* **How strong.** Skin folds where it is compressed across the fold line. Per sample, the
+  linear part ``A`` of the affine map of the triangles around it (deformed vs photo mesh)
+  gives the new spacing ``det(A) / |A t|`` of skin lines parallel to the fold (``t`` its
+  tangent; shear along the fold does not count); the compression ``c = max(0, 1 - spacing)``
+  sets the strength ``depth * (1 - exp(-(c / c0)^2))``: zero at
+  rest (and for pure stretching, rotation or translation), growing smoothly, saturating.
+  It fades out towards the fold's ends and is smoothed along the line.
+* **How it looks.** A multiplicative ratio image (SPEC §7.2-7.3), so the photo's own texture
+  and light stay: a dark Gaussian line (width in units of the inter-ocular distance), a
+  slightly lighter, broader ridge beside it, on colour photos darkened slightly towards red
+  (as folds look), weighted by how skin-like each pixel is (hair, brows and eyes are spared).
+  It is evaluated only in a small box around each active fold: the line is splatted
+  (bilinear, sub-pixel) into the box and blurred with OpenCV.
+
+:func:`apply_creases` runs after :func:`render_layers`. A zero FAP vector gives no crease.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from .layers import _rebox, _union
+from .warp import WarpResult
+
+if TYPE_CHECKING:
+    from .face import Face
+
+#: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
+_MIN_STRENGTH = 0.008
+#: compression below this is float rounding (float32 vertices), not a fold
+_C_TOL = 1e-4
+
+
+@dataclass(frozen=True)
+class FoldStyle:
+    """Look of one kind of fold (lengths in inter-ocular distances)."""
+
+    sigma: float  # Gaussian half-width of the dark line
+    depth: float  # darkening at full strength (fraction of the pixel value)
+    c0: float  # compression across the line that gives 63 % of ``depth``
+    ridge: float  # brightening of the ridge beside it, relative to ``depth``
+    ridge_off: float  # ridge distance from the line (in sigmas; sign = side)
+    probe: float  # distance of the compression probes either side of the line
+    spread: float = 0.5  # share of the fold's strongest compression given to the whole line
+
+
+STYLES: dict[str, FoldStyle] = {
+    "nasolabial": FoldStyle(sigma=0.026, depth=0.17, c0=0.38, ridge=0.35, ridge_off=2.6,
+                            probe=0.07, spread=0.75),
+    "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
+                      probe=0.05),
+    "forehead": FoldStyle(sigma=0.014, depth=0.12, c0=0.25, ridge=0.30, ridge_off=2.4,
+                          probe=0.06),
+    "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
+                          probe=0.05),
+    "bridge": FoldStyle(sigma=0.011, depth=0.11, c0=0.08, ridge=0.25, ridge_off=2.2,
+                        probe=0.04),
+}
+
+
+@dataclass(eq=False)
+class CreasePlan:
+    """Per-face fold geometry (see the module docstring).
+
+    ``tri``/``bary`` (N, 3) place the N fold samples (all folds concatenated) on the mesh;
+    ``probe_tri`` (N, 4) the triangles whose compression each sample reads; ``normal`` (N, 2)
+    the line's normal on the photo's mesh; ``taper`` (N,) the fade along each line;
+    ``fold`` (N,) the fold index of each sample; ``group`` per fold: drawn together in one box.
+    """
+
+    kinds: list[str]
+    group: np.ndarray  # (F,) group index per fold
+    group_names: list[str]
+    start: np.ndarray  # (F + 1,) sample offsets per fold
+    tri: np.ndarray
+    bary: np.ndarray
+    probe_tri: np.ndarray
+    normal: np.ndarray
+    taper: np.ndarray
+    fold: np.ndarray
+    tri_inv: np.ndarray  # (T, 2, 2) inverse edge matrix of each photo-mesh triangle
+    iod: float
+    tint: np.ndarray  # (3,) per-channel darkening weights (1, 1, 1 on grey photos)
+    skin: np.ndarray  # (F, 3) skin colour around each fold in the photo
+
+    @property
+    def n_folds(self) -> int:
+        return len(self.kinds)
+
+
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def crease_plan(face: Face) -> CreasePlan:
+    """The fold layout of a face (cached for the face's lifetime)."""
+    p = _PLANS.get(face)
+    if p is None:
+        p = _build_plan(face)
+        _PLANS[face] = p
+    return p
+
+
+# ---------------------------------------------------------------------------- layout
+def _catmull(ctrl: np.ndarray, n: int) -> np.ndarray:
+    """n points on a Catmull-Rom curve through the control points (uniform in parameter)."""
+    c = np.vstack([2 * ctrl[0] - ctrl[1], ctrl, 2 * ctrl[-1] - ctrl[-2]])
+    m = len(ctrl) - 1
+    t = np.linspace(0.0, m, n)
+    i = np.minimum(t.astype(int), m - 1)
+    u = (t - i)[:, None]
+    p0, p1, p2, p3 = c[i], c[i + 1], c[i + 2], c[i + 3]
+    return 0.5 * (2 * p1 + (-p0 + p2) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u ** 2
+                  + (-p0 + 3 * p1 - 3 * p2 + p3) * u ** 3)
+
+
+def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
+    """Taper along a line: rises over [0, a], falls over [1 - b, 1] (smoothstep)."""
+    def ss(x: np.ndarray) -> np.ndarray:
+        x = np.clip(x, 0.0, 1.0)
+        return x * x * (3.0 - 2.0 * x)
+    return ss(t / max(a, 1e-6)) * ss((1.0 - t) / max(b, 1e-6))
+
+
+@dataclass
+class _Line:
+    """One fold on the photo's mesh, in face-frame coordinates and units of the IOD.
+
+    ``probes``: None = the compression is read on the line and ``probe`` either side of it,
+    across it; else (4, 2) frame points whose compression along ``measure`` (a frame
+    direction) drives the line (where the muscle's pull shows in the mesh).
+    """
+
+    kind: str
+    group: str
+    pts: np.ndarray
+    taper: np.ndarray
+    side: tuple[float, float]  # frame direction of the ridge beside the line
+    probes: np.ndarray | None = None  # (4, 2)
+    measure: tuple[float, float] = (0.0, 1.0)
+
+
+def _fold_lines(face: Face) -> list[_Line]:
+    """Every fold of the face (x towards the subject's left, y down)."""
+    fr = face.frame
+    iod = float(face.interocular)
+    m = face.mesh
+    V = face.vertices.astype(np.float64)
+
+    def q(name: str) -> np.ndarray:
+        return fr.to_frame(V[m.index(name)]) / iod
+
+    lines: list[_Line] = []
+    # ---- nasolabial folds: from above the nose wing, down and out past the mouth corner
+    for s, sg in (("r", -1.0), ("l", 1.0)):
+        ala = q(f"ala_{s}")
+        corner = q(f"lipo_c{0 if s == 'r' else 1}")
+        top = ala + (sg * 0.03, -0.06)
+        mid = corner + (sg * 0.1, -0.03)
+        bot = corner + (sg * 0.14, 0.16)
+        d = mid - top
+        bow = np.array([-d[1], d[0]]) * (0.12 * sg)  # slightly convex towards the cheek
+        ctrl = np.array([top, 0.5 * (top + mid) + (bow if sg < 0 else -bow), mid, bot])
+        pts = _catmull(ctrl, 28)
+        t = np.linspace(0.0, 1.0, len(pts))
+        lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
+                           (sg, -0.5)))
+    # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
+    # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
+    for s, sg in (("r", -1.0), ("l", 1.0)):
+        oc = q(f"eye_{s}_c{0 if s == 'r' else 1}")
+        for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
+            a = np.deg2rad(ang)
+            d = np.array([sg * np.cos(a), np.sin(a)])
+            rr = np.linspace(r0, r1, 10)
+            bend = 0.015 * np.sin(np.pi * (rr - r0) / (r1 - r0))  # slightly curved
+            perp = np.array([-d[1], d[0]])
+            pts = oc + rr[:, None] * d + bend[:, None] * perp
+            probes = oc + np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
+                                    (sg * 0.18, 0.2)])
+            lines.append(_Line("crow", f"crow_{s}", pts, _fade(np.linspace(0, 1, 10), 0.35,
+                                                              0.6), (0.0, -1.0), probes))
+    # ---- forehead: three horizontal lines between the brows and the hairline
+    brow = np.array([q(f"brow_r_u{k}") for k in range(1, 6)] + [q(f"brow_l_u{k}")
+                                                              for k in range(1, 6)])
+    brow = brow[np.argsort(brow[:, 0])]
+    top = np.array([q(f"forehead_2_{k}") for k in range(1, 8)])
+    top = top[np.argsort(top[:, 0])]
+    xs = np.linspace(brow[1, 0], brow[-2, 0], 40)
+    yb = np.interp(xs, brow[:, 0], brow[:, 1])
+    # the lines curve gently like the brows (half as much), not with the brows' gap
+    yb_s = 0.5 * yb + 0.5 * float(np.median(yb))
+    yh = np.interp(xs, top[:, 0], top[:, 1])
+    h = (yb_s - yh) / 0.7  # brow -> hairline
+    t = np.linspace(0.0, 1.0, len(xs))
+    for j, (f, ph, amp) in enumerate(((0.17, 0.3, 0.006), (0.31, 1.7, 0.008),
+                                      (0.45, 2.9, 0.007))):
+        y = yb_s - f * h + amp * np.sin(2 * np.pi * 1.3 * t + ph)
+        # real forehead lines are broken: a dip in strength near the middle of some
+        gap = 1.0 - (0.55 if j != 1 else 0.25) * np.exp(-((t - 0.5 - 0.06 * (j - 1)) / 0.07)
+                                                          ** 2)
+        lines.append(_Line("forehead", "forehead", np.stack([xs, y], 1),
+                           _fade(t, 0.25, 0.25) * gap, (0.0, -1.0)))
+    # ---- glabella: two short vertical furrows between the inner brow ends
+    ri, li = q("brow_r_e1"), q("brow_l_e0")
+    g = q("glabella")
+    half = 0.5 * abs(li[0] - ri[0])
+    for sg, tilt in ((-1.0, -0.01), (1.0, 0.01)):
+        x = g[0] + sg * max(0.32 * half, 0.07)
+        y_brow = 0.5 * (ri[1] + li[1])
+        y_top, y_bot = y_brow - 0.24, max(g[1], y_brow + 0.04)
+        ys = np.linspace(y_top, y_bot, 14)
+        u = (ys - y_top) / (y_bot - y_top)
+        pts = np.stack([x + tilt * u - sg * 0.02 * u * u, ys], 1)
+        lines.append(_Line("glabella", "glabella", pts, _fade(u, 0.4, 0.3), (sg, 0.0)))
+    # ---- nose bridge: short wrinkles across the nasal root, driven by the nose wrinkler's
+    # pull on the upper lip and the nose wings (the mesh does not bunch the bridge itself)
+    n27, n28 = q("nose_27"), q("nose_28")
+    probes = np.array([q("ala_r") + (-0.07, -0.05), q("ala_r") + (-0.06, 0.03),
+                       q("ala_l") + (0.07, -0.05), q("ala_l") + (0.06, 0.03)])
+    for j, f in enumerate((0.15, 0.5, 0.85)):
+        c = n27 + f * (n28 - n27)
+        w = 0.1 + 0.025 * j
+        xs_b = np.linspace(-w, w, 12)
+        pts = np.stack([c[0] + xs_b, c[1] + 0.06 * xs_b ** 2 / w], 1)
+        lines.append(_Line("bridge", "bridge", pts,
+                           _fade(np.linspace(0, 1, 12), 0.35, 0.35), (0.0, -1.0), probes,
+                           (1.0, 0.0)))
+    return lines
+
+
+def _normals(pts: np.ndarray) -> np.ndarray:
+    """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
+    tang = np.gradient(pts, axis=0)
+    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-9)
+    return np.stack([-tang[:, 1], tang[:, 0]], 1)
+
+
+def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Triangle index and barycentric coordinates of each point (nearest triangle outside)."""
+    a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
+    e1, e2 = b - a, c - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+    d = points[:, None, :] - a[None]
+    l1 = (d[..., 0] * e2[:, 1] - d[..., 1] * e2[:, 0]) / det
+    l2 = (e1[:, 0] * d[..., 1] - e1[:, 1] * d[..., 0]) / det
+    l0 = 1.0 - l1 - l2
+    worst = np.minimum(np.minimum(l0, l1), l2)  # >= 0 inside
+    ti = np.argmax(worst, axis=1)
+    r = np.arange(len(points))
+    bary = np.stack([l0[r, ti], l1[r, ti], l2[r, ti]], 1)
+    return ti.astype(np.int32), bary
+
+
+def _build_plan(face: Face) -> CreasePlan:
+    mesh = face.mesh
+    V = face.vertices.astype(np.float64)
+    fr = face.frame
+    iod = float(face.interocular)
+    # only skin triangles carry folds (not the margin/border rings)
+    ok = ~np.isin(mesh.regions[mesh.triangles], ("margin", "border")).any(1)
+    cand = np.flatnonzero(ok)
+    tris = mesh.triangles[cand]
+    kinds, groups, gnames, starts = [], [], [], [0]
+    all_tri, all_bary, all_probe, all_n, all_taper = [], [], [], [], []
+    for ln in _fold_lines(face):
+        kind, group, taper = ln.kind, ln.group, ln.taper
+        st = STYLES[kind]
+        pts = fr.to_image(ln.pts * iod)
+        nrm = _normals(pts)
+        if float((nrm @ (fr.rot @ np.asarray(ln.side))).mean()) < 0:
+            # orient the line so that its normal points to the ridge side
+            pts, taper = pts[::-1].copy(), taper[::-1].copy()
+            nrm = _normals(pts)
+        ti, bary = _locate(pts, V, tris)
+        if ln.probes is None:
+            probes = [pts + k * st.probe * iod * nrm for k in (-1.0, -0.33, 0.33, 1.0)]
+            pt = np.stack([cand[_locate(p, V, tris)[0]] for p in probes], 1)
+        else:
+            fixed = cand[_locate(fr.to_image(ln.probes * iod), V, tris)[0]]
+            pt = np.repeat(fixed[None], len(pts), 0)
+            nrm = np.repeat((fr.rot @ np.asarray(ln.measure))[None], len(pts), 0)
+        kinds.append(kind)
+        if group not in gnames:
+            gnames.append(group)
+        groups.append(gnames.index(group))
+        starts.append(starts[-1] + len(pts))
+        all_tri.append(cand[ti])
+        all_bary.append(bary)
+        all_probe.append(pt)
+        all_n.append(nrm)
+        all_taper.append(taper)
+    T = V[mesh.triangles]
+    E = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)  # (T, 2, 2) columns = edges
+    det = E[:, 0, 0] * E[:, 1, 1] - E[:, 0, 1] * E[:, 1, 0]
+    det = np.where(np.abs(det) < 1e-9, 1e-9, det)
+    inv = np.stack([np.stack([E[:, 1, 1], -E[:, 0, 1]], 1),
+                    np.stack([-E[:, 1, 0], E[:, 0, 0]], 1)], 1) / det[:, None, None]
+    img = face.image
+    grey = bool(np.array_equal(img[..., 0], img[..., 1]) and np.array_equal(img[..., 1],
+                                                                          img[..., 2]))
+    tint = np.ones(3) if grey else np.array([0.8, 1.0, 1.12])
+    fold = np.repeat(np.arange(len(kinds)), np.diff(starts))
+    tri = np.concatenate(all_tri)
+    bary = np.concatenate(all_bary)
+    # skin colour around each fold in the photo: the median of a box around the line (the
+    # majority of it is skin unless hair covers the place)
+    pos = (V[mesh.triangles[tri]] * bary[..., None]).sum(1)
+    h, w = img.shape[:2]
+    m = 0.06 * iod
+    skin = np.zeros((len(kinds), 3))
+    for f in range(len(kinds)):
+        q = pos[fold == f]
+        x0, y0 = np.clip(np.floor(q.min(0) - m).astype(int), 0, [w - 1, h - 1])
+        x1, y1 = np.clip(np.ceil(q.max(0) + m).astype(int) + 1, 1, [w, h])
+        skin[f] = np.median(img[y0:y1, x0:x1].reshape(-1, 3), axis=0)
+    return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
+                      np.concatenate(all_probe), np.concatenate(all_n),
+                      np.concatenate(all_taper), fold, inv, iod, tint, skin)
+
+
+# ---------------------------------------------------------------------------- strength
+@dataclass(eq=False)
+class _Fast:
+    """Flat per-sample constants and per-group ranges for the per-frame path."""
+
+    used: np.ndarray  # (U,) triangles whose compression is read
+    probe: np.ndarray  # (N, 4) indices into ``used``
+    depth: np.ndarray  # (N,)
+    c0: np.ndarray  # (N,)
+    spread: np.ndarray  # (N,)
+    edge: np.ndarray  # (N,) bool: first/last two samples of a fold (not smoothed)
+    seg_a: np.ndarray  # (M,) first sample of each segment inside a fold (grouped)
+    seg_rng: list[tuple[int, int]]  # per group: its slice of the segments
+    sig: np.ndarray  # (G,) line half-width, px
+    ridge: np.ndarray  # (G,) ridge brightening relative to the darkening
+    off: np.ndarray  # (G,) ridge offset, px
+    skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
+
+
+_FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _fast(face: Face) -> _Fast:
+    f = _FAST.get(face)
+    if f is not None:
+        return f
+    p = crease_plan(face)
+    used, inv = np.unique(p.probe_tri, return_inverse=True)
+    st = [STYLES[k] for k in p.kinds]
+    depth = np.array([x.depth for x in st])[p.fold]
+    c0 = np.array([x.c0 for x in st])[p.fold]
+    spread = np.array([x.spread for x in st])[p.fold]
+    n = len(p.fold)
+    edge = np.zeros(n, bool)
+    for off in (0, 1):
+        edge[np.clip(p.start[:-1] + off, 0, n - 1)] = True
+        edge[np.clip(p.start[1:] - 1 - off, 0, n - 1)] = True
+    seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
+    seg_g = p.group[p.fold[seg_a]]
+    order = np.argsort(seg_g, kind="stable")
+    seg_a, seg_g = seg_a[order], seg_g[order]
+    G = len(p.group_names)
+    rng = [(int(np.searchsorted(seg_g, g)), int(np.searchsorted(seg_g, g, "right")))
+           for g in range(G)]
+    first = [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)]
+    sig = np.array([max(x.sigma * p.iod, 0.6) for x in first])
+    skin = np.array([p.skin[p.group == g].mean(0) for g in range(G)], np.float32)
+    f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
+              np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
+              skin)
+    _FAST[face] = f
+    return f
+
+
+def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
+    """(N,) darkening of every fold sample for a deformed mesh (0 at rest)."""
+    p = crease_plan(face)
+    fa = _fast(face)
+    V = np.asarray(vertices, np.float64)
+    T = V[face.mesh.triangles[fa.used]]
+    D = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)
+    A = D @ p.tri_inv[fa.used]  # deformed = A @ photo (linear part per triangle)
+    Ap = A[fa.probe]  # (N, 4, 2, 2)
+    # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
+    # along the fold and stretch along it do not change it
+    tx, ty = -p.normal[:, 1, None], p.normal[:, 0, None]
+    ax = Ap[..., 0, 0] * tx + Ap[..., 0, 1] * ty
+    ay = Ap[..., 1, 0] * tx + Ap[..., 1, 1] * ty
+    det = Ap[..., 0, 0] * Ap[..., 1, 1] - Ap[..., 0, 1] * Ap[..., 1, 0]
+    c = 1.0 - (det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)).mean(1)
+    c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
+    # a fold forms along its whole length once the skin is pushed together somewhere on it
+    cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
+    c = (1.0 - fa.spread) * c + fa.spread * cmax
+    s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
+    # smooth along each line (no triangle steps), then taper the ends
+    sm = np.convolve(np.pad(s, 2, mode="edge"), _SMOOTH, mode="valid")
+    return np.where(fa.edge, s, sm) * p.taper
+
+
+_SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
+
+
+# ---------------------------------------------------------------------------- drawing
+def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarray,
+            w2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two canvases with weights added at sub-pixel positions (bilinear), one bincount."""
+    h, wd = shape
+    P = np.concatenate([xy, xy2])
+    W = np.concatenate([w, w2])
+    x0 = np.floor(P[:, 0])
+    y0 = np.floor(P[:, 1])
+    fx, fy = P[:, 0] - x0, P[:, 1] - y0
+    base = (y0.astype(np.int64) * wd + x0.astype(np.int64))
+    base[len(xy):] += h * wd  # the second canvas follows the first
+    idx = np.concatenate([base, base + 1, base + wd, base + wd + 1])
+    ws = np.concatenate([W * (1 - fx) * (1 - fy), W * fx * (1 - fy), W * (1 - fx) * fy,
+                         W * fx * fy])
+    acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
+    return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
+
+
+def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
+    """Darken the folds of the deformed mesh ``vertices`` into ``res.image`` (in place).
+
+    Returns ``res`` unchanged when no fold is compressed (e.g. a zero FAP vector), else a
+    result whose ``bbox`` also covers every pixel written.
+    """
+    s = fold_strength(face, vertices)
+    if not (s > _MIN_STRENGTH).any():
+        return res
+    p = crease_plan(face)
+    fa = _fast(face)
+    V = np.asarray(vertices, np.float64)
+    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    out = res.image
+    H, W = out.shape[:2]
+    bbox = res.bbox
+    live = np.maximum(s[fa.seg_a], s[fa.seg_a + 1]) > _MIN_STRENGTH
+    tint = p.tint.astype(np.float32)
+    for g, (g0, g1) in enumerate(fa.seg_rng):
+        if not live[g0:g1].any():
+            continue
+        ia = fa.seg_a[g0:g1]
+        a, d = pos[ia], pos[ia + 1] - pos[ia]
+        L = np.sqrt((d * d).sum(1))
+        sig = float(fa.sig[g])
+        sig_r = 1.6 * sig
+        K = int(min(max(np.ceil(L.max() / min(0.5, 0.5 * sig)), 1), 64))
+        u = (np.arange(K) + 0.5) / K
+        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
+        sa, sb = s[ia], s[ia + 1]
+        w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+        nrm = np.stack([-d[:, 1], d[:, 0]], 1) / np.maximum(L, 1e-9)[:, None]
+        rpts = pts + np.repeat(nrm * fa.off[g], K, 0)
+        pad = 3.0 * sig_r + 2.0
+        lo = np.minimum(pts.min(0), rpts.min(0)) - pad
+        hi = np.maximum(pts.max(0), rpts.max(0)) + pad
+        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            continue
+        o = np.array([x0, y0], np.float64)
+        dark, light = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, rpts - o,
+                              w * fa.ridge[g])
+        dark = cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig)
+        light = cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r)
+        k1 = np.float32(math.sqrt(2 * math.pi) * sig)
+        k2 = np.float32(math.sqrt(2 * math.pi) * sig_r)
+        patch = out[y0:y1, x0:x1].astype(np.float32)
+        # skin-likeness: hair, brows, eyes and lashes are not folded
+        ref = fa.skin[g]
+        ref_l = max(float(ref.mean()), 20.0)
+        dif = patch - ref
+        wskin = np.clip((0.45 - np.sqrt((dif * dif).mean(2)) / ref_l) * 4.0, 0.0, 1.0)
+        dl = (light * k2)[..., None] - (dark * k1)[..., None] * tint
+        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + dl * wskin[..., None]) + 0.5, 0,
+                                    255).astype(np.uint8)
+        bbox = _union(bbox, (x0, y0, x1, y1))
+    if bbox == res.bbox:
+        return res
+    return _rebox(res, bbox, {})
+
+
+def creases_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:
+    """Median time (ms) of ``face.render(faps)`` with and without creases (for the bench)."""
+    vec = face.fap_vector(faps)
+    crease_plan(face)
+    ta, tb = [], []
+    for i in range(warm + n):
+        t0 = time.perf_counter()
+        face.render(vec, creases=False)
+        t1 = time.perf_counter()
+        face.render(vec, creases=True)
+        t2 = time.perf_counter()
+        if i >= warm:
+            ta.append(t1 - t0)
+            tb.append(t2 - t1)
+    a, b = float(np.median(ta) * 1000.0), float(np.median(tb) * 1000.0)
+    return {"without_ms": round(a, 3), "with_ms": round(b, 3), "creases_ms": round(b - a, 3)}
+
+
+def fold_lines(face: Face, vertices: np.ndarray) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """``(kind, points (n, 2), darkening (n,))`` of every fold on a deformed mesh."""
+    p = crease_plan(face)
+    s = fold_strength(face, vertices)
+    V = np.asarray(vertices, np.float64)
+    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    return [(p.kinds[f], pos[p.start[f]:p.start[f + 1]], s[p.start[f]:p.start[f + 1]])
+            for f in range(p.n_folds)]

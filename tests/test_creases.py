@@ -1,0 +1,218 @@
+"""Skin creases (editor/core/creases.py): where, how strong, and the switches that turn them off."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import SAMPLE, jaffe_images
+
+from editor.core import load_image
+from editor.core.creases import fold_lines, fold_strength
+from editor.core.layers import render_layers
+from editor.core.warp import warp
+
+# Today's emotion presets (FAP number -> value in FAPU), fixed here so that tuning the presets
+# does not move these tests; scaled by an intensity like apply_preset.
+EMOTIONS = {
+    "joy": {3: 100, 4: -50, 5: -100, 6: 120, 7: 120, 8: -40, 9: -40, 10: -90, 11: -90, 12: 150,
+            13: 150, 19: 128, 20: 128, 21: 64, 22: 64, 35: 50, 36: 50, 41: 120, 42: 120,
+            51: -50, 52: -100, 53: 120, 54: 120, 55: -40, 56: -40, 57: -90, 58: -90, 59: 150,
+            60: 150},
+    "surprise": {3: 360, 4: -60, 5: -60, 19: -200, 20: -200, 31: 220, 32: 220, 33: 240,
+                 34: 240, 35: 180, 36: 180, 37: -40, 38: -40, 51: -60, 52: -60},
+    "anger": {4: 40, 5: 60, 16: -80, 17: -80, 18: 100, 19: -100, 20: -100, 21: 60, 22: 60,
+              31: -150, 32: -150, 33: -100, 34: -100, 35: 40, 36: 40, 37: 100, 38: 100},
+    "disgust": {4: -120, 8: -140, 9: -140, 12: -60, 13: -60, 18: 200, 19: 60, 20: 60, 21: 80,
+                22: 80, 31: -30, 32: -30, 37: 30, 38: 30, 51: -120, 55: -140, 56: -140,
+                59: -60, 60: -60, 61: 50, 62: 50},
+    "sadness": {6: 40, 7: 40, 12: -140, 13: -140, 18: 120, 19: 150, 20: 150, 31: 100, 32: 100,
+                35: -80, 36: -80, 37: 30, 38: 30, 53: 40, 54: 40, 59: -140, 60: -140},
+}
+
+
+def apply_preset(name: str, k: float) -> dict[int, float]:
+    return {n: k * v for n, v in EMOTIONS[name].items()}
+
+
+def _lum(img: np.ndarray) -> np.ndarray:
+    return img.astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+
+
+def _band(shape: tuple[int, int], pts: np.ndarray, radius: float) -> np.ndarray:
+    """Pixels within ``radius`` of a polyline (dense samples are close enough)."""
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    seg = np.concatenate([np.linspace(a, b, 8, endpoint=False) for a, b in zip(pts[:-1], pts[1:],
+                                                                              strict=True)])
+    lo = np.floor(seg.min(0) - radius - 1).astype(int)
+    hi = np.ceil(seg.max(0) + radius + 1).astype(int)
+    m = np.zeros((h, w), bool)
+    sub_x, sub_y = xx[lo[1]:hi[1], lo[0]:hi[0]], yy[lo[1]:hi[1], lo[0]:hi[0]]
+    d = np.min(np.hypot(sub_x[..., None] - seg[:, 0], sub_y[..., None] - seg[:, 1]), axis=2)
+    m[lo[1]:hi[1], lo[0]:hi[0]] = d <= radius
+    return m
+
+
+def _drop(face, emotion: str, kind: str, k: float = 1.0) -> float:
+    """Mean luminance drop (grey levels) in a band along the strongest active ``kind`` fold
+    (its part at least half as strong as its peak)."""
+    vec = face.fap_vector(apply_preset(emotion, k))
+    v = face.deform(vec)
+    lines = [(pts, s) for kk, pts, s in fold_lines(face, v) if kk == kind]
+    pts, s = max(lines, key=lambda t: float(t[1].max()))
+    pts = pts[s >= 0.5 * s.max()]
+    band = _band(face.image.shape[:2], pts, max(0.02 * face.interocular, 1.0))
+    off = _lum(face.render(vec, creases=False))[band]
+    on = _lum(face.render(vec))[band]
+    return float((off - on).mean())
+
+
+def test_neutral_reproduces_the_photo_exactly(sample_face):
+    assert np.array_equal(sample_face.render(None), sample_face.image)
+    assert np.array_equal(sample_face.render(np.zeros(68, np.float32)), sample_face.image)
+    for _kind, _pts, s in fold_lines(sample_face, sample_face.vertices):
+        assert not s.any()  # no fold is even computed as compressed at rest
+
+
+def test_creases_false_is_the_old_render(sample_face):
+    f = sample_face
+    vec = f.fap_vector(apply_preset("joy", 1.0))
+    pts = f.plan.neutral.copy()
+    from editor.core.deform import deform_points
+
+    pts = deform_points(f.plan, vec)
+    V = f.plan.n_vertices
+    v = pts[:V]
+    tf = f.layer_transforms(v)
+    old = render_layers(f, warp(f.warp_plan, v, tf, cavity=False), v, pts[V:], vec, tf).image
+    assert np.array_equal(f.render(vec, creases=False), old)
+    assert not np.array_equal(f.render(vec), old)
+
+
+def test_joy_darkens_the_nasolabial_fold_but_not_the_mid_cheek(sample_face):
+    f = sample_face
+    assert _drop(f, "joy", "nasolabial") > 4.0
+    vec = f.fap_vector(apply_preset("joy", 1.0))
+    on, off = f.render(vec), f.render(vec, creases=False)
+    v = f.deform(vec)
+    r = max(2, int(0.06 * f.interocular))
+    for name in ("cheek_l_2_2", "cheek_r_2_2", "cheek_l_1_2"):
+        x, y = np.round(v[f.mesh.index(name)]).astype(int)
+        assert np.array_equal(on[y - r:y + r, x - r:x + r], off[y - r:y + r, x - r:x + r]), name
+
+
+def test_surprise_darkens_the_forehead_lines(sample_face):
+    # the sample's fringe hides most of its forehead: the lines are kept off the hair
+    assert _drop(sample_face, "surprise", "forehead") > 0.8
+
+
+@pytest.mark.parametrize("emotion", ["anger", "sadness"])
+def test_anger_and_sadness_darken_the_glabella(sample_face, emotion):
+    assert _drop(sample_face, emotion, "glabella") > 2.0
+
+
+def test_disgust_wrinkles_the_nose_joy_does_not(sample_face):
+    f = sample_face
+
+    def bridge(e: str) -> float:
+        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(apply_preset(e, 1.0)))
+                   if k == "bridge")
+    assert bridge("disgust") > 0.02
+    assert bridge("joy") == 0.0 and bridge("surprise") == 0.0
+
+
+def test_strength_grows_monotonically_with_intensity(sample_face):
+    f = sample_face
+    for emotion, kind in (("joy", "nasolabial"), ("surprise", "forehead"),
+                          ("anger", "glabella")):
+        peaks = []
+        for k in (0.0, 0.25, 0.5, 0.75, 1.0, 1.25):
+            lines = fold_lines(f, f.deform(apply_preset(emotion, k)))
+            peaks.append(max(float(s.max()) for kk, _p, s in lines if kk == kind))
+        assert peaks[0] == 0.0
+        assert all(b > a for a, b in zip(peaks, peaks[1:], strict=False)), (emotion, peaks)
+
+
+def test_stretching_and_pure_motion_make_no_fold(sample_face):
+    f = sample_face
+    # the whole mesh shifted, or scaled up: nothing is compressed
+    for v in (f.vertices + np.float32([3.5, -2.0]), (f.vertices - 200) * 1.1 + 200):
+        assert not fold_strength(f, v).any()
+
+
+def test_width_follows_the_face_not_the_resolution():
+    """The same face at twice the size: the fold band darkens alike (width in IOD units)."""
+    import cv2
+
+    from editor.core import Face
+
+    img = load_image(SAMPLE)
+    drops = []
+    for s in (1, 2):
+        f = Face.from_image(cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC))
+        drops.append(_drop(f, "surprise", "forehead"))
+    assert drops[1] == pytest.approx(drops[0], rel=0.35)
+
+
+def test_cli_no_creases_flag(tmp_path, sample_face):
+    from editor.cli import main
+    from editor.core.expressions import apply_preset as shipped
+
+    a, b = tmp_path / "on.png", tmp_path / "off.png"
+    assert main(["render", str(SAMPLE), "--preset", "surprise", "-o", str(a)]) == 0
+    assert main(["render", str(SAMPLE), "--preset", "surprise", "--no-creases", "-o",
+                 str(b)]) == 0
+    on, off = load_image(a), load_image(b)
+    vec = sample_face.fap_vector(shipped("surprise", 1.0))
+    assert np.array_equal(off, sample_face.render(vec, creases=False))
+    assert np.array_equal(on, sample_face.render(vec))
+    assert not np.array_equal(on, off)
+
+
+def test_jaffe_surprise_forehead_and_joy_nasolabial():
+    from editor.core import Face
+
+    paths = jaffe_images("KA.NE*.tiff")
+    if not paths:
+        pytest.skip("../shared/data/jaffe is not available")
+    f = Face.from_image(paths[0])
+    assert _drop(f, "surprise", "forehead") > 2.0
+    assert _drop(f, "joy", "nasolabial") > 2.0
+    assert np.array_equal(f.render(None), f.image)
+
+
+@pytest.mark.gui
+def test_gui_skin_creases_action_toggles_the_preview(qtbot, sample_face, isolated_settings):
+    pytest.importorskip("pytestqt")
+    from editor.ui.main_window import MainWindow
+
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.load_face(sample_face)
+    w.show()
+    qtbot.waitExposed(w)
+    try:
+        act = w.act_creases
+        assert act.isCheckable() and act.isChecked()
+        assert act in w.menu("&View").actions()
+        vec = sample_face.fap_vector(apply_preset("surprise", 1.0))
+        w.model.set_document(w.model.doc.with_fap_vector(vec))
+        assert w.scheduler.wait(5000)
+        on = w.canvas.preview_image().copy()
+        assert np.array_equal(on, sample_face.render(vec))
+        act.trigger()  # off
+        assert not act.isChecked()
+        assert w.scheduler.wait(5000)
+        off = w.canvas.preview_image().copy()
+        assert np.array_equal(off, sample_face.render(vec, creases=False))
+        assert not np.array_equal(on, off)
+        # a FAP change keeps following the switch
+        vec2 = sample_face.fap_vector(apply_preset("anger", 1.0))
+        w.model.set_document(w.model.doc.with_fap_vector(vec2))
+        assert w.scheduler.wait(5000)
+        assert np.array_equal(w.canvas.preview_image(), sample_face.render(vec2, creases=False))
+        act.trigger()  # on again
+        assert w.scheduler.wait(5000)
+        assert np.array_equal(w.canvas.preview_image(), sample_face.render(vec2))
+    finally:
+        w.close_without_prompt()

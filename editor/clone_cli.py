@@ -218,7 +218,8 @@ def jaffe_evaluation(images: Path, persons: list[str] | None = None,
     if not people:
         raise FapStudioError(f"{images}: no JAFFE neutral images found")
     sample = Face.from_image(SAMPLE)
-    neutral = {p: Face.from_image(files[p]["NE"][0], own_expression=False) for p in sorted(files) if "NE" in files[p]}
+    neutral = {p: Face.from_image(files[p]["NE"][0], own_expression=False)
+               for p in sorted(files) if "NE" in files[p]}
     order = sorted(neutral)
     routes = ("nothing", "fap", "laplacian", "keys")
     cols = (("nothing", "do nothing"), ("fap_mesh", "FAP, mesh"), ("fap", "FAP, detected"),

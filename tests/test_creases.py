@@ -67,15 +67,15 @@ def _drop(face, emotion: str, kind: str, k: float = 1.0) -> float:
     return float((off - on).mean())
 
 
-def test_neutral_reproduces_the_photo_exactly(sample_face):
-    assert np.array_equal(sample_face.render(None), sample_face.image)
-    assert np.array_equal(sample_face.render(np.zeros(68, np.float32)), sample_face.image)
-    for _kind, _pts, s in fold_lines(sample_face, sample_face.vertices):
+def test_neutral_reproduces_the_photo_exactly(sample_neutral):
+    assert np.array_equal(sample_neutral.render(None), sample_neutral.image)
+    assert np.array_equal(sample_neutral.render(np.zeros(68, np.float32)), sample_neutral.image)
+    for _kind, _pts, s in fold_lines(sample_neutral, sample_neutral.vertices):
         assert not s.any()  # no fold is even computed as compressed at rest
 
 
-def test_creases_false_is_the_old_render(sample_face):
-    f = sample_face
+def test_creases_false_is_the_old_render(sample_neutral):
+    f = sample_neutral
     vec = f.fap_vector(apply_preset("joy", 1.0))
     pts = f.plan.neutral.copy()
     from editor.core.deform import deform_points
@@ -89,8 +89,8 @@ def test_creases_false_is_the_old_render(sample_face):
     assert not np.array_equal(f.render(vec), old)
 
 
-def test_joy_darkens_the_nasolabial_fold_but_not_the_mid_cheek(sample_face):
-    f = sample_face
+def test_joy_darkens_the_nasolabial_fold_but_not_the_mid_cheek(sample_neutral):
+    f = sample_neutral
     assert _drop(f, "joy", "nasolabial") > 4.0
     vec = f.fap_vector(apply_preset("joy", 1.0))
     on, off = f.render(vec), f.render(vec, creases=False)
@@ -101,18 +101,18 @@ def test_joy_darkens_the_nasolabial_fold_but_not_the_mid_cheek(sample_face):
         assert np.array_equal(on[y - r:y + r, x - r:x + r], off[y - r:y + r, x - r:x + r]), name
 
 
-def test_surprise_darkens_the_forehead_lines(sample_face):
+def test_surprise_darkens_the_forehead_lines(sample_neutral):
     # the sample's fringe hides most of its forehead: the lines are kept off the hair
-    assert _drop(sample_face, "surprise", "forehead") > 0.8
+    assert _drop(sample_neutral, "surprise", "forehead") > 0.8
 
 
 @pytest.mark.parametrize("emotion", ["anger", "sadness"])
-def test_anger_and_sadness_darken_the_glabella(sample_face, emotion):
-    assert _drop(sample_face, emotion, "glabella") > 2.0
+def test_anger_and_sadness_darken_the_glabella(sample_neutral, emotion):
+    assert _drop(sample_neutral, emotion, "glabella") > 2.0
 
 
-def test_disgust_wrinkles_the_nose_joy_does_not(sample_face):
-    f = sample_face
+def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
+    f = sample_neutral
 
     def bridge(e: str) -> float:
         return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(apply_preset(e, 1.0)))
@@ -121,8 +121,8 @@ def test_disgust_wrinkles_the_nose_joy_does_not(sample_face):
     assert bridge("joy") == 0.0 and bridge("surprise") == 0.0
 
 
-def test_strength_grows_monotonically_with_intensity(sample_face):
-    f = sample_face
+def test_strength_grows_monotonically_with_intensity(sample_neutral):
+    f = sample_neutral
     for emotion, kind in (("joy", "nasolabial"), ("surprise", "forehead"),
                           ("anger", "glabella")):
         peaks = []
@@ -133,8 +133,8 @@ def test_strength_grows_monotonically_with_intensity(sample_face):
         assert all(b > a for a, b in zip(peaks, peaks[1:], strict=False)), (emotion, peaks)
 
 
-def test_stretching_and_pure_motion_make_no_fold(sample_face):
-    f = sample_face
+def test_stretching_and_pure_motion_make_no_fold(sample_neutral):
+    f = sample_neutral
     # the whole mesh shifted, or scaled up: nothing is compressed
     for v in (f.vertices + np.float32([3.5, -2.0]), (f.vertices - 200) * 1.1 + 200):
         assert not fold_strength(f, v).any()
@@ -149,12 +149,13 @@ def test_width_follows_the_face_not_the_resolution():
     img = load_image(SAMPLE)
     drops = []
     for s in (1, 2):
-        f = Face.from_image(cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC))
+        f = Face.from_image(cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC),
+                            own_expression=False)
         drops.append(_drop(f, "surprise", "forehead"))
     assert drops[1] == pytest.approx(drops[0], rel=0.35)
 
 
-def test_cli_no_creases_flag(tmp_path, sample_face):
+def test_cli_no_creases_flag(tmp_path, sample_neutral):
     from editor.cli import main
     from editor.core.expressions import apply_preset as shipped
 
@@ -163,9 +164,9 @@ def test_cli_no_creases_flag(tmp_path, sample_face):
     assert main(["render", str(SAMPLE), "--preset", "surprise", "--no-creases", "-o",
                  str(b)]) == 0
     on, off = load_image(a), load_image(b)
-    vec = sample_face.fap_vector(shipped("surprise", 1.0))
-    assert np.array_equal(off, sample_face.render(vec, creases=False))
-    assert np.array_equal(on, sample_face.render(vec))
+    vec = sample_neutral.fap_vector(shipped("surprise", 1.0))
+    assert np.array_equal(off, sample_neutral.render(vec, creases=False))
+    assert np.array_equal(on, sample_neutral.render(vec))
     assert not np.array_equal(on, off)
 
 
@@ -175,44 +176,44 @@ def test_jaffe_surprise_forehead_and_joy_nasolabial():
     paths = jaffe_images("KA.NE*.tiff")
     if not paths:
         pytest.skip("../shared/data/jaffe is not available")
-    f = Face.from_image(paths[0])
+    f = Face.from_image(paths[0], own_expression=False)
     assert _drop(f, "surprise", "forehead") > 2.0
     assert _drop(f, "joy", "nasolabial") > 2.0
     assert np.array_equal(f.render(None), f.image)
 
 
 @pytest.mark.gui
-def test_gui_skin_creases_action_toggles_the_preview(qtbot, sample_face, isolated_settings):
+def test_gui_skin_creases_action_toggles_the_preview(qtbot, sample_neutral, isolated_settings):
     pytest.importorskip("pytestqt")
     from editor.ui.main_window import MainWindow
 
     w = MainWindow()
     qtbot.addWidget(w)
-    w.load_face(sample_face)
+    w.load_face(sample_neutral)
     w.show()
     qtbot.waitExposed(w)
     try:
         act = w.act_creases
         assert act.isCheckable() and act.isChecked()
         assert act in w.menu("&View").actions()
-        vec = sample_face.fap_vector(apply_preset("surprise", 1.0))
+        vec = sample_neutral.fap_vector(apply_preset("surprise", 1.0))
         w.model.set_document(w.model.doc.with_fap_vector(vec))
         assert w.scheduler.wait(5000)
         on = w.canvas.preview_image().copy()
-        assert np.array_equal(on, sample_face.render(vec))
+        assert np.array_equal(on, sample_neutral.render(vec))
         act.trigger()  # off
         assert not act.isChecked()
         assert w.scheduler.wait(5000)
         off = w.canvas.preview_image().copy()
-        assert np.array_equal(off, sample_face.render(vec, creases=False))
+        assert np.array_equal(off, sample_neutral.render(vec, creases=False))
         assert not np.array_equal(on, off)
         # a FAP change keeps following the switch
-        vec2 = sample_face.fap_vector(apply_preset("anger", 1.0))
+        vec2 = sample_neutral.fap_vector(apply_preset("anger", 1.0))
         w.model.set_document(w.model.doc.with_fap_vector(vec2))
         assert w.scheduler.wait(5000)
-        assert np.array_equal(w.canvas.preview_image(), sample_face.render(vec2, creases=False))
+        assert np.array_equal(w.canvas.preview_image(), sample_neutral.render(vec2, creases=False))
         act.trigger()  # on again
         assert w.scheduler.wait(5000)
-        assert np.array_equal(w.canvas.preview_image(), sample_face.render(vec2))
+        assert np.array_equal(w.canvas.preview_image(), sample_neutral.render(vec2))
     finally:
         w.close_without_prompt()

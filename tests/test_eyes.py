@@ -50,19 +50,20 @@ def _eyeball(lum: np.ndarray, sclera: float, iris: float) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def faces(sample_face, jaffe_faces):
-    return [sample_face, *jaffe_faces[:3]]
+def faces(sample_neutral, jaffe_faces):
+    return [sample_neutral, *jaffe_faces[:3]]
 
 
 @pytest.fixture(scope="module")
-def big_faces(sample_face, jaffe_faces):
+def big_faces(sample_neutral, jaffe_faces):
     """The sample face and three JAFFE faces enlarged to portrait size (eyes 50-75 px wide):
     at 256 px a raised lid uncovers one or two rows only."""
-    out = [Face.from_image(cv2.resize(sample_face.image, None, fx=2, fy=2,
-                                      interpolation=cv2.INTER_CUBIC))]
+    out = [Face.from_image(cv2.resize(sample_neutral.image, None, fx=2, fy=2,
+                                      interpolation=cv2.INTER_CUBIC), own_expression=False)]
     for f in jaffe_faces[:3]:
         out.append(Face.from_image(cv2.resize(f.image, None, fx=3, fy=3,
-                                              interpolation=cv2.INTER_CUBIC)))
+                                              interpolation=cv2.INTER_CUBIC),
+                                   own_expression=False))
     return out
 
 
@@ -136,8 +137,8 @@ def test_raised_lid_profile_beside_the_iris(big_faces):
             assert dark <= pdark + 1, (name, dark, pdark)
 
 
-def test_pitch_moves_the_upper_lid_with_the_iris(sample_face, jaffe_faces):
-    for face in (sample_face, jaffe_faces[0]):
+def test_pitch_moves_the_upper_lid_with_the_iris(sample_neutral, jaffe_faces):
+    for face in (sample_neutral, jaffe_faces[0]):
         plan = face.plan
         V = plan.n_vertices
         ey = plan.frame_rot[:, 1]

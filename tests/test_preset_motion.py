@@ -9,9 +9,9 @@ from editor.core.expressions import apply_preset, get_preset
 
 
 @pytest.fixture(scope="module")
-def motion(sample_face):
+def motion(sample_neutral):
     """Feature point motion in the face frame (x to the face's left, y down), pixels."""
-    f = sample_face
+    f = sample_neutral
     p0 = {k: np.array(v) for k, v in f.feature_points().items()}
 
     def run(name: str) -> dict[str, np.ndarray]:

@@ -46,12 +46,12 @@ HAND_MADE = {
 
 
 @pytest.fixture(scope="module")
-def faces(sample_face):
-    out = [sample_face]
+def faces(sample_neutral):
+    out = [sample_neutral]
     for who in ("KA", "KM", "NA", "TM", "YM"):
         paths = jaffe_images(f"{who}.NE*.tiff")
         if paths:
-            out.append(Face.from_image(paths[0]))
+            out.append(Face.from_image(paths[0], own_expression=False))
     return out
 
 
@@ -135,7 +135,7 @@ def _outside_changes(face: Face, img: np.ndarray) -> tuple[float, float]:
 @pytest.fixture(scope="module")
 def padded_face():
     """The sample with 400 px of replicated border below and beside it and a drawn collar."""
-    img = cv2.imread(str(ROOT / "resources" / "sample_face.png"))[:, :, ::-1]
+    img = cv2.imread(str(ROOT / "resources" / "sample_neutral.png"))[:, :, ::-1]
     p = cv2.copyMakeBorder(img, 0, 400, 200, 200, cv2.BORDER_REPLICATE)
     cx, y0 = p.shape[1] // 2, img.shape[0] - 40
     for sgn in (-1, 1):
@@ -143,7 +143,7 @@ def padded_face():
                                         [cx + sgn * 60, y0 + 170]]), (235, 235, 240))
     cv2.fillConvexPoly(p, np.array([[cx - 18, y0 + 45], [cx + 18, y0 + 45], [cx + 30, y0 + 380],
                                     [cx - 30, y0 + 380]]), (120, 20, 30))
-    return Face.from_image(np.ascontiguousarray(p))
+    return Face.from_image(np.ascontiguousarray(p), own_expression=False)
 
 
 def test_brows_lids_lips_leave_hair_and_background_alone(padded_face):

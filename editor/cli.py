@@ -37,10 +37,20 @@ def _fap_pairs(items: Sequence[str] | None) -> dict[str, float]:
     return out
 
 
-def _load_face(photo: str):
+def _load_face(photo: str, neutral: bool = False):
+    """The photo's Face; its own expression is estimated unless ``neutral`` declares it so."""
     from .core import Face
 
-    return Face.from_image(photo)
+    return Face.from_image(photo, own_expression=not neutral)
+
+
+def _expression_note(face, keep: bool) -> None:
+    """Say on stderr what the photo already shows and how the FAPs relate to it."""
+    if face.has_expression:
+        how = ("added to it" if keep else
+               "applied to the neutralised face; --keep-expression adds them to the photo's")
+        print(f"fap-studio: the photo shows: {face.expression_words} (FAPs {how})",
+              file=sys.stderr)
 
 
 def cmd_landmarks(a: argparse.Namespace) -> int:
@@ -109,12 +119,15 @@ def cmd_render(a: argparse.Namespace) -> int:
     from .core import FAPS, save_image
 
     vec = _requested_vector(a)
-    face = _load_face(a.photo)
+    face = _load_face(a.photo, a.photo_is_neutral)
+    _expression_note(face, a.keep_expression)
+    if a.keep_expression:
+        vec = face.expression + vec
     save_image(a.output, face.render(vec, creases=not a.no_creases))
     if a.mesh_json:
         v, extra = face.deform_all(vec)
         data = _mesh_json(face, v)
-        neutral = _mesh_json(face)
+        neutral = _mesh_json(face, face.neutral_vertices)
         data["vertices_neutral"] = neutral["vertices"]
         data["fdp_neutral"] = neutral["fdp"]
         data["fdp"].update({k: [round(float(p[0]), 3), round(float(p[1]), 3)]
@@ -163,6 +176,16 @@ def _write_json(path: str, data: dict) -> None:
         raise FapStudioError(f"{p}: cannot write ({e.strerror or e})") from e
 
 
+def _expression_options(s: argparse.ArgumentParser) -> None:
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--keep-expression", action="store_true",
+                   help="add the FAPs to the expression the photo already shows (no FAPs: "
+                   "the photo unchanged). Default: FAPs apply to the neutralised face (no "
+                   "FAPs: the neutral face), so anger on a smiling photo reads as anger")
+    g.add_argument("--photo-is-neutral", action="store_true",
+                   help="do not estimate the photo's own expression: FAP 0 is the photo")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="fap-studio", description="MPEG-4 facial animation of a single photo. "
                 "With no command, opens the editor on the sample face.")
@@ -193,6 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--mesh-json", help="write the neutral and deformed mesh as JSON")
     s.add_argument("--no-creases", action="store_true",
                    help="geometry only: no skin folds (nasolabial, forehead, ...)")
+    _expression_options(s)
     s.set_defaults(func=cmd_render)
 
     s = sub.add_parser("gui", help="open the editor window")

@@ -42,7 +42,8 @@ def main() -> None:
         shapes, f"dlib-68 landmarks of {n} neutral photos of {len(shapes)} people "
         f"({Path(a.images).resolve().parent.name} '*.NE*' images; summary statistics only: "
         "mean shape made left/right symmetric, spread of each identity mode over the people "
-        "x 1.5, at least 0.04 IOD, per-point residual); built by scripts/build_neutral_prior.py")
+        "x 1.5, at least 0.04 IOD, the mouth corners' height 0.015 IOD, per-point residual); "
+        "built by scripts/build_neutral_prior.py")
     Path(a.output).write_text(json.dumps(prior.to_json(), indent=1) + "\n", "utf-8")
     for name, s in zip(prior.names, prior.sigma, strict=True):
         print(f"{name:15s} sigma {s:.4f} IOD")

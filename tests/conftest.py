@@ -75,10 +75,10 @@ def warnings(monkeypatch) -> list[str]:
 
 
 @pytest.fixture
-def model(qtbot, sample_face):
-    """A DocumentModel holding the sample face."""
+def model(qtbot, sample_neutral):
+    """A DocumentModel holding the sample face declared neutral (every FAP starts at 0)."""
     from editor.ui.document_model import DocumentModel
 
     m = DocumentModel()
-    m.load(sample_face)
+    m.load(sample_neutral)
     return m

@@ -135,7 +135,7 @@ def _outside_changes(face: Face, img: np.ndarray) -> tuple[float, float]:
 @pytest.fixture(scope="module")
 def padded_face():
     """The sample with 400 px of replicated border below and beside it and a drawn collar."""
-    img = cv2.imread(str(ROOT / "resources" / "sample_neutral.png"))[:, :, ::-1]
+    img = cv2.imread(str(ROOT / "resources" / "sample_face.png"))[:, :, ::-1]
     p = cv2.copyMakeBorder(img, 0, 400, 200, 200, cv2.BORDER_REPLICATE)
     cx, y0 = p.shape[1] // 2, img.shape[0] - 40
     for sgn in (-1, 1):

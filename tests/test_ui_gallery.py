@@ -22,8 +22,8 @@ SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
 
 
 @pytest.fixture
-def face(sample_face) -> Face:
-    return sample_face
+def face(sample_neutral) -> Face:
+    return sample_neutral
 
 
 @pytest.fixture

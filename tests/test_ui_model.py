@@ -20,8 +20,8 @@ pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
 
 
 # ---------------------------------------------------------------------- Document
-def test_document_is_immutable_and_clamped(sample_face):
-    doc = Document.neutral(sample_face)
+def test_document_is_immutable_and_clamped(sample_neutral):
+    doc = Document.neutral(sample_neutral)
     assert not doc.vertices.flags.writeable and not doc.faps.flags.writeable
     with pytest.raises(ValueError):
         doc.faps[0] = 1.0
@@ -35,11 +35,11 @@ def test_document_is_immutable_and_clamped(sample_face):
         doc.with_faps({"no_such_fap": 1})
 
 
-def test_document_rejects_wrong_shapes(sample_face):
+def test_document_rejects_wrong_shapes(sample_neutral):
     with pytest.raises(ValueError):
         Document(None, np.zeros((5, 3)), np.zeros(68))
     with pytest.raises(ValueError):
-        Document(None, sample_face.vertices, np.zeros(67))
+        Document(None, sample_neutral.vertices, np.zeros(67))
 
 
 # ---------------------------------------------------------------------- model + commands
@@ -84,39 +84,40 @@ def test_keyed_edits_merge_until_sealed_and_vanish_when_undone(model):
     assert model.undo_stack.count() == 3
 
 
-def test_vertex_edit_changes_face_and_fapu(model, sample_face):
-    i = sample_face.fdp["8.3"]  # a lip corner: MW follows
+def test_vertex_edit_changes_face_and_fapu(model, sample_neutral):
+    i = sample_neutral.fdp["8.3"]  # a lip corner: MW follows
     mw0 = model.face.fapu["MW"]
     model.begin_gesture()
     for dx in (1, 2, 3, 4):
-        model.preview_vertex(i, sample_face.vertices[i] + (dx, 0))
+        model.preview_vertex(i, sample_neutral.vertices[i] + (dx, 0))
     model.commit_gesture("Move vertex")
     assert model.undo_stack.count() == 1
-    assert model.face is not sample_face
+    assert model.face is not sample_neutral
     assert model.face.fapu["MW"] == pytest.approx(mw0 + 4 / 1024, rel=1e-3)
     model.reset_mesh()
-    assert model.face is sample_face and np.array_equal(model.doc.vertices, sample_face.vertices)
+    assert model.face is sample_neutral
+    assert np.array_equal(model.doc.vertices, sample_neutral.vertices)
     model.undo_stack.undo()
     assert model.face.fapu["MW"] > mw0
 
 
-def test_folded_mesh_is_reported(model, sample_face):
-    i = sample_face.fdp["8.3"]
+def test_folded_mesh_is_reported(model, sample_neutral):
+    i = sample_neutral.fdp["8.3"]
     assert model.folded_triangles() == 0
     model.begin_gesture()
-    model.preview_vertex(i, sample_face.vertices[sample_face.fdp["8.4"]])  # across the mouth
+    model.preview_vertex(i, sample_neutral.vertices[sample_neutral.fdp["8.4"]])  # across the mouth
     model.commit_gesture("Move vertex")
     assert model.folded_triangles() > 0
     model.undo_stack.undo()
     assert model.folded_triangles() == 0
 
 
-def test_load_clears_history(model, sample_face):
+def test_load_clears_history(model, sample_neutral):
     model.set_faps({3: 100}, "x")
     assert model.is_dirty()
     seen = []
     model.changed.connect(lambda old, new: seen.append(old))
-    model.load(sample_face)
+    model.load(sample_neutral)
     assert model.undo_stack.count() == 0 and not model.is_dirty() and seen == [None]
 
 
@@ -197,12 +198,12 @@ def test_scheduler_reports_render_errors(qtbot):
     sched.shutdown()
 
 
-def test_scheduler_renders_real_face(qtbot, sample_face):
+def test_scheduler_renders_real_face(qtbot, sample_neutral):
     sched = RenderScheduler()
     faps = FAPS.vector({"open_jaw": 400})
     with qtbot.waitSignal(sched.rendered, timeout=5000) as blocker:
-        sched.submit(sample_face, faps)
+        sched.submit(sample_neutral, faps)
     image, ms = blocker.args
-    assert image.shape == sample_face.image.shape and ms > 0
-    assert np.array_equal(image, sample_face.render(faps))
+    assert image.shape == sample_neutral.image.shape and ms > 0
+    assert np.array_equal(image, sample_neutral.render(faps))
     sched.shutdown()

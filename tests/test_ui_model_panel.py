@@ -40,10 +40,10 @@ def boxes(monkeypatch) -> Boxes:
 
 
 @pytest.fixture
-def window(qtbot, sample_face, boxes):
+def window(qtbot, sample_neutral, boxes):
     w = MainWindow()
     qtbot.addWidget(w)
-    w.load_face(sample_face)
+    w.load_face(sample_neutral)
     w.show()
     qtbot.waitExposed(w)
     yield w
@@ -62,23 +62,23 @@ def test_installed(window):
     assert not e.panel.synth_button.isEnabled()  # no model yet
 
 
-def test_load_model_file_and_errors(window, boxes, tmp_path, sample_face):
+def test_load_model_file_and_errors(window, boxes, tmp_path, sample_neutral):
     panel = ext(window).panel
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"junk")
     assert not panel.load_model(str(bad))
     assert len(boxes.warnings) == 1 and "\n" not in boxes.warnings[0]
     good = tmp_path / "toy.npz"
-    save_model(synthetic_model68(sample_face.landmarks.points), good)
+    save_model(synthetic_model68(sample_neutral.landmarks.points), good)
     assert panel.load_model(str(good))
     assert panel.expression.currentText() == "joy" and panel.synth_button.isEnabled()
     panel.mix.setText("joy:x")
     assert panel.synthesize() is None and "bad weight" in boxes.warnings[-1]
 
 
-def test_synthesize_and_convert_to_faps(window, sample_face):
+def test_synthesize_and_convert_to_faps(window, sample_neutral):
     panel = ext(window).panel
-    panel.set_model(synthetic_model68(sample_face.landmarks.points))
+    panel.set_model(synthetic_model68(sample_neutral.landmarks.points))
     panel.expression.setCurrentText("surprise")
     res = panel.synthesize()
     assert res is not None and res.image is not None
@@ -102,14 +102,14 @@ def test_synthesize_and_convert_to_faps(window, sample_face):
     assert window.model.doc.faps[11] > 100  # raise_l_cornerlip (FAP 12)
 
 
-def test_clone_from_photo(window, tmp_path, sample_face):
+def test_clone_from_photo(window, tmp_path, sample_neutral, boxes):
     expr = tmp_path / "joy.png"
     preset = apply_preset("joy")
-    save_image(expr, sample_face.render(preset))
+    save_image(expr, sample_neutral.render(preset))
     stack = window.model.undo_stack
     n0 = stack.count()
     faps = ext(window).tools.clone_from_photos(str(SAMPLE), str(expr))
-    assert faps is not None and stack.count() == n0 + 1
+    assert faps is not None and stack.count() == n0 + 1, boxes.warnings
     got = window.model.doc.faps
     big = np.flatnonzero(np.abs(preset) >= 100)
     big = [i for i in big if i + 1 in (4, 5, 6, 7, 12, 13, 31, 32, 33, 34, 35, 36, 51, 52, 53,
@@ -129,15 +129,15 @@ def test_clone_errors_never_crash(window, boxes, tmp_path):
     assert window.model.undo_stack.count() == n0
 
 
-def test_track_video(window, boxes, tmp_path, sample_face):
+def test_track_video(window, boxes, tmp_path, sample_neutral):
     import cv2
 
     video = tmp_path / "perf.avi"
-    h, w = sample_face.image.shape[:2]
+    h, w = sample_neutral.image.shape[:2]
     vw = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (w, h))
     assert vw.isOpened()
-    joy = sample_face.render(apply_preset("joy"))
-    frames = [sample_face.image, joy, np.zeros_like(joy), joy]
+    joy = sample_neutral.render(apply_preset("joy"))
+    frames = [sample_neutral.image, joy, np.zeros_like(joy), joy]
     for f in frames:
         vw.write(cv2.cvtColor(np.ascontiguousarray(f), cv2.COLOR_RGB2BGR))
     vw.release()

@@ -32,8 +32,8 @@ class FakeClock:
 
 
 @pytest.fixture
-def face(sample_face) -> Face:
-    return sample_face
+def face(sample_neutral) -> Face:
+    return sample_neutral
 
 
 

@@ -28,8 +28,8 @@ LIP_CORNERS = ("raise_l_cornerlip", "raise_r_cornerlip", "raise_l_cornerlip_o",
 
 
 @pytest.fixture
-def face(sample_face) -> Face:
-    return sample_face
+def face(sample_neutral) -> Face:
+    return sample_neutral
 
 
 

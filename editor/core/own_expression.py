@@ -37,6 +37,7 @@ from scipy.optimize import lsq_linear
 from .faps import FAPS
 
 PRIOR_PATH = Path(__file__).resolve().parents[2] / "resources" / "neutral_prior.json"
+CORNER_SIGMA = 0.015  # prior spread of the corners' height above the lip line (IOD)
 
 #: iBUG-68 index of each point's mirror image (left/right swapped).
 MIRROR_68 = np.array(
@@ -139,6 +140,9 @@ class NeutralPrior:
             res.append((d - Bf @ c).reshape(68, 2))
         coef_a, res_a = np.array(coef), np.array(res)
         sigma = np.maximum(spread * np.sqrt(np.mean(coef_a ** 2, 0)), min_sigma)
+        # mouth corners above the lip line are what a smile is: a neutral mouth is close to
+        # flat, so that mode is kept tight (an upturned neutral mouth is flattened a little)
+        sigma[names.index("corner_height")] = CORNER_SIGMA
         within = [np.asarray(s) - np.mean(s, 0) for s in shapes_by_person if len(s) > 1]
         jitter = (np.sqrt(np.mean(np.concatenate(within) ** 2, axis=(0, 2)))
                   if within else np.zeros(68))
@@ -186,7 +190,7 @@ OWN_FAPS: tuple[int, ...] = (3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 19, 20, 21, 22
 
 #: Prior spread of each FAP group's motion of its feature point, fraction of the inter-ocular
 #: distance: lids move little (and eye shape differs a lot between people), jaw and lips much.
-FAP_SPREAD = {"jaw": 0.08, "inner_lip": 0.05, "outer_lip": 0.05, "corner": 0.06,
+FAP_SPREAD = {"jaw": 0.08, "inner_lip": 0.05, "outer_lip": 0.05, "corner": 0.08,
               "lid": 0.015, "brow": 0.035}
 
 #: FAP groups judged together, with the landmarks they are seen on

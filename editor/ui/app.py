@@ -15,6 +15,8 @@ from types import TracebackType
 from PySide6.QtCore import QEventLoop
 from PySide6.QtWidgets import QApplication, QMessageBox
 
+from editor.core import FAPS
+
 from .main_window import MainWindow
 from .qt_utils import APPLICATION, ORGANIZATION, settings
 
@@ -106,7 +108,11 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
         return fail(f"cannot open {project or photo or SAMPLE_FACE}")
     if faps:
         try:
-            window.model.set_faps(faps, "Apply FAPs")
+            # the requested FAPs replace the document's (the photo's own expression): they
+            # apply to the neutralised face, as presets and .fap files do
+            doc = window.model.doc
+            if doc is not None:
+                window.model.push(doc.with_fap_vector(FAPS.vector(faps)), "Apply FAPs")
         except ValueError as e:
             if headless:
                 return fail(str(e))

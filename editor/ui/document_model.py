@@ -60,8 +60,14 @@ class Document:
 
     @classmethod
     def neutral(cls, face: Face) -> Document:
-        """The fitted mesh of ``face`` with every FAP at 0."""
+        """The fitted mesh of ``face`` with every FAP at 0 (the neutralised face)."""
         return cls(face.source, face.vertices, np.zeros(68, np.float32))
+
+    @classmethod
+    def initial(cls, face: Face) -> Document:
+        """A new photo's document: its FAPs are the photo's own expression, so the untouched
+        document renders the photo unchanged."""
+        return cls(face.source, face.vertices, face.expression)
 
     def replace(self, **changes: object) -> Document:
         return dataclasses.replace(self, **changes)
@@ -176,7 +182,7 @@ class DocumentModel(QObject):
 
         The undo history is cleared and the new document is clean.
         """
-        doc = doc if doc is not None else Document.neutral(face)
+        doc = doc if doc is not None else Document.initial(face)
         if doc.vertices.shape != face.vertices.shape:
             raise ValueError(f"the mesh has {len(doc.vertices)} vertices, expected "
                              f"{len(face.vertices)}")
@@ -270,6 +276,16 @@ class DocumentModel(QObject):
             return
         nums = range(1, 69) if numbers is None else numbers
         self.push(self._doc.with_faps(dict.fromkeys(nums, 0.0)), text)
+
+    def neutralize(self) -> None:
+        """Every FAP to 0 as one command: the neutral face (the photo's own expression gone)."""
+        self.reset_faps(None, "Neutralize")
+
+    def restore_photo_expression(self) -> None:
+        """The FAPs back to the photo's own expression (the photo unchanged), one command."""
+        if self._doc is not None and self._fitted is not None:
+            self.push(self._doc.with_fap_vector(self._fitted.expression),
+                      "Back to the photo's expression")
 
     def reset_mesh(self) -> None:
         """Put the mesh back to the fitted one (one command)."""

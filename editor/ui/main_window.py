@@ -59,6 +59,11 @@ class MainWindow(QMainWindow):
         self.resizeDocks([self.fap_dock, self.gaze_dock], [640, 190], Qt.Orientation.Vertical)
 
         self.render_label = QLabel("render – ms")
+        self.expression_label = QLabel("")
+        self.expression_label.setToolTip(
+            "The expression the photo already shows, estimated against a neutral face. FAPs "
+            "apply to the neutralised face; the sliders start at the photo's own expression.")
+        self.statusBar().addPermanentWidget(self.expression_label)
         self.fapu_label = QLabel("")
         self.statusBar().addPermanentWidget(self.fapu_label)
         self.statusBar().addPermanentWidget(self.render_label)
@@ -123,6 +128,12 @@ class MainWindow(QMainWindow):
         self.addActions([self.act_undo, self.act_redo])
         self.act_reset_faps = self._action(
             "Reset All &FAPs", lambda: self.model.reset_faps(None, "Reset all FAPs"))
+        self.act_neutralize = self._action(
+            "&Neutralize", self.model.neutralize, "Ctrl+Shift+N",
+            "Remove the photo's own expression: every FAP to 0 (the neutral face)")
+        self.act_photo_expression = self._action(
+            "Back to the &Photo's Expression", self.model.restore_photo_expression,
+            "Ctrl+Shift+P", "Set the FAPs to what the photo shows (the photo unchanged)")
         self.act_reset_mesh = self._action("Reset &Mesh", self.model.reset_mesh,
                                            tip="Put every vertex back where it was fitted")
         self.act_overlay = self._action("Show &Mesh", self.canvas.set_overlay_visible, "M")
@@ -151,7 +162,8 @@ class MainWindow(QMainWindow):
         e = mb.addMenu("&Edit")
         e.addActions([self.act_undo, self.act_redo])
         e.addSeparator()
-        e.addActions([self.act_reset_faps, self.act_reset_mesh])
+        e.addActions([self.act_neutralize, self.act_photo_expression, self.act_reset_faps,
+                      self.act_reset_mesh])
         v = mb.addMenu("&View")
         v.addActions([self.act_overlay, self.act_creases, self.act_fit, self.act_fit_face])
         v.addSeparator()
@@ -221,6 +233,12 @@ class MainWindow(QMainWindow):
             return
         if old is None or old.faps is not new.faps or old.vertices is not new.vertices:
             self.scheduler.submit(face, new.faps, creases=self.act_creases.isChecked())
+        if old is None:
+            fitted = self.model.fitted
+            words = fitted.expression_words if fitted is not None else "neutral"
+            self.expression_label.setText(f"photo shows: {words}")
+            self.act_neutralize.setEnabled(fitted is not None and fitted.has_expression)
+            self.act_photo_expression.setEnabled(fitted is not None and fitted.has_expression)
         if old is None or old.vertices is not new.vertices:
             self._show_fapu(face)
             folded = self.model.folded_triangles()

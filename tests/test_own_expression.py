@@ -1,0 +1,154 @@
+"""The photo's own expression (issue 21 item 1): estimated, neutralised, exact at f0."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import JAFFE, SAMPLE, jaffe_images
+
+from editor.core import Face, signed_areas
+from editor.core.expressions import apply_preset
+from editor.core.own_expression import canonical, default_prior, estimate_own, symmetrize
+
+
+def test_sample_smile_is_estimated_and_neutralised(sample_face):
+    f = sample_face
+    assert f.has_expression
+    assert "smile" in f.expression_words and ("lips apart" in f.expression_words
+                                              or "mouth open" in f.expression_words)
+    e = f.expression
+    assert e[2] > 100  # open_jaw: the lips are apart in the photo
+    assert e[11] > 60 and e[12] > 60 and e[58] > 60 and e[59] > 60  # corners raised
+    # the neutral mesh closes the lips: every inner-lip pair meets (or nearly)
+    ey = f.frame.rot[:, 1]
+    n = f.neutral_vertices
+    up, lo = f.mesh.pairs[:, 0], f.mesh.pairs[:, 1]
+    mouth = np.isin(up, f.mesh.holes["mouth"])
+    gap = (n[lo[mouth]] - n[up[mouth]]) @ ey
+    assert gap.min() >= 0 and gap.max() < 0.02 * f.interocular
+    # and the photo's mouth is open
+    p = f.vertices
+    assert ((p[lo[mouth]] - p[up[mouth]]) @ ey).max() > 0.1 * f.interocular
+    assert (signed_areas(n.astype(np.float64), f.triangles) > 0).all()
+
+
+def test_untouched_expression_renders_the_photo_exactly(sample_face):
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
+    assert np.array_equal(sample_face.deform(sample_face.expression), sample_face.vertices)
+
+
+def test_neutralise_then_own_estimate_gives_back_the_photo(sample_face):
+    neutral = sample_face.render(None)
+    assert np.abs(neutral.astype(int) - sample_face.image).max() > 40  # visibly neutralised
+    back = sample_face.with_expression(None).with_own_expression()
+    assert np.array_equal(back.expression, sample_face.expression)
+    assert np.array_equal(back.render(back.expression), sample_face.image)
+
+
+def test_presets_render_from_the_neutral_face(sample_face):
+    """Anger on a smiling photo: the mouth corners go down from the neutral, not from the
+    smile (the smile does not survive the preset)."""
+    f = sample_face
+    ey = f.frame.rot[:, 1]
+
+    def corners_up(v: np.ndarray) -> float:
+        """Mouth corners above the middle of the lips (face-frame y, pixels)."""
+        mid = 0.5 * (v[f.fdp["8.1"]] + v[f.fdp["8.2"]]) @ ey
+        return float(mid - 0.5 * (v[f.fdp["8.3"]] + v[f.fdp["8.4"]]) @ ey)
+
+    photo, neutral = corners_up(f.vertices), corners_up(f.neutral_vertices)
+    anger = corners_up(f.deform(apply_preset("anger")))
+    assert photo - neutral > 0.03 * f.interocular  # the smile is taken out (part of it)
+    assert anger < neutral + 0.02 * f.interocular  # anger adds no smile back
+    kept = corners_up(f.deform(f.expression + apply_preset("anger")))
+    assert kept > anger + 0.5 * (photo - neutral)  # --keep-expression keeps the smile
+
+
+def test_neutral_photos_get_a_neutral_vector(jaffe_faces):
+    """JAFFE neutral photos (detected, estimated against the prior) are mostly left alone."""
+    moved = []
+    for face in jaffe_faces:
+        own = estimate_own(face)
+        motion = face.deform(own.faps) - face.deform(None)
+        moved.append(np.abs(motion).max() / face.interocular)
+    assert np.median(moved) < 0.03, moved
+
+
+def test_prior_is_symmetric_with_closed_lips():
+    pr = default_prior()
+    assert np.allclose(symmetrize(pr.mean), pr.mean, atol=1e-4)
+    assert np.allclose(pr.mean[[61, 62, 63]], pr.mean[[67, 66, 65]])
+    assert np.allclose(canonical(pr.mean)[[39, 42]], pr.mean[[39, 42]], atol=0.05)
+    assert (pr.sigma > 0).all() and (pr.noise > 0).all()
+
+
+@pytest.mark.slow
+def test_jaffe_closed_loop_reproduces_real_expressions():
+    """Estimate each real JAFFE expression against the woman's neutral, render on the neutral,
+    re-detect: within 2.5 % of the inter-ocular distance on average, every region closer than
+    doing nothing, upper lids and brows never estimated against their real motion."""
+    if len(jaffe_images("*.NE*.tiff")) < 10:
+        pytest.skip("../shared/data/jaffe is not available")
+    from editor.core.closed_loop import closed_loop
+
+    res = closed_loop(JAFFE / "images")
+    assert res.mean("estimate", "inner") < 2.5, res.table()
+    for region in ("brows", "lids", "lips", "jaw"):
+        assert res.mean("estimate", region) < res.mean("nothing", region), res.table()
+    for code in ("HA", "SA", "SU", "AN", "DI", "FE"):
+        assert res.mean("estimate", "inner", code) < res.mean("nothing", "inner", code)
+    wrong = [s for s in res.wrong_signs() if s[2] in (19, 20, 31, 32, 35, 36)]
+    assert not wrong, wrong
+
+
+def test_cli_render_neutralises_unless_kept(tmp_path):
+    from editor.core import load_image
+
+    run = [sys.executable, "-m", "editor.cli", "render", str(SAMPLE)]
+    kept = tmp_path / "kept.png"
+    r = subprocess.run(run + ["--keep-expression", "-o", str(kept)], capture_output=True,
+                       text=True, cwd=Path(__file__).resolve().parents[1])
+    assert r.returncode == 0 and "the photo shows: smile" in r.stderr
+    assert np.array_equal(load_image(kept), load_image(SAMPLE))
+    neutral = tmp_path / "neutral.png"
+    r = subprocess.run(run + ["-o", str(neutral)], capture_output=True, text=True,
+                       cwd=Path(__file__).resolve().parents[1])
+    assert r.returncode == 0
+    assert np.abs(load_image(neutral).astype(int) - load_image(SAMPLE)).max() > 40
+    plain = tmp_path / "plain.png"
+    r = subprocess.run(run + ["--photo-is-neutral", "-o", str(plain)], capture_output=True,
+                       text=True, cwd=Path(__file__).resolve().parents[1])
+    assert r.returncode == 0 and "photo shows" not in r.stderr
+    assert np.array_equal(load_image(plain), load_image(SAMPLE))
+
+
+@pytest.mark.gui
+def test_editor_starts_at_the_photo_and_neutralizes_in_one_step(qtbot, sample_face, warnings):
+    from editor.ui.main_window import MainWindow
+
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.load_face(sample_face)
+    m = w.model
+    assert np.array_equal(m.doc.faps, sample_face.expression)
+    assert "photo shows: smile" in w.expression_label.text()
+    assert w.act_neutralize.isEnabled()
+    n0 = m.undo_stack.count()
+    w.act_neutralize.trigger()
+    assert not m.doc.faps.any() and m.undo_stack.count() == n0 + 1
+    w.act_photo_expression.trigger()
+    assert np.array_equal(m.doc.faps, sample_face.expression)
+    m.undo_stack.undo()
+    assert not m.doc.faps.any()
+    w.close_without_prompt()
+
+
+def test_declared_neutral_photo_has_no_expression():
+    f = Face.from_image(SAMPLE, own_expression=False)
+    assert not f.has_expression and f.expression_words == "neutral"
+    assert np.array_equal(f.neutral_vertices, f.vertices)
+    assert np.array_equal(f.render(None), f.image)

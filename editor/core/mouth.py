@@ -40,6 +40,9 @@ TEXTURES = Path(__file__).resolve().parents[2] / "resources" / "mouth"
 NAMES = ("upper_teeth", "lower_teeth", "tongue")
 #: upper incisors' edge below the neutral lip line, in units of D (mouth-nose distance)
 UPPER_TIP = 0.05
+#: lower incisors' edge above the neutral lip line (overbite), and the tongue's top above
+#: theirs, in units of D
+LOWER_OVERBITE, TONGUE_RISE = 0.05, 0.2
 #: teeth luminance relative to the lit skin, and how much of the skin's colour cast they take
 TEETH_L, TEETH_CAST = 0.92, 0.35
 #: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
@@ -143,6 +146,7 @@ class MouthPlan:
     gap0: np.ndarray  # (7,) their neutral gaps, px
     gum: np.ndarray  # (3,) tinted gum colour
     tip_up: float = 0.0  # neutral px below y(9.3) of the upper incisors' edge (frame y)
+    low_off: float = 0.0  # lower incisors' edge minus the eq. 8 anchor, neutral px
     # the photo's own interior (attach_own)
     own_off: np.ndarray | None = None  # (2,) image position of own[0, 0]
     own: np.ndarray | None = None  # (h, w, 2) float32: photo interior following skull / jaw
@@ -183,6 +187,7 @@ class MouthPlan:
         # at rest; a smile's raised upper lip uncovers it), not 0.25 D above it (eq. 7 put the
         # teeth's top edge at 0.25 D, their tips then hid behind the upper lip in every smile)
         tip_up = D + UPPER_TIP * D
+        low_off = D * (1.0 - LOWER_OVERBITE) - (0.25 * yf[i21] + 0.75 * yf[i23] - yf[i93])
         mw = max(plan.fapu["MW"] * 1024.0, 4.0)
         hole = np.asarray(mesh.holes["mouth"])
         # ---- textures, tinted and scaled to the face
@@ -198,7 +203,7 @@ class MouthPlan:
         target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
         tongue_mean = _opaque_mean(raw["tongue"], sat)
-        gain_g = np.full(3, 0.7 * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
+        gain_g = np.full(3, 0.8 * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
         tex = {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0), ("lower_teeth", gain_t, 0.8),
                                   ("tongue", gain_g, 1.0)):
@@ -225,7 +230,7 @@ class MouthPlan:
                    mouth_nose=float(D), mw=float(mw), tex=tex, size=size, anchor0=anchor0,
                    cavity=cavity.astype(np.float32), tongue_basis=tongue_basis,
                    tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs, gap0=gap0,
-                   gum=gum_rgb.astype(np.float32), tip_up=float(tip_up))
+                   gum=gum_rgb.astype(np.float32), tip_up=float(tip_up), low_off=float(low_off))
 
     # ------------------------------------------------------------------ per frame
     def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
@@ -293,12 +298,17 @@ class MouthPlan:
         wl, hl = (s * sc for s in self.size["lower_teeth"])
         wu, hu = (s * sc for s in self.size["upper_teeth"])
         wt, ht = (s * sc for s in self.size["tongue"])
-        top_l = y_lb - hl
+        # eq. 8's anchor moves the lower teeth with the jaw; at rest their tips sit just above
+        # the lip line behind the upper teeth (eq. 8's own rest height varies with the chin:
+        # 0.2 D above the lip line on JAFFE faces, below the lower lip on the sample)
+        top_l = y_lb + self.low_off * sc
+        # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
+        top_t = top_l - TONGUE_RISE * D
         tq_x, tq_y = Qx, Qy
         dlt = self._tongue_shift(faps, ex, ey)
         if dlt is not None:
-            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_l, wt, ht)
-        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_l, wt, ht, shade)
+            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
+        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
         if not self.photo_lower:
             out = self._over(out, "lower_teeth", Qx, Qy, q21[0] - 0.5 * wl, top_l, wl, hl,
                              shade)

@@ -8,6 +8,7 @@ import pytest
 
 from editor.core import Face
 from editor.core.layers import layer_plan, layers_cost_ms
+from editor.core.mouth import UPPER_TIP
 
 LUM = np.array([0.299, 0.587, 0.114], np.float32)
 
@@ -74,18 +75,18 @@ def _edge_from_bottom(rows, prof, thr) -> float:
 
 # ---------------------------------------------------------------------------- neutrality
 def test_zero_faps_reproduce_the_photo(sample_face):
-    assert np.array_equal(sample_face.render({}), sample_face.image)
-    assert np.array_equal(sample_face.render(np.zeros(68, np.float32)), sample_face.image)
+    # the photo's own expression f0 reproduces it (zeros render the neutralised face)
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
 
 
 def test_unrelated_faps_leave_the_openings_alone(sample_face):
     f = sample_face
     # brows only: the mouth interior (the photo's teeth) is not touched
-    out = f.render({31: 250, 32: 250, 33: 200, 34: 200})
+    out = f.render(f.expression + f.fap_vector({31: 250, 32: 250, 33: 200, 34: 200}))
     m = _mask(f.image.shape, f.vertices[f.mesh.holes["mouth"]], 2)
     assert np.array_equal(out[m], f.image[m])
     # jaw only: the eyes are not touched
-    out = f.render({"open_jaw": 600})
+    out = f.render(f.expression + f.fap_vector({"open_jaw": 600}))
     for k in ("eye_l", "eye_r"):
         m = _mask(f.image.shape, f.vertices[f.mesh.holes[k]], 2)
         assert np.array_equal(out[m], f.image[m])
@@ -106,11 +107,11 @@ def test_changes_stay_inside_the_bbox(sample_face):
 # ---------------------------------------------------------------------------- mouth
 def test_open_jaw_exposes_teeth_on_closed_mouths(jaffe_faces):
     for face in jaffe_faces[:2]:
-        closed = face.render_full({})
+        closed = face.render_full(face.expression)
         assert closed.mouth_mask is None
-        r = face.render_full({"open_jaw": 600})
-        inside = _mask(face.image.shape, face.deform({"open_jaw": 600})[
-            face.mesh.holes["mouth"]], -1)
+        faps = face.expression + face.fap_vector({"open_jaw": 600})
+        r = face.render_full(faps)
+        inside = _mask(face.image.shape, face.deform(faps)[face.mesh.holes["mouth"]], -1)
         lum = _lum(r.image)
         skin = _skin_lum(face)
         bright = inside & (lum > 0.55 * skin)
@@ -142,7 +143,7 @@ def test_upper_teeth_stay_with_the_skull(sample_face, jaffe_faces):
     thr = 0.6 * _skin_lum(f)
     e = []
     for jaw in (400, 900):
-        faps = {"open_jaw": jaw}
+        faps = f.expression + f.fap_vector({"open_jaw": jaw})  # the photo's smile, jaw opened
         rows, prof = _column_profile(f, f.render(faps), faps)
         e.append(_edge_from_top(rows, prof, thr))
     assert abs(e[1] - e[0]) < 0.6, e
@@ -151,14 +152,15 @@ def test_upper_teeth_stay_with_the_skull(sample_face, jaffe_faces):
     lip = {4: -600, 8: -500, 9: -500}
     thr = 0.45 * _skin_lum(face)
     e = []
-    for jaw in (400, 800):
+    for jaw in (700, 1000):  # the lower teeth and tongue well below the upper teeth
         faps = {"open_jaw": jaw, **lip}
         rows, prof = _column_profile(face, face.render(faps), faps)
         e.append(_edge_from_top(rows, prof, thr))
     assert abs(e[1] - e[0]) < 0.6, e
     mp = layer_plan(face).mouth
     y93 = face.vertices[face.fdp["9.3"], 1]
-    expected = y93 + 0.75 * mp.mouth_nose  # bottom of the upper teeth, eq. 7 + height D/2
+    # bottom of the upper teeth: just below the neutral lip line (mouth.UPPER_TIP)
+    expected = y93 + (1.0 + UPPER_TIP) * mp.mouth_nose
     assert abs(e[0] - expected) < 2.0, (e[0], expected)
 
 

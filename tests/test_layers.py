@@ -8,6 +8,7 @@ import pytest
 
 from editor.core import Face
 from editor.core.layers import layer_plan, layers_cost_ms
+from editor.core.mouth import UPPER_TIP
 
 LUM = np.array([0.299, 0.587, 0.114], np.float32)
 
@@ -73,30 +74,30 @@ def _edge_from_bottom(rows, prof, thr) -> float:
 
 
 # ---------------------------------------------------------------------------- neutrality
-def test_zero_faps_reproduce_the_photo(sample_neutral):
-    assert np.array_equal(sample_neutral.render({}), sample_neutral.image)
-    assert np.array_equal(sample_neutral.render(np.zeros(68, np.float32)), sample_neutral.image)
+def test_zero_faps_reproduce_the_photo(sample_face):
+    # the photo's own expression f0 reproduces it (zeros render the neutralised face)
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
 
 
-def test_unrelated_faps_leave_the_openings_alone(sample_neutral):
-    f = sample_neutral
+def test_unrelated_faps_leave_the_openings_alone(sample_face):
+    f = sample_face
     # brows only: the mouth interior (the photo's teeth) is not touched
-    out = f.render({31: 250, 32: 250, 33: 200, 34: 200})
+    out = f.render(f.expression + f.fap_vector({31: 250, 32: 250, 33: 200, 34: 200}))
     m = _mask(f.image.shape, f.vertices[f.mesh.holes["mouth"]], 2)
     assert np.array_equal(out[m], f.image[m])
     # jaw only: the eyes are not touched
-    out = f.render({"open_jaw": 600})
+    out = f.render(f.expression + f.fap_vector({"open_jaw": 600}))
     for k in ("eye_l", "eye_r"):
         m = _mask(f.image.shape, f.vertices[f.mesh.holes[k]], 2)
         assert np.array_equal(out[m], f.image[m])
 
 
-def test_changes_stay_inside_the_bbox(sample_neutral):
+def test_changes_stay_inside_the_bbox(sample_face):
     for faps in ({23: 30000, 24: 30000}, {29: 300}, {"open_jaw": 700, 25: -20000},
                  {"head_roll": 8000, 44: 400}):
-        r = sample_neutral.render_full(faps)
+        r = sample_face.render_full(faps)
         assert r.bbox is not None
-        diff = np.any(r.image != sample_neutral.image, axis=2)
+        diff = np.any(r.image != sample_face.image, axis=2)
         x0, y0, x1, y1 = r.bbox
         assert diff.any()
         diff[y0:y1, x0:x1] = False
@@ -106,11 +107,11 @@ def test_changes_stay_inside_the_bbox(sample_neutral):
 # ---------------------------------------------------------------------------- mouth
 def test_open_jaw_exposes_teeth_on_closed_mouths(jaffe_faces):
     for face in jaffe_faces[:2]:
-        closed = face.render_full({})
+        closed = face.render_full(face.expression)
         assert closed.mouth_mask is None
-        r = face.render_full({"open_jaw": 600})
-        inside = _mask(face.image.shape, face.deform({"open_jaw": 600})[
-            face.mesh.holes["mouth"]], -1)
+        faps = face.expression + face.fap_vector({"open_jaw": 600})
+        r = face.render_full(faps)
+        inside = _mask(face.image.shape, face.deform(faps)[face.mesh.holes["mouth"]], -1)
         lum = _lum(r.image)
         skin = _skin_lum(face)
         bright = inside & (lum > 0.55 * skin)
@@ -136,13 +137,13 @@ def test_lower_teeth_follow_the_jaw(jaffe_faces):
     assert abs((edges[1] - edges[0]) - (anchors[1] - anchors[0])) < 1.0, (edges, anchors)
 
 
-def test_upper_teeth_stay_with_the_skull(sample_neutral, jaffe_faces):
+def test_upper_teeth_stay_with_the_skull(sample_face, jaffe_faces):
     # the sample shows its own upper teeth: their lower edge does not move with the jaw
-    f = sample_neutral
+    f = sample_face
     thr = 0.6 * _skin_lum(f)
     e = []
     for jaw in (400, 900):
-        faps = {"open_jaw": jaw}
+        faps = f.expression + f.fap_vector({"open_jaw": jaw})  # the photo's smile, jaw opened
         rows, prof = _column_profile(f, f.render(faps), faps)
         e.append(_edge_from_top(rows, prof, thr))
     assert abs(e[1] - e[0]) < 0.6, e
@@ -151,14 +152,15 @@ def test_upper_teeth_stay_with_the_skull(sample_neutral, jaffe_faces):
     lip = {4: -600, 8: -500, 9: -500}
     thr = 0.45 * _skin_lum(face)
     e = []
-    for jaw in (400, 800):
+    for jaw in (700, 1000):  # the lower teeth and tongue well below the upper teeth
         faps = {"open_jaw": jaw, **lip}
         rows, prof = _column_profile(face, face.render(faps), faps)
         e.append(_edge_from_top(rows, prof, thr))
     assert abs(e[1] - e[0]) < 0.6, e
     mp = layer_plan(face).mouth
     y93 = face.vertices[face.fdp["9.3"], 1]
-    expected = y93 + 0.75 * mp.mouth_nose  # bottom of the upper teeth, eq. 7 + height D/2
+    # bottom of the upper teeth: just below the neutral lip line (mouth.UPPER_TIP)
+    expected = y93 + (1.0 + UPPER_TIP) * mp.mouth_nose
     assert abs(e[0] - expected) < 2.0, (e[0], expected)
 
 
@@ -236,9 +238,9 @@ def test_gaze_right_moves_the_round_iris(jaffe_faces):
         assert resid.mean() < 0.6, (name, resid)
 
 
-def test_closed_lids_hide_the_iris(sample_neutral, jaffe_faces):
+def test_closed_lids_hide_the_iris(sample_face, jaffe_faces):
     closed = {19: 1080, 20: 1080, 21: 600, 22: 600}
-    for face in (sample_neutral, jaffe_faces[1]):
+    for face in (sample_face, jaffe_faces[1]):
         a = face.render_full(closed)
         b = face.render_full({**closed, 23: 40000, 24: -40000, 25: 30000, 29: 300, 30: -300})
         # moving the irises behind closed lids changes nothing: no iris pixel shows
@@ -252,8 +254,8 @@ def test_closed_lids_hide_the_iris(sample_neutral, jaffe_faces):
                           - face.image[y - r:y + r + 1, x - r:x + r + 1]).mean() > 5
 
 
-def test_pupils_dilate_and_contract(sample_neutral):
-    f = sample_neutral
+def test_pupils_dilate_and_contract(sample_face):
+    f = sample_face
     yy, xx = np.mgrid[0:f.image.shape[0], 0:f.image.shape[1]]
     cores = [np.hypot(xx - i.cx, yy - i.cy) <= 0.6 * i.r
              for i in (f.landmarks.iris_left, f.landmarks.iris_right)]
@@ -267,13 +269,13 @@ def test_pupils_dilate_and_contract(sample_neutral):
     assert big < n - 8 and small > n + 2, (small, n, big)
 
 
-def test_layers_cost_reports(sample_neutral):
-    c = layers_cost_ms(sample_neutral, {"open_jaw": 500, 23: 20000}, n=3, warm=1)
+def test_layers_cost_reports(sample_face):
+    c = layers_cost_ms(sample_face, {"open_jaw": 500, 23: 20000}, n=3, warm=1)
     assert set(c) == {"without_ms", "with_ms", "layers_ms"}
     assert c["with_ms"] > 0 and c["without_ms"] > 0
 
 
 @pytest.mark.parametrize("value", [300, 1080])
-def test_open_jaw_renders_valid_images(sample_neutral, value):
-    img = sample_neutral.render({"open_jaw": value, 23: 20000, 25: -10000})
-    assert img.shape == sample_neutral.image.shape and img.dtype == np.uint8
+def test_open_jaw_renders_valid_images(sample_face, value):
+    img = sample_face.render({"open_jaw": value, 23: 20000, 25: -10000})
+    assert img.shape == sample_face.image.shape and img.dtype == np.uint8

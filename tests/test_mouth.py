@@ -46,14 +46,14 @@ def _hard_edge_fraction(face: Face, faps) -> float:
 
 @pytest.mark.parametrize("faps", [apply_preset("surprise", 1.0), apply_preset("fear", 1.5),
                                   {"open_jaw": 400}], ids=["surprise", "fear150", "jaw400"])
-def test_open_mouth_has_soft_shaded_edges(sample_neutral, faps):
+def test_open_mouth_has_soft_shaded_edges(sample_face, faps):
     # the cavity starts from the lips' darkened inner surface, not a flat dark polygon
     # (main before this change: 0.20, 0.13, 0.16)
-    assert _hard_edge_fraction(sample_neutral, faps) < 0.11
+    assert _hard_edge_fraction(sample_face, faps) < 0.11
 
 
-def test_closed_lips_show_no_teeth(sample_neutral):
-    f = sample_neutral
+def test_closed_lips_show_no_teeth(sample_face):
+    f = sample_face
     img, v = f.render(CLOSE), f.deform(CLOSE)
     up, lo = (v[[f.mesh.index(f"lipi_{s}{k}") for k in range(1, 8)]] for s in "ud")
     assert float(np.abs(lo[:, 1] - up[:, 1]).max()) < 1.5  # really closed
@@ -67,5 +67,101 @@ def test_closed_lips_show_no_teeth(sample_neutral):
     # and without a dark gap wider than a lip line
     assert np.median(L) > 0.6 * _skin(f)
 
-def test_zero_vector_reproduces_the_photo(sample_neutral):
-    assert np.array_equal(sample_neutral.render({}), sample_neutral.image)
+def test_own_expression_reproduces_the_photo(sample_face):
+    # the photo's own expression f0 renders the photo exactly (zeros: the neutralised face)
+    assert sample_face.has_expression
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
+
+
+# ---------------------------------------------------------------------------- second round
+def _band_under_upper_lip(face: Face, faps: np.ndarray, rows=(1, 3)):
+    """Luminance (relative to the skin) of the opening's rows 1-2 under the upper lip in the
+    middle columns (+-0.1 MW around 2.2), and its change when the jaw opens by 200 more."""
+    img = face.render(faps)
+    img2 = face.render(np.asarray(faps) + face.fap_vector({"open_jaw": 200}))
+    h = _opening(face, face.deform(faps), img.shape)
+    s = _skin(face)
+    xc, half = face.deform(faps)[face.fdp["2.2"], 0], 0.1 * face.fapu["MW"] * 1024
+    vals, diffs = [], []
+    for x in range(int(round(xc - half)), int(round(xc + half)) + 1):
+        r = np.flatnonzero(h[:, x])[rows[0]:rows[1]]
+        vals += list(_lum(img[r, x]) / s)
+        diffs += list(np.abs(_lum(img[r, x]) - _lum(img2[r, x])) / s)
+    return float(np.median(vals)), float(np.median(diffs))
+
+
+def _jaffe_smilers(jaffe_faces):
+    return [f for f in jaffe_faces if not f.has_expression][:3]
+
+
+def test_upper_teeth_show_in_a_smile(sample_face, jaffe_faces):
+    # closed-mouth faces: the drawn upper teeth fill the top of a smile's opening (main before:
+    # 0.74-0.78 of the skin there, the lower teeth's shadowed middle, moving with the jaw)
+    faces = _jaffe_smilers(jaffe_faces)
+    assert len(faces) >= 2
+    for f in faces + [sample_face]:
+        lum, _ = _band_under_upper_lip(f, apply_preset("joy", 1.0))
+        assert lum > 0.95, (f.source, lum)
+        # and they are the upper teeth: fixed to the skull while the jaw opens further
+        lum, moved = _band_under_upper_lip(f, apply_preset("joy", 1.5))
+        assert lum > 0.95 and moved < 0.1, (f.source, lum, moved)
+
+
+def test_drawn_teeth_take_the_photos_colour(sample_face, jaffe_faces):
+    from editor.core.layers import _photo_teeth, layer_plan
+
+    def hsv(rgb):
+        px = np.clip(np.asarray(rgb, np.float32).reshape(1, 1, 3), 0, 255).astype(np.uint8)
+        h, s, v = cv2.cvtColor(px, cv2.COLOR_RGB2HSV_FULL)[0, 0].astype(float)
+        return h * 360.0 / 256.0, s / 255.0, v
+
+    def drawn(face):
+        t = layer_plan(face).mouth.tex["upper_teeth"]
+        a = t[..., 3] > 0.95
+        return (t[..., :3][a] / t[..., 3:4][a]).mean(0)
+
+    f = sample_face
+    own = _photo_teeth(f.image, f.vertices[f.mesh.holes["mouth"]], _skin(f))
+    assert own is not None
+    (h0, s0, _), (h1, s1, _) = hsv(own), hsv(drawn(f))
+    assert min(abs(h0 - h1), 360 - abs(h0 - h1)) < 15.0 and abs(s0 - s1) < 0.08, (own, drawn(f))
+    for face in jaffe_faces[:2]:  # grey photos, grey teeth
+        assert hsv(drawn(face))[1] < 0.03
+
+
+def _dark_run(face: Face, faps) -> float:
+    """Median over the middle columns (+-0.15 MW) of the longest run of dark pixels
+    (< 0.25 of the skin) as a fraction of the opening's height in that column."""
+    img, v = face.render(faps), face.deform(faps)
+    L, s = _lum(img), _skin(face)
+    h = _opening(face, v, img.shape)
+    xc, half = v[face.fdp["2.2"], 0], 0.15 * face.fapu["MW"] * 1024
+    runs = []
+    for x in range(int(xc - half), int(xc + half) + 1):
+        rows = np.flatnonzero(h[:, x])
+        if len(rows) < 3:
+            continue
+        d = np.concatenate([[0], (L[rows, x] < 0.25 * s).astype(np.int8), [0]])
+        edges = np.flatnonzero(np.diff(d))
+        runs.append(float((edges[1::2] - edges[::2]).max(initial=0)) / len(rows))
+    return float(np.median(runs))
+
+
+def test_wide_open_mouth_is_not_a_dark_hole(jaffe_faces):
+    # surprise at 150 %: upper teeth under the lip, tongue over the lower teeth, the dark back
+    # of the mouth between them (main before: 0.34-0.54 of the opening's height dark)
+    for f in jaffe_faces[:3]:
+        r = _dark_run(f, apply_preset("surprise", 1.5))
+        assert r < 0.28, (f.source, r)
+
+
+@pytest.mark.parametrize("jaw", [80, 130])
+def test_thin_gap_shows_no_teeth(sample_face, jaw):
+    # the neutralised sample's lips part by ~1 px: a dark line, not the photo's teeth through
+    # it (main before: pixels up to 1.25-1.39 of the skin's luminance)
+    f = sample_face
+    img, v = f.render({"open_jaw": jaw}), f.deform({"open_jaw": jaw})
+    up, lo = (v[[f.mesh.index(f"lipi_{s}{k}") for k in range(1, 8)]] for s in "ud")
+    assert 0.3 < float((lo[:, 1] - up[:, 1]).max()) < 2.0  # really a thin gap
+    near = cv2.dilate(_opening(f, v, img.shape).astype(np.uint8), np.ones((3, 3), np.uint8))
+    assert _lum(img)[near.astype(bool)].max() < 1.15 * _skin(f)

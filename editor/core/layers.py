@@ -78,7 +78,8 @@ def layer_plan(face: Face) -> LayerPlan:
         skin_l = float(max(_lum(skin), 20.0))
         sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
         poly = v[mesh.holes["mouth"]]
-        mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l))
+        mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l),
+                                skin, face.neutral_vertices)
         lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
         mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
         p = LayerPlan(mouth, eyes)
@@ -241,7 +242,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         if kind == "mouth":
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
                                                _smoothstep(min(moved, 1.0)))
-            interior = lp.mouth.render(box, v, faps, tf, rim, depth)
+            interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -307,9 +308,10 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     """
     h, w = img.shape[:2]
     m, up_m = 3, int(np.ceil(0.6 * D)) + 3
-    x0 = int(max(0, np.floor(poly[:, 0].min()) - m))
+    side_m = m + int(np.ceil(0.3 * np.ptp(poly[:, 0])))  # room for the teeth continued sideways
+    x0 = int(max(0, np.floor(poly[:, 0].min()) - side_m))
     y0 = int(max(0, np.floor(poly[:, 1].min()) - up_m))
-    x1 = int(min(w, np.ceil(poly[:, 0].max()) + m + 1))
+    x1 = int(min(w, np.ceil(poly[:, 0].max()) + side_m + 1))
     y1 = int(min(h, np.ceil(poly[:, 1].max()) + m + 1))
     off = np.array([x0, y0], np.float64)
     patch = img[y0:y1, x0:x1].astype(np.float32)
@@ -317,7 +319,6 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     binary = _poly_mask((ph, pw), poly, off) > 0
     cov = _coverage(poly, (x0, y0, x1, y1), dilate=1)
     bright = binary & _bright(patch, skin_l)
-    order = np.argsort(lower_lip[:, 0])
     split = np.full(pw, np.nan)
     weight = np.zeros(pw)
     first = np.full(pw, -1)
@@ -337,11 +338,10 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
             e = f
             while e + 1 < len(b) and b[e + 1]:
                 e += 1
-            if top + e + 1 > bot:  # teeth down to the lower lip: split on the lip itself
-                split[j] = np.interp(x0 + j, lower_lip[order, 0], lower_lip[order, 1]) - y0 - 1
-            else:
-                split[j] = top + e + 0.5
-                gap[j] = True
+            # the skull part ends with the teeth (their tips), also where they reach the
+            # lower lip: the lip's darker inner edge rides with the jaw, not with the teeth
+            split[j] = top + e + 0.5
+            gap[j] = top + e + 1 <= bot
             if f <= 1:
                 first[j] = top + f
         else:
@@ -350,6 +350,10 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     kern = np.ones(5) / 5.0
     if len(ok):
         split = np.interp(np.arange(pw), ok, split[ok])
+        # a smooth edge along the teeth's tips (upper envelope over 3 columns, then a mean):
+        # a ragged per-column edge shows as dark specks once the jaw part moves away
+        env = np.pad(split, 1, mode="edge")
+        split = np.maximum(np.maximum(env[:-2], env[1:-1]), env[2:])
         split = np.convolve(np.pad(split, 2, mode="edge"), kern, mode="valid")
     else:
         split[:] = ph
@@ -380,17 +384,63 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     below = ys >= split[None, :]
     has_low = int((bright & below & gap[None, :]).sum()) >= 12
     if not has_low:
-        # no lower teeth: the teeth-like pixels under the split are the upper teeth's edge
-        # (they stay with the skull, not a bright sliver riding on the lower lip)
-        tip = bright & below
+        # no lower teeth: teeth-like pixels just under the split are the upper teeth's edge
+        # (they stay with the skull, not a bright sliver riding on the lower lip); further
+        # down they are the lower lip's highlights and ride with it
+        tip = bright & below & (ys < split[None, :] + 1.5)
         own_up[tip] = np.maximum(own_up[tip], (cov * weight[None, :])[tip])
         own_low[tip] = 0.0
+    if ext.sum() >= 3:
+        own_up, own_low, rgb_up, ext_mask = _extend_sideways(
+            own_up, own_low, rgb_up, ext_mask, split, np.flatnonzero(ext))
     own = np.dstack([own_up, own_low]).astype(np.float32)
     sliver = np.convolve(np.pad(sliver.astype(np.float64), 2, mode="edge"), kern, mode="valid")
     return (off, own, np.dstack([rgb_up, patch]).astype(np.float32), bool(ext.sum() >= 3),
             has_low, sliver.astype(np.float32), ext_mask)
 
 
+
+
+def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray,
+                     ext_mask: np.ndarray, split: np.ndarray, cols: np.ndarray):
+    """Continue the photo's upper teeth row sideways past its outermost teeth.
+
+    A wider smile than the photo's must not end the photo's teeth in a dark corner with drawn
+    teeth beside them: each column beyond the outermost teeth column (the photo's dark mouth
+    corner included) takes the column mirrored about it (the row's own texture: the next
+    teeth outwards look like the last ones), shifted vertically so that the tips follow the
+    line of the outer teeth's tips (the smile arc), slightly darker with each column (the
+    arch turns away from the light; the renderer darkens the corners further). The jaw part
+    in those columns is dropped (the lower teeth and cavity are drawn there).
+    """
+    ph, pw = own_up.shape
+    lo, hi = int(cols.min()), int(cols.max())
+    span = hi - lo + 1
+    if span < 4:
+        return own_up, own_low, rgb_up, ext_mask
+    k = max(2, span // 6)
+    # only teeth (rows above the split) are mirrored, with their upward continuation
+    ys = np.arange(ph, dtype=np.float64)[:, None]
+    teeth_a = own_up * np.clip(split[None, :] - ys + 1.0, 0.0, 1.0)
+    rows = np.arange(ph)[:, None]
+    for side in (-1, 1):
+        edge = lo if side < 0 else hi
+        tgt = np.arange(0, lo) if side < 0 else np.arange(hi + 1, pw)
+        if not len(tgt):
+            continue
+        d = np.abs(tgt - edge)
+        src = edge - side * (d % (span - 1))  # mirrored into the teeth row (repeating)
+        # per column outwards, at most a gentle rise (the last teeth's tips turn up steeply
+        # into the photo's raised corner; extrapolated, the row would leave the opening)
+        slope = float(np.clip((split[edge] - split[edge - side * k]) / k, -0.2, 0.2))
+        dy = np.round(split[edge] + slope * d - split[src]).astype(np.int64)
+        r = np.clip(rows - dy[None, :], 0, ph - 1)
+        dim = (1.0 - 0.35 * _smoothstep(d / max(0.5 * span, 1.0)))[None, :]
+        own_up[:, tgt] = teeth_a[r, src[None, :]]
+        own_low[:, tgt] = 0.0
+        rgb_up[:, tgt] = rgb_up[r, src[None, :]] * dim[..., None]
+        ext_mask[:, tgt] = 1.0
+    return own_up, own_low, rgb_up, ext_mask
 
 
 def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,

@@ -38,6 +38,13 @@ from .mesh import StandardMesh
 
 TEXTURES = Path(__file__).resolve().parents[2] / "resources" / "mouth"
 NAMES = ("upper_teeth", "lower_teeth", "tongue")
+#: upper incisors' edge below the neutral lip line, in units of D (mouth-nose distance)
+UPPER_TIP = 0.05
+#: lower incisors' edge above the neutral lip line (overbite), and the tongue's top above
+#: theirs, in units of D
+LOWER_OVERBITE, TONGUE_RISE = 0.05, 0.2
+#: teeth luminance relative to the lit skin, and how much of the skin's colour cast they take
+TEETH_L, TEETH_CAST = 0.92, 0.35
 #: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
 CAVITY_RGB = np.array([70, 26, 30], np.float32)
 _LUM = np.array([0.299, 0.587, 0.114], np.float32)
@@ -84,6 +91,32 @@ def _opaque_mean(rgba: np.ndarray, sat: float) -> np.ndarray:
     return (lum + sat * (c - lum)).mean(0)
 
 
+def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | None
+                 ) -> np.ndarray:
+    """Colour (3,) of lit teeth in this photo.
+
+    The photo's own teeth when it shows some (their saturation limited to the skin's and their
+    hue pulled towards it: a cast from the lips or a compression artefact must not turn the
+    drawn teeth green or blue); otherwise a light grey at ``TEETH_L`` of the skin's luminance
+    with ``TEETH_CAST`` of the skin's chroma (the photo's white balance and light colour).
+    """
+    if skin is None:
+        skin = np.full(3, skin_l, np.float64)
+    skin = np.asarray(skin, np.float64)
+    chroma = skin - float(_lum(skin))
+    if teeth is not None:
+        t = np.asarray(teeth, np.float64)
+        lt = float(_lum(t))
+        tc = t - lt
+        # keep the teeth's brightness; chroma: half their own, half the skin's cast
+        c = 0.5 * tc + 0.5 * TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0))
+        lim = float(np.abs(chroma).max()) * TEETH_CAST * 1.5 + 1e-6
+        c = c * min(1.0, lim / max(float(np.abs(c).max()), 1e-6))
+        return np.clip(lt + c, 0.0, 255.0)
+    lt = TEETH_L * skin_l
+    return np.clip(lt + TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0)), 0.0, 255.0)
+
+
 def _poly_mask(shape: tuple[int, int], poly: np.ndarray, off: np.ndarray) -> np.ndarray:
     m = np.zeros(shape, np.uint8)
     cv2.fillPoly(m, [np.round((poly - off) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
@@ -112,6 +145,8 @@ class MouthPlan:
     lip_pairs: np.ndarray  # (7, 2) inner upper / lower lip vertices
     gap0: np.ndarray  # (7,) their neutral gaps, px
     gum: np.ndarray  # (3,) tinted gum colour
+    tip_up: float = 0.0  # neutral px below y(9.3) of the upper incisors' edge (frame y)
+    low_off: float = 0.0  # lower incisors' edge minus the eq. 8 anchor, neutral px
     # the photo's own interior (attach_own)
     own_off: np.ndarray | None = None  # (2,) image position of own[0, 0]
     own: np.ndarray | None = None  # (h, w, 2) float32: photo interior following skull / jaw
@@ -131,19 +166,28 @@ class MouthPlan:
 
     @classmethod
     def build(cls, vertices: np.ndarray, mesh: StandardMesh, plan: DeformPlan, skin_l: float,
-              sat: float, teeth: np.ndarray | None) -> MouthPlan:
+              sat: float, teeth: np.ndarray | None, skin: np.ndarray | None = None,
+              neutral: np.ndarray | None = None) -> MouthPlan:
         """Sizes, anchors and tinted textures; the photo's own interior is added by
         :meth:`attach_own` (``layers.layer_plan`` analyses the photo).
 
-        ``skin_l``, ``sat``: luminance and relative saturation of the photo's skin;
-        ``teeth``: colour of the photo's own visible teeth, or None.
+        ``skin_l``, ``sat``: luminance and relative saturation of the photo's skin; ``skin``
+        its colour (the teeth take its colour cast); ``teeth``: colour of the photo's own
+        visible teeth, or None. ``neutral``: the neutral mesh (default ``vertices``): sizes and
+        the upper teeth's height come from it, the jaw anchor from the photo's mesh.
         """
         v = vertices.astype(np.float64)
+        vn = v if neutral is None else np.asarray(neutral, np.float64)
         ex, ey = plan.frame_rot[:, 0].copy(), plan.frame_rot[:, 1].copy()
         fdp = mesh.fdp
         i93, i21, i22, i23 = fdp["9.3"], fdp["2.1"], fdp["2.2"], fdp["2.3"]
-        yf = v @ ey
+        yf = vn @ ey
         D = max(0.5 * (yf[i22] + yf[i23]) - yf[i93], 4.0)
+        # the upper incisors' edge a little below the neutral lip line (the lower lip covers it
+        # at rest; a smile's raised upper lip uncovers it), not 0.25 D above it (eq. 7 put the
+        # teeth's top edge at 0.25 D, their tips then hid behind the upper lip in every smile)
+        tip_up = D + UPPER_TIP * D
+        low_off = D * (1.0 - LOWER_OVERBITE) - (0.25 * yf[i21] + 0.75 * yf[i23] - yf[i93])
         mw = max(plan.fapu["MW"] * 1024.0, 4.0)
         hole = np.asarray(mesh.holes["mouth"])
         # ---- textures, tinted and scaled to the face
@@ -156,13 +200,10 @@ class MouthPlan:
         th, tw = raw["tongue"].shape[:2]
         size["tongue"] = (mw, mw * th / tw)
         ivory = _opaque_mean(raw["upper_teeth"], sat)
-        if teeth is not None:
-            target = teeth.astype(np.float64)
-        else:  # teeth in an open mouth: a little darker than the lit skin
-            target = ivory * (0.9 * skin_l / float(_lum(ivory)))
+        target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
         tongue_mean = _opaque_mean(raw["tongue"], sat)
-        gain_g = np.full(3, 0.7 * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
+        gain_g = np.full(3, 0.8 * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
         tex = {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0), ("lower_teeth", gain_t, 0.8),
                                   ("tongue", gain_g, 1.0)):
@@ -189,17 +230,19 @@ class MouthPlan:
                    mouth_nose=float(D), mw=float(mw), tex=tex, size=size, anchor0=anchor0,
                    cavity=cavity.astype(np.float32), tongue_basis=tongue_basis,
                    tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs, gap0=gap0,
-                   gum=gum_rgb.astype(np.float32))
+                   gum=gum_rgb.astype(np.float32), tip_up=float(tip_up), low_off=float(low_off))
 
     # ------------------------------------------------------------------ per frame
     def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
                skull: np.ndarray, rim: np.ndarray | None = None,
-               depth: np.ndarray | None = None) -> np.ndarray:
+               depth: np.ndarray | None = None, alpha: np.ndarray | None = None
+               ) -> np.ndarray:
         """Colours (h, w, 3) float32 of the mouth interior over ``box`` of the output.
 
         ``rim`` (h, w, 3): colour of the nearest lip pixel, ``depth`` (h, w): distance (px) to
         the lips (``layers._mouth_rim``); with them the cavity is shaded from the lips' inner
-        surface (their colour, darkened) into a dark back over a depth of ~0.1 D.
+        surface (their colour, darkened) into a dark back over a depth of ~0.1 D. ``alpha``
+        (h, w): the opening's coverage; where it is a thin gap the interior stays in shadow.
         """
         x0, y0, x1, y1 = box
         S = np.asarray(skull, np.float64)
@@ -231,8 +274,8 @@ class MouthPlan:
         hh = max(0.5 * float(np.ptp(hole[:, 1])), 1.0)
         cym = 0.5 * (hole[:, 1].min() + hole[:, 1].max())
         side = np.clip(np.abs(Qx - cxm) / hw, 0.0, 1.0)
-        shade = (1.0 - 0.5 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
-        shade = (shade * (1.0 - 0.45 * side * side)).astype(np.float32)[..., None]
+        shade = (1.0 - 0.3 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
+        shade = (shade * (1.0 - 0.35 * side * side)).astype(np.float32)[..., None]
         if rim is None or depth is None:
             rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
             # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
@@ -248,18 +291,24 @@ class MouthPlan:
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
             # reads as a dark edge, not as a bright sliver
             g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
-            shade = shade * (1.0 - 0.45 * g1)[..., None]
+            shade = shade * (1.0 - 0.3 * g1)[..., None]
+        cav = out
         # lower teeth and tongue (jaw), upper teeth (skull)
         y_lb = 0.25 * q21[1] + 0.75 * q23[1]
         wl, hl = (s * sc for s in self.size["lower_teeth"])
         wu, hu = (s * sc for s in self.size["upper_teeth"])
         wt, ht = (s * sc for s in self.size["tongue"])
-        top_l = y_lb - hl
+        # eq. 8's anchor moves the lower teeth with the jaw; at rest their tips sit just above
+        # the lip line behind the upper teeth (eq. 8's own rest height varies with the chin:
+        # 0.2 D above the lip line on JAFFE faces, below the lower lip on the sample)
+        top_l = y_lb + self.low_off * sc
+        # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
+        top_t = top_l - TONGUE_RISE * D
         tq_x, tq_y = Qx, Qy
         dlt = self._tongue_shift(faps, ex, ey)
         if dlt is not None:
-            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_l, wt, ht)
-        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_l, wt, ht, shade)
+            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
+        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
         if not self.photo_lower:
             out = self._over(out, "lower_teeth", Qx, Qy, q21[0] - 0.5 * wl, top_l, wl, hl,
                              shade)
@@ -270,8 +319,9 @@ class MouthPlan:
         anchor = O + q21[0] * ex + y_lb * ey
         tj = anchor - (L @ self.anchor0 + S[:, 2])
         tjs = Si[:, :2] @ tj
-        if not self.photo_upper:
-            out = self._over(out, "upper_teeth", Qx, Qy, -0.5 * wu, 0.25 * D, wu, hu, shade)
+        if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
+            out = self._over(out, "upper_teeth", Qx, Qy, -0.5 * wu, self.tip_up * sc - hu, wu,
+                             hu, shade, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
         gap = (v[self.lip_pairs[:, 1]] - v[self.lip_pairs[:, 0]]).astype(np.float64) @ ey
@@ -283,22 +333,25 @@ class MouthPlan:
                           (sy - self.own_off[1]).astype(np.float32), cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)[..., None]
             p_up = p_up * (1.0 - e * (1.0 - shade))
-        if a_up is None and a_lo is None:
-            return out
-        rest = np.ones_like(out[..., :1])
-        if a_up is not None:
-            out = out * (1.0 - a_up) + p_up * a_up
-            rest = 1.0 - a_up
-        if a_lo is not None:
-            a_lo = np.minimum(a_lo, rest)
-            out = out + (p_lo - out) * (a_lo / np.maximum(rest, 1e-6))
+        if a_up is not None or a_lo is not None:
+            rest = np.ones_like(out[..., :1])
+            if a_up is not None:
+                out = out * (1.0 - a_up) + p_up * a_up
+                rest = 1.0 - a_up
+            if a_lo is not None:
+                a_lo = np.minimum(a_lo, rest)
+                out = out + (p_lo - out) * (a_lo / np.maximum(rest, 1e-6))
+        if alpha is not None:
+            out = _thin_gap(out, cav, alpha, D)
         return out
 
-    def _over(self, out, name, qx, qy, left, top, ww, hh, shade):
+    def _over(self, out, name, qx, qy, left, top, ww, hh, shade, gum=False):
         t = self.tex[name]
         th, tw = t.shape[:2]
         mx = ((qx - left) * (tw / ww) - 0.5).astype(np.float32)
         my = ((qy - top) * (th / hh) - 0.5).astype(np.float32)
+        if gum:
+            my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=(0, 0, 0, 0))
         return s[..., :3] * shade + (1.0 - s[..., 3:4]) * out
@@ -348,6 +401,23 @@ class MouthPlan:
             den += phi
         den = np.maximum(den, 1e-12)
         return Qx - num_x / den, Qy - num_y / den
+
+
+def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> np.ndarray:
+    """Teeth and tongue fade into the lips' shadow where the opening is a thin gap.
+
+    Light barely enters a slit of a pixel or two: whatever lies behind it (the photo's teeth,
+    the drawn ones) reads as a dark line, not as a run of bright teeth. The local height of
+    the opening is its coverage summed over a short vertical window (3 columns averaged):
+    up to ``lo`` = max(1 px, 0.05 D) nothing but the shadow shows, from ``lo`` + max(1.5
+    px, 0.08 D) everything.
+    """
+    lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
+    k = 2 * int(np.ceil(lo + ramp)) + 3
+    h = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
+                      borderType=cv2.BORDER_CONSTANT) / np.float32(3.0)
+    vis = _smoothstep((h - lo) / ramp).astype(np.float32)[..., None]
+    return cav + vis * (out - cav)
 
 
 def _smoothstep(t: np.ndarray | float) -> np.ndarray:

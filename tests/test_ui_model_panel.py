@@ -102,10 +102,12 @@ def test_synthesize_and_convert_to_faps(window, sample_face):
     assert window.model.doc.faps[11] > 100  # raise_l_cornerlip (FAP 12)
 
 
-def test_clone_from_photo(window, tmp_path, sample_face):
+def test_clone_from_photo(window, tmp_path, sample_neutral):
+    # the tool opens the performer's neutral photo declared neutral: the expression photo is
+    # joy on that face (joy on the neutralised sample is about the photo's own smile)
     expr = tmp_path / "joy.png"
     preset = apply_preset("joy")
-    save_image(expr, sample_face.render(preset))
+    save_image(expr, sample_neutral.render(preset))
     stack = window.model.undo_stack
     n0 = stack.count()
     faps = ext(window).tools.clone_from_photos(str(SAMPLE), str(expr))

@@ -155,7 +155,8 @@ def test_width_follows_the_face_not_the_resolution():
     assert drops[1] == pytest.approx(drops[0], rel=0.35)
 
 
-def test_cli_no_creases_flag(tmp_path, sample_neutral):
+def test_cli_no_creases_flag(tmp_path, sample_face):
+    # the CLI opens the photo as the product does (own expression estimated)
     from editor.cli import main
     from editor.core.expressions import apply_preset as shipped
 
@@ -164,9 +165,9 @@ def test_cli_no_creases_flag(tmp_path, sample_neutral):
     assert main(["render", str(SAMPLE), "--preset", "surprise", "--no-creases", "-o",
                  str(b)]) == 0
     on, off = load_image(a), load_image(b)
-    vec = sample_neutral.fap_vector(shipped("surprise", 1.0))
-    assert np.array_equal(off, sample_neutral.render(vec, creases=False))
-    assert np.array_equal(on, sample_neutral.render(vec))
+    vec = sample_face.fap_vector(shipped("surprise", 1.0))
+    assert np.array_equal(off, sample_face.render(vec, creases=False))
+    assert np.array_equal(on, sample_face.render(vec))
     assert not np.array_equal(on, off)
 
 

@@ -171,6 +171,8 @@ def sample_face_3x(sample_neutral):
 
 
 def test_closed_loop_detector_sees_the_motion(sample_face_3x):
+    import cv2
+
     # dlib returns integer pixels: at the sample's 43 px inter-ocular distance 3 % is 1.3 px,
     # so the loop runs on the sample upscaled 3x (130 px between the eyes).
     f = sample_face_3x
@@ -185,10 +187,23 @@ def test_closed_loop_detector_sees_the_motion(sample_face_3x):
     # The lower lip is left out: this photo's mouth is open, its own lower teeth stay in place
     # until the layered mouth interior (teeth follow the jaw) exists, and the detector then
     # mistakes the static teeth edge for the lip. Measured on chin, mouth corners and brows.
+    # dlib's brow points move with unrelated regions of the render (landmark 24 on this render:
+    # 2.3 % IOD off with the tears branch alone, 5.9 % once the new mouth is merged, 3.3 % with
+    # creases) while the brow's pixels move exactly with the mesh (checked below by template
+    # matching), so the brows get 4.5 % and the pixel check; chin and corners keep 3 %.
     pairs = {8: "contour_16", 48: "lipo_c0", 54: "lipo_c1", 19: "brow_r_u3", 24: "brow_l_u3"}
+    g0, g1 = (cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in (f.image, out))
     for i, name in pairs.items():
         k = f.mesh.index(name)
         mesh_motion = v1[k] - f.vertices[k]
         seen = lm1[i] - lm0[i]
+        tol = 0.045 if name.startswith("brow") else 0.03
         assert np.linalg.norm(mesh_motion) > 0.02 * iod, name  # it really moved
-        assert np.linalg.norm(seen - mesh_motion) < 0.03 * iod, (name, seen, mesh_motion)
+        assert np.linalg.norm(seen - mesh_motion) < tol * iod, (name, seen, mesh_motion)
+        if name.startswith("brow"):  # the brow's own pixels: a patch found where the mesh says
+            x, y = np.round(f.vertices[k]).astype(int)
+            r = cv2.matchTemplate(g1[y - 48:y + 18, x - 20:x + 20], g0[y - 8:y + 8, x - 10:x + 10],
+                                  cv2.TM_CCOEFF_NORMED)
+            _, score, _, loc = cv2.minMaxLoc(r)
+            dy = loc[1] - 40.0  # vertical only: along the brow's hair x is ill-posed
+            assert score > 0.9 and abs(dy - mesh_motion[1]) < 0.015 * iod, (name, dy, mesh_motion)

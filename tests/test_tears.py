@@ -102,15 +102,19 @@ def test_equal_brow_faps_move_the_brow_rigidly(faces, value):
 
 
 def test_surprise_keeps_a_smooth_arch(faces):
-    """At 150 % surprise the brow's upper edge bends no more than its three FAP values ask."""
+    """At 150 % surprise the brow's upper edge bends no more than its three FAP values ask:
+    the slope change inner->middle vs middle->outer (3 steps each along the upper edge) plus
+    3 % of the motion; a tent or spike from the band would exceed it."""
     p = ROOT / "presets" / "surprise.json"
     v = _preset(p, 1.5)
     for face in faces:
         d = face.deform(v) - face.vertices
         for s in "lr":
+            i, m, o = (float(v[FAPS.number(f"raise_{s}_{k}_eyebrow") - 1]) for k in "imo")
+            ask = face.fapu["ENS"] * (abs(o - m) + abs(m - i)) / 3
             dd = d[_chain(face, s)[0]]
             d2 = np.abs(dd[:-2] - 2 * dd[1:-1] + dd[2:]).max()
-            assert d2 <= 0.14 * np.abs(dd).max(), (face.source, s, d2)
+            assert d2 <= ask + 0.03 * np.abs(dd).max(), (face.source, s, d2, ask)
 
 
 def _outline(face: Face) -> np.ndarray:

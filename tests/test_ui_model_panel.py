@@ -103,6 +103,8 @@ def test_synthesize_and_convert_to_faps(window, sample_neutral):
 
 
 def test_clone_from_photo(window, tmp_path, sample_neutral, boxes):
+    # the tool opens the performer's neutral photo declared neutral: the expression photo is
+    # joy on that face (joy on the neutralised sample is about the photo's own smile)
     expr = tmp_path / "joy.png"
     preset = apply_preset("joy")
     save_image(expr, sample_neutral.render(preset))

@@ -192,14 +192,15 @@ _DEFORMERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def face_deformer(face, mu: float = MU) -> LaplacianDeformer:
     """The (cached) Laplacian deformer of a Face: landmark constraints, border ring fixed.
 
-    It deforms the face's *neutral* mesh (the photo's own expression removed); the landmarks
-    are tied to it by their barycentric coordinates on the photo's mesh.
+    It deforms the face's *neutral* mesh as rendered (``face.deform(None)``: the photo's own
+    expression removed, including the small offset that makes f0 reproduce the photo exactly);
+    the landmarks are tied to it by their barycentric coordinates on the photo's mesh.
     """
     key = (float(mu),)
     cache = _DEFORMERS.setdefault(face, {})
     if key not in cache:
         S = landmark_map(face.vertices, face.triangles, face.mesh.names, face.landmarks.points)
-        cache[key] = LaplacianDeformer(face.neutral_vertices, face.triangles, S,
+        cache[key] = LaplacianDeformer(face.deform(None), face.triangles, S,
                                        face.mesh.regions == "border", mu, CONSTRAINT_WEIGHTS)
     return cache[key]
 
@@ -272,7 +273,7 @@ def key_models(source_face, key_points: dict[str, np.ndarray], target_face,
             tgt.append(deformer.solve(deformer.rest_targets
                                       + transfer_motion(source_face, d, target_face)))
     return KeyModels(names, np.array(src), np.array(tgt),
-                     target_face.neutral_vertices.astype(np.float64))
+                     target_face.deform(None).astype(np.float64))
 
 
 # ---------------------------------------------------------------------------- clone

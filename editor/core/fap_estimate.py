@@ -169,11 +169,31 @@ class FapEstimator:
         f = np.asarray(faps, np.float64)
         return (self._effective_jacobian(f) @ f).reshape(68, 2)
 
-    def estimate(self, expr68: np.ndarray, neutral68: np.ndarray | None = None) -> Estimate:
-        """Estimate the FAPs of one expression (68 landmarks in the performer's photo)."""
+    def estimate(self, expr68: np.ndarray, neutral68: np.ndarray | None = None,
+                 rounds: int = 3) -> Estimate:
+        """Estimate the FAPs of one expression (68 landmarks in the performer's photo).
+
+        The head alignment's reference points are not perfectly still under every FAP (the
+        brows' band reaches the nose bridge, lift_cheek the outer eye corners): after each solve
+        the alignment is redone against the neutral plus the motion the model predicts at those
+        points (``rounds`` alignments in all), so the estimate is exact on the model's own
+        motion.
+        """
         neutral = self.neutral if neutral68 is None else np.asarray(neutral68, np.float64)
-        aligned, M = remove_head_motion(neutral, np.asarray(expr68, np.float64))
-        d = (aligned - neutral).ravel()
+        expr = np.asarray(expr68, np.float64)
+        f = np.zeros(68)
+        for _ in range(max(1, rounds)):
+            ref = neutral + self.predict(f) if f.any() else neutral
+            M = similarity(expr[STABLE_POINTS], ref[STABLE_POINTS], STABLE_WEIGHTS)
+            d = (apply_affine(M, expr) - neutral).ravel()
+            f = self._solve(d)
+        res = self.predict(f).ravel() - d
+        return Estimate(f.astype(np.float32), float(np.sqrt(np.mean(res ** 2))), M,
+                        d.reshape(68, 2))
+
+    def _solve(self, d: np.ndarray) -> np.ndarray:
+        """Bounded least squares for a head-free landmark motion ``d`` (136,), re-solved at the
+        lip-pair pattern of the previous solution; the (68,) vector of least cost."""
         n_prior = len(self._priors)
         b = np.concatenate([self.w * d, np.zeros(n_prior)])
         f = np.zeros(68)
@@ -194,10 +214,8 @@ class FapEstimator:
             if new == pattern:
                 break
             pattern = new
-        f = best[1]
-        res = self.predict(f).ravel() - d
-        return Estimate(f.astype(np.float32), float(np.sqrt(np.mean(res ** 2))), M,
-                        d.reshape(68, 2))
+        assert best is not None
+        return best[1]
 
 
 def estimate_faps(neutral_points68: np.ndarray, expr_points68: np.ndarray, face, *,

@@ -23,7 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from .creases import apply_creases
-from .deform import EXTRA_POINTS, DeformPlan, build_plan, deform_points, eye_state
+from .deform import (
+    EXTRA_POINTS,
+    DeformPlan,
+    _pair_rule,
+    build_plan,
+    deform_points,
+    eye_state,
+    guard,
+)
 from .errors import NoFaceError
 from .faps import FAPS
 from .fapu import measure_fapu
@@ -203,7 +211,20 @@ class Face:
 
     def _deform(self, vec: np.ndarray) -> np.ndarray:
         pts = deform_points(self.plan, vec)
-        return pts if self._offset is None else pts + self._offset
+        if self._offset is None:
+            return pts
+        # the offset that makes f0 land on the photo's mesh is added before the last crossing
+        # rule and fold guard, so lips/lids never cross and no triangle folds for any vector
+        # (at f0 both leave the photo's own mesh unchanged)
+        pos = (pts + self._offset).astype(np.float64)[None]
+        _pair_rule(self.plan, pos)
+        V = self.plan.n_vertices
+        n0 = self.plan.neutral64[None, :V]
+        D = pos[:, :V] - n0
+        Dg = guard(self.plan, D)
+        if Dg is not D:
+            pos[:, :V] = n0 + Dg
+        return pos[0].astype(np.float32)
 
     @cached_property
     def warp_plan(self) -> WarpPlan:

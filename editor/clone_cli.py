@@ -184,18 +184,6 @@ def roundtrip_table(face, vectors: np.ndarray) -> tuple[str, np.ndarray]:
     return "\n".join(lines), err
 
 
-def _jaffe_files(images: Path) -> dict[str, dict[str, list[Path]]]:
-    out: dict[str, dict[str, list[Path]]] = {}
-    for p in sorted(images.glob("*.tiff")):
-        parts = p.name.split(".")
-        if len(parts) >= 3 and len(parts[1]) >= 3:
-            out.setdefault(parts[0], {}).setdefault(parts[1][:2], []).append(p)
-    for d in out.values():
-        for k in d:
-            d[k].sort(key=lambda q: (q.name.split(".")[1], q.name))
-    return out
-
-
 def jaffe_evaluation(images: Path, persons: list[str] | None = None,
                      renders: Path | None = None, progress=None) -> str:
     """Clone every person's expressions (instances >= 2; instance 1 of each emotion are the key
@@ -209,11 +197,12 @@ def jaffe_evaluation(images: Path, persons: list[str] | None = None,
         key_models,
         transfer_motion,
     )
+    from .core.closed_loop import jaffe_files
     from .core.errors import NoFaceError
     from .core.fap_estimate import FapEstimator, remove_head_motion
     from .core.landmarks import detect_landmarks
 
-    files = _jaffe_files(images)
+    files = jaffe_files(images)
     people = [p for p in (persons or sorted(files)) if "NE" in files.get(p, {})]
     if not people:
         raise FapStudioError(f"{images}: no JAFFE neutral images found")

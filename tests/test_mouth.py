@@ -52,9 +52,6 @@ def test_open_mouth_has_soft_shaded_edges(sample_face, faps):
     assert _hard_edge_fraction(sample_face, faps) < 0.11
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "open: after the final merge the closed lips' brightest lip-line pixel is 1.083 x skin "
-    "(bound 1.08)"))
 def test_closed_lips_show_no_teeth(sample_face):
     f = sample_face
     img, v = f.render(CLOSE), f.deform(CLOSE)

@@ -362,13 +362,34 @@ def limit_squeeze(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
     return f
 
 
-def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
+def _linear(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
+    """(B, N, 2) positions of the linear FAPs (lip-pair corrected), before the crossing rule,
+    the nonlinear FAPs and the guard; ``f`` (B, 68) after the gaze-lid and squeeze rules."""
+    lin = f @ plan.basis_flat
+    va, vb = f[:, LIP_PAIRS[:, 0]], f[:, LIP_PAIRS[:, 1]]
+    common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
+    if common.any():
+        lin -= common @ plan.pair_basis
+    return plan.neutral64[None] + lin.reshape(f.shape[0], -1, 2)
+
+
+def linear_positions(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
+    """(N, 2) positions of one FAP vector before the crossing rule and the guard."""
+    f = np.atleast_2d(np.asarray(faps, np.float64))
+    return _linear(plan, limit_squeeze(plan, _gaze_lids(plan, f)))[0]
+
+
+def deform_points(plan: DeformPlan, faps: np.ndarray,
+                  offset: np.ndarray | None = None) -> np.ndarray:
     """Deformed positions of all points (mesh vertices + extra feature points).
 
     Parameters
     ----------
     faps : (68,) or (B, 68) array
         FAP values in FAPU, already clamped to the table ranges.
+    offset : (N, 2) array, optional
+        A constant displacement added before the crossing rule and the guard (a neutralised
+        face's offset, see :class:`~editor.core.face.Face`).
 
     Returns
     -------
@@ -377,17 +398,11 @@ def deform_points(plan: DeformPlan, faps: np.ndarray) -> np.ndarray:
     f = np.asarray(faps, np.float64)
     single = f.ndim == 1
     f = np.atleast_2d(f)
-    f = _gaze_lids(plan, f)
-    B = f.shape[0]
-    f = limit_squeeze(plan, f)
+    f = limit_squeeze(plan, _gaze_lids(plan, f))
     n0 = plan.neutral64
-    lin = f @ plan.basis_flat
-    va, vb = f[:, LIP_PAIRS[:, 0]], f[:, LIP_PAIRS[:, 1]]
-    common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
-    if common.any():
-        lin -= common @ plan.pair_basis
-    lin = lin.reshape(B, -1, 2)  # (B, N, 2)
-    pos = n0[None] + lin
+    pos = _linear(plan, f)
+    if offset is not None:
+        pos += offset
     _pair_rule(plan, pos)
     if f[:, _NONLINEAR_IDX].any():
         pos = _nonlinear(plan, f, pos)

@@ -26,11 +26,10 @@ from .creases import apply_creases
 from .deform import (
     EXTRA_POINTS,
     DeformPlan,
-    _pair_rule,
     build_plan,
     deform_points,
     eye_state,
-    guard,
+    linear_positions,
 )
 from .errors import NoFaceError
 from .faps import FAPS
@@ -130,8 +129,8 @@ class Face:
             mean = 0.5 * (N[u[cross]] + N[lo[cross]])
             N[u[cross]] = N[lo[cross]] = mean
             fapu, plan = self._build(N[:V].astype(np.float32))
-        offset = target - deform_points(plan, f0).astype(np.float64)
-        return plan.neutral[:V].copy(), fapu, plan, offset.astype(np.float32)
+        offset = target - linear_positions(plan, f0)
+        return plan.neutral[:V].copy(), fapu, plan, offset
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -210,21 +209,9 @@ class Face:
         return bool(self.expression.any())
 
     def _deform(self, vec: np.ndarray) -> np.ndarray:
-        pts = deform_points(self.plan, vec)
-        if self._offset is None:
-            return pts
-        # the offset that makes f0 land on the photo's mesh is added before the last crossing
-        # rule and fold guard, so lips/lids never cross and no triangle folds for any vector
-        # (at f0 both leave the photo's own mesh unchanged)
-        pos = (pts + self._offset).astype(np.float64)[None]
-        _pair_rule(self.plan, pos)
-        V = self.plan.n_vertices
-        n0 = self.plan.neutral64[None, :V]
-        D = pos[:, :V] - n0
-        Dg = guard(self.plan, D)
-        if Dg is not D:
-            pos[:, :V] = n0 + Dg
-        return pos[0].astype(np.float32)
+        # the offset enters before the crossing rule and the fold guard, so lips/lids never
+        # cross and no triangle folds for any vector (at f0 both leave the photo's mesh as is)
+        return deform_points(self.plan, vec, self._offset)
 
     @cached_property
     def warp_plan(self) -> WarpPlan:

@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .closed_loop import JAFFE_EMOTIONS
 from .faps import FAPS
 from .landmarks import FDP_FROM_68, Iris, Landmarks
 
-CODES = {"HA": "joy", "SA": "sadness", "SU": "surprise", "AN": "anger", "FE": "fear",
-         "DI": "disgust"}
+CODES = JAFFE_EMOTIONS  # JAFFE expression code -> emotion
 #: Feature point -> iBUG-68 indices: :data:`.landmarks.FDP_FROM_68` plus the lip mid-points
 #: (the landmarks nearest to the mesh's FDP vertices; face's own left = image right).
 FDP_68 = {**FDP_FROM_68, "2.6": (63,), "2.7": (61,), "2.8": (65,), "2.9": (67,),

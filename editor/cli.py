@@ -164,7 +164,8 @@ def cmd_gui(a: argparse.Namespace) -> int:
     vec = _requested_vector(a)
     named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
     return run(photo=a.photo, faps=named, screenshot=a.screenshot,
-               project=getattr(a, "project", None))
+               project=getattr(a, "project", None), photo_neutral=a.photo_is_neutral,
+               keep_expression=a.keep_expression)
 
 
 def _write_json(path: str, data: dict) -> None:
@@ -225,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--preset", action="append", metavar="NAME[:INTENSITY]")
     s.add_argument("--project", help="open a project file")
     s.add_argument("--screenshot", help="save a screenshot of the window and exit")
+    _expression_options(s)
     s.set_defaults(func=cmd_gui)
 
     for mod, fn in (("anim_cli", "add_anim_parser"), ("clone_cli", "add_clone_parser"),

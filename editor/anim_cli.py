@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 
+from .cli_util import PHOTO_HELP, photo_arg
 from .core.errors import FapStudioError
 
 
@@ -100,7 +101,7 @@ def cmd_fap_info(a: argparse.Namespace) -> int:
 
 def add_anim_parser(sub) -> None:
     s = sub.add_parser("animate", help="render a .fap sequence on a photo to MP4 or PNG frames")
-    s.add_argument("photo")
+    s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
     s.add_argument("fap_file")
     s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -22,7 +22,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+from .resources import SAMPLE_FACE
+
+SAMPLE = SAMPLE_FACE
 
 EXPRESSION = {"open_jaw": 500, "raise_l_cornerlip_o": 250, "raise_r_cornerlip_o": 250,
               "raise_l_cornerlip": 250, "raise_r_cornerlip": 250, 31: 200, 32: 200, 33: 200,

@@ -6,7 +6,8 @@
 * ``fap-studio track VIDEO -o anim.fap [--smoothing savgol:5] [--fps F]`` - a .fap sequence
   from a performer video (first frame with a face = neutral), progress bar on stderr.
 * ``fap-studio clone-eval [--jaffe DIR]`` - the evaluation of issue 10 (FAP-recovery round trip
-  and the JAFFE cloning comparison), as Markdown tables on stdout.
+  and the JAFFE cloning comparison), as Markdown tables on stdout; the JAFFE folder comes from
+  ``--jaffe`` or ``$FAP_STUDIO_JAFFE`` (research-only data, never shipped).
 """
 
 from __future__ import annotations
@@ -22,9 +23,9 @@ import numpy as np
 
 from .cli_util import guarded
 from .core.errors import FapStudioError
+from .resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
-JAFFE = Path(__file__).resolve().parents[2] / "shared" / "data" / "jaffe"
+SAMPLE = SAMPLE_FACE
 JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "FE": "fear",
                "DI": "disgust"}
 
@@ -336,10 +337,15 @@ def cmd_clone_eval(a: argparse.Namespace) -> int:
               f" inter-ocular {face.interocular:.0f} px); vectors: {', '.join(names)} "
               f"(observable FAPs only):\n")
         print(table)
-    images = Path(a.jaffe) / "images"
     if not a.skip_jaffe:
+        root = jaffe_dir(a.jaffe)
+        if root is None:
+            raise FapStudioError(f"no JAFFE folder given: use --jaffe DIR or set {JAFFE_ENV} "
+                                 "(the data set is not shipped), or --skip-jaffe")
+        images = root / "images"
         if not images.is_dir():
-            raise FapStudioError(f"{images}: JAFFE images not found (use --jaffe DIR)")
+            raise FapStudioError(f"{images}: JAFFE images not found (--jaffe DIR must hold "
+                                 "images/*.tiff)")
         bar = _Bar("clone-eval", a.quiet)
         try:
             print(jaffe_evaluation(images, a.persons.split(",") if a.persons else None,
@@ -377,7 +383,9 @@ def add_clone_parser(sub) -> None:
     t.set_defaults(func=guarded(cmd_track))
 
     e = sub.add_parser("clone-eval", help="evaluate FAP recovery and cloning (JAFFE)")
-    e.add_argument("--jaffe", default=str(JAFFE), help="JAFFE folder (with images/)")
+    e.add_argument("--jaffe", metavar="DIR",
+                   help=f"JAFFE folder with images/ (default: ${JAFFE_ENV}; required unless "
+                   "--skip-jaffe)")
     e.add_argument("--persons", help="comma-separated JAFFE person codes (default all)")
     e.add_argument("--renders", help="folder for contact sheets of the results")
     e.add_argument("--roundtrip-photo", default=str(SAMPLE))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from editor.cli_util import guarded
+from editor.cli_util import guarded, photo_arg
 from editor.core.errors import ImageError, StudyError
 from editor.core.mos import StimulusSpec, Study
 
@@ -232,7 +232,7 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
         "create", help="create a study: render faces x presets x intensities (default: the "
         "paper's five expressions), or from a folder of images + labels CSV")
     create.add_argument("study", type=Path, help="new study database (must not exist)")
-    create.add_argument("--faces", nargs="+", metavar="PHOTO",
+    create.add_argument("--faces", nargs="+", metavar="PHOTO", type=photo_arg,
                         help="neutral face photos to render the stimuli from")
     create.add_argument("--presets", default=",".join(PAPER_EXPRESSIONS),
                         help="comma-separated presets (default: %(default)s)")

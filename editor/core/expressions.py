@@ -1,6 +1,6 @@
 """Emotion and viseme presets (FAP 2 / FAP 1), user presets, sequence authoring, ``fap info``.
 
-A preset is a JSON file (shipped in ``presets/``, user ones in :func:`user_preset_dir`):
+A preset is a JSON file (shipped in ``editor/data/presets/``, user ones in :func:`user_preset_dir`):
 ``{"format": "fap-studio-preset", "version": 1, "kind": "emotion"|"viseme"|"custom",
 "name": "joy", "mpeg4_index": 1, "source": "...", "faps": {"open_jaw": 100, ...}}`` with values
 in FAPU keyed by low-level FAP name (3-68), finite and inside ``FAPS[n].range``; optional
@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..resources import PRESETS_DIR
 from .errors import PresetError
 from .faps import FAPS
 
@@ -72,8 +73,8 @@ class Preset:
 
 
 def shipped_preset_dir() -> Path:
-    """The repository's ``presets/`` directory."""
-    return Path(__file__).resolve().parents[2] / "presets"
+    """The shipped presets' folder (package data ``editor/data/presets``)."""
+    return PRESETS_DIR
 
 
 def user_preset_dir() -> Path:

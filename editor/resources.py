@@ -62,6 +62,33 @@ PRESETS_DIR = data_path("presets")
 SAMPLE_FACE = data_path("sample_face.png")
 DATA_README = data_path("README.md")
 
+# ------------------------------------------------------------------ per-user folders
+APP_NAME = "fap-studio"
+
+
+def user_data_dir() -> Path:
+    """``$FAP_STUDIO_DATA_DIR``, else the per-OS user data folder from platformdirs:
+    ``$XDG_DATA_HOME/fap-studio`` or ``~/.local/share/fap-studio`` (Linux),
+    ``~/Library/Application Support/fap-studio`` (macOS), ``%APPDATA%\\fap-studio`` (Windows).
+    Not created here."""
+    env = os.environ.get("FAP_STUDIO_DATA_DIR", "").strip()
+    if env:
+        return Path(env).expanduser()
+    import platformdirs
+
+    return Path(platformdirs.user_data_dir(APP_NAME, appauthor=False, roaming=True))
+
+
+def user_cache_dir() -> Path:
+    """``$FAP_STUDIO_CACHE``, else the per-OS cache folder from platformdirs
+    (``$XDG_CACHE_HOME/fap-studio`` or ``~/.cache/fap-studio`` on Linux). Not created here."""
+    env = os.environ.get("FAP_STUDIO_CACHE", "").strip()
+    if env:
+        return Path(env).expanduser()
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir(APP_NAME, appauthor=False))
+
 # ------------------------------------------------------------------ external data (not shipped)
 #: Environment variable naming the JAFFE folder (``DIR/images/*.tiff``); research-only data that
 #: is never shipped or copied into the repository.

@@ -83,3 +83,21 @@ def test_clone_eval_needs_an_explicit_jaffe_location(monkeypatch, capsys, tmp_pa
     assert main(["clone-eval", "--skip-roundtrip", "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(tmp_path / "images") in err[0]
+
+
+def test_per_user_folders_follow_env_then_platformdirs(monkeypatch, tmp_path):
+    import sys
+
+    from editor.core.bilinear_photo import default_cache_dir
+
+    monkeypatch.setenv("FAP_STUDIO_DATA_DIR", str(tmp_path / "data"))
+    monkeypatch.setenv("FAP_STUDIO_CACHE", str(tmp_path / "cache"))
+    assert resources.user_data_dir() == tmp_path / "data"
+    assert default_cache_dir() == tmp_path / "cache"
+    monkeypatch.delenv("FAP_STUDIO_DATA_DIR")
+    monkeypatch.delenv("FAP_STUDIO_CACHE")
+    if sys.platform.startswith("linux"):
+        monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+        monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdgc"))
+        assert resources.user_data_dir() == tmp_path / "xdg" / "fap-studio"
+        assert default_cache_dir() == tmp_path / "xdgc" / "fap-studio"

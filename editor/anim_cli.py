@@ -7,11 +7,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 
 import numpy as np
 
-from .cli_util import PHOTO_HELP, photo_arg
+from .cli_util import PHOTO_HELP, ProgressBar, photo_arg
 from .core.errors import FapStudioError
 
 
@@ -41,25 +40,6 @@ def preset_vector(specs: list[str] | None) -> np.ndarray:
     return FAPS.clamp(total)
 
 
-class _Progress:
-    """A one-line progress bar on stderr."""
-
-    def __init__(self, label: str) -> None:
-        self.label = label
-        self.t0 = time.perf_counter()
-
-    def __call__(self, done: int, total: int) -> bool:
-        width = 30
-        k = int(width * done / max(total, 1))
-        rate = done / max(time.perf_counter() - self.t0, 1e-6)
-        sys.stderr.write(f"\r{self.label} [{'#' * k}{'.' * (width - k)}] {done}/{total} "
-                         f"{rate:.0f} frames/s")
-        if done == total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-        return True
-
-
 def cmd_animate(a: argparse.Namespace) -> int:
     from .core import Face
     from .core.fapfile import read_fap
@@ -67,8 +47,8 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
     seq = read_fap(a.fap_file)
     face = Face.from_image(a.photo)
-    res = export_sequence(face, seq, a.output, progress=None if a.quiet else _Progress("render"),
-                          creases=not a.no_creases)
+    with ProgressBar("render", quiet=a.quiet) as bar:
+        res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases)
     print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
     return 0
 

@@ -25,6 +25,32 @@ def photo_arg(text: str) -> str:
     return text
 
 
+class ProgressBar:
+    """A tqdm bar on stderr driven by ``progress(done, total)`` callbacks (``total`` may grow);
+    returns True (never cancels). Disabled by ``quiet``; a context manager that closes it."""
+
+    def __init__(self, label: str, unit: str = "frame", quiet: bool = False) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(desc=label, unit=unit, total=None, disable=quiet, file=sys.stderr,
+                        dynamic_ncols=True, leave=True)
+
+    def __call__(self, done: int, total: int) -> bool:
+        if self.bar.total != total:
+            self.bar.total = total
+        self.bar.update(done - self.bar.n)
+        return True
+
+    def close(self) -> None:
+        self.bar.close()
+
+    def __enter__(self) -> ProgressBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def guarded(handler: Handler) -> Callable[[argparse.Namespace], int]:
     """Wrap a command so that a :class:`FapStudioError` prints one line
     ``fap-studio: error: ...`` on stderr and returns exit code 2 (no traceback)."""

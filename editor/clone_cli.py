@@ -21,35 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_util import guarded
+from .cli_util import ProgressBar, guarded
 from .core.errors import FapStudioError
 from .resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
 SAMPLE = SAMPLE_FACE
 JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "FE": "fear",
                "DI": "disgust"}
-
-
-class _Bar:
-    """One-line progress bar on stderr (``total`` may grow)."""
-
-    def __init__(self, label: str, quiet: bool = False) -> None:
-        self.label, self.quiet, self.t0, self.open = label, quiet, time.perf_counter(), False
-
-    def __call__(self, done: int, total: int) -> bool:
-        if not self.quiet:
-            k = int(30 * done / max(total, 1))
-            rate = done / max(time.perf_counter() - self.t0, 1e-6)
-            sys.stderr.write(f"\r{self.label} [{'#' * k}{'.' * (30 - k)}] {done}/{total} "
-                             f"{rate:.0f}/s")
-            sys.stderr.flush()
-            self.open = True
-        return True
-
-    def close(self) -> None:
-        if self.open:
-            sys.stderr.write("\n")
-            self.open = False
 
 
 def _write_text(path: str | Path, text: str) -> None:
@@ -112,11 +90,8 @@ def cmd_track(a: argparse.Namespace) -> int:
     from .core.fap_estimate import track_video
     from .core.fapfile import write_fap
 
-    bar = _Bar("track", a.quiet)
-    try:
+    with ProgressBar("track", quiet=a.quiet) as bar:
         seq, rep = track_video(a.video, fps=a.fps, smoothing=a.smoothing, progress=bar)
-    finally:
-        bar.close()
     write_fap(seq, a.output)
     print(f"{rep.summary()} -> {a.output}", file=sys.stderr)
     return 0
@@ -346,12 +321,9 @@ def cmd_clone_eval(a: argparse.Namespace) -> int:
         if not images.is_dir():
             raise FapStudioError(f"{images}: JAFFE images not found (--jaffe DIR must hold "
                                  "images/*.tiff)")
-        bar = _Bar("clone-eval", a.quiet)
-        try:
+        with ProgressBar("clone-eval", unit="pair", quiet=a.quiet) as bar:
             print(jaffe_evaluation(images, a.persons.split(",") if a.persons else None,
                                    Path(a.renders) if a.renders else None, bar))
-        finally:
-            bar.close()
     print(f"\n({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     return 0
 

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import struct
-import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -24,19 +22,16 @@ from editor.core.mos import StimulusSpec, Study
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
-    """Encode an H x W x 3 uint8 RGB array as PNG (zlib only; lossless, no OpenCV needed)."""
+    """Encode an H x W x 3 uint8 RGB array as PNG (lossless, ``cv2.imencode``)."""
     if not (isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.ndim == 3
             and rgb.shape[2] == 3 and rgb.shape[0] > 0 and rgb.shape[1] > 0):
         raise ImageError("a rendered stimulus must be a non-empty H x W x 3 uint8 RGB array")
-    h, w = rgb.shape[:2]
-    raw = np.concatenate([np.zeros((h, 1), np.uint8), rgb.reshape(h, w * 3)], axis=1)
+    import cv2
 
-    def chunk(tag: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + tag + data + struct.pack(
-            ">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
-
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + chunk(b"IEND", b""))
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
+    if not ok:  # pragma: no cover - OpenCV encodes any valid uint8 image
+        raise ImageError("cannot encode the stimulus as PNG")
+    return buf.tobytes()
 
 
 def create_from_renders(path: str | Path, name: str, labels: Sequence[str],

@@ -66,3 +66,17 @@ def test_palette_png_with_transparency_keeps_its_alpha(tmp_path):
     trns = b"tRNS" + b"\x00\x00"
     chunk = (2).to_bytes(4, "big") + trns + zlib.crc32(trns).to_bytes(4, "big")
     assert imageio._declares_alpha(bytes(png[:idat]) + chunk + bytes(png[idat:]))
+
+
+def test_study_png_encoder_round_trips_losslessly(tmp_path):
+    from editor.core.errors import ImageError
+    from editor.study_cli import encode_png
+
+    rgb = np.random.default_rng(3).integers(0, 256, (37, 53, 3), dtype=np.uint8)
+    png = encode_png(rgb)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    (tmp_path / "s.png").write_bytes(png)
+    assert np.array_equal(load_image(tmp_path / "s.png"), rgb)  # RGB order kept, lossless
+    for bad in (rgb[..., 0], rgb.astype(np.float32), np.zeros((0, 4, 3), np.uint8)):
+        with pytest.raises(ImageError):
+            encode_png(bad)

@@ -7,6 +7,7 @@ import functools
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from .core.errors import FapStudioError
 from .resources import SAMPLE_FACE
@@ -27,22 +28,28 @@ def photo_arg(text: str) -> str:
 
 class ProgressBar:
     """A tqdm bar on stderr driven by ``progress(done, total)`` callbacks (``total`` may grow);
-    returns True (never cancels). Disabled by ``quiet``; a context manager that closes it."""
+    returns True (never cancels). Shown from the first callback on (an error before any
+    progress prints only its one line); disabled by ``quiet``; a context manager that closes it.
+    """
 
     def __init__(self, label: str, unit: str = "frame", quiet: bool = False) -> None:
-        from tqdm import tqdm
-
-        self.bar = tqdm(desc=label, unit=unit, total=None, disable=quiet, file=sys.stderr,
-                        dynamic_ncols=True, leave=True)
+        self.label, self.unit, self.quiet = label, unit, quiet
+        self.bar: Any = None
 
     def __call__(self, done: int, total: int) -> bool:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(desc=self.label, unit=self.unit, total=total, disable=self.quiet,
+                            file=sys.stderr, dynamic_ncols=True)
         if self.bar.total != total:
             self.bar.total = total
         self.bar.update(done - self.bar.n)
         return True
 
     def close(self) -> None:
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()
 
     def __enter__(self) -> ProgressBar:
         return self

@@ -21,3 +21,9 @@ def test_quiet_progress_bar_prints_nothing(capsys):
         for i in range(1, 4):
             assert bar(i, 3)
     assert capsys.readouterr().err == ""
+
+
+def test_no_bar_before_the_first_progress(capsys):
+    with ProgressBar("track"):
+        pass  # e.g. the video could not be opened
+    assert capsys.readouterr().err == ""

@@ -27,10 +27,11 @@ from editor.core.bilinear_photo import (
 )
 from editor.core.errors import ModelError
 from editor.core.mesh import signed_areas
+from editor.resources import SAMPLE_FACE, checkout_jaffe_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-SAMPLE = ROOT / "resources" / "sample_face.png"
-JAFFE_IMAGES = ROOT.parent / "shared" / "data" / "jaffe" / "images"
+SAMPLE = SAMPLE_FACE
+JAFFE_IMAGES = checkout_jaffe_dir() / "images"
 METHODS = ("plain", "ridge", "mals")
 
 

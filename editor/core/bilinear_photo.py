@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ..resources import user_cache_dir
 from .bilinear import BilinearModel, RegionModel, fix_gauge, synthesize_region, train_bilinear
 from .bilinear import translate as translate_region
 from .bilinear_data import (
@@ -78,12 +79,9 @@ NORMALISATION68 = {
 
 # ---------------------------------------------------------------------------- training data
 def default_cache_dir() -> Path:
-    """``$FAP_STUDIO_CACHE`` or ``$XDG_CACHE_HOME/fap-studio`` (``~/.cache/fap-studio``)."""
-    env = os.environ.get("FAP_STUDIO_CACHE")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "fap-studio"
+    """``$FAP_STUDIO_CACHE``, else the per-OS cache folder (``~/.cache/fap-studio`` on Linux;
+    :func:`editor.resources.user_cache_dir`)."""
+    return user_cache_dir()
 
 
 def _jaffe_label(name: str) -> int:

@@ -16,12 +16,11 @@ from PySide6.QtCore import QEventLoop
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 from editor.core import FAPS
+from editor.resources import SAMPLE_FACE
 
 from .main_window import MainWindow
 from .qt_utils import APPLICATION, ORGANIZATION, settings
 
-ROOT = Path(__file__).resolve().parents[2]
-SAMPLE_FACE = ROOT / "resources" / "sample_face.png"
 SCREENSHOT_SIZE = (1400, 860)
 
 

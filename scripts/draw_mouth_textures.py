@@ -83,11 +83,15 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
             tip = gum_mm + crown - 1.6 * (1 - np.cos(phi))
             if pointed:
                 tip = tip + 0.9 * (1 - np.abs(2 * t - 1)) - 0.5
-            # rounded incisal corners
-            corner = 0.35 * tw
+            # rounded incisal corners: nearly square towards the midline (mesial), rounder
+            # distally; large radii on both sides cut V notches between the teeth that read
+            # as dark dots once the row is a dozen pixels tall
             dx = np.minimum(t, 1 - t) * tw
-            round_off = np.where(dx < corner, corner - np.sqrt(np.maximum(
-                corner ** 2 - (corner - dx) ** 2, 0.0)), 0.0)
+            tm = np.clip(t if side > 0 else 1 - t, 0, 1)  # 0 at the mesial side
+            round_off = np.zeros_like(t)
+            for d, r in ((tm * tw, 0.10 * tw), ((1 - tm) * tw, 0.22 * tw)):
+                round_off += np.where(d < r, r - np.sqrt(np.maximum(r ** 2 - (r - d) ** 2,
+                                                                    0.0)), 0.0)
             tip_here = tip - round_off
             body = inside_x & (Y >= margin) & (Y <= tip_here)
             if not body.any():

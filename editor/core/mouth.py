@@ -39,7 +39,7 @@ from .mesh import StandardMesh
 TEXTURES = Path(__file__).resolve().parents[2] / "resources" / "mouth"
 NAMES = ("upper_teeth", "lower_teeth", "tongue")
 #: upper incisors' edge below the neutral lip line, in units of D (mouth-nose distance)
-UPPER_TIP = 0.05
+UPPER_TIP = 0.10
 #: lower incisors' edge above the neutral lip line (overbite), and the tongue's top above
 #: theirs, in units of D
 LOWER_OVERBITE, TONGUE_RISE = 0.05, 0.2

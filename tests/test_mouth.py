@@ -208,3 +208,22 @@ def test_thin_gap_shows_no_teeth(sample_face, jaw):
     assert 0.3 < float((lo[:, 1] - up[:, 1]).max()) < 2.0  # really a thin gap
     near = cv2.dilate(_opening(f, v, img.shape).astype(np.uint8), np.ones((3, 3), np.uint8))
     assert _lum(img)[near.astype(bool)].max() < 1.15 * _skin(f)
+
+
+def test_drawn_teeth_read_as_teeth_at_jaffe_size(jaffe_faces):
+    # 256-px faces, viseme aa: the upper teeth row (rows 1-2 under the upper lip, +-0.1 MW
+    # around the midline) shows the central incisors' contact as a soft dip, neither a black
+    # notch (main before: the rounded incisal corners left a V of cavity there, 0.18-0.34 x
+    # the row's median) nor a flat white bar
+    for f in jaffe_faces[:3]:
+        faps = apply_preset("viseme_aa", 1.0)
+        img, v = f.render(faps), f.deform(faps)
+        L = _lum(img) / _skin(f)
+        h = _opening(f, v, img.shape)
+        xc, half = v[f.fdp["2.2"], 0], 0.1 * f.fapu["MW"] * 1024
+        row = []
+        for x in range(int(round(xc - half)), int(round(xc + half)) + 1):
+            r = np.flatnonzero(h[:, x])
+            row.append(L[r[1:3], x].mean())
+        rel = min(row) / float(np.median(row))
+        assert float(np.median(row)) > 0.95 and 0.6 < rel < 0.95, (f.source, row)

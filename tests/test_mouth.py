@@ -187,15 +187,25 @@ def _wide_open_parts(face: Face, faps) -> tuple[float, float]:
 
 
 def test_wide_open_mouth_is_not_a_dark_hole(jaffe_faces):
-    # surprise at 150 %: upper teeth under the lip, tongue over the lower teeth, the dark back
-    # of the mouth between them; no darker than the median real wide-open JAFFE mouth (main
-    # before: 0.34-0.54 of the opening's height dark, the upper teeth hidden: 0.12-0.14)
+    # surprise at 150 %: tongue over the lower teeth, the dark back of the mouth above them; no
+    # darker than the median real wide-open JAFFE mouth (main before: 0.33-0.46 of the
+    # opening's height dark)
     for f in jaffe_faces[:3]:
         faps = apply_preset("surprise", 1.5)
         r = _dark_run(f, faps)
         assert r < REAL_WIDE_OPEN_DARK, (f.source, r)
-        top, bottom = _wide_open_parts(f, faps)
-        assert top > 0.4 and bottom > 0.35, (f.source, top, bottom)
+        _, bottom = _wide_open_parts(f, faps)
+        assert bottom > 0.35, (f.source, bottom)
+
+
+def test_upper_teeth_show_in_an_open_mouth(jaffe_faces):
+    # surprise at 100 % opens the lips ~0.5 MNS: the real JAFFE surprise photos opened that far
+    # (NM, TM, KR) show their upper incisors under the lip, 1.06-1.54 x skin in the top quarter
+    # (main before: 0.12-0.15, the drawn teeth stayed behind the upper lip). Wider (> 0.6 MNS)
+    # real mouths mostly hide them (0.05-0.39): no check there.
+    for f in jaffe_faces[:3]:
+        top, _ = _wide_open_parts(f, apply_preset("surprise", 1.0))
+        assert top > 0.8, (f.source, top)
 
 
 @pytest.mark.parametrize("jaw", [80, 130])

@@ -11,8 +11,8 @@
    point inside its p10-p90 band. FAPs no landmark sees, and values where the FACS prototype
    (SPEC §7.4) decides inside the band, are fixed beforehand in :data:`FACS` with the reason.
 3. The result (rounded to 5 FAPU) and a "source" naming where every value comes from are written
-   into ``presets/<emotion>.json`` (``--write``) or compared with it (``--check``: exit 1 when
-   a file differs by more than 10 FAPU from the derivation).
+   into ``editor/data/presets/<emotion>.json`` (``--write``) or compared with it (``--check``:
+   exit 1 when a file differs by more than 10 FAPU from the derivation).
 
 The measurement table (markdown) goes to stdout (or ``--table``). JAFFE is research-only: the
 table holds statistics only; never commit images or renders of JAFFE faces.
@@ -32,8 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from editor.core import jaffe_stats as js  # noqa: E402
 from editor.core.faps import FAPS  # noqa: E402
+from editor.resources import PRESETS_DIR, source_path  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
 #: Fitted unknowns: FAPs tied together (left = right; inner lip = outer lip as in Xface).
 GROUPS: dict[str, tuple[int, ...]] = {
@@ -213,8 +213,10 @@ def table(motion: js.JaffeMotion, derived: dict[str, dict[object, float]]) -> st
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--jaffe", default=None, help="JAFFE folder (default ../shared/data/jaffe)")
-    ap.add_argument("--write", action="store_true", help="write presets/<emotion>.json")
+    ap.add_argument("--jaffe", default=None,
+                    help="JAFFE folder (default $FAP_STUDIO_JAFFE, else ../shared/data/jaffe)")
+    ap.add_argument("--write", action="store_true",
+                    help="write editor/data/presets/<emotion>.json")
     ap.add_argument("--check", action="store_true", help="exit 1 if a preset file differs")
     ap.add_argument("--table", default=None, help="write the markdown table here")
     args = ap.parse_args()
@@ -227,7 +229,7 @@ def main() -> int:
         print(text)
     bad = 0
     for e in EMOTIONS:
-        path = ROOT / "presets" / f"{e}.json"
+        path = (source_path(PRESETS_DIR) if args.write else PRESETS_DIR) / f"{e}.json"
         doc = json.loads(path.read_text(encoding="utf-8"))
         new = preset_faps(derived[e])
         if args.write:

@@ -1,6 +1,6 @@
 """Draw the mouth-interior textures of SPEC §3.1 (upper teeth, lower teeth, tongue).
 
-``python scripts/draw_mouth_textures.py [OUT_DIR]`` (default ``resources/mouth``) writes three
+``python scripts/draw_mouth_textures.py [OUT_DIR]`` (default ``editor/data/mouth``) writes three
 RGBA PNGs. Everything is procedural (numpy + OpenCV, fixed random seed): no photographs, no
 downloads. Drawn at 4x and reduced with area averaging, so the edges are anti-aliased.
 
@@ -27,10 +27,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from editor.resources import MOUTH_DIR, source_path  # noqa: E402
+
 PX_PER_MM = 10
 SS = 4  # supersampling
 
-OUT = Path(__file__).resolve().parents[1] / "resources" / "mouth"
 
 # (mesiodistal width mm, crown length mm, pointed tip) from the midline backwards
 UPPER = [(8.5, 10.5, False), (6.6, 9.0, False), (7.6, 10.0, True), (7.0, 8.2, False),
@@ -172,7 +175,7 @@ def _save(path: Path, rgba: np.ndarray) -> None:
 
 
 def main() -> None:
-    out = Path(sys.argv[1]) if len(sys.argv) > 1 else OUT
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else source_path(MOUTH_DIR)
     # premultiplied while drawing/reducing: multiply colour by alpha before the area reduction
     for name, img in (
         ("upper_teeth.png", draw_teeth(UPPER, 22.0, (46.0, 13.0), 2.6, True, 1.0)),

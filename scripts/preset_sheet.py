@@ -20,6 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from editor.core import Face, save_image  # noqa: E402
 from editor.core.expressions import apply_preset  # noqa: E402
 from editor.core.imageio import load_image  # noqa: E402
+from editor.resources import SAMPLE_FACE  # noqa: E402
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
 JAFFE_CODE = {"joy": "HA", "sadness": "SA", "surprise": "SU", "anger": "AN", "fear": "FE",
@@ -64,10 +65,7 @@ def main() -> None:
     ap.add_argument("--tile", type=int, default=220)
     ap.add_argument("--no-sample", action="store_true")
     args = ap.parse_args()
-    root = Path(__file__).resolve().parents[1]
-    photos = [] if args.no_sample else [root / "editor" / "data" / "sample_face.png"
-                                        if (root / "editor" / "data" / "sample_face.png").exists()
-                                        else root / "resources" / "sample_face.png"]
+    photos = [] if args.no_sample else [SAMPLE_FACE]
     photos += [Path(p) for p in args.photo]
     rows = [row(Face.from_image(p), args.tile, None, {}) for p in photos]
     if args.jaffe:

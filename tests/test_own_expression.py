@@ -155,3 +155,56 @@ def test_declared_neutral_photo_has_no_expression():
     assert not f.has_expression and f.expression_words == "neutral"
     assert np.array_equal(f.neutral_vertices, f.vertices)
     assert np.array_equal(f.render(None), f.image)
+
+
+@pytest.mark.gui
+def test_declaring_the_photo_neutral_is_one_undoable_step_and_saved(qtbot, sample_face, warnings,
+                                                                     tmp_path):
+    from editor.ui.main_window import MainWindow
+    from editor.ui.project import load_project
+
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.docs.remember = False
+    w.load_face(sample_face)
+    m = w.model
+    m.set_faps({"open_jaw": 600.0}, "open the jaw")  # an edit of the photo's expression
+    edited = m.doc.faps.copy()
+    n0 = m.undo_stack.count()
+    w.act_photo_neutral.trigger()
+    assert m.doc.photo_neutral and w.act_photo_neutral.isChecked()
+    assert m.undo_stack.count() == n0 + 1
+    assert w.expression_label.text() == "photo declared neutral"
+    assert not w.act_neutralize.isEnabled()
+    # the FAPs keep what they add to the photo: the photo's own estimate is subtracted
+    from editor.core import FAPS
+
+    np.testing.assert_allclose(m.doc.faps, FAPS.clamp(edited - sample_face.expression))
+    assert m.doc.faps.any()
+    assert not m.face.has_expression
+    assert np.array_equal(m.face.render(np.zeros(68)), sample_face.image)
+    path = tmp_path / "p.fapproj"
+    assert w.docs.save_to(str(path))
+    assert '"photo_is_neutral": true' in path.read_text()
+    data = load_project(path, sample_face.mesh.names)
+    assert data.photo_neutral and np.allclose(data.faps, m.doc.faps)
+    m.undo_stack.undo()
+    assert not m.doc.photo_neutral and not w.act_photo_neutral.isChecked()
+    assert np.array_equal(m.doc.faps, edited)
+    assert "photo shows: smile" in w.expression_label.text()
+    w.close_without_prompt()
+
+
+@pytest.mark.gui
+def test_gui_opens_a_photo_declared_neutral(qtbot, warnings):
+    from editor.ui.app import open_initial
+    from editor.ui.main_window import MainWindow
+
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.docs.remember = False
+    assert open_initial(w, str(SAMPLE), photo_neutral=True)
+    assert w.model.doc.photo_neutral and not w.model.doc.faps.any()
+    assert w.act_photo_neutral.isChecked()
+    assert np.array_equal(w.model.face.render(w.model.doc.faps), w.model.fitted.image)
+    w.close_without_prompt()

@@ -20,7 +20,7 @@ The photo's own mouth interior (when its mouth is open, e.g. smiling teeth) is k
 of the photo's opening, the bright teeth run from the top follows the skull, the rest (lower
 teeth, the lower lip's edge) follows the jaw anchor of eq. 8; the synthetic layers show only
 where neither covers (``layers._own_interior`` analyses the photo, :meth:`attach_own`).
-Textures (``resources/mouth``) are tinted to the photo: saturation and brightness from the
+Textures (``editor/data/mouth``) are tinted to the photo: saturation and brightness from the
 cheeks' skin, teeth colour from the photo's own teeth when it shows some.
 """
 
@@ -28,15 +28,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import cv2
 import numpy as np
 
+from ..resources import MOUTH_DIR
 from .deform import DeformPlan
 from .mesh import StandardMesh
 
-TEXTURES = Path(__file__).resolve().parents[2] / "resources" / "mouth"
+TEXTURES = MOUTH_DIR
 NAMES = ("upper_teeth", "lower_teeth", "tongue")
 #: upper incisors' edge below the neutral lip line, in units of D (mouth-nose distance)
 UPPER_TIP = 0.10

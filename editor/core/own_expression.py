@@ -19,7 +19,7 @@ Identity and expression are solved together (bounded least squares); the identit
 what people differ in, the FAPs what only an expression explains. FAPs whose motion stays below
 the landmark noise are set to 0 (a neutral photo gives an exactly neutral vector).
 
-The prior (``resources/neutral_prior.json``) is built by ``scripts/build_neutral_prior.py``
+The prior (``editor/data/neutral_prior.json``) is built by ``scripts/build_neutral_prior.py``
 from neutral photos; the shipped one comes from the JAFFE neutral images (10 women; summary
 statistics only, see the file's ``source``).
 """
@@ -29,14 +29,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from ..resources import NEUTRAL_PRIOR
 from .faps import FAPS
 
-PRIOR_PATH = Path(__file__).resolve().parents[2] / "resources" / "neutral_prior.json"
+PRIOR_PATH = NEUTRAL_PRIOR
 CORNER_SIGMA = 0.015  # prior spread of the corners' height above the lip line (IOD)
 
 #: iBUG-68 index of each point's mirror image (left/right swapped).

@@ -80,10 +80,14 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
             inside_x = (t >= 0) & (t <= 1)
             persp = 0.80 + 0.20 * np.cos(phi)  # posterior crowns look shorter
             crown = ln * persp
+            # a shorter crown's gingival margin sits lower (laterals' zenith ~1 mm below the
+            # centrals'): its incisal edge ends only ~40 % of the length difference higher,
+            # not all of it (1.8 mm left only a 1-px sliver of laterals in a modest opening)
+            drop = 0.6 * (widths[0][1] - ln) * persp
             # gum margin: scalloped, highest (towards the root) at the tooth centre
-            margin = gum_mm + 0.9 * (1 - np.sin(np.pi * np.clip(t, 0, 1))) - 0.3
+            margin = gum_mm + drop + 0.9 * (1 - np.sin(np.pi * np.clip(t, 0, 1))) - 0.3
             # smile arc: posterior incisal edges rise towards the gum
-            tip = gum_mm + crown - 1.6 * (1 - np.cos(phi))
+            tip = gum_mm + drop + crown - 1.6 * (1 - np.cos(phi))
             if pointed:
                 tip = tip + 0.9 * (1 - np.abs(2 * t - 1)) - 0.5
             # rounded incisal corners: nearly square towards the midline (mesial), rounder

@@ -218,3 +218,65 @@ def test_gui_skin_creases_action_toggles_the_preview(qtbot, sample_neutral, isol
         assert np.array_equal(w.canvas.preview_image(), sample_neutral.render(vec2))
     finally:
         w.close_without_prompt()
+
+
+# ---------------------------------------------------------------- the photo's own folds
+def _own_fold_bands(face) -> list[np.ndarray]:
+    """Bands along the nasolabial lines of the neutralised face (the photo's smile folds)."""
+    v = face.deform(None)
+    return [_band(face.image.shape[:2], pts[4:-4], 0.06 * face.interocular)
+            for kind, pts, _s in fold_lines(face, v) if kind == "nasolabial"]
+
+
+def test_own_folds_untouched_on_the_photos_own_expression(sample_face):
+    """Rendering the photo's own expression changes nothing (the fade is exactly 0 there)."""
+    from editor.core.creases import unfold_strength
+
+    assert sample_face.has_expression
+    assert not unfold_strength(sample_face, sample_face.vertices).any()
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
+
+
+def test_own_smile_folds_fade_on_the_neutralised_face(sample_face):
+    """The sample smiles: its nasolabial folds are shaded valleys. Neutralised, the skin there
+    is spread, so the valleys are lifted towards the skin around them: brighter, less
+    contrasted, and no more saturated than before (no coloured line left behind)."""
+    from editor.core.creases import unfold_strength
+
+    v = sample_face.deform(None)
+    u = unfold_strength(sample_face, v)
+    assert u.max() > 0.9  # fully unfolded somewhere on the line
+    off = sample_face.render(None, creases=False).astype(np.float64)
+    on = sample_face.render(None).astype(np.float64)
+    for band in _own_fold_bands(sample_face):
+        lo, ln = _lum(off)[band], _lum(on)[band]
+        valley = lo < np.percentile(lo, 25)
+        assert (ln[valley] - lo[valley]).mean() > 8.0  # the valley is lifted (grey levels)
+        assert ln.std() < 0.85 * lo.std()  # flatter: the fold's shading is reduced
+        sat = [(x[band].max(1) - x[band].min(1)).mean() for x in (off, on)]
+        assert sat[1] <= sat[0] + 0.5
+    # outside every band nothing changes
+    anyband = np.logical_or.reduce(_own_fold_bands(sample_face))
+    far = ~_band(sample_face.image.shape[:2],
+                 np.argwhere(anyband)[:, ::-1].astype(float)[::25], 0.5 * sample_face.interocular)
+    assert np.array_equal(off[far], on[far])
+
+
+def test_own_folds_fade_only_as_far_as_the_skin_is_spread(sample_face):
+    """Half-way between the photo's smile and the neutral face the fade is partial; a target
+    that compresses the skin like the photo (or more: a broad smile) does not fade it."""
+    from editor.core.creases import unfold_strength
+
+    f0 = sample_face.expression
+    u_half = unfold_strength(sample_face, sample_face.deform(0.5 * f0)).max()
+    u_zero = unfold_strength(sample_face, sample_face.deform(None)).max()
+    assert 0.2 < u_half < 0.8 * u_zero
+    assert unfold_strength(sample_face, sample_face.deform(1.3 * f0)).max() < 0.02
+
+
+def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
+    from editor.core.creases import unfold_strength
+
+    for name in EMOTIONS:
+        v = sample_neutral.deform(apply_preset(name, 1.0))
+        assert not unfold_strength(sample_neutral, v).any()

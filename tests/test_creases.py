@@ -7,7 +7,7 @@ import pytest
 from conftest import SAMPLE, jaffe_images
 
 from editor.core import load_image
-from editor.core.creases import fold_lines, fold_strength
+from editor.core.creases import _MIN_STRENGTH, fold_lines, fold_strength
 from editor.core.layers import render_layers
 from editor.core.warp import warp
 
@@ -115,13 +115,23 @@ def test_anger_and_sadness_darken_the_glabella(sample_neutral, emotion):
 
 
 def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
+    """The nasal-root lines follow the inner brows pushed down (AU4 procerus, AU9): the shipped
+    disgust and anger presets (inner brows -65 / -115 ENS; this file's old disgust lowers them by
+    only 30) wrinkle the nose, a smile does not."""
+    from editor.core.expressions import apply_preset as shipped
+
     f = sample_neutral
 
-    def bridge(e: str) -> float:
-        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(apply_preset(e, 1.0)))
-                   if k == "bridge")
-    assert bridge("disgust") > 0.02
-    assert bridge("joy") == 0.0 and bridge("surprise") == 0.0
+    def bridge(e: str, vec=None) -> float:
+        vec = apply_preset(e, 1.0) if vec is None else vec
+        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(vec)) if k == "bridge")
+    assert bridge("disgust", shipped("disgust")) > 0.05
+    assert bridge("joy", shipped("joy")) == 0.0
+    # not drawn (below the 2-grey-level threshold): the smile does not lower the brows' inner
+    # ends (the driver since the nasal-root lines follow AU4/AU9, not the lip); surprise
+    # spreads that skin
+    assert bridge("joy") < _MIN_STRENGTH and bridge("surprise") == 0.0
+    assert bridge("anger") > 0.02  # the procerus (AU4) wrinkles the nasal root too
 
 
 def test_strength_grows_monotonically_with_intensity(sample_neutral):
@@ -283,3 +293,17 @@ def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
     for name in EMOTIONS:
         v = sample_neutral.deform(apply_preset(name, 1.0))
         assert not unfold_strength(sample_neutral, v).any()
+
+
+def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
+    """AU10 (disgust's raised upper lip) pushes the skin below the nose wing up: the upper part
+    of the nasolabial furrow darkens even without a smile; sadness and surprise do not."""
+    from editor.core.expressions import apply_preset as shipped
+
+    f = sample_neutral
+
+    def upper(name: str) -> float:
+        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(shipped(name)))
+                   if k == "upper_lip")
+    assert upper("disgust") > 2 * _MIN_STRENGTH  # drawn, ~4 grey levels on this smiling sample
+    assert upper("sadness") < _MIN_STRENGTH and upper("surprise") < _MIN_STRENGTH

@@ -65,19 +65,24 @@ class FoldStyle:
     ridge_off: float  # ridge distance from the line (in sigmas; sign = side)
     probe: float  # distance of the compression probes either side of the line
     spread: float = 0.5  # share of the fold's strongest compression given to the whole line
+    dead: float = 0.0  # compression that does not fold yet (subtracted first)
 
 
 STYLES: dict[str, FoldStyle] = {
     "nasolabial": FoldStyle(sigma=0.026, depth=0.17, c0=0.38, ridge=0.35, ridge_off=2.6,
                             probe=0.07, spread=0.75),
+    # the upper nasolabial furrow beside the nose wing, deepened by the upper lip raiser
+    # (AU10, disgust) pushing the skin below the nose wing up
+    "upper_lip": FoldStyle(sigma=0.026, depth=0.20, c0=0.10, ridge=0.35, ridge_off=2.6,
+                           probe=0.07, dead=0.04),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
                       probe=0.05),
     "forehead": FoldStyle(sigma=0.014, depth=0.12, c0=0.25, ridge=0.30, ridge_off=2.4,
                           probe=0.06),
     "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
                           probe=0.05),
-    "bridge": FoldStyle(sigma=0.011, depth=0.11, c0=0.08, ridge=0.25, ridge_off=2.2,
-                        probe=0.04),
+    "bridge": FoldStyle(sigma=0.011, depth=0.13, c0=0.07, ridge=0.25, ridge_off=2.2,
+                        probe=0.04, dead=0.04),
 }
 
 
@@ -190,6 +195,16 @@ def _fold_lines(face: Face) -> list[_Line]:
         # a smiling photo's own fold reaches from the nose wing down past the corner
         lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
                            (sg, -0.5), utaper=_fade(t, 0.1, 0.25)))
+        # its upper part, driven by the skin between the nose wing and the upper lip's
+        # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
+        up = pts[: int(0.6 * len(pts))]
+        tu = np.linspace(0.0, 1.0, len(up))
+        lip = q(f"lipo_u{2 if s == 'r' else 6}")
+        probes = np.array([0.6 * ala + 0.4 * lip, 0.35 * ala + 0.65 * lip,
+                           0.6 * (ala + (sg * 0.06, 0.0)) + 0.4 * lip,
+                           0.35 * (ala + (sg * 0.06, 0.0)) + 0.65 * lip])
+        lines.append(_Line("upper_lip", f"nasolabial_{s}", up, _fade(tu, 0.3, 0.5),
+                           (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
     for s, sg in (("r", -1.0), ("l", 1.0)):
@@ -238,11 +253,14 @@ def _fold_lines(face: Face) -> list[_Line]:
         u = (ys - y_top) / (y_bot - y_top)
         pts = np.stack([x + tilt * u - sg * 0.02 * u * u, ys], 1)
         lines.append(_Line("glabella", "glabella", pts, _fade(u, 0.4, 0.3), (sg, 0.0)))
-    # ---- nose bridge: short wrinkles across the nasal root, driven by the nose wrinkler's
-    # pull on the upper lip and the nose wings (the mesh does not bunch the bridge itself)
+    # ---- nose bridge: short wrinkles across the nasal root (procerus / nose wrinkler, AU4 and
+    # AU9), driven by the skin between the inner brow ends and the inner eye corners pushed
+    # down (the mesh does not bunch the bridge itself; a smile does not lower the brows)
     n27, n28 = q("nose_27"), q("nose_28")
-    probes = np.array([q("ala_r") + (-0.07, -0.05), q("ala_r") + (-0.06, 0.03),
-                       q("ala_l") + (0.07, -0.05), q("ala_l") + (0.06, 0.03)])
+    bi_r, bi_l = q("brow_r_e1"), q("brow_l_e0")
+    ec_r, ec_l = q("eye_r_c1"), q("eye_l_c0")
+    probes = np.array([0.5 * (bi_r + ec_r), 0.3 * bi_r + 0.7 * ec_r,
+                       0.5 * (bi_l + ec_l), 0.3 * bi_l + 0.7 * ec_l])
     for j, f in enumerate((0.15, 0.5, 0.85)):
         c = n27 + f * (n28 - n27)
         w = 0.1 + 0.025 * j
@@ -250,7 +268,7 @@ def _fold_lines(face: Face) -> list[_Line]:
         pts = np.stack([c[0] + xs_b, c[1] + 0.06 * xs_b ** 2 / w], 1)
         lines.append(_Line("bridge", "bridge", pts,
                            _fade(np.linspace(0, 1, 12), 0.35, 0.35), (0.0, -1.0), probes,
-                           (1.0, 0.0)))
+                           (0.0, 1.0)))
     return lines
 
 
@@ -367,6 +385,7 @@ class _Fast:
     ridge: np.ndarray  # (G,) ridge brightening relative to the darkening
     off: np.ndarray  # (G,) ridge offset, px
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
+    dead: np.ndarray  # (N,) compression that does not fold yet
     own_gap: np.ndarray | None = None  # (F,) photo's own compression per fold (None: neutral)
     own_w: np.ndarray | None = None  # (N,) log-spacing of the neutral mesh per sample (>= 0)
     own_sum: np.ndarray | None = None  # (F,) sum of own_w ** 2 per fold
@@ -385,6 +404,7 @@ def _fast(face: Face) -> _Fast:
     depth = np.array([x.depth for x in st])[p.fold]
     c0 = np.array([x.c0 for x in st])[p.fold]
     spread = np.array([x.spread for x in st])[p.fold]
+    dead = np.array([x.dead for x in st])[p.fold]
     n = len(p.fold)
     edge = np.zeros(n, bool)
     for off in (0, 1):
@@ -402,7 +422,7 @@ def _fast(face: Face) -> _Fast:
     skin = np.array([p.skin[p.group == g].mean(0) for g in range(G)], np.float32)
     f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
-              skin)
+              skin, dead)
     _FAST[face] = f
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
@@ -449,7 +469,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
-    c = (1.0 - fa.spread) * c + fa.spread * cmax
+    c = np.maximum((1.0 - fa.spread) * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
     # smooth along each line (no triangle steps), then taper the ends
     return _smooth_taper(face, s)

@@ -307,3 +307,20 @@ def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
                    if k == "upper_lip")
     assert upper("disgust") > 2 * _MIN_STRENGTH  # drawn, ~4 grey levels on this smiling sample
     assert upper("sadness") < _MIN_STRENGTH and upper("surprise") < _MIN_STRENGTH
+
+
+def test_no_own_folds_faded_on_nearly_neutral_photos():
+    """JAFFE neutral photos opened as the product does (own expression estimated): the estimate
+    finds a trace of a smile on some (compression up to 0.07), which is no fold to fade; the
+    sample's real smile (0.15-0.27) is faded fully (test above)."""
+    from editor.core import Face
+    from editor.core.creases import unfold_strength
+    from editor.core.expressions import apply_preset as shipped
+
+    paths = [p for who in ("KA", "NA", "KR") for p in jaffe_images(f"{who}.NE*.tiff")[:1]]
+    if len(paths) < 3:
+        pytest.skip("JAFFE is not available")
+    for path in paths:
+        f = Face.from_image(path)
+        for name in ("sadness", "surprise", "anger", "fear", "disgust"):
+            assert unfold_strength(f, f.deform(shipped(name))).max() < 0.1, (path.name, name)

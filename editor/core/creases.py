@@ -194,7 +194,7 @@ def _fold_lines(face: Face) -> list[_Line]:
         t = np.linspace(0.0, 1.0, len(pts))
         # a smiling photo's own fold reaches from the nose wing down past the corner
         lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
-                           (sg, -0.5), utaper=_fade(t, 0.1, 0.25)))
+                           (sg, -0.5), utaper=_fade(t, 0.2, 0.25)))
         # its upper part, driven by the skin between the nose wing and the upper lip's
         # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
         up = pts[: int(0.6 * len(pts))]
@@ -483,9 +483,10 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
     (``face.deform(None)``) spreads that skin by ``g = log spacing(neutral)`` (> 0 where the
     photo compresses it). A target mesh that spreads it by ``e = log spacing(target)`` unfolds
     the photo's fold by ``e / g`` (per fold: ``sum(max(e, 0) g+) / sum(g+^2)``, the least-squares
-    ratio over its samples, clipped to [0, 1]): 1 on the neutralised face, 0 on the photo's own
-    expression (the photo's mesh: exactly no change) and wherever the target compresses the
-    skin as much or more (then :func:`fold_strength` draws the fold).
+    ratio over its samples, clipped to [0, 1], faded in above :data:`_OWN_MIN` of own compression
+    so that the estimate's noise on a neutral photo is no fold): 1 on the neutralised face, 0 on
+    the photo's own expression (the photo's mesh: exactly no change) and wherever the target
+    compresses the skin as much or more (then :func:`fold_strength` draws the fold).
     """
     fa = _fast(face)
     n = len(fa.depth)
@@ -495,12 +496,16 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
     e = np.log(np.maximum(_spacing(face, vertices) if spacing is None else spacing, 1e-6))
     e[e < _C_TOL] = 0.0
     esum = np.add.reduceat(e * fa.own_w, p.start[:-1])
-    u = np.where(fa.own_gap > _OWN_MIN, np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1), 0)
+    u = np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1)
+    # a fold the photo barely compresses (the estimate's noise on a neutral photo) is no fold:
+    # the share ramps in between _OWN_MIN and 1.7 * _OWN_MIN of own compression
+    u = u * np.clip((fa.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
     return _smooth_taper(face, u[p.fold], own=True)
 
 
-#: the photo's own compression (spacing of the neutral mesh - 1) that counts as a fold
-_OWN_MIN = 0.03
+#: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
+#: (JAFFE neutral photos: up to 0.07 from the estimate's noise; the sample's smile: 0.15-0.27)
+_OWN_MIN = 0.07
 
 
 _SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
@@ -665,7 +670,7 @@ def _unfold(face: Face, out: np.ndarray, pos: np.ndarray, un: np.ndarray,
         wsk = _skin_weight(patch, fa.skin[g])
         # per channel: a fold's shadow is also more saturated than the skin around it
         near = cv2.GaussianBlur(patch, (0, 0), ss)
-        gain = np.clip(sur / np.maximum(near, 1.0), 0.85, 1.6)
+        gain = np.clip(sur / np.maximum(near, 1.0), 0.88, 1.45)
         gain[sur[..., 0] <= 0.0] = 1.0
         k = (gain - 1.0) * (band * wsk)[..., None]
         out[y0:y1, x0:x1] = np.clip(patch * (1.0 + k) + 0.5, 0, 255).astype(np.uint8)

@@ -233,26 +233,44 @@ def _fold_lines(face: Face) -> list[_Line]:
     yh = np.interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
     t = np.linspace(0.0, 1.0, len(xs))
-    for j, (f, ph, amp) in enumerate(((0.17, 0.3, 0.006), (0.31, 1.7, 0.008),
-                                      (0.45, 2.9, 0.007))):
-        y = yb_s - f * h + amp * np.sin(2 * np.pi * 1.3 * t + ph)
-        # real forehead lines are broken: a dip in strength near the middle of some
-        gap = 1.0 - (0.55 if j != 1 else 0.25) * np.exp(-((t - 0.5 - 0.06 * (j - 1)) / 0.07)
+    # real lines are irregular: uneven waviness, breaks, lengths and strength along the line
+    # (a fixed draw: the same at any resolution), so they do not look drawn with a ruler
+    rng = np.random.default_rng(1729)
+    for j, (f, amp) in enumerate(((0.16, 0.006), (0.30, 0.008), (0.44, 0.007))):
+        f = f + rng.uniform(-0.025, 0.025)
+        ph = rng.uniform(0, 2 * np.pi, 3)
+        y = (yb_s - f * h + amp * np.sin(2 * np.pi * 1.3 * t + ph[0])
+             + 0.5 * amp * np.sin(2 * np.pi * rng.uniform(2.5, 3.5) * t + ph[1])
+             + 0.25 * amp * np.sin(2 * np.pi * rng.uniform(6.0, 8.0) * t + ph[2]))
+        # broken lines: a dip near the middle and another somewhere else, of varying depth
+        gap = 1.0 - (0.55 if j != 1 else 0.25) * np.exp(-((t - 0.5 - 0.06 * (j - 1)
+                                                           - rng.uniform(-0.05, 0.05)) / 0.07)
                                                           ** 2)
+        gap *= 1.0 - rng.uniform(0.3, 0.8) * np.exp(-((t - rng.uniform(0.15, 0.85))
+                                                      / rng.uniform(0.03, 0.07)) ** 2)
+        # uneven depth along the line
+        pk = rng.uniform(0, 2 * np.pi, 2)
+        depth = 1.0 + 0.15 * np.sin(2 * np.pi * 2.1 * t + pk[0]) + 0.1 * np.sin(
+            2 * np.pi * 4.3 * t + pk[1])
         lines.append(_Line("forehead", "forehead", np.stack([xs, y], 1),
-                           _fade(t, 0.25, 0.25) * gap, (0.0, -1.0)))
-    # ---- glabella: two short vertical furrows between the inner brow ends
+                           _fade(t, rng.uniform(0.18, 0.32), rng.uniform(0.18, 0.32)) * gap
+                           * depth, (0.0, -1.0)))
+    # ---- glabella: two short vertical furrows between the inner brow ends, not mirror images
+    # (different lengths, bowed apart towards the top, uneven along their length)
     ri, li = q("brow_r_e1"), q("brow_l_e0")
     g = q("glabella")
     half = 0.5 * abs(li[0] - ri[0])
     for sg, tilt in ((-1.0, -0.01), (1.0, 0.01)):
-        x = g[0] + sg * max(0.32 * half, 0.07)
+        x = g[0] + sg * max(0.32 * half, 0.07) * rng.uniform(0.9, 1.1)
         y_brow = 0.5 * (ri[1] + li[1])
-        y_top, y_bot = y_brow - 0.24, max(g[1], y_brow + 0.04)
+        y_top, y_bot = y_brow - 0.24 * rng.uniform(0.85, 1.1), max(g[1], y_brow + 0.04)
         ys = np.linspace(y_top, y_bot, 14)
         u = (ys - y_top) / (y_bot - y_top)
-        pts = np.stack([x + tilt * u - sg * 0.02 * u * u, ys], 1)
-        lines.append(_Line("glabella", "glabella", pts, _fade(u, 0.4, 0.3), (sg, 0.0)))
+        pts = np.stack([x + tilt * u - sg * 0.02 * u * u + sg * 0.015 * (1 - u) ** 2
+                        + 0.004 * np.sin(2 * np.pi * 1.5 * u + rng.uniform(0, 6.3)), ys], 1)
+        even = 1.0 + 0.15 * np.sin(2 * np.pi * 1.2 * u + rng.uniform(0, 6.3))
+        lines.append(_Line("glabella", "glabella", pts,
+                           _fade(u, rng.uniform(0.3, 0.5), 0.3) * even, (sg, 0.0)))
     # ---- nose bridge: short wrinkles across the nasal root (procerus / nose wrinkler, AU4 and
     # AU9), driven by the skin between the inner brow ends and the inner eye corners pushed
     # down (the mesh does not bunch the bridge itself; a smile does not lower the brows)

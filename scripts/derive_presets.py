@@ -73,6 +73,11 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                    "down for the wrong reason"),
         "brow_i": (40, "AU1 inner brow raiser: the sad brow's key cue; JAFFE median 17/21 ENS is "
                        "below the noise, set in the upper half of the p10-p90 band"),
+        "c_raise": (-100, "AU15 lip corner depressor, the sad mouth's key cue (at the median "
+                          "-34/-41 MNS the corners barely move): towards p10 -143/-150; 150 % "
+                          "inside the min -184/-291"),
+        "c_stretch": (20, "AU15 pulls the corners down and a little outwards (median -7/0, "
+                          "outer -5/6 MW; p90 60/43)"),
     },
     "surprise": {
         "brow_i": (95, "AU1 inner brow raiser, surprise's key cue: JAFFE's median 54/51 ENS "
@@ -127,9 +132,14 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "b_mid": (-30, "with the jaw, the lower lip drops ~320 MNS (the open mouth of fear): "
                        "median -208 (outer -254), p10 -565 (outer -679), min -680"),
         "b_mids": (-100, "as b_mid (median -232/-193, p10 -513/-541, min -688/-735)"),
-        "c_raise": (0, "no AU12 in fear (AU20 stretches the lips sideways): the fit's +160 "
-                       "against the jaw's pull made the open mouth read as a smile; the "
-                       "corners then drop with the jaw (median -127/-68, p10 -435/-428)"),
+        "t_mid": (60, "the upper lip stays down over the upper teeth (AU20 stretches it "
+                      "flat; a raised upper lip showing the upper teeth reads as a smile): "
+                      "median -3 (outer -11) MNS, p90 173 (outer 131)"),
+        "t_mids": (60, "as t_mid (median -4/-1, outer 2/1; p90 194/209, outer 166/204)"),
+        "c_raise": (-100, "no AU12 in fear (AU20 pulls the lips sideways and down): the fit's "
+                          "+160 against the jaw's pull made the open mouth read as a smile; "
+                          "the corners drop ~335 MNS with the jaw (median -127/-68, p10 "
+                          "-435/-428; 150 % inside the min -569/-595)"),
     },
     "disgust": {
         41: (100, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "

@@ -279,7 +279,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     ec_r, ec_l = q("eye_r_c1"), q("eye_l_c0")
     probes = np.array([0.5 * (bi_r + ec_r), 0.3 * bi_r + 0.7 * ec_r,
                        0.5 * (bi_l + ec_l), 0.3 * bi_l + 0.7 * ec_l])
-    for j, f in enumerate((0.15, 0.5, 0.85)):
+    for j, f in enumerate((-0.3, 0.0, 0.3)):  # at the root, level with the inner canthi
         c = n27 + f * (n28 - n27)
         w = 0.1 + 0.025 * j
         xs_b = np.linspace(-w, w, 12)

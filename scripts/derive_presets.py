@@ -45,14 +45,16 @@ GROUPS: dict[str, tuple[int, ...]] = {
 #: Per emotion: values fixed before the fit, {group or FAP number: (value, reason)}.
 FACS: dict[str, dict[object, tuple[float, str]]] = {
     "joy": {
-        41: (200, "AU6 cheek raiser, what makes a smile felt (Duchenne) rather than posed; no "
-                  "landmark on the cheek (Xface joy.fap 100-150, set above it: at 120 the eyes "
-                  "did not smile on the contact sheets); it also lifts the lower lids"),
-        42: (200, "as 41"),
-        "lid_b": (95, "AU6 pushes the lower lids up (the felt smile's narrowed eyes): with the "
-                      "cheek raise the lid point moves ~230 IRISD-equivalent, in the upper part "
-                      "of the real band (median 131/124, p90 256/306); 150 % stays inside the "
-                      "max 410/348"),
+        41: (150, "AU6 cheek raiser, what makes a smile felt (Duchenne) rather than posed; no "
+                  "landmark on the cheek (Xface joy.fap 100-150, its top: at 120 the eyes did "
+                  "not smile on the contact sheets; above 150 the photo's landmarks can no "
+                  "longer tell it from the lower lids' own FAPs 21/22); it also lifts the lower "
+                  "lids"),
+        42: (150, "as 41"),
+        "lid_b": (125, "AU6 pushes the lower lids up (the felt smile's narrowed eyes): with the "
+                       "cheek raise the lid point moves ~220 IRISD-equivalent, in the upper part "
+                       "of the real band (median 131/124, p90 256/306); 150 % stays inside the "
+                       "max 410/348"),
         "lid_t": (60, "AU6/7 narrows the eyes from above a little as well (median 22/44, p90 "
                       "139/137)"),
         "c_stretch": (160, "AU12 pulls the corners back as well as up (median 147/101, p90 "

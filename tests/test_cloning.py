@@ -158,9 +158,6 @@ def test_estimator_inverts_the_model(sample_neutral):
 #: within 25 % of its range. Anger and disgust are only required to keep the correct direction
 #: (cosine > 0): dlib hardly follows lowered/squeezed brows on the warped photo. Sadness (since
 #: the JAFFE-derived presets: corners -40 MNS, brows +-40 ENS, a few pixels) needs cosine > 0.5.
-@pytest.mark.xfail(strict=True, reason=(
-    "open: after merging the JAFFE-derived presets, the re-guarded neutralisation and the new "
-    "mouth, fear's round trip recovers direction cos 0.78 (needs 0.85); not yet investigated"))
 def test_round_trip_render_detect_estimate(big_face):
     names, vecs = roundtrip_vectors(0)
     got = round_trip(big_face, vecs)

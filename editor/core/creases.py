@@ -643,7 +643,7 @@ def _unfold(face: Face, out: np.ndarray, pos: np.ndarray, un: np.ndarray,
         if not (np.maximum(un[ia], un[ia + 1]) > _MIN_UNFOLD).any():
             continue
         sig = float(fa.sig[g])
-        sb = max(3.5 * sig, 1.0)  # half-width of the band that is smoothed
+        sb = max(5.0 * sig, 1.0)  # half-width of the band that is smoothed
         sl = 3.5 * sb  # the surrounding skin
         ss = max(0.6 * sig, 0.6)  # the fold's own scale
         a, d = pos[ia], pos[ia + 1] - pos[ia]

@@ -38,6 +38,7 @@ from .fitting import FaceFrame, fit_vertices, snap_inner_lips
 from .imageio import as_rgb8, load_image
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
+from .lidskin import apply_lid_skin
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .warp import WarpPlan, WarpResult, warp
 
@@ -269,7 +270,8 @@ class Face:
         if extra is None:
             extra = self._deform(vec)[self.plan.n_vertices:]
         tf = self.layer_transforms(v)
-        res = render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
+        w = apply_lid_skin(self, warp(self.warp_plan, v, tf, cavity=False), v)
+        res = render_layers(self, w, v, extra, vec, tf)
         return apply_creases(self, res, v) if creases else res
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:

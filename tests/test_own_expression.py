@@ -155,3 +155,22 @@ def test_declared_neutral_photo_has_no_expression():
     assert not f.has_expression and f.expression_words == "neutral"
     assert np.array_equal(f.neutral_vertices, f.vertices)
     assert np.array_equal(f.render(None), f.image)
+
+
+def test_neutralising_a_known_expression_gives_back_the_neutral_mesh(sample_neutral):
+    """A mesh made by a known FAP vector (joy with the jaw open, no fold guard involved),
+    declared that photo's own expression, neutralises to the mesh it was made from: the fixed
+    point of the neutralisation converges (it used to oscillate between two neutrals whose
+    mouth corners were ~0.07 IOD apart) and f0 still gives the photo's mesh exactly."""
+    from editor.core.faps import FAPS
+
+    n = sample_neutral
+    f = FAPS.clamp(apply_preset("joy"))
+    f[2] = 300.0  # open_jaw: an open smile, as in the sample photo
+    P = n.deform(f)
+    s = Face(n.image, n.landmarks, P, n.mesh, None, f)
+    err = np.linalg.norm(s.neutral_vertices - n.vertices, axis=1) / n.interocular
+    assert err.max() < 0.01, err.max()
+    assert np.linalg.norm(s.deform(None) - n.vertices, axis=1).max() < 0.01 * n.interocular
+    assert np.array_equal(s.deform(f), P)
+    assert (signed_areas(s.neutral_vertices.astype(np.float64), s.triangles) > 0).all()

@@ -29,6 +29,7 @@ from .deform import (
     build_plan,
     deform_points,
     eye_state,
+    guard,
     linear_positions,
 )
 from .errors import NoFaceError
@@ -40,6 +41,9 @@ from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .warp import WarpPlan, WarpResult, warp
+
+#: estimate_own rounds, each against the FAPU of the neutral the previous one implies
+OWN_ROUNDS = 3
 
 FapInput = Mapping[object, float] | np.ndarray | None
 
@@ -103,7 +107,7 @@ class Face:
                           _extra_points(self.mesh, vertices, self.landmarks, fapu))
         return fapu, plan
 
-    def _neutralise(self, f0: np.ndarray, rounds: int = 4
+    def _neutralise(self, f0: np.ndarray, rounds: int = 8
                     ) -> tuple[np.ndarray, dict[str, float], DeformPlan, np.ndarray | None]:
         """Neutral mesh N with ``N + D_N(f0) ~ P`` (fixed point), its FAPU and plan, and the
         offset ``r = P - (N + D_N(f0))`` over all points (None when f0 = 0)."""
@@ -114,8 +118,13 @@ class Face:
         V = len(P)
         target = plan.neutral.astype(np.float64)  # photo mesh + extra points at rest
         N = target.copy()
+        plan_p = plan
         for _ in range(rounds):
-            moved = deform_points(plan, f0).astype(np.float64)
+            # the linear motion: a photo is the neutral plus the FAPs' motion (the fold guard
+            # is the renderer's safety, not part of the photo); with the guarded motion the
+            # iteration oscillated where the neutral's triangles fold under f0 (the sample's
+            # smile: the neutral's corners jumped 0.05 IOD between rounds)
+            moved = linear_positions(plan, f0)
             N = N + (target - moved)  # move the neutral until f0 lands on the photo's mesh
             N[V:] = np.where(np.isfinite(N[V:]), N[V:], target[V:])
             fapu, plan = self._build(N[:V].astype(np.float32))
@@ -128,7 +137,15 @@ class Face:
         if cross.any():
             mean = 0.5 * (N[u[cross]] + N[lo[cross]])
             N[u[cross]] = N[lo[cross]] = mean
+        # no triangle of the neutral folds: its displacement from the photo's mesh goes
+        # through the fold guard (a smile's corners can invert the lip-corner triangles)
+        # (the guard scales an upper/lower pair together, so they still do not cross)
+        D = N[None, :V] - target[None, :V]
+        Dg = guard(plan_p, D)
+        if Dg is not D or cross.any():
+            N[:V] = target[:V] + Dg[0]
             fapu, plan = self._build(N[:V].astype(np.float32))
+            N[V:] = plan.neutral[V:]
         offset = target - linear_positions(plan, f0)
         return plan.neutral[:V].copy(), fapu, plan, offset
 
@@ -164,7 +181,16 @@ class Face:
         own = estimate_own(base)
         if not own.faps.any():
             return base
-        return self.with_expression(own.faps, own.words)
+        face = base.with_expression(own.faps, own.words)
+        # FAPU are the neutral's (a smile widens the mouth and changes the mouth-nose
+        # distance): the estimate is redone with the motion per unit of the neutral it implies,
+        # else f0 renders a fraction of the photo's expression and neutralising leaves the rest
+        for _ in range(OWN_ROUNDS - 1):
+            own = estimate_own(face)
+            if not own.faps.any():
+                return base
+            face = base.with_expression(own.faps, own.words)
+        return face
 
     def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
         """A copy with another own expression f0 (None or zeros: the photo is neutral)."""

@@ -50,6 +50,9 @@ OBSERVABLE: tuple[int, ...] = (3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 15, 19, 20, 
                                51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62)
 STABLE_POINTS = np.array([36, 39, 42, 45, 27, 28, 29, 30])
 STABLE_WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5])
+#: Alignment points of the estimator (see :class:`FapEstimator`)
+ESTIMATE_STABLE = STABLE_POINTS
+ESTIMATE_STABLE_WEIGHTS = STABLE_WEIGHTS
 #: Residual weight per landmark: dlib places the jaw contour loosely (chin half, sides quarter).
 LANDMARK_WEIGHTS = np.select([np.arange(68) < 4, np.arange(68) < 13, np.arange(68) < 17],
                              [0.25, 0.5, 0.25], 1.0)
@@ -133,6 +136,7 @@ class FapEstimator:
         lw = LANDMARK_WEIGHTS if landmark_weights is None else np.asarray(landmark_weights)
         self.w = np.repeat(np.asarray(lw, np.float64), 2)
         self._priors = self._prior_rows(reg, symmetry, pair)
+        self.stable, self.stable_w = ESTIMATE_STABLE, ESTIMATE_STABLE_WEIGHTS
 
     def _prior_rows(self, reg: float, symmetry: float, pair: float) -> np.ndarray:
         n = len(self.idx)
@@ -184,7 +188,7 @@ class FapEstimator:
         f = np.zeros(68)
         for _ in range(max(1, rounds)):
             ref = neutral + self.predict(f) if f.any() else neutral
-            M = similarity(expr[STABLE_POINTS], ref[STABLE_POINTS], STABLE_WEIGHTS)
+            M = similarity(expr[self.stable], ref[self.stable], self.stable_w)
             d = (apply_affine(M, expr) - neutral).ravel()
             f = self._solve(d)
         res = self.predict(f).ravel() - d

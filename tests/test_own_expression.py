@@ -157,20 +157,40 @@ def test_declared_neutral_photo_has_no_expression():
     assert np.array_equal(f.render(None), f.image)
 
 
-def test_neutralising_a_known_expression_gives_back_the_neutral_mesh(sample_neutral):
-    """A mesh made by a known FAP vector (joy with the jaw open, no fold guard involved),
-    declared that photo's own expression, neutralises to the mesh it was made from: the fixed
-    point of the neutralisation converges (it used to oscillate between two neutrals whose
-    mouth corners were ~0.07 IOD apart) and f0 still gives the photo's mesh exactly."""
-    from editor.core.faps import FAPS
 
-    n = sample_neutral
-    f = FAPS.clamp(apply_preset("joy"))
-    f[2] = 300.0  # open_jaw: an open smile, as in the sample photo
-    P = n.deform(f)
-    s = Face(n.image, n.landmarks, P, n.mesh, None, f)
-    err = np.linalg.norm(s.neutral_vertices - n.vertices, axis=1) / n.interocular
-    assert err.max() < 0.01, err.max()
-    assert np.linalg.norm(s.deform(None) - n.vertices, axis=1).max() < 0.01 * n.interocular
-    assert np.array_equal(s.deform(f), P)
-    assert (signed_areas(s.neutral_vertices.astype(np.float64), s.triangles) > 0).all()
+def _corner_height(face, v: np.ndarray) -> float:
+    """Mouth corners (8.3, 8.4) above the inner lip line (middle of 2.2 and 2.3), in IOD."""
+    ey = face.frame.rot[:, 1]
+    line = 0.5 * (v[face.fdp["2.2"]] + v[face.fdp["2.3"]]) @ ey
+    return float(line - 0.5 * (v[face.fdp["8.3"]] + v[face.fdp["8.4"]]) @ ey) / face.interocular
+
+
+def test_neutralised_sample_mouth_is_flat(sample_face):
+    """The sample's open smile: corners 0.15 IOD above the lip line in the photo; the neutral
+    (mesh and as rendered) has them within 0.03 IOD of it (a neutral mouth is close to flat:
+    JAFFE neutrals -0.04..0.05), and no triangle folds."""
+    f = sample_face
+    assert _corner_height(f, f.vertices) > 0.12
+    assert abs(_corner_height(f, f.neutral_vertices)) < 0.03
+    assert abs(_corner_height(f, f.deform(None))) < 0.03
+    assert (signed_areas(f.deform(None).astype(np.float64), f.triangles) > 0).all()
+
+
+@pytest.mark.parametrize("name", ["sadness", "anger", "disgust"])
+def test_presets_without_a_smile_do_not_smile_on_the_sample(sample_face, name):
+    """Presets that do not raise the corners do not bring the photo's smile back: their corners
+    stay at (or below) the neutral's, not the photo's."""
+    f = sample_face
+    assert f.own_share(apply_preset(name)) < 0.05  # (disgust raises the upper lip a little)
+    h = _corner_height(f, f.deform(apply_preset(name)))
+    assert h < _corner_height(f, f.deform(None)) + 0.005 and h < 0.03, h
+
+
+def test_own_share_scales_the_photo_offset(sample_face):
+    """The part of the photo's expression the FAP model does not render comes with the share
+    of f0 a vector holds: all of it at f0 (the photo), none at 0, half way at f0 / 2."""
+    f = sample_face
+    f0 = f.expression
+    assert f.own_share(f0) == 1.0 and f.own_share(np.zeros(68)) == 0.0
+    assert abs(f.own_share(0.5 * f0) - 0.5) < 1e-6
+    assert f.own_share(f0 + apply_preset("joy")) == 1.0  # clipped

@@ -148,9 +148,9 @@ class Face:
             U = x - A @ (linear_positions(plan, f0)[:V] - N[:V])
             if self.neutral_landmarks is not None and mouth_moves:  # the estimate's neutral
                 U[48:] = np.asarray(self.neutral_landmarks, np.float64)[48:]
-            gap = (U[low] - U[up]) @ ey  # a neutral mouth is closed: the inner lips meet
-            U[up] += 0.5 * gap[:, None] * ey
-            U[low] -= 0.5 * gap[:, None] * ey
+            # a neutral mouth is closed: the lower lip meets the upper one (the upper lip sits
+            # on the skull; the jaw and the lower lip close onto it)
+            U[low] -= ((U[low] - U[up]) @ ey)[:, None] * ey
             N[:V] = lap.solve(U)
             fapu, plan = self._build(N[:V].astype(np.float32))
             N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
@@ -159,10 +159,13 @@ class Face:
         # the difference
         pairs = self.mesh.pairs
         u, lo = pairs[:, 0], pairs[:, 1]
-        cross = ((N[lo] - N[u]) @ ey < 0) | np.isin(u, self.mesh.holes["mouth"])
+        mouth = np.isin(u, self.mesh.holes["mouth"])
+        cross = ((N[lo] - N[u]) @ ey < 0) & ~mouth
         if cross.any():
             mean = 0.5 * (N[u[cross]] + N[lo[cross]])
             N[u[cross]] = N[lo[cross]] = mean
+        N[lo[mouth]] = N[u[mouth]]
+        cross |= mouth
         # no triangle of the neutral folds: the outer-lip vertices of folded triangles (never
         # the inner lips, which meet, nor the landmark-held corners) relax towards their
         # neighbours; what still folds goes through the fold guard (it scales an upper/lower
@@ -403,10 +406,13 @@ def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
                  iters: int = 100) -> np.ndarray:
     """Move the lip vertices of folded triangles (signed area below 10 % of ``sigma0``, the
-    photo mesh's) towards the mean of their neighbours; inner lips and corners stay."""
+    photo mesh's) towards the mean of their neighbours: outer lips, and the closed inner lips
+    together (the lower one on the upper one); the corners stay."""
     names = np.array(mesh.names)
-    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")) & \
+    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
+               | np.char.startswith(names, "lipi_u")) & \
         ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
+    pairs = mesh.pairs[np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])]
     e = mesh.edges()
     v = np.asarray(verts, np.float64).copy()
     deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
@@ -425,6 +431,7 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
         np.add.at(acc, e[:, 1], v[e[:, 0]])
         avg = acc / np.maximum(deg, 1)[:, None]
         v[sel] += 0.5 * (avg[sel] - v[sel])
+        v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
     return v
 
 

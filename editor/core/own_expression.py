@@ -35,6 +35,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 from scipy.stats import chi2
 
+from .deform import LIP_PAIRS
 from .faps import FAPS
 
 PRIOR_PATH = Path(__file__).resolve().parents[2] / "resources" / "neutral_prior.json"
@@ -245,6 +246,9 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     n_f = len(est.idx)
     u = np.array([face.fapu[FAPS[int(i) + 1].unit] for i in est.idx])  # px per unit
     sd = np.array([FAP_SPREAD[_group(int(i) + 1)] for i in est.idx]) * spread * scale
+    # an inner/outer lip pair drives one part of the lips (the renderer moves their shared part
+    # once; the pair prior keeps them equal): the spread is that motion's, not paid twice
+    sd[np.isin(est.idx, LIP_PAIRS)] *= np.sqrt(2.0)
     fap_prior = np.vstack([np.diag(u / sd),  # ridge, in prior spreads
                            est._priors / (0.02 * scale)])  # symmetry / lip pairs (px rows)
     rows_prior = np.vstack([np.hstack([np.zeros((K, n_f)), prior_c]),

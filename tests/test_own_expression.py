@@ -96,10 +96,10 @@ def test_jaffe_closed_loop_reproduces_real_expressions():
     from editor.core.closed_loop import closed_loop
 
     res = closed_loop(JAFFE / "images", noise_px=2.0)  # dlib's integer points: 1 px = 1.5 % IOD
-    # the issue's target is 2.5 %: met before the rigid brow band and the new mouth were merged
-    # (2.45-2.52), 2.57 now (brows 3.3 % against dlib's reading of the rigid band); this guards
-    # today's level until the target is reached
-    assert res.mean("estimate", "inner") < 2.65, res.table()
+    # the issue's target (2.57 before: the brows' band moved the alignment point 27, and wide-open
+    # mouths folded the chin against the margin ring, so the guard scaled whole renders down;
+    # 2.45 since the estimator leaves 27 out and bounds open_jaw by what the mesh renders)
+    assert res.mean("estimate", "inner") < 2.5, res.table()
     for region in ("brows", "lids", "lips", "jaw"):
         assert res.mean("estimate", region) < res.mean("nothing", region), res.table()
     for code in ("HA", "SA", "SU", "AN", "DI", "FE"):

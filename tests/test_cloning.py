@@ -244,11 +244,15 @@ def _run(argv):
     return a.func(a)
 
 
-def test_cli_clone_and_errors(tmp_path, sample_face, capsys):
+def test_cli_clone_and_errors(tmp_path, sample_face, sample_neutral, capsys):
     from editor.core.expressions import load_preset
 
     expr = tmp_path / "expr.png"
-    save_image(expr, sample_face.render(roundtrip_vectors(0)[1][2]))  # surprise
+    # the performer's expression photo is surprise on the photo the clone opens as the
+    # performer's neutral (the sample declared neutral, own_expression=False); surprise on the
+    # neutralised sample opens the jaw from a closed mouth, and against the photo's own open
+    # mouth that reads as much less jaw
+    save_image(expr, sample_neutral.render(roundtrip_vectors(0)[1][2]))  # surprise
     for method in ("fap", "laplacian"):
         out, js = tmp_path / f"{method}.png", tmp_path / f"{method}.json"
         assert _run(["clone", "--source-neutral", str(SAMPLE), "--source", str(expr),

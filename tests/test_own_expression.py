@@ -96,10 +96,10 @@ def test_jaffe_closed_loop_reproduces_real_expressions():
     from editor.core.closed_loop import closed_loop
 
     res = closed_loop(JAFFE / "images", noise_px=2.0)  # dlib's integer points: 1 px = 1.5 % IOD
-    # the issue's target is 2.5 %: met before the rigid brow band and the new mouth were merged
-    # (2.45-2.52), 2.57 now (brows 3.3 % against dlib's reading of the rigid band); this guards
-    # today's level until the target is reached
-    assert res.mean("estimate", "inner") < 2.65, res.table()
+    # the issue's target (2.57 before: the brows' band moved the alignment point 27, and wide-open
+    # mouths folded the chin against the margin ring, so the guard scaled whole renders down;
+    # 2.45 since the estimator leaves 27 out and bounds open_jaw by what the mesh renders)
+    assert res.mean("estimate", "inner") < 2.5, res.table()
     for region in ("brows", "lids", "lips", "jaw"):
         assert res.mean("estimate", region) < res.mean("nothing", region), res.table()
     for code in ("HA", "SA", "SU", "AN", "DI", "FE"):
@@ -208,3 +208,41 @@ def test_gui_opens_a_photo_declared_neutral(qtbot, warnings):
     assert w.act_photo_neutral.isChecked()
     assert np.array_equal(w.model.face.render(w.model.doc.faps), w.model.fitted.image)
     w.close_without_prompt()
+
+
+def _corner_height(face, v: np.ndarray) -> float:
+    """Mouth corners (8.3, 8.4) above the inner lip line (middle of 2.2 and 2.3), in IOD."""
+    ey = face.frame.rot[:, 1]
+    line = 0.5 * (v[face.fdp["2.2"]] + v[face.fdp["2.3"]]) @ ey
+    return float(line - 0.5 * (v[face.fdp["8.3"]] + v[face.fdp["8.4"]]) @ ey) / face.interocular
+
+
+def test_neutralised_sample_mouth_is_flat(sample_face):
+    """The sample's open smile: corners 0.15 IOD above the lip line in the photo; the neutral
+    (mesh and as rendered) has them within 0.03 IOD of it (a neutral mouth is close to flat:
+    JAFFE neutrals -0.04..0.05), and no triangle folds."""
+    f = sample_face
+    assert _corner_height(f, f.vertices) > 0.12
+    assert abs(_corner_height(f, f.neutral_vertices)) < 0.03
+    assert abs(_corner_height(f, f.deform(None))) < 0.03
+    assert (signed_areas(f.deform(None).astype(np.float64), f.triangles) > 0).all()
+
+
+@pytest.mark.parametrize("name", ["sadness", "anger", "disgust"])
+def test_presets_without_a_smile_do_not_smile_on_the_sample(sample_face, name):
+    """Presets that do not raise the corners do not bring the photo's smile back: their corners
+    stay at (or below) the neutral's, not the photo's."""
+    f = sample_face
+    assert f.own_share(apply_preset(name)) < 0.05  # (disgust raises the upper lip a little)
+    h = _corner_height(f, f.deform(apply_preset(name)))
+    assert h < _corner_height(f, f.deform(None)) + 0.005 and h < 0.03, h
+
+
+def test_own_share_scales_the_photo_offset(sample_face):
+    """The part of the photo's expression the FAP model does not render comes with the share
+    of f0 a vector holds: all of it at f0 (the photo), none at 0, half way at f0 / 2."""
+    f = sample_face
+    f0 = f.expression
+    assert f.own_share(f0) == 1.0 and f.own_share(np.zeros(68)) == 0.0
+    assert abs(f.own_share(0.5 * f0) - 0.5) < 1e-6
+    assert f.own_share(f0 + apply_preset("joy")) == 1.0  # clipped

@@ -246,3 +246,21 @@ def test_own_share_scales_the_photo_offset(sample_face):
     assert f.own_share(f0) == 1.0 and f.own_share(np.zeros(68)) == 0.0
     assert abs(f.own_share(0.5 * f0) - 0.5) < 1e-6
     assert f.own_share(f0 + apply_preset("joy")) == 1.0  # clipped
+
+
+def test_photo_lip_offset_follows_the_opening(sample_face):
+    """The sample's FAP model opens its lips wider than the photo; the offset that makes f0 the
+    photo must not close a smaller opening: half of f0 opens half the photo's gaps, joy opens
+    every middle pair, p/b/m closes them, f0 is the photo."""
+    f = sample_face
+    ey = f.frame.rot[:, 1]
+    pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]
+
+    def gaps(v):
+        return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
+
+    photo = gaps(f.vertices)
+    assert np.abs(gaps(f.deform(f.expression)) - photo).max() < 1e-3
+    np.testing.assert_allclose(gaps(f.deform(0.5 * f.expression)), 0.5 * photo, atol=0.15)
+    assert (gaps(f.deform(apply_preset("joy")))[1:-1] > 0.02 * f.interocular).all()
+    assert np.abs(gaps(f.deform(apply_preset("viseme_pbm")))).max() < 1e-3

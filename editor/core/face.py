@@ -284,9 +284,45 @@ class Face:
         # cross and no triangle folds for any vector (at f0 both leave the photo's mesh as is)
         # the offset is the part of the photo's expression the FAP motion does not render: it
         # comes with the share of f0 the vector holds (all of it at f0: the photo exactly)
+        # except the lips' opening: the photo's own gap between the inner lips comes with the
+        # share of the photo's opening the vector's FAPs make (a slit of a smile on a photo
+        # that opens wider is not closed by the photo's offset; f0 still gives the photo)
         if self._offset is None:
             return deform_points(self.plan, vec)
-        return deform_points(self.plan, vec, self.own_share(vec) * self._offset)
+        own = self.own_share(vec)
+        off = own * self._offset
+        lip = self._lip_gap
+        if lip is not None:
+            up, lo, G, g0, d = lip
+            s = np.clip(G @ np.asarray(vec, np.float64) / g0, 0.0, 1.0)
+            corr = (own - s)[:, None] * d
+            off[up] += corr
+            off[lo] -= corr
+        return deform_points(self.plan, vec, off)
+
+    @cached_property
+    def _lip_gap(self) -> tuple[np.ndarray, ...] | None:
+        """Inner-lip pairs whose FAP model opens at the photo's own expression: upper and
+        lower vertex, the gap's FAP basis (P, 68) and its value at f0 over the neutral's gap
+        (pixels), and the offset's half difference (P, 2) across each pair (along the face's
+        vertical)."""
+        if self._offset is None:
+            return None
+        names = self.mesh.names
+        pairs = np.array([(u, lo) for u, lo in self.mesh.pairs if names[u].startswith("lip")])
+        up, lo = pairs[:, 0], pairs[:, 1]
+        ey = self.frame.rot[:, 1].astype(np.float64)
+        basis = self.plan.basis.astype(np.float64)
+        G = (basis[:, lo] - basis[:, up]) @ ey  # (68, P): gap opened per FAP unit
+        G = G.T
+        g0 = G @ self.expression.astype(np.float64)
+        keep = g0 > 1e-3  # the model opens these pairs at f0
+        if not keep.any():
+            return None
+        half = 0.5 * ((self._offset[lo] - self._offset[up]) @ ey)
+        d = half[:, None] * ey[None, :]
+        k = keep
+        return up[k], lo[k], G[k], g0[k], d[k]
 
     @cached_property
     def _fap_px(self) -> np.ndarray:

@@ -354,6 +354,14 @@ class _Fast:
     ridge: np.ndarray  # (G,) ridge brightening relative to the darkening
     off: np.ndarray  # (G,) ridge offset, px
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
+    # per-face constants of the per-frame path (gathered once, not every frame)
+    used_tri: np.ndarray | None = None  # (U, 3) vertex indices of the ``used`` triangles
+    used_inv: np.ndarray | None = None  # (U, 2, 2) their inverse edge matrices
+    tx: np.ndarray | None = None  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
+    ty: np.ndarray | None = None
+    sample_tri: np.ndarray | None = None  # (N, 3) vertex indices of each sample's triangle
+    bary: np.ndarray | None = None  # (N, 3, 1) its barycentric coordinates
+    ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -387,6 +395,12 @@ def _fast(face: Face) -> _Fast:
     f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
               skin)
+    f.used_tri = face.mesh.triangles[used]
+    f.used_inv = p.tri_inv[used]
+    f.tx, f.ty = -p.normal[:, 1, None], p.normal[:, 0, None]
+    f.sample_tri = face.mesh.triangles[p.tri]
+    f.bary = p.bary[..., None]
+    f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     _FAST[face] = f
     return f
 
@@ -396,24 +410,26 @@ def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
     p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    T = V[face.mesh.triangles[fa.used]]
+    T = V[fa.used_tri]
     D = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)
-    A = D @ p.tri_inv[fa.used]  # deformed = A @ photo (linear part per triangle)
+    A = D @ fa.used_inv  # deformed = A @ photo (linear part per triangle)
     Ap = A[fa.probe]  # (N, 4, 2, 2)
     # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
     # along the fold and stretch along it do not change it
-    tx, ty = -p.normal[:, 1, None], p.normal[:, 0, None]
-    ax = Ap[..., 0, 0] * tx + Ap[..., 0, 1] * ty
-    ay = Ap[..., 1, 0] * tx + Ap[..., 1, 1] * ty
-    det = Ap[..., 0, 0] * Ap[..., 1, 1] - Ap[..., 0, 1] * Ap[..., 1, 0]
-    c = 1.0 - (det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)).mean(1)
+    a00, a01, a10, a11 = Ap[..., 0, 0], Ap[..., 0, 1], Ap[..., 1, 0], Ap[..., 1, 1]
+    tx, ty = fa.tx, fa.ty
+    ax = a00 * tx + a01 * ty
+    ay = a10 * tx + a11 * ty
+    det = a00 * a11 - a01 * a10
+    c = 1.0 - (det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)).sum(1) * 0.25
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
     c = (1.0 - fa.spread) * c + fa.spread * cmax
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
-    # smooth along each line (no triangle steps), then taper the ends
-    sm = np.convolve(np.pad(s, 2, mode="edge"), _SMOOTH, mode="valid")
+    # smooth along each line (no triangle steps), then taper the ends (the first and last two
+    # samples of every line are not smoothed, so the padding of "same" never shows)
+    sm = np.convolve(s, _SMOOTH, mode="same")
     return np.where(fa.edge, s, sm) * p.taper
 
 
@@ -421,20 +437,22 @@ _SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
 
 
 # ---------------------------------------------------------------------------- drawing
-def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarray,
-            w2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two canvases with weights added at sub-pixel positions (bilinear), one bincount."""
+_TURN = np.array([-1.0, 1.0])
+
+
+def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Two canvases with weights added at sub-pixel positions (bilinear), one bincount: the
+    first ``n1`` points of ``P`` go to the first canvas, the others to the second."""
     h, wd = shape
-    P = np.concatenate([xy, xy2])
-    W = np.concatenate([w, w2])
     x0 = np.floor(P[:, 0])
     y0 = np.floor(P[:, 1])
     fx, fy = P[:, 0] - x0, P[:, 1] - y0
     base = (y0.astype(np.int64) * wd + x0.astype(np.int64))
-    base[len(xy):] += h * wd  # the second canvas follows the first
+    base[n1:] += h * wd  # the second canvas follows the first
     idx = np.concatenate([base, base + 1, base + wd, base + wd + 1])
-    ws = np.concatenate([W * (1 - fx) * (1 - fy), W * fx * (1 - fy), W * (1 - fx) * fy,
-                         W * fx * fy])
+    gx, gy = 1 - fx, 1 - fy
+    ws = np.concatenate([W * gx * gy, W * fx * gy, W * gx * fy, W * fx * fy])
     acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
@@ -451,7 +469,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    pos = (V[fa.sample_tri] * fa.bary).sum(1)
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
@@ -470,31 +488,30 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         sa, sb = s[ia], s[ia + 1]
         w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        nrm = np.stack([-d[:, 1], d[:, 0]], 1) / np.maximum(L, 1e-9)[:, None]
-        rpts = pts + np.repeat(nrm * fa.off[g], K, 0)
+        nrm = d[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]  # (-dy, dx) / L
+        # the line's samples, then the ridge's beside it (one array: one box, one splat)
+        both = np.concatenate([pts, pts + np.repeat(nrm * fa.off[g], K, 0)])
         pad = 3.0 * sig_r + 2.0
-        lo = np.minimum(pts.min(0), rpts.min(0)) - pad
-        hi = np.maximum(pts.max(0), rpts.max(0)) + pad
-        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        bx, by = both[:, 0], both[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
+        x0, y0 = max(int(bx.min() - pad), 0), max(int(by.min() - pad), 0)
+        x1, y1 = min(int(bx.max() + pad) + 1, W), min(int(by.max() + pad) + 1, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        o = np.array([x0, y0], np.float64)
-        dark, light = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, rpts - o,
-                              w * fa.ridge[g])
+        dark, light = _splat_cat((y1 - y0 + 1, x1 - x0 + 1), both - (x0, y0),
+                                 np.concatenate([w, w * fa.ridge[g]]), len(pts))
         dark = cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig)
         light = cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r)
         k1 = np.float32(math.sqrt(2 * math.pi) * sig)
         k2 = np.float32(math.sqrt(2 * math.pi) * sig_r)
         patch = out[y0:y1, x0:x1].astype(np.float32)
         # skin-likeness: hair, brows, eyes and lashes are not folded
-        ref = fa.skin[g]
-        ref_l = max(float(ref.mean()), 20.0)
-        dif = patch - ref
-        wskin = np.clip((0.45 - np.sqrt((dif * dif).mean(2)) / ref_l) * 4.0, 0.0, 1.0)
+        dif = patch - fa.skin[g]
+        dif *= dif
+        wskin = np.sqrt(dif.sum(2) / 3) / float(fa.ref_l[g])
+        wskin = np.minimum(np.maximum((0.45 - wskin) * 4.0, 0.0), 1.0)
         dl = (light * k2)[..., None] - (dark * k1)[..., None] * tint
-        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + dl * wskin[..., None]) + 0.5, 0,
-                                    255).astype(np.uint8)
+        res_ = patch * (1.0 + dl * wskin[..., None]) + 0.5
+        out[y0:y1, x0:x1] = np.minimum(np.maximum(res_, 0), 255).astype(np.uint8)
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox == res.bbox:
         return res

@@ -293,6 +293,9 @@ class EyePlan:
     lid_up: np.ndarray  # (7, 2) neutral upper lid c0, u1..u5, c1 (frame, iris-centred)
     lid_low: np.ndarray  # (7, 2) neutral lower lid c0, d1..d5, c1
 
+    def __post_init__(self) -> None:
+        self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
+
     @classmethod
     def build(cls, image: np.ndarray, vertices: np.ndarray, hole: np.ndarray, name: str,
               iris: tuple[float, float, float], frame_rot: np.ndarray) -> EyePlan:
@@ -402,8 +405,8 @@ class EyePlan:
         neutral eye's frame (iris-centred), through the inverse of ``sim``."""
         inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
-        f = np.stack([n @ self.ex, n @ self.ey], -1)
-        return f[[0, 1, 2, 3, 4, 5, 6]], f[[0, 11, 10, 9, 8, 7, 6]]
+        f = n @ self._exy
+        return f[_UP], f[_LOW]
 
     def lid_opening(self, poly: np.ndarray, sim: np.ndarray) -> float:
         """How far (px, neutral frame) the lids moved away from the eye's centre at most:
@@ -429,13 +432,14 @@ class EyePlan:
         r_new, p_new = r_new * k, p_new * k
         x0, y0, x1, y1 = box
         inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
-        xs = np.arange(x0, x1, dtype=np.float64)[None, :]
-        ys = np.arange(y0, y1, dtype=np.float64)[:, None]
-        nx = inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2] - self.centre[0]
-        ny = inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2] - self.centre[1]
+        xs = np.arange(x0, x1, dtype=np.float64)
+        ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
-        U = nx * ex[0] + ny * ex[1]
-        W = nx * ey[0] + ny * ey[1]
+        # (u, w) of every pixel: affine in x and y, so one row plus one column each
+        cu = self._exy.T @ inv[:, :2]  # (u, w) per unit of x (column 0) and of y (column 1)
+        c0 = (inv[:, 2] - self.centre) @ self._exy
+        U = (cu[0, 0] * xs + c0[0])[None, :] + (cu[0, 1] * ys)[:, None]
+        W = (cu[1, 0] * xs + c0[1])[None, :] + (cu[1, 1] * ys)[:, None]
         du, dw = float(shift[0]), float(shift[1])
         # the white: stretch / translate horizontally
         Us, Ws = U, W
@@ -459,7 +463,8 @@ class EyePlan:
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))
         t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
-        plate = self.plate if t >= 1.0 else self.photo + t * (self.plate - self.photo)
+        plate = self.plate if t >= 1.0 else self.photo if t <= 0.0 else \
+            self.photo + t * (self.plate - self.photo)
         white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         # opened lids: per pixel, how far its column's lid moved away and the weight of the
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
@@ -525,8 +530,11 @@ class EyePlan:
         lid-margin texture of the warp by one clean, slightly curved line.
         """
         x, y = poly[:, 0], poly[:, 1]
-        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        nxt = _NEXT if len(poly) == len(_NEXT) else np.roll(np.arange(len(poly)), -1)
+        area = 0.5 * abs(float(np.dot(x, y[nxt]) - np.dot(y, x[nxt])))
         c = 1.0 - area / max(self.area0, 1e-6)
+        if c <= 0.6:  # no closure yet: no lash line (the fade below is 0)
+            return None
         fade = float(_smooth01(np.array((c - 0.6) / 0.3)))
         if fade <= 0.0:
             return None
@@ -547,6 +555,11 @@ class EyePlan:
         thick = max(1.2, 0.35 * self.r0) * (0.4 + 0.6 * np.sin(np.pi * s))
         alpha = np.clip(0.5 * thick + 0.5 - dist.min(-1), 0.0, 1.0) * fade
         return alpha.T.astype(np.float32), self.lash
+
+
+_UP = np.array([0, 1, 2, 3, 4, 5, 6])  # opening loop -> upper lid c0, u1..u5, c1
+_LOW = np.array([0, 11, 10, 9, 8, 7, 6])  # -> lower lid c0, d1..d5, c1
+_NEXT = np.roll(np.arange(12), -1)  # next vertex along the opening's loop
 
 
 def photo_through(img: np.ndarray, sim: np.ndarray, box: tuple[int, int, int, int]

@@ -35,7 +35,7 @@ import numpy as np
 
 from .deform import eye_state
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
-from .mouth import MouthPlan, _lum, _poly_mask, _sat, _smoothstep
+from .mouth import MouthPlan, _clamp, _lum, _poly_mask, _sat, _smoothstep
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -133,14 +133,14 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
     lips = face[inside == 0].astype(np.float32)  # labels number the zero pixels row by row
-    rim = lips[np.clip(labels - 1, 0, len(lips) - 1)] if len(lips) else \
+    rim = lips[_clamp(labels - 1, 0, len(lips) - 1)] if len(lips) else \
         np.zeros(face.shape, np.float32)
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = float(np.clip(0.03 * D, 0.7, 1.5))
     spread = cv2.GaussianBlur(alpha, (0, 0), s)
-    shade = 1.0 - 0.35 * strength * np.clip(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
+    shade = 1.0 - 0.35 * strength * _clamp(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
     return rim, depth, shade.astype(np.float32)
 
 
@@ -157,13 +157,13 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.round((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3, cv2.LINE_8, _SHIFT)
-    w = band.astype(np.float32) * np.clip(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
+    w = band.astype(np.float32) * _clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
     if not w.any():
         return
     patch = out[y0:y1, x0:x1]
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE)
     res = patch + w[..., None] * (opened.astype(np.float32) - patch)
-    out[y0:y1, x0:x1] = np.clip(res + 0.5, 0, 255).astype(np.uint8)
+    out[y0:y1, x0:x1] = _clamp(res + 0.5, 0, 255).astype(np.uint8)
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
@@ -183,7 +183,7 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
         face = np.where(hole[..., None] & (den[..., None] > 0.5), ext, face)
     a = alpha[..., None]
     res = interior * a + face * (1.0 - a)
-    out[y0:y1, x0:x1] = np.clip(res + 0.5, 0, 255).astype(np.uint8)
+    out[y0:y1, x0:x1] = _clamp(res + 0.5, 0, 255).astype(np.uint8)
 
 
 def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
@@ -266,7 +266,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 x0, y0, x1, y1 = box
                 o = out[y0:y1, x0:x1].astype(np.float32)
                 la = la[..., None]
-                out[y0:y1, x0:x1] = np.clip(o + la * (col - o) + 0.5, 0, 255).astype(np.uint8)
+                out[y0:y1, x0:x1] = _clamp(o + la * (col - o) + 0.5, 0, 255).astype(np.uint8)
         drawn[name] = (box, hole)
         bbox = _union(bbox, box)
     if bbox == res.bbox:

@@ -26,8 +26,9 @@ cheeks' skin, teeth colour from the photo's own teeth when it shows some.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import cv2
@@ -247,33 +248,34 @@ class MouthPlan:
         x0, y0, x1, y1 = box
         S = np.asarray(skull, np.float64)
         L = S[:, :2]
-        sc = float(np.sqrt(abs(np.linalg.det(L)))) or 1.0
-        ex = L @ self.ex
-        ex /= np.linalg.norm(ex)
-        ey = L @ self.ey
-        ey /= np.linalg.norm(ey)
+        sc = math.sqrt(abs(L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])) or 1.0
+        E = L @ self._exy  # the frame axes turned with the skull (columns), normalised
+        E /= np.sqrt((E * E).sum(0))
+        ex, ey = E[:, 0], E[:, 1]
         xs = np.arange(x0, x1, dtype=np.float64)[None, :]
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
         O = v[self.i93].astype(np.float64)
         Qx = (xs - O[0]) * ex[0] + (ys - O[1]) * ex[1]
         Qy = (xs - O[0]) * ey[0] + (ys - O[1]) * ey[1]
 
-        def fr(p: np.ndarray) -> np.ndarray:
-            d = np.asarray(p, np.float64) - O
-            return np.stack([d @ ex, d @ ey], -1)
-
-        q21, q23 = fr(v[self.i21]), fr(v[self.i23])
+        # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
+        # upper lip, the opening's loop
+        fp = (v[self._frame_idx].astype(np.float64) - O) @ E
+        q21, q23 = fp[0], fp[1]
+        n_lip = len(self.upper_lip)
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
-        lip = fr(v[self.upper_lip])
+        lip = fp[2:2 + n_lip]
         order = np.argsort(lip[:, 0])
         y_up = np.interp(Qx, lip[order, 0], lip[order, 1])
-        hole = fr(v[self.hole])
-        cxm = 0.5 * (hole[:, 0].min() + hole[:, 0].max())
-        hw = max(0.5 * float(np.ptp(hole[:, 0])), 1.0)
-        hh = max(0.5 * float(np.ptp(hole[:, 1])), 1.0)
-        cym = 0.5 * (hole[:, 1].min() + hole[:, 1].max())
-        side = np.clip(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        hole = fp[2 + n_lip:]
+        lo_h, hi_h = hole[:, 0].min(), hole[:, 0].max()
+        lo_v, hi_v = hole[:, 1].min(), hole[:, 1].max()
+        cxm = 0.5 * (lo_h + hi_h)
+        hw = max(0.5 * float(hi_h - lo_h), 1.0)
+        hh = max(0.5 * float(hi_v - lo_v), 1.0)
+        cym = 0.5 * (lo_v + hi_v)
+        side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
         shade = (1.0 - 0.3 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
         shade = (shade * (1.0 - 0.35 * side * side)).astype(np.float32)[..., None]
         if rim is None or depth is None:
@@ -345,6 +347,16 @@ class MouthPlan:
             out = _thin_gap(out, cav, alpha, D)
         return out
 
+    @cached_property
+    def _exy(self) -> np.ndarray:
+        """(2, 2) the neutral frame axes ex, ey as columns."""
+        return np.stack([self.ex, self.ey], 1).astype(np.float64)
+
+    @cached_property
+    def _frame_idx(self) -> np.ndarray:
+        """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
+        return np.concatenate([[self.i21, self.i23], self.upper_lip, self.hole]).astype(np.intp)
+
     def _over(self, out, name, qx, qy, left, top, ww, hh, shade, gum=False):
         t = self.tex[name]
         th, tw = t.shape[:2]
@@ -373,7 +385,7 @@ class MouthPlan:
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
         f = np.asarray(faps, np.float64)
-        if not (np.any(f[42:46]) or f[46]):
+        if not f[42:47].any():  # FAPs 43-47
             return None
         d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
         lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)
@@ -420,8 +432,14 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     return cav + vis * (out - cav)
 
 
+def _clamp(x, lo, hi):
+    """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
+    (several microseconds a call, as much as the arithmetic on a small layer box)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
 def _smoothstep(t: np.ndarray | float) -> np.ndarray:
-    t = np.clip(t, 0.0, 1.0)
+    t = _clamp(t, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 

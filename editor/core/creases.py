@@ -356,11 +356,11 @@ class _Fast:
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
     # per-face constants of the per-frame path (gathered once, not every frame)
     used_tri: np.ndarray | None = None  # (U, 3) vertex indices of the ``used`` triangles
-    used_inv: np.ndarray | None = None  # (U, 2, 2) their inverse edge matrices
+    used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
     tx: np.ndarray | None = None  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
     ty: np.ndarray | None = None
-    sample_tri: np.ndarray | None = None  # (N, 3) vertex indices of each sample's triangle
-    bary: np.ndarray | None = None  # (N, 3, 1) its barycentric coordinates
+    sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
+    bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
     ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
 
 
@@ -396,10 +396,12 @@ def _fast(face: Face) -> _Fast:
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
               skin)
     f.used_tri = face.mesh.triangles[used]
-    f.used_inv = p.tri_inv[used]
+    inv = p.tri_inv[used]
+    f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
     f.tx, f.ty = -p.normal[:, 1, None], p.normal[:, 0, None]
-    f.sample_tri = face.mesh.triangles[p.tri]
-    f.bary = p.bary[..., None]
+    tri = face.mesh.triangles[p.tri]
+    f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
+    f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     _FAST[face] = f
     return f
@@ -411,17 +413,21 @@ def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     T = V[fa.used_tri]
-    D = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)
-    A = D @ fa.used_inv  # deformed = A @ photo (linear part per triangle)
-    Ap = A[fa.probe]  # (N, 4, 2, 2)
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges,
+    # entry by entry (U,) and then gathered per probe (N, 4)
+    i00, i01, i10, i11 = fa.used_inv
+    e1x, e1y, e2x, e2y = e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1]
+    a00, a01 = e1x * i00 + e2x * i10, e1x * i01 + e2x * i11
+    a10, a11 = e1y * i00 + e2y * i10, e1y * i01 + e2y * i11
+    det = (a00 * a11 - a01 * a10)[fa.probe]
     # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
     # along the fold and stretch along it do not change it
-    a00, a01, a10, a11 = Ap[..., 0, 0], Ap[..., 0, 1], Ap[..., 1, 0], Ap[..., 1, 1]
-    tx, ty = fa.tx, fa.ty
-    ax = a00 * tx + a01 * ty
-    ay = a10 * tx + a11 * ty
-    det = a00 * a11 - a01 * a10
-    c = 1.0 - (det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)).sum(1) * 0.25
+    pr, tx, ty = fa.probe, fa.tx, fa.ty
+    ax = a00[pr] * tx + a01[pr] * ty
+    ay = a10[pr] * tx + a11[pr] * ty
+    r = det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)
+    c = 1.0 - (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -469,7 +475,8 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    pos = (V[fa.sample_tri] * fa.bary).sum(1)
+    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
@@ -507,7 +514,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         # skin-likeness: hair, brows, eyes and lashes are not folded
         dif = patch - fa.skin[g]
         dif *= dif
-        wskin = np.sqrt(dif.sum(2) / 3) / float(fa.ref_l[g])
+        wskin = np.sqrt((dif[..., 0] + dif[..., 1] + dif[..., 2]) / 3) / float(fa.ref_l[g])
         wskin = np.minimum(np.maximum((0.45 - wskin) * 4.0, 0.0), 1.0)
         dl = (light * k2)[..., None] - (dark * k1)[..., None] * tint
         res_ = patch * (1.0 + dl * wskin[..., None]) + 0.5

@@ -500,14 +500,20 @@ class EyePlan:
         a = _clamp(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
         if not a.any():
             return white if shadow is None else white * shadow[..., None]
-        rn = rho / max(r_new, 1e-6)
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
-        rs = np.where(rn < pn, rn * pn0 / pn,
-                      pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * self.r0
-        k = rs / np.maximum(rho, 1e-6)
-        ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
-        iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
+        if du == 0.0 and dw == 0.0 and abs(r_new - self.r0) <= 1e-9 * self.r0 \
+                and abs(pn - pn0) <= 1e-12:
+            # the iris as in the photo (no gaze, thrust or pupil change): the radial map is
+            # the identity, the sprite is sampled where the white is
+            ix, iy = mx, my
+        else:
+            rn = rho / max(r_new, 1e-6)
+            rs = np.where(rn < pn, rn * pn0 / pn,
+                          pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * self.r0
+            k = rs / np.maximum(rho, 1e-6)
+            ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
+            iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
         iris = cv2.remap(self.iris, ix, iy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         p_rest = self.p0 * r_new / self.r0
         if p_new > p_rest:

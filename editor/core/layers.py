@@ -179,11 +179,14 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
         num = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
                             borderType=cv2.BORDER_REPLICATE)
         den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
-        ext = num / np.maximum(den, 1e-6)[..., None]
-        face = np.where(hole[..., None] & (den[..., None] > 0.5), ext, face)
+        num /= np.maximum(den, 1e-6)[..., None]
+        np.copyto(face, num, where=(hole & (den > 0.5))[..., None])
     a = alpha[..., None]
-    res = interior * a + face * (1.0 - a)
-    out[y0:y1, x0:x1] = _clamp(res + 0.5, 0, 255).astype(np.uint8)
+    res = interior * a
+    face *= 1.0 - a
+    res += face
+    res += 0.5
+    out[y0:y1, x0:x1] = _clamp(res, 0, 255).astype(np.uint8)
 
 
 def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,

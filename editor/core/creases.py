@@ -456,9 +456,15 @@ def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
     fx, fy = P[:, 0] - x0, P[:, 1] - y0
     base = (y0.astype(np.int64) * wd + x0.astype(np.int64))
     base[n1:] += h * wd  # the second canvas follows the first
-    idx = np.concatenate([base, base + 1, base + wd, base + wd + 1])
-    gx, gy = 1 - fx, 1 - fy
-    ws = np.concatenate([W * gx * gy, W * fx * gy, W * gx * fy, W * fx * fy])
+    n = len(P)
+    idx = np.empty(4 * n, np.int64)
+    ws = np.empty(4 * n)
+    gy = 1 - fy
+    wg, wf = W * (1 - fx), W * fx
+    for k, (off, a, b) in enumerate(((0, wg, gy), (1, wf, gy), (wd, wg, fy),
+                                     (wd + 1, wf, fy))):
+        np.add(base, off, out=idx[k * n:(k + 1) * n])
+        np.multiply(a, b, out=ws[k * n:(k + 1) * n])
     acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
@@ -490,7 +496,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         L = np.sqrt((d * d).sum(1))
         sig = float(fa.sig[g])
         sig_r = 1.6 * sig
-        K = int(min(max(np.ceil(L.max() / min(0.5, 0.5 * sig)), 1), 64))
+        K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         sa, sb = s[ia], s[ia + 1]
@@ -516,9 +522,13 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         dif *= dif
         wskin = np.sqrt((dif[..., 0] + dif[..., 1] + dif[..., 2]) / 3) / float(fa.ref_l[g])
         wskin = np.minimum(np.maximum((0.45 - wskin) * 4.0, 0.0), 1.0)
-        dl = (light * k2)[..., None] - (dark * k1)[..., None] * tint
-        res_ = patch * (1.0 + dl * wskin[..., None]) + 0.5
-        out[y0:y1, x0:x1] = np.minimum(np.maximum(res_, 0), 255).astype(np.uint8)
+        dl = (dark * k1)[..., None] * tint
+        np.subtract((light * k2)[..., None], dl, out=dl)
+        dl *= wskin[..., None]
+        dl += 1.0
+        dl *= patch  # patch * (1 + dl * wskin)
+        dl += 0.5
+        out[y0:y1, x0:x1] = np.minimum(np.maximum(dl, 0), 255).astype(np.uint8)
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox == res.bbox:
         return res

@@ -414,15 +414,18 @@ class EyePlan:
         f = n @ self._exy
         return f[_UP], f[_LOW]
 
-    def lid_opening(self, poly: np.ndarray, sim: np.ndarray) -> float:
+    def lid_opening(self, poly: np.ndarray, sim: np.ndarray,
+                    lids: tuple[np.ndarray, np.ndarray] | None = None) -> float:
         """How far (px, neutral frame) the lids moved away from the eye's centre at most:
-        > 0 when an upper lid was raised or a lower lid lowered."""
-        up, low = self.lid_frame(poly, sim)
+        > 0 when an upper lid was raised or a lower lid lowered. ``lids``: the
+        :meth:`lid_frame` of ``poly`` and ``sim`` when the caller has it already."""
+        up, low = self.lid_frame(poly, sim) if lids is None else lids
         return float(max((self.lid_up[1:-1, 1] - up[1:-1, 1]).max(),
                          (low[1:-1, 1] - self.lid_low[1:-1, 1]).max()))
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
-               r_new: float, p_new: float, poly: np.ndarray | None = None) -> np.ndarray:
+               r_new: float, p_new: float, poly: np.ndarray | None = None,
+               lids: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
 
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
@@ -432,7 +435,7 @@ class EyePlan:
         photo's shadow band along that lid is replaced by it as well (the shadow travels with
         the lid; the iris keeps its own pixels and catch-lights) and the raised upper lid casts
         a soft shadow on what it uncovers. Each column fades in over its lid's first
-        pixel of motion.
+        pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known.
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
@@ -476,7 +479,7 @@ class EyePlan:
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep, shadow = None, None
         if poly is not None:
-            up, low = self.lid_frame(poly, sim)
+            up, low = self.lid_frame(poly, sim) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
             w_up = np.interp(U, up[:, 0], up[:, 1])
             w_up0 = np.interp(U, su[:, 0], su[:, 1])

@@ -25,6 +25,7 @@ them (skin lighting, its own teeth, what its mouth opening shows: :func:`_own_in
 
 from __future__ import annotations
 
+import math
 import time
 import weakref
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ if TYPE_CHECKING:
 _SHIFT = 4
 _TOL = 1e-3
 _SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
+_EYE_FAP_IDX = {k: np.array(v) for k, v in EYE_FAPS.items()}
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 _SQUARE = np.ones((3, 3), np.uint8)
 
@@ -89,11 +91,11 @@ def layer_plan(face: Face) -> LayerPlan:
 
 def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
     h, w = shape[:2]
-    lo, hi = poly.min(0), poly.max(0)
-    x0 = min(max(int(np.floor(lo[0])) - pad, 0), w)
-    y0 = min(max(int(np.floor(lo[1])) - pad, 0), h)
-    x1 = min(max(int(np.ceil(hi[0])) + pad + 1, 0), w)
-    y1 = min(max(int(np.ceil(hi[1])) + pad + 1, 0), h)
+    px, py = poly[:, 0], poly[:, 1]
+    x0 = min(max(math.floor(px.min()) - pad, 0), w)
+    y0 = min(max(math.floor(py.min()) - pad, 0), h)
+    x1 = min(max(math.ceil(px.max()) + pad + 1, 0), w)
+    y1 = min(max(math.ceil(py.max()) + pad + 1, 0), h)
     return x0, y0, x1, y1
 
 
@@ -106,8 +108,11 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     return m.astype(bool)
 
 
+_IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
 def _is_identity(m: np.ndarray, tol: float = 1e-4) -> bool:
-    return bool(np.abs(np.asarray(m) - np.array([[1, 0, 0], [0, 1, 0]])).max() < tol)
+    return bool(np.abs(np.asarray(m) - _IDENTITY).max() < tol)
 
 
 def _union(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int]
@@ -138,7 +143,7 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
-    s = float(np.clip(0.03 * D, 0.7, 1.5))
+    s = min(max(0.03 * D, 0.7), 1.5)
     spread = cv2.GaussianBlur(alpha, (0, 0), s)
     shade = 1.0 - 0.35 * strength * _clamp(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
     return rim, depth, shade.astype(np.float32)
@@ -206,8 +211,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         hole_idx = face.mesh.holes[name]
         poly = v[hole_idx]
         moved = float(np.abs(poly - plan_src[hole_idx]).max())
-        idx = list(EYE_FAPS[name])
-        eye_faps = bool(np.any(faps[idx]))
+        eye_faps = bool(faps[_EYE_FAP_IDX[name]].any())
         iris_dst = extra[EXTRA_INDEX[name]]
         iris_moved = bool(np.abs(iris_dst - face.plan.neutral[face.plan.n_vertices
                                                                + EXTRA_INDEX[name]]).max() > _TOL)
@@ -254,9 +258,10 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 shift = ep.gaze_shift(extra[k], tf)
             else:
                 r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-            if active or ep.lid_opening(poly, tf) > _TOL:
+            lids = ep.lid_frame(poly, tf)
+            if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
         _composite(out, box, alpha, hole, interior, lip_shade)

@@ -486,16 +486,22 @@ class EyePlan:
             w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
             s_up = _smooth01(w_up0 - w_up)
             s_lo = _smooth01(np.interp(U, low[:, 0], low[:, 1]) - w_lo0)
-            if s_up.any() or s_lo.any():
-                keep = ((1.0 - s_up * (1.0 - _clamp(W - w_up0 - self.band_up + 0.5, 0, 1)))
-                        * (1.0 - s_lo * (1.0 - _clamp(w_lo0 - W - self.band_low + 0.5, 0, 1)))
-                        ).astype(np.float32)[..., None]
+            up_moved, low_moved = bool(s_up.any()), bool(s_lo.any())
+            if up_moved or low_moved:
+                # (a lid that did not open contributes a factor of exactly 1: skipped)
+                keep = 1.0 - s_up * (1.0 - _clamp(W - w_up0 - self.band_up + 0.5, 0, 1)) \
+                    if up_moved else None
+                if low_moved:
+                    k_lo = 1.0 - s_lo * (1.0 - _clamp(w_lo0 - W - self.band_low + 0.5, 0, 1))
+                    keep = k_lo if keep is None else keep * k_lo
+                keep = keep.astype(np.float32)[..., None]
                 ball = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
                                  borderMode=cv2.BORDER_REPLICATE)
                 white = ball + keep * (white - ball)
-                fall = LID_SHADOW_FALL * self.r0
-                shadow = (1.0 - LID_SHADOW * s_up
-                          * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
+                if up_moved:
+                    fall = LID_SHADOW_FALL * self.r0
+                    shadow = (1.0 - LID_SHADOW * s_up
+                              * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du
         Dw = W - dw

@@ -316,8 +316,11 @@ class MouthPlan:
                              shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
-        sx = Si[0, 0] * xs + Si[0, 1] * ys + Si[0, 2]
-        sy = Si[1, 0] * xs + Si[1, 1] * ys + Si[1, 2]
+        # where each pixel samples the photo's own interior (its patch's pixels): skull part
+        ofx, ofy = self.own_off
+        sx = Si[0, 0] * xs + Si[0, 1] * ys + (Si[0, 2] - ofx)
+        sy = Si[1, 0] * xs + Si[1, 1] * ys + (Si[1, 2] - ofy)
+        mx, my = sx.astype(np.float32), sy.astype(np.float32)
         anchor = O + q21[0] * ex + y_lb * ey
         tj = anchor - (L @ self.anchor0 + S[:, 2])
         tjs = Si[:, :2] @ tj
@@ -328,11 +331,11 @@ class MouthPlan:
         # closed mouth's lip line fades out over the first two pixels the lips part
         gap = (v[self.lip_pairs[:, 1]] - v[self.lip_pairs[:, 0]]).astype(np.float64) @ ey
         fade = 1.0 - _smoothstep(float((gap - self.gap0).max()) / 2.0)
-        a_up, p_up = self._own(sx, sy, 0, fade)
-        a_lo, p_lo = self._own(sx - tjs[0], sy - tjs[1], 1, fade)
+        a_up, p_up = self._own(mx, my, 0, fade)
+        a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
+                               (sy - tjs[1]).astype(np.float32), 1, fade)
         if a_up is not None and self.photo_upper:  # the continued teeth: lip shadow too
-            e = cv2.remap(self.ext, (sx - self.own_off[0]).astype(np.float32),
-                          (sy - self.own_off[1]).astype(np.float32), cv2.INTER_LINEAR,
+            e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)[..., None]
             p_up = p_up * (1.0 - e * (1.0 - shade))
         if a_up is not None or a_lo is not None:
@@ -366,12 +369,13 @@ class MouthPlan:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=(0, 0, 0, 0))
-        return s[..., :3] * shade + (1.0 - s[..., 3:4]) * out
+        res = s[..., :3] * shade
+        res += (1.0 - s[..., 3:4]) * out
+        return res
 
-    def _own(self, sx, sy, k, fade):
-        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part."""
-        mx = (sx - self.own_off[0]).astype(np.float32)
-        my = (sy - self.own_off[1]).astype(np.float32)
+    def _own(self, mx, my, k, fade):
+        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part;
+        ``mx``, ``my`` (h, w) float32: positions in the own interior's patch."""
         src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
             self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
         a = cv2.remap(src, mx, my, cv2.INTER_LINEAR,

@@ -462,8 +462,11 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     if h <= 0 or w <= 0:
         return np.zeros((max(h, 0), max(w, 0)), np.float32)
     big = np.zeros((h * ss, w * ss), np.uint8)
-    q = ((np.asarray(poly, np.float64) - (x0, y0)) + 0.5) * ss - 0.5
-    cv2.fillPoly(big, [np.round(q * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
+    # sample grid, 4 fractional bits: ((p - box origin) + 0.5) * ss - 0.5, times 16, in one
+    # product and one sum (exact in float64 for power-of-two ss, as the step-by-step form)
+    k = 16.0 * ss
+    q = np.asarray(poly, np.float64) * k + (8.0 * ss - 8.0 - k * np.array([x0, y0]))
+    cv2.fillPoly(big, [np.round(q).astype(np.int32)], 255, cv2.LINE_8, 4)
     # OpenCV also fills every sample the outline touches: remove that rim (a zero-area polygon,
     # e.g. closed lids, then covers nothing)
     if not dilate:

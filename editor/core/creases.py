@@ -362,6 +362,7 @@ class _Fast:
     sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
     ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
+    keep: np.ndarray | None = None  # (N,) 1 - spread
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -403,6 +404,7 @@ def _fast(face: Face) -> _Fast:
     f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
+    f.keep = 1.0 - spread
     _FAST[face] = f
     return f
 
@@ -431,7 +433,7 @@ def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
-    c = (1.0 - fa.spread) * c + fa.spread * cmax
+    c = fa.keep * c + fa.spread * cmax
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
     # smooth along each line (no triangle steps), then taper the ends (the first and last two
     # samples of every line are not smoothed, so the padding of "same" never shows)

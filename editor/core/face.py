@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -79,8 +79,12 @@ class Face:
     source: str | None = None
     expression: np.ndarray | None = None
     expression_words: str = "neutral"
+    #: (FAPU, plan) of ``vertices`` if the caller has them (a copy of a face declared neutral):
+    #: the neutralisation starts from them instead of building them again
+    photo_plan: InitVar[tuple[dict[str, float], DeformPlan] | None] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, photo_plan: tuple[dict[str, float], DeformPlan] | None = None
+                      ) -> None:
         self.image = np.ascontiguousarray(self.image)
         self.image.setflags(write=False)
         self.vertices = np.asarray(self.vertices, np.float32)
@@ -89,7 +93,8 @@ class Face:
             FAPS.clamp(FAPS.vector(self.expression))
         self.expression = f0
         self.expression.setflags(write=False)
-        self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(f0)
+        self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(
+            f0, photo_plan=photo_plan)
 
     def _measure_fapu(self, vertices: np.ndarray) -> dict[str, float]:
         lm = self.landmarks
@@ -103,12 +108,13 @@ class Face:
                           _extra_points(self.mesh, vertices, self.landmarks, fapu))
         return fapu, plan
 
-    def _neutralise(self, f0: np.ndarray, rounds: int = 4
+    def _neutralise(self, f0: np.ndarray, rounds: int = 4,
+                    photo_plan: tuple[dict[str, float], DeformPlan] | None = None
                     ) -> tuple[np.ndarray, dict[str, float], DeformPlan, np.ndarray | None]:
         """Neutral mesh N with ``N + D_N(f0) ~ P`` (fixed point), its FAPU and plan, and the
         offset ``r = P - (N + D_N(f0))`` over all points (None when f0 = 0)."""
         P = self.vertices
-        fapu, plan = self._build(P)
+        fapu, plan = self._build(P) if photo_plan is None else photo_plan
         if not f0.any():
             return P, fapu, plan, None
         V = len(P)
@@ -171,8 +177,10 @@ class Face:
         vec = None if expression is None else self.fap_vector(expression)
         if words is None:
             words = "neutral" if vec is None or not vec.any() else "edited"
+        # a face declared neutral has the photo mesh's FAPU and plan already
+        seed = None if self.expression.any() else (dict(self.fapu), self.plan)
         return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, vec,
-                    words)
+                    words, seed)
 
     @classmethod
     def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:

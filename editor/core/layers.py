@@ -105,7 +105,7 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     m = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.round((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
-    return m.astype(bool)
+    return m.view(bool)  # 0 / 1 bytes
 
 
 _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -137,9 +137,9 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     inside = hole.astype(np.uint8)
     depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
-    lips = face[inside == 0].astype(np.float32)  # labels number the zero pixels row by row
-    rim = lips[_clamp(labels - 1, 0, len(lips) - 1)] if len(lips) else \
-        np.zeros(face.shape, np.float32)
+    lips = face[~hole]  # labels number the zero pixels row by row
+    rim = np.take(lips, labels - 1, axis=0, mode="clip").astype(np.float32) if len(lips) \
+        else np.zeros(face.shape, np.float32)
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet

@@ -276,8 +276,9 @@ class MouthPlan:
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
         cym = 0.5 * (lo_v + hi_v)
         side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        side *= side  # (only its square is used)
         shade = (1.0 - 0.3 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
-        shade = (shade * (1.0 - 0.35 * side * side)).astype(np.float32)[..., None]
+        shade = (shade * (1.0 - 0.35 * side)).astype(np.float32)[..., None]
         if rim is None or depth is None:
             rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
             # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
@@ -287,7 +288,7 @@ class MouthPlan:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
             g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))[..., None]
-            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)[..., None]
+            back = (0.5 * (1.0 - 0.4 * side)).astype(np.float32)[..., None]
             deep = back * self.cavity[None, None, :]
             out = deep + (0.45 * rim - deep) * g
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
@@ -339,13 +340,15 @@ class MouthPlan:
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)[..., None]
             p_up = p_up * (1.0 - e * (1.0 - shade))
         if a_up is not None or a_lo is not None:
-            rest = np.ones_like(out[..., :1])
+            rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
             if a_up is not None:
                 out = out * (1.0 - a_up) + p_up * a_up
                 rest = 1.0 - a_up
             if a_lo is not None:
-                a_lo = np.minimum(a_lo, rest)
-                out = out + (p_lo - out) * (a_lo / np.maximum(rest, 1e-6))
+                if rest is not None:
+                    a_lo = np.minimum(a_lo, rest)
+                    a_lo /= np.maximum(rest, 1e-6)
+                out = out + (p_lo - out) * a_lo
         if alpha is not None:
             out = _thin_gap(out, cav, alpha, D)
         return out
@@ -432,7 +435,7 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     k = 2 * int(np.ceil(lo + ramp)) + 3
     h = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
                       borderType=cv2.BORDER_CONSTANT) / np.float32(3.0)
-    vis = _smoothstep((h - lo) / ramp).astype(np.float32)[..., None]
+    vis = _smoothstep((h - lo) / ramp).astype(np.float32, copy=False)[..., None]
     return cav + vis * (out - cav)
 
 

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .layers import _rebox, _union
+from .layers import _rebox, _to_uint8, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -363,6 +363,7 @@ class _Fast:
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
     ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
     keep: np.ndarray | None = None  # (N,) 1 - spread
+    seg_b: np.ndarray | None = None  # (M,) seg_a + 1: the last sample of each segment
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -405,6 +406,7 @@ def _fast(face: Face) -> _Fast:
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     f.keep = 1.0 - spread
+    f.seg_b = f.seg_a + 1
     _FAST[face] = f
     return f
 
@@ -488,20 +490,22 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
-    live = np.maximum(s[fa.seg_a], s[fa.seg_a + 1]) > _MIN_STRENGTH
+    live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
     tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
         if not live[g0:g1].any():
             continue
-        ia = fa.seg_a[g0:g1]
-        a, d = pos[ia], pos[ia + 1] - pos[ia]
-        L = np.sqrt((d * d).sum(1))
+        ia, ib = fa.seg_a[g0:g1], fa.seg_b[g0:g1]
+        a = pos[ia]
+        d = pos[ib] - a
+        dx, dy = d[:, 0], d[:, 1]
+        L = np.sqrt(dx * dx + dy * dy)
         sig = float(fa.sig[g])
         sig_r = 1.6 * sig
         K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        sa, sb = s[ia], s[ia + 1]
+        sa, sb = s[ia], s[ib]
         w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
         nrm = d[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]  # (-dy, dx) / L
         # the line's samples, then the ridge's beside it (one array: one box, one splat)
@@ -529,8 +533,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         dl *= wskin[..., None]
         dl += 1.0
         dl *= patch  # patch * (1 + dl * wskin)
-        dl += 0.5
-        out[y0:y1, x0:x1] = np.minimum(np.maximum(dl, 0), 255).astype(np.uint8)
+        _to_uint8(dl, out[y0:y1, x0:x1])
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox == res.bbox:
         return res

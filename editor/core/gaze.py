@@ -536,8 +536,12 @@ class EyePlan:
             ap = ap[..., None]
             iris = iris * (1.0 - ap) + self.pupil * ap
         a = a.astype(np.float32)[..., None]
-        col = iris * a + white * (1.0 - a)
-        return col if shadow is None else col * shadow[..., None]
+        col = iris * a
+        white *= 1.0 - a  # (white is this frame's own array)
+        col += white
+        if shadow is not None:
+            col *= shadow[..., None]
+        return col
 
 
     def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray

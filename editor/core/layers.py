@@ -168,7 +168,15 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     patch = out[y0:y1, x0:x1]
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE)
     res = patch + w[..., None] * (opened.astype(np.float32) - patch)
-    out[y0:y1, x0:x1] = _clamp(res + 0.5, 0, 255).astype(np.uint8)
+    _to_uint8(res, out[y0:y1, x0:x1])
+
+
+def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
+    """``dst[:] = clip(res + 0.5, 0, 255)`` truncated to uint8, in place (``res`` is used up)."""
+    res += 0.5
+    np.maximum(res, 0, out=res)
+    np.minimum(res, 255, out=res)
+    np.copyto(dst, res, casting="unsafe")
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
@@ -190,8 +198,7 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     res = interior * a
     face *= 1.0 - a
     res += face
-    res += 0.5
-    out[y0:y1, x0:x1] = _clamp(res, 0, 255).astype(np.uint8)
+    _to_uint8(res, out[y0:y1, x0:x1])
 
 
 def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
@@ -274,7 +281,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 x0, y0, x1, y1 = box
                 o = out[y0:y1, x0:x1].astype(np.float32)
                 la = la[..., None]
-                out[y0:y1, x0:x1] = _clamp(o + la * (col - o) + 0.5, 0, 255).astype(np.uint8)
+                _to_uint8(o + la * (col - o), out[y0:y1, x0:x1])
         drawn[name] = (box, hole)
         bbox = _union(bbox, box)
     if bbox == res.bbox:

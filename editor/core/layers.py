@@ -254,8 +254,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             alpha += (t * t * (3.0 - 2.0 * t)) * (_coverage(poly, box) - alpha)
         lip_shade = None
         if kind == "mouth":
+            fade_in = _smoothstep(min(moved, 1.0))
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
-                                               _smoothstep(min(moved, 1.0)))
+                                               fade_in)
             interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)
         else:
             ep = lp.eyes[name]
@@ -273,7 +274,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 interior = photo_through(img, tf, box)
         _composite(out, box, alpha, hole, interior, lip_shade)
         if kind == "mouth":
-            _clean_lip_line(out, box, poly, alpha, _smoothstep(min(moved, 1.0)))
+            _clean_lip_line(out, box, poly, alpha, fade_in)
         else:
             lash = lp.eyes[name].lash_line(box, poly)
             if lash is not None:  # a closing eye: one clean lash line where the lids meet

@@ -480,7 +480,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     result whose ``bbox`` also covers every pixel written.
     """
     s = fold_strength(face, vertices)
-    if not (s > _MIN_STRENGTH).any():
+    if not np.count_nonzero(s > _MIN_STRENGTH):
         return res
     p = crease_plan(face)
     fa = _fast(face)
@@ -493,7 +493,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
     tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not live[g0:g1].any():
+        if not np.count_nonzero(live[g0:g1]):
             continue
         ia, ib = fa.seg_a[g0:g1], fa.seg_b[g0:g1]
         a = pos[ia]

@@ -486,7 +486,7 @@ class EyePlan:
             w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
             s_up = _smooth01(w_up0 - w_up)
             s_lo = _smooth01(np.interp(U, low[:, 0], low[:, 1]) - w_lo0)
-            up_moved, low_moved = bool(s_up.any()), bool(s_lo.any())
+            up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
             if up_moved or low_moved:
                 # (a lid that did not open contributes a factor of exactly 1: skipped)
                 keep = 1.0 - s_up * (1.0 - _clamp(W - w_up0 - self.band_up + 0.5, 0, 1)) \
@@ -507,7 +507,7 @@ class EyePlan:
         Dw = W - dw
         rho = np.sqrt(Di * Di + Dw * Dw)
         a = _clamp(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
-        if not a.any():
+        if not np.count_nonzero(a):
             return white if shadow is None else white * shadow[..., None]
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)

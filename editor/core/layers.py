@@ -91,11 +91,11 @@ def layer_plan(face: Face) -> LayerPlan:
 
 def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
     h, w = shape[:2]
-    px, py = poly[:, 0], poly[:, 1]
-    x0 = min(max(math.floor(px.min()) - pad, 0), w)
-    y0 = min(max(math.floor(py.min()) - pad, 0), h)
-    x1 = min(max(math.ceil(px.max()) + pad + 1, 0), w)
-    y1 = min(max(math.ceil(py.max()) + pad + 1, 0), h)
+    (lx, ly), (hx, hy) = poly.min(0).tolist(), poly.max(0).tolist()
+    x0 = min(max(math.floor(lx) - pad, 0), w)
+    y0 = min(max(math.floor(ly) - pad, 0), h)
+    x1 = min(max(math.ceil(hx) + pad + 1, 0), w)
+    y1 = min(max(math.ceil(hy) + pad + 1, 0), h)
     return x0, y0, x1, y1
 
 
@@ -163,7 +163,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     q = np.round((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3, cv2.LINE_8, _SHIFT)
     w = band.astype(np.float32) * _clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
-    if not w.any():
+    if not np.count_nonzero(w):
         return
     patch = out[y0:y1, x0:x1]
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE)
@@ -187,7 +187,7 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     face = out[y0:y1, x0:x1].astype(np.float32)
     if shade is not None:
         face *= shade[..., None]
-    if hole.any():
+    if np.count_nonzero(hole):
         keep = (~hole).astype(np.float32)
         num = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
                             borderType=cv2.BORDER_REPLICATE)
@@ -218,7 +218,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         hole_idx = face.mesh.holes[name]
         poly = v[hole_idx]
         moved = float(np.abs(poly - plan_src[hole_idx]).max())
-        eye_faps = bool(faps[_EYE_FAP_IDX[name]].any())
+        eye_faps = np.count_nonzero(faps[_EYE_FAP_IDX[name]]) > 0
         iris_dst = extra[EXTRA_INDEX[name]]
         iris_moved = bool(np.abs(iris_dst - face.plan.neutral[face.plan.n_vertices
                                                                + EXTRA_INDEX[name]]).max() > _TOL)

@@ -383,7 +383,7 @@ class MouthPlan:
             self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
         a = cv2.remap(src, mx, my, cv2.INTER_LINEAR,
                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        if not a.any():
+        if not np.count_nonzero(a):
             return None, None
         px = cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR,
                        borderMode=cv2.BORDER_REPLICATE)

@@ -29,6 +29,7 @@ import math
 import time
 import weakref
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -89,6 +90,14 @@ def layer_plan(face: Face) -> LayerPlan:
     return p
 
 
+@lru_cache(maxsize=4)
+def _opening_index(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The vertex loops of eye_l, eye_r and mouth concatenated, and where each starts."""
+    loops = [np.asarray(mesh.holes[k], np.intp) for k in ("eye_l", "eye_r", "mouth")]
+    cuts = np.cumsum([0] + [len(x) for x in loops[:-1]])
+    return np.concatenate(loops), cuts
+
+
 def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
     h, w = shape[:2]
     (lx, ly), (hx, hy) = poly.min(0).tolist(), poly.max(0).tolist()
@@ -103,7 +112,7 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
     x0, y0, x1, y1 = box
     m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.round((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
+    q = np.rint((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
     return m.view(bool)  # 0 / 1 bytes
 
@@ -160,7 +169,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     """
     x0, y0, x1, y1 = box
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.round((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
+    q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3, cv2.LINE_8, _SHIFT)
     w = band.astype(np.float32) * _clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
     if not np.count_nonzero(w):
@@ -208,20 +217,23 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     ``v`` deformed vertices (V, 2), ``extra`` the deformed extra points (3.5, 3.6, 6.1-6.4),
     ``faps`` the clamped FAP vector, ``transforms`` :meth:`Face.layer_transforms` of ``v``.
     """
-    plan_src = face.vertices
     out = res.image
     img = face.image
     jobs = []
+    # how far each opening's outline moved (one gather for the three) and the irises
+    idx_all, cuts = _opening_index(face.mesh)
+    polys = v[idx_all]
+    far = np.maximum.reduceat(np.abs(polys - face.vertices[idx_all]).max(1), cuts).tolist()
+    V = face.plan.n_vertices
+    iris_far = np.abs(extra[:2] - face.plan.neutral[V:V + 2]).max(1).tolist()  # 3.5, 3.6
+    ends = [*cuts.tolist(), len(idx_all)]
     # ---- eyes
     state = None
-    for name in ("eye_l", "eye_r"):
-        hole_idx = face.mesh.holes[name]
-        poly = v[hole_idx]
-        moved = float(np.abs(poly - plan_src[hole_idx]).max())
+    for k_open, name in enumerate(("eye_l", "eye_r")):
+        poly = polys[ends[k_open]:ends[k_open + 1]]
+        moved = far[k_open]
         eye_faps = np.count_nonzero(faps[_EYE_FAP_IDX[name]]) > 0
-        iris_dst = extra[EXTRA_INDEX[name]]
-        iris_moved = bool(np.abs(iris_dst - face.plan.neutral[face.plan.n_vertices
-                                                               + EXTRA_INDEX[name]]).max() > _TOL)
+        iris_moved = iris_far[EXTRA_INDEX[name]] > _TOL
         sim = transforms[name]
         if not (moved > _TOL or eye_faps or iris_moved or not _is_identity(sim)):
             continue
@@ -230,10 +242,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lm = face.landmarks
             state = eye_state(face.plan, faps, np.array([lm.iris_left.r, lm.iris_right.r]))
     # ---- mouth
-    hole_idx = face.mesh.holes["mouth"]
-    poly = v[hole_idx]
+    poly = polys[ends[2]:]
     skull = transforms["mouth"]
-    moved = float(np.abs(poly - plan_src[hole_idx]).max())
+    moved = far[2]
     if moved > _TOL or not _is_identity(skull):
         jobs.append(("mouth", "mouth", poly, skull, True, moved))
     if not jobs:
@@ -474,7 +485,7 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     # product and one sum (exact in float64 for power-of-two ss, as the step-by-step form)
     k = 16.0 * ss
     q = np.asarray(poly, np.float64) * k + (8.0 * ss - 8.0 - k * np.array([x0, y0]))
-    cv2.fillPoly(big, [np.round(q).astype(np.int32)], 255, cv2.LINE_8, 4)
+    cv2.fillPoly(big, [np.rint(q).astype(np.int32)], 255, cv2.LINE_8, 4)
     # OpenCV also fills every sample the outline touches: remove that rim (a zero-area polygon,
     # e.g. closed lids, then covers nothing)
     if not dilate:

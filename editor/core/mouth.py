@@ -432,10 +432,13 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     px, 0.08 D) everything.
     """
     lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
-    k = 2 * int(np.ceil(lo + ramp)) + 3
+    k = 2 * math.ceil(lo + ramp) + 3
     h = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
-                      borderType=cv2.BORDER_CONSTANT) / np.float32(3.0)
-    vis = _smoothstep((h - lo) / ramp).astype(np.float32, copy=False)[..., None]
+                      borderType=cv2.BORDER_CONSTANT)
+    h /= np.float32(3.0)
+    h -= lo
+    h /= ramp
+    vis = _smoothstep(h).astype(np.float32, copy=False)[..., None]
     return cav + vis * (out - cav)
 
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from .deform import eye_state
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
-from .mouth import MouthPlan, _clamp, _lum, _poly_mask, _sat, _smoothstep
+from .mouth import MouthPlan, _clamp, _lum, _poly_mask, _sat, _smoothstep, _smoothstep1
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -265,7 +265,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             alpha += (t * t * (3.0 - 2.0 * t)) * (_coverage(poly, box) - alpha)
         lip_shade = None
         if kind == "mouth":
-            fade_in = _smoothstep(min(moved, 1.0))
+            fade_in = _smoothstep1(min(moved, 1.0))
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
                                                fade_in)
             interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)

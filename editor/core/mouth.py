@@ -266,8 +266,8 @@ class MouthPlan:
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
         lip = fp[2:2 + n_lip]
-        order = np.argsort(lip[:, 0])
-        y_up = np.interp(Qx, lip[order, 0], lip[order, 1])
+        lip = lip[np.argsort(lip[:, 0])]
+        y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
         hole = fp[2 + n_lip:]
         lo_h, hi_h = hole[:, 0].min(), hole[:, 0].max()
         lo_v, hi_v = hole[:, 1].min(), hole[:, 1].max()
@@ -330,8 +330,9 @@ class MouthPlan:
                              hu, shade, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
-        gap = (v[self.lip_pairs[:, 1]] - v[self.lip_pairs[:, 0]]).astype(np.float64) @ ey
-        fade = 1.0 - _smoothstep(float((gap - self.gap0).max()) / 2.0)
+        lp_u, lp_d = self._lip_idx
+        gap = (v[lp_d] - v[lp_u]).astype(np.float64) @ ey
+        fade = 1.0 - _smoothstep1(float((gap - self.gap0).max()) / 2.0)
         a_up, p_up = self._own(mx, my, 0, fade)
         a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
                                (sy - tjs[1]).astype(np.float32), 1, fade)
@@ -357,6 +358,12 @@ class MouthPlan:
     def _exy(self) -> np.ndarray:
         """(2, 2) the neutral frame axes ex, ey as columns."""
         return np.stack([self.ex, self.ey], 1).astype(np.float64)
+
+    @cached_property
+    def _lip_idx(self) -> tuple[np.ndarray, np.ndarray]:
+        """The inner upper and lower lip vertices of :attr:`lip_pairs` (contiguous)."""
+        return (np.ascontiguousarray(self.lip_pairs[:, 0]),
+                np.ascontiguousarray(self.lip_pairs[:, 1]))
 
     @cached_property
     def _frame_idx(self) -> np.ndarray:
@@ -446,6 +453,12 @@ def _clamp(x, lo, hi):
     """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
     (several microseconds a call, as much as the arithmetic on a small layer box)."""
     return np.minimum(np.maximum(x, lo), hi)
+
+
+def _smoothstep1(t: float) -> np.float64:
+    """:func:`_smoothstep` of one number in Python arithmetic (the same value and type)."""
+    t = min(max(t, 0.0), 1.0)
+    return np.float64(t * t * (3.0 - 2.0 * t))
 
 
 def _smoothstep(t: np.ndarray | float) -> np.ndarray:

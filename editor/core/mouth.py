@@ -269,8 +269,7 @@ class MouthPlan:
         lip = lip[np.argsort(lip[:, 0])]
         y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
         hole = fp[2 + n_lip:]
-        lo_h, hi_h = hole[:, 0].min(), hole[:, 0].max()
-        lo_v, hi_v = hole[:, 1].min(), hole[:, 1].max()
+        (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)
         cxm = 0.5 * (lo_h + hi_h)
         hw = max(0.5 * float(hi_h - lo_h), 1.0)
         hh = max(0.5 * float(hi_v - lo_v), 1.0)

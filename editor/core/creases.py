@@ -455,20 +455,16 @@ def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
     """Two canvases with weights added at sub-pixel positions (bilinear), one bincount: the
     first ``n1`` points of ``P`` go to the first canvas, the others to the second."""
     h, wd = shape
-    x0 = np.floor(P[:, 0])
-    y0 = np.floor(P[:, 1])
-    fx, fy = P[:, 0] - x0, P[:, 1] - y0
-    base = (y0.astype(np.int64) * wd + x0.astype(np.int64))
+    P0 = np.floor(P)
+    F = P - P0  # (fx, fy)
+    ip = P0.astype(np.int64)
+    base = ip[:, 1] * wd + ip[:, 0]
     base[n1:] += h * wd  # the second canvas follows the first
-    n = len(P)
-    idx = np.empty(4 * n, np.int64)
-    ws = np.empty(4 * n)
-    gy = 1 - fy
-    wg, wf = W * (1 - fx), W * fx
-    for k, (off, a, b) in enumerate(((0, wg, gy), (1, wf, gy), (wd, wg, fy),
-                                     (wd + 1, wf, fy))):
-        np.add(base, off, out=idx[k * n:(k + 1) * n])
-        np.multiply(a, b, out=ws[k * n:(k + 1) * n])
+    # corner-major (all top-left weights, then top-right, bottom-left, bottom-right)
+    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
+    fx, fy = F[:, 0], F[:, 1]
+    wx = np.stack([W * (1 - fx), W * fx])  # (2, n): W (1 - fx), W fx
+    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
     acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 
 import numpy as np
 
+from .cli_util import PHOTO_HELP, ProgressBar, photo_arg
 from .core.errors import FapStudioError
 
 
@@ -40,25 +40,6 @@ def preset_vector(specs: list[str] | None) -> np.ndarray:
     return FAPS.clamp(total)
 
 
-class _Progress:
-    """A one-line progress bar on stderr."""
-
-    def __init__(self, label: str) -> None:
-        self.label = label
-        self.t0 = time.perf_counter()
-
-    def __call__(self, done: int, total: int) -> bool:
-        width = 30
-        k = int(width * done / max(total, 1))
-        rate = done / max(time.perf_counter() - self.t0, 1e-6)
-        sys.stderr.write(f"\r{self.label} [{'#' * k}{'.' * (width - k)}] {done}/{total} "
-                         f"{rate:.0f} frames/s")
-        if done == total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-        return True
-
-
 def cmd_animate(a: argparse.Namespace) -> int:
     from .core import Face
     from .core.fapfile import read_fap
@@ -66,8 +47,8 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
     seq = read_fap(a.fap_file)
     face = Face.from_image(a.photo)
-    res = export_sequence(face, seq, a.output, progress=None if a.quiet else _Progress("render"),
-                          creases=not a.no_creases)
+    with ProgressBar("render", quiet=a.quiet) as bar:
+        res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases)
     print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
     return 0
 
@@ -100,7 +81,7 @@ def cmd_fap_info(a: argparse.Namespace) -> int:
 
 def add_anim_parser(sub) -> None:
     s = sub.add_parser("animate", help="render a .fap sequence on a photo to MP4 or PNG frames")
-    s.add_argument("photo")
+    s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
     s.add_argument("fap_file")
     s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -13,8 +13,14 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
   time (robust when other processes share the cores; ``ratio_wall`` in wall-clock time);
   target: at most 2 (issue 21);
 * ``face_from_image``: detection + fitting on the sample and on a 1920-px photo;
+* ``fap_reject_huge_header``: a ``.fap`` whose header declares the maximum frame count but
+  holds one frame is refused (target: well under 500 ms; nothing is preallocated);
 * ``gui_slider_latency`` (with ``--gui``): slider change -> frame in the preview, in the real
-  window (offscreen unless QT_QPA_PLATFORM is set), on the sample face.
+  window (offscreen unless QT_QPA_PLATFORM is set), on the sample face;
+* ``scheduler_submit_while_busy`` (with ``--gui``): one ``RenderScheduler.submit`` while the
+  worker is busy (target: under 1 ms; the GUI thread never waits for a render).
+
+Speed targets live here, not in the tests (which check behaviour only).
 """
 
 from __future__ import annotations
@@ -27,7 +33,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+from .resources import SAMPLE_FACE
+
+SAMPLE = SAMPLE_FACE
 
 EXPRESSION = {"open_jaw": 500, "raise_l_cornerlip_o": 250, "raise_r_cornerlip_o": 250,
               "raise_l_cornerlip": 250, "raise_r_cornerlip": 250, 31: 200, 32: 200, 33: 200,
@@ -92,6 +100,46 @@ def _face_at(size: tuple[int, int]):
     return face
 
 
+def fap_header_bench() -> None:
+    from editor.core.errors import FapFileError
+    from editor.core.fapfile import MAX_FRAMES, read_fap
+
+    mask = " ".join(["0", "0"] + ["1"] * 66)
+    text = f"2.1 bench 25 {MAX_FRAMES}\n{mask}\n0 " + " ".join(["0"] * 66) + "\n"
+
+    def run() -> None:
+        try:
+            read_fap(text)
+        except FapFileError:
+            return
+        raise AssertionError("a truncated .fap file was accepted")
+
+    _emit({"bench": "fap_reject_huge_header", **_time(run, 20), "target_ms": 500})
+
+
+def scheduler_bench() -> None:
+    import threading
+
+    from PySide6.QtWidgets import QApplication
+
+    from editor.ui.render_scheduler import RenderResult, RenderScheduler
+
+    _app = QApplication.instance() or QApplication([])
+    gate = threading.Event()
+
+    def render(req):  # held until the measurement is done
+        gate.wait(30)
+        return RenderResult(req, np.zeros((4, 4, 3), np.uint8), np.zeros((2, 3), np.float32))
+
+    sched = RenderScheduler(render)
+    sched.submit(None, np.zeros(68, np.float32))
+    t = _time(lambda: sched.submit(None, np.ones(68, np.float32)), 200, warm=5)
+    gate.set()
+    sched.wait(5000)
+    sched.shutdown()
+    _emit({"bench": "scheduler_submit_while_busy", **t, "target_ms": 1.0})
+
+
 def gui_bench() -> None:
     import os
     import sys
@@ -111,6 +159,7 @@ def gui_bench() -> None:
                 target = 16.0 if size[0] < 1000 else 40.0
                 _emit({"bench": "gui_slider_latency", "fap": fap, **r, "target_median_ms": target,
                        "platform": os.environ["QT_QPA_PLATFORM"]})
+    scheduler_bench()
     sys.stdout.flush()
 
 
@@ -127,6 +176,7 @@ def main() -> None:
     from editor.core import FAPS, Face, load_image
 
     _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
+    fap_header_bench()
     img = load_image(SAMPLE)
     t = _time(lambda: Face.from_image(img), 5, warm=1)
     _emit({"bench": "face_from_image", "size": "512x512", **t})

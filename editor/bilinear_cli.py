@@ -16,7 +16,7 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from editor.cli_util import guarded
+from editor.cli_util import PHOTO_HELP, guarded, photo_arg
 from editor.core.errors import ModelError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -112,7 +112,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
         description="Detect the photo's 68 landmarks, translate them with a dlib-68 model "
                     "(bilinear train --detect), rebuild the target expression with the face's "
                     "identity, map it onto the personalized mesh and warp the photo.")
-    y.add_argument("photo", metavar="PHOTO")
+    y.add_argument("photo", metavar="PHOTO", type=photo_arg, help=PHOTO_HELP)
     y.add_argument("--model", required=True, metavar="MODEL.npz")
     y.add_argument("--expression", default="joy", metavar="NAME|NAME:W,...",
                    help="target expression or a mix, e.g. joy or joy:0.5,surprise:0.5")

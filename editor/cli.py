@@ -13,9 +13,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from . import __version__
+from .cli_util import PHOTO_HELP, photo_arg
 from .core.errors import FapStudioError
-
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -164,7 +163,8 @@ def cmd_gui(a: argparse.Namespace) -> int:
     vec = _requested_vector(a)
     named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
     return run(photo=a.photo, faps=named, screenshot=a.screenshot,
-               project=getattr(a, "project", None))
+               project=getattr(a, "project", None), photo_neutral=a.photo_is_neutral,
+               keep_expression=a.keep_expression)
 
 
 def _write_json(path: str, data: dict) -> None:
@@ -193,21 +193,21 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     s = sub.add_parser("landmarks", help="detect landmarks, MPEG-4 feature points and irises")
-    s.add_argument("photo")
+    s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
     s.add_argument("-o", "--output", help="PNG with the points drawn over the photo")
     s.add_argument("--json", help="points by detector index and FDP id, iris circles")
     s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
     s.set_defaults(func=cmd_landmarks)
 
     s = sub.add_parser("mesh", help="fit the personalized MPEG-4 mesh and draw it")
-    s.add_argument("photo")
+    s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
     s.add_argument("-o", "--output", help="PNG with the mesh drawn over the photo")
     s.add_argument("--json", help="vertices, triangles, fdp, fapu")
     s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
     s.set_defaults(func=cmd_mesh)
 
     s = sub.add_parser("render", help="render the photo with FAP values")
-    s.add_argument("photo")
+    s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
     s.add_argument("--fap", action="append", metavar="NAME=VALUE",
                    help="FAP by name or number and its value in FAPU (repeatable)")
     s.add_argument("--preset", action="append", metavar="NAME[:INTENSITY]",
@@ -220,11 +220,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_render)
 
     s = sub.add_parser("gui", help="open the editor window")
-    s.add_argument("photo", nargs="?")
+    s.add_argument("photo", nargs="?", type=photo_arg, help=PHOTO_HELP)
     s.add_argument("--fap", action="append", metavar="NAME=VALUE")
     s.add_argument("--preset", action="append", metavar="NAME[:INTENSITY]")
     s.add_argument("--project", help="open a project file")
     s.add_argument("--screenshot", help="save a screenshot of the window and exit")
+    _expression_options(s)
     s.set_defaults(func=cmd_gui)
 
     for mod, fn in (("anim_cli", "add_anim_parser"), ("clone_cli", "add_clone_parser"),

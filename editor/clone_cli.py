@@ -6,7 +6,8 @@
 * ``fap-studio track VIDEO -o anim.fap [--smoothing savgol:5] [--fps F]`` - a .fap sequence
   from a performer video (first frame with a face = neutral), progress bar on stderr.
 * ``fap-studio clone-eval [--jaffe DIR]`` - the evaluation of issue 10 (FAP-recovery round trip
-  and the JAFFE cloning comparison), as Markdown tables on stdout.
+  and the JAFFE cloning comparison), as Markdown tables on stdout; the JAFFE folder comes from
+  ``--jaffe`` or ``$FAP_STUDIO_JAFFE`` (research-only data, never shipped).
 """
 
 from __future__ import annotations
@@ -20,35 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_util import guarded
+from .cli_util import ProgressBar, guarded
 from .core.errors import FapStudioError
+from .resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
-JAFFE = Path(__file__).resolve().parents[2] / "shared" / "data" / "jaffe"
+SAMPLE = SAMPLE_FACE
 JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "FE": "fear",
                "DI": "disgust"}
-
-
-class _Bar:
-    """One-line progress bar on stderr (``total`` may grow)."""
-
-    def __init__(self, label: str, quiet: bool = False) -> None:
-        self.label, self.quiet, self.t0, self.open = label, quiet, time.perf_counter(), False
-
-    def __call__(self, done: int, total: int) -> bool:
-        if not self.quiet:
-            k = int(30 * done / max(total, 1))
-            rate = done / max(time.perf_counter() - self.t0, 1e-6)
-            sys.stderr.write(f"\r{self.label} [{'#' * k}{'.' * (30 - k)}] {done}/{total} "
-                             f"{rate:.0f}/s")
-            sys.stderr.flush()
-            self.open = True
-        return True
-
-    def close(self) -> None:
-        if self.open:
-            sys.stderr.write("\n")
-            self.open = False
 
 
 def _write_text(path: str | Path, text: str) -> None:
@@ -111,11 +90,8 @@ def cmd_track(a: argparse.Namespace) -> int:
     from .core.fap_estimate import track_video
     from .core.fapfile import write_fap
 
-    bar = _Bar("track", a.quiet)
-    try:
+    with ProgressBar("track", quiet=a.quiet) as bar:
         seq, rep = track_video(a.video, fps=a.fps, smoothing=a.smoothing, progress=bar)
-    finally:
-        bar.close()
     write_fap(seq, a.output)
     print(f"{rep.summary()} -> {a.output}", file=sys.stderr)
     return 0
@@ -336,16 +312,18 @@ def cmd_clone_eval(a: argparse.Namespace) -> int:
               f" inter-ocular {face.interocular:.0f} px); vectors: {', '.join(names)} "
               f"(observable FAPs only):\n")
         print(table)
-    images = Path(a.jaffe) / "images"
     if not a.skip_jaffe:
+        root = jaffe_dir(a.jaffe)
+        if root is None:
+            raise FapStudioError(f"no JAFFE folder given: use --jaffe DIR or set {JAFFE_ENV} "
+                                 "(the data set is not shipped), or --skip-jaffe")
+        images = root / "images"
         if not images.is_dir():
-            raise FapStudioError(f"{images}: JAFFE images not found (use --jaffe DIR)")
-        bar = _Bar("clone-eval", a.quiet)
-        try:
+            raise FapStudioError(f"{images}: JAFFE images not found (--jaffe DIR must hold "
+                                 "images/*.tiff)")
+        with ProgressBar("clone-eval", unit="pair", quiet=a.quiet) as bar:
             print(jaffe_evaluation(images, a.persons.split(",") if a.persons else None,
                                    Path(a.renders) if a.renders else None, bar))
-        finally:
-            bar.close()
     print(f"\n({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     return 0
 
@@ -377,7 +355,9 @@ def add_clone_parser(sub) -> None:
     t.set_defaults(func=guarded(cmd_track))
 
     e = sub.add_parser("clone-eval", help="evaluate FAP recovery and cloning (JAFFE)")
-    e.add_argument("--jaffe", default=str(JAFFE), help="JAFFE folder (with images/)")
+    e.add_argument("--jaffe", metavar="DIR",
+                   help=f"JAFFE folder with images/ (default: ${JAFFE_ENV}; required unless "
+                   "--skip-jaffe)")
     e.add_argument("--persons", help="comma-separated JAFFE person codes (default all)")
     e.add_argument("--renders", help="folder for contact sheets of the results")
     e.add_argument("--roundtrip-photo", default=str(SAMPLE))

@@ -11,32 +11,27 @@ from __future__ import annotations
 
 import argparse
 import csv
-import struct
-import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from editor.cli_util import guarded
+from editor.cli_util import guarded, photo_arg
 from editor.core.errors import ImageError, StudyError
 from editor.core.mos import StimulusSpec, Study
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
-    """Encode an H x W x 3 uint8 RGB array as PNG (zlib only; lossless, no OpenCV needed)."""
+    """Encode an H x W x 3 uint8 RGB array as PNG (lossless, ``cv2.imencode``)."""
     if not (isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.ndim == 3
             and rgb.shape[2] == 3 and rgb.shape[0] > 0 and rgb.shape[1] > 0):
         raise ImageError("a rendered stimulus must be a non-empty H x W x 3 uint8 RGB array")
-    h, w = rgb.shape[:2]
-    raw = np.concatenate([np.zeros((h, 1), np.uint8), rgb.reshape(h, w * 3)], axis=1)
+    import cv2
 
-    def chunk(tag: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + tag + data + struct.pack(
-            ">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
-
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + chunk(b"IEND", b""))
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
+    if not ok:  # pragma: no cover - OpenCV encodes any valid uint8 image
+        raise ImageError("cannot encode the stimulus as PNG")
+    return buf.tobytes()
 
 
 def create_from_renders(path: str | Path, name: str, labels: Sequence[str],
@@ -232,7 +227,7 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
         "create", help="create a study: render faces x presets x intensities (default: the "
         "paper's five expressions), or from a folder of images + labels CSV")
     create.add_argument("study", type=Path, help="new study database (must not exist)")
-    create.add_argument("--faces", nargs="+", metavar="PHOTO",
+    create.add_argument("--faces", nargs="+", metavar="PHOTO", type=photo_arg,
                         help="neutral face photos to render the stimuli from")
     create.add_argument("--presets", default=",".join(PAPER_EXPRESSIONS),
                         help="comma-separated presets (default: %(default)s)")

@@ -1,4 +1,4 @@
-"""Build the standard mesh (resources/mesh.json) and draw it (docs/mesh.png).
+"""Build the standard mesh (editor/data/mesh.json) and draw it (docs/mesh.png).
 
 The topology is designed once on a template face: the landmarks of the bundled sample photo,
 made left/right symmetric and scaled to an inter-ocular distance of 100. Every vertex is placed
@@ -24,10 +24,11 @@ from editor.core import meshdef  # noqa: E402
 from editor.core.fitting import MARGIN_COUNT, FaceFrame, fit_vertices  # noqa: E402
 from editor.core.imageio import load_image, save_image  # noqa: E402
 from editor.core.landmarks import MIRROR_68, detect_landmarks  # noqa: E402
+from editor.resources import MESH, SAMPLE_FACE, source_path  # noqa: E402
 
 
 def template_landmarks() -> tuple[np.ndarray, tuple[int, int]]:
-    img = load_image(ROOT / "resources" / "sample_face.png")
+    img = load_image(SAMPLE_FACE)
     lm = detect_landmarks(img)
     fr = FaceFrame.from_points(lm.points)
     q = fr.to_frame(lm.points)
@@ -95,7 +96,7 @@ def main() -> None:
         "triangles": t.tolist(),
         "holes": holes,
     }
-    (ROOT / "resources" / "mesh.json").write_text(json.dumps(out, separators=(",", ":")))
+    source_path(MESH).write_text(json.dumps(out, separators=(",", ":")))
     regions = {}
     for v in vertices:
         regions[v["region"]] = regions.get(v["region"], 0) + 1

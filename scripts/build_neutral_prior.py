@@ -1,6 +1,6 @@
-"""Build the neutral-shape prior (``resources/neutral_prior.json``) from neutral photos.
+"""Build the neutral-shape prior (``editor/data/neutral_prior.json``) from neutral photos.
 
-``python scripts/build_neutral_prior.py IMAGES_DIR [-o resources/neutral_prior.json]``.
+``python scripts/build_neutral_prior.py IMAGES_DIR [-o editor/data/neutral_prior.json]``.
 Every ``*.NE*.*`` image (JAFFE naming: ``PERSON.NEn.ID.ext``) is a neutral photo of the person
 named before the first dot; any folder of neutral photos named that way works. Only summary
 statistics are written (mean shape, identity-mode spreads, per-point noise), no image data.
@@ -19,13 +19,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from editor.core import detect_landmarks, load_image  # noqa: E402
 from editor.core.errors import NoFaceError  # noqa: E402
-from editor.core.own_expression import PRIOR_PATH, NeutralPrior, canonical  # noqa: E402
+from editor.core.own_expression import NeutralPrior, canonical  # noqa: E402
+from editor.resources import NEUTRAL_PRIOR, source_path  # noqa: E402
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("images")
-    ap.add_argument("-o", "--output", default=str(PRIOR_PATH))
+    ap.add_argument("-o", "--output", help="default: editor/data/neutral_prior.json")
     a = ap.parse_args()
     people: dict[str, list[np.ndarray]] = {}
     files = sorted(p for p in Path(a.images).iterdir() if ".NE" in p.name)
@@ -44,7 +45,8 @@ def main() -> None:
         "mean shape made left/right symmetric, spread of each identity mode over the people "
         "x 1.5, at least 0.04 IOD, the mouth corners' height 0.015 IOD, per-point residual); "
         "built by scripts/build_neutral_prior.py")
-    Path(a.output).write_text(json.dumps(prior.to_json(), indent=1) + "\n", "utf-8")
+    out = Path(a.output) if a.output else source_path(NEUTRAL_PRIOR)
+    out.write_text(json.dumps(prior.to_json(), indent=1) + "\n", "utf-8")
     for name, s in zip(prior.names, prior.sigma, strict=True):
         print(f"{name:15s} sigma {s:.4f} IOD")
     print(f"noise per point: median {np.median(prior.noise):.4f}, max {prior.noise.max():.4f}")

@@ -1,9 +1,9 @@
 """Contact sheet: every FAP group at -max and +max on one or more faces.
 
-``python scripts/contact_sheet.py OUT.png PHOTO [PHOTO ...]``. Rows are the MPEG-4 FAP groups
-(all FAPs of the group at the end of their range together), columns -max / +max per face.
-Used to look for tears, seams and frozen patches. Do not write sheets of JAFFE faces into the
-repository (research-only terms).
+``python scripts/contact_sheet.py OUT.png PHOTO [PHOTO ...]`` (``sample``: the bundled face).
+Rows are the MPEG-4 FAP groups (all FAPs of the group at the end of their range together),
+columns -max / +max per face. Used to look for tears, seams and frozen patches. Do not write
+sheets of JAFFE faces into the repository (research-only terms).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from editor.cli_util import photo_arg  # noqa: E402
 from editor.core import FAPS, Face, save_image  # noqa: E402
 
 TILE = 170
@@ -34,7 +35,7 @@ def crop(face: Face, img: np.ndarray) -> np.ndarray:
 
 def main() -> None:
     out_path, photos = sys.argv[1], sys.argv[2:]
-    faces = [Face.from_image(p) for p in photos]
+    faces = [Face.from_image(photo_arg(p)) for p in photos]
     rows = []
     for g, faps in FAPS.groups().items():
         tiles = []

@@ -11,8 +11,8 @@
    point inside its p10-p90 band. FAPs no landmark sees, and values where the FACS prototype
    (SPEC §7.4) decides inside the band, are fixed beforehand in :data:`FACS` with the reason.
 3. The result (rounded to 5 FAPU) and a "source" naming where every value comes from are written
-   into ``presets/<emotion>.json`` (``--write``) or compared with it (``--check``: exit 1 when
-   a file differs by more than 10 FAPU from the derivation).
+   into ``editor/data/presets/<emotion>.json`` (``--write``) or compared with it (``--check``:
+   exit 1 when a file differs by more than 10 FAPU from the derivation).
 
 The measurement table (markdown) goes to stdout (or ``--table``). JAFFE is research-only: the
 table holds statistics only; never commit images or renders of JAFFE faces.
@@ -32,8 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from editor.core import jaffe_stats as js  # noqa: E402
 from editor.core.faps import FAPS  # noqa: E402
+from editor.resources import PRESETS_DIR, source_path  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
 #: Fitted unknowns: FAPs tied together (left = right; inner lip = outer lip as in Xface).
 GROUPS: dict[str, tuple[int, ...]] = {
@@ -45,12 +45,24 @@ GROUPS: dict[str, tuple[int, ...]] = {
 #: Per emotion: values fixed before the fit, {group or FAP number: (value, reason)}.
 FACS: dict[str, dict[object, tuple[float, str]]] = {
     "joy": {
-        41: (120, "AU6 cheek raiser; no landmark on the cheek (Xface joy.fap 100-150); it also "
-                  "lifts the lower lids, which the fit of 21/22 accounts for"),
-        42: (120, "as 41"),
+        41: (150, "AU6 cheek raiser, what makes a smile felt (Duchenne) rather than posed; no "
+                  "landmark on the cheek (Xface joy.fap 100-150, its top: at 120 the eyes did "
+                  "not smile on the contact sheets; above 150 the photo's landmarks can no "
+                  "longer tell it from the lower lids' own FAPs 21/22); it also lifts the lower "
+                  "lids"),
+        42: (150, "as 41"),
+        "lid_b": (125, "AU6 pushes the lower lids up (the felt smile's narrowed eyes): with the "
+                       "cheek raise the lid point moves ~220 IRISD-equivalent, in the upper part "
+                       "of the real band (median 131/124, p90 256/306); 150 % stays inside the "
+                       "max 410/348"),
+        "lid_t": (60, "AU6/7 narrows the eyes from above a little as well (median 22/44, p90 "
+                      "139/137)"),
+        "c_stretch": (160, "AU12 pulls the corners back as well as up (median 147/101, p90 "
+                           "191/192, max 253/273: 150 % stays inside)"),
         "jaw": (100, "small AU25/26 (lips parted, teeth shown as in most JAFFE smiles); the chin "
                      "point is noisy (median 38 MNS, p10..p90 -176..322, noise 92): fixed so the "
-                     "fit cannot trade the corner lift for jaw drop"),
+                     "fit cannot trade the corner lift for jaw drop (more jaw pulls the corners "
+                     "down, and they are at the limit 150 % allows)"),
         "c_raise": (420, "AU12, joy's defining action: set so the outer corners rise ~0.11 "
                          "pupil distances, the real median (the plain fit gave 355, held down "
                          "by the inner corners' smaller rise)"),
@@ -63,8 +75,23 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                    "down for the wrong reason"),
         "brow_i": (40, "AU1 inner brow raiser: the sad brow's key cue; JAFFE median 17/21 ENS is "
                        "below the noise, set in the upper half of the p10-p90 band"),
+        "c_raise": (-100, "AU15 lip corner depressor, the sad mouth's key cue (at the median "
+                          "-34/-41 MNS the corners barely move): towards p10 -143/-150; 150 % "
+                          "inside the min -184/-291"),
+        "c_stretch": (20, "AU15 pulls the corners down and a little outwards (median -7/0, "
+                          "outer -5/6 MW; p90 60/43)"),
     },
-    "surprise": {},
+    "surprise": {
+        "brow_i": (95, "AU1 inner brow raiser, surprise's key cue: JAFFE's median 54/51 ENS "
+                       "read as barely raised beside the real photos; set near p90 (101/117, "
+                       "max 194/190)"),
+        "brow_m": (90, "AU2 raises the whole brow (median 56/56, p90 99/130, max 170/182)"),
+        "brow_o": (50, "AU2 outer brow raiser (median 24/8, p90 61/67, max 117/103)"),
+        "lid_t": (-150, "AU5 upper lid raiser, the eyes wide open (median -131/-119, p10 "
+                        "-195/-192; 150 % stays above the real min -239/-232)"),
+        "lid_b": (-110, "the lower lids drop as the eye opens (median -82/-69, p10 -184/-190, "
+                        "min -304/-233)"),
+    },
     "anger": {
         16: (-80, "AU23 lip tightener: lips thinned (2-D: negative push); not measurable"),
         17: (-80, "as 16"),
@@ -85,27 +112,52 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "b_mids": (100, "as b_mid (JAFFE median 51/61, outer 87/79)"),
         "brow_o": (-30, "AU4 brow lowerer lowers the whole brow; JAFFE median 16/1 ENS, p10 "
                         "-95/-89: lowered inside the band"),
+        "brow_i": (-115, "AU4 brow lowerer, anger's key cue (read only at 150 % with the "
+                         "median -109/-98): towards p10 (-161/-152); 150 % stays above the "
+                         "real min (-195/-179)"),
+        "brow_m": (-105, "as brow_i (median -95/-75, p10 -154/-143, min -164/-163)"),
+        "squeeze": (40, "AU4 draws the brows together (median 30/21 ES, p90 57/65, max 82/87)"),
+        "lid_b": (130, "AU7 lid tightener: the lower lids tense up, the glare (median 95/102, "
+                       "p90 181/192, max 261/231)"),
     },
     "fear": {
-        "lid_t": (-80, "AU5 upper lid raiser (FACS fear prototype): JAFFE median -26/-14 IRISD, "
-                       "p10 -121/-117; set towards the prototype inside the band"),
-        "brow_i": (50, "AU1 inner brow raiser (fear prototype): JAFFE median 15/13 ENS, p90 "
-                       "78/85; set towards the prototype inside the band"),
+        "lid_t": (-100, "AU5 upper lid raiser (FACS fear prototype; the wide eyes tell fear from "
+                        "worry): JAFFE median -26/-14 IRISD, p10 -121/-117, min -159/-191"),
+        "brow_i": (60, "AU1 inner brow raiser (fear prototype): JAFFE median 15/13 ENS, p90 "
+                       "78/85, max 91/118: set towards the prototype, 150 % inside the max"),
         "squeeze": (20, "AU4 draws the raised brows together (fear prototype); JAFFE median "
                         "9/5 ES, p90 45/27"),
-        "c_stretch": (50, "AU20 lip stretcher (fear prototype); JAFFE median 9/11 MW (outer "
-                          "14/23), p90 93/77"),
+        "c_stretch": (55, "AU20 lip stretcher (fear prototype); JAFFE median 9/11 MW (outer "
+                          "14/23), p90 93/77; 150 % stays inside the max 89 of FAP 7"),
+        "jaw": (300, "AU26 jaw drop (fear prototype; it read as worry with the mouth nearly "
+                     "closed): median 190, p90 815 MNS"),
+        "b_mid": (-30, "with the jaw, the lower lip drops ~320 MNS (the open mouth of fear): "
+                       "median -208 (outer -254), p10 -565 (outer -679), min -680"),
+        "b_mids": (-100, "as b_mid (median -232/-193, p10 -513/-541, min -688/-735)"),
+        "t_mid": (60, "the upper lip stays down over the upper teeth (AU20 stretches it "
+                      "flat; a raised upper lip showing the upper teeth reads as a smile): "
+                      "median -3 (outer -11) MNS, p90 173 (outer 131)"),
+        "t_mids": (60, "as t_mid (median -4/-1, outer 2/1; p90 194/209, outer 166/204)"),
+        "c_raise": (-100, "no AU12 in fear (AU20 pulls the lips sideways and down): the fit's "
+                          "+160 against the jaw's pull made the open mouth read as a smile; "
+                          "the corners drop ~335 MNS with the jaw (median -127/-68, p10 "
+                          "-435/-428; 150 % inside the min -569/-595)"),
     },
     "disgust": {
-        41: (60, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "
-                 "also lifts the lower lids, which the fit of 21/22 accounts for"),
-        42: (60, "as 41"),
-        "c_raise": (-40, "AU15 lip corner depressor (disgust prototype); JAFFE median -13/-14 "
-                         "MNS, p10 -180/-154"),
-        "t_mid": (-100, "AU9/AU10 raise the upper lip, disgust's key mouth cue; JAFFE median "
-                        "-81 (outer -41) MNS, p10 -293/-265"),
-        "t_mids": (-120, "as t_mid (the mid-points more than the middle: the curl); JAFFE "
-                         "median -82/-98 (outer -41/-54), p10 -326/-278 (outer -340/-362)"),
+        41: (100, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "
+                  "also lifts the lower lids, which the fit of 21/22 accounts for"),
+        42: (100, "as 41"),
+        "c_raise": (-90, "AU15 lip corner depressor (disgust prototype; barely visible at the "
+                         "median): JAFFE median -13/-14 MNS, p10 -187/-159, min -322/-269"),
+        "t_mid": (-190, "AU9/AU10 raise the upper lip, disgust's key mouth cue (barely visible "
+                        "at the median): JAFFE median -82 (outer -41) MNS, p10 -296/-267, min "
+                        "-428/-364"),
+        "t_mids": (-210, "as t_mid (the mid-points more than the middle: the curl); JAFFE "
+                         "median -82/-98 (outer -41/-55), p10 -328/-281 (outer -343/-365), min "
+                         "-460/-416 (outer -447/-459)"),
+        "b_mid": (-190, "AU16 lower lip depressor (disgust prototype): median -162 (outer -122) "
+                        "MNS, p10 -411 (outer -336)"),
+        "nose": (20, "AU9 widens the nose wings a little (median 10/-3, p90 24/34)"),
     },
 }
 INTENSITIES = (1.0, 1.5)
@@ -213,8 +265,10 @@ def table(motion: js.JaffeMotion, derived: dict[str, dict[object, float]]) -> st
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--jaffe", default=None, help="JAFFE folder (default ../shared/data/jaffe)")
-    ap.add_argument("--write", action="store_true", help="write presets/<emotion>.json")
+    ap.add_argument("--jaffe", default=None,
+                    help="JAFFE folder (default $FAP_STUDIO_JAFFE, else ../shared/data/jaffe)")
+    ap.add_argument("--write", action="store_true",
+                    help="write editor/data/presets/<emotion>.json")
     ap.add_argument("--check", action="store_true", help="exit 1 if a preset file differs")
     ap.add_argument("--table", default=None, help="write the markdown table here")
     args = ap.parse_args()
@@ -227,7 +281,7 @@ def main() -> int:
         print(text)
     bad = 0
     for e in EMOTIONS:
-        path = ROOT / "presets" / f"{e}.json"
+        path = (source_path(PRESETS_DIR) if args.write else PRESETS_DIR) / f"{e}.json"
         doc = json.loads(path.read_text(encoding="utf-8"))
         new = preset_faps(derived[e])
         if args.write:

@@ -1,6 +1,6 @@
 """Draw the mouth-interior textures of SPEC §3.1 (upper teeth, lower teeth, tongue).
 
-``python scripts/draw_mouth_textures.py [OUT_DIR]`` (default ``resources/mouth``) writes three
+``python scripts/draw_mouth_textures.py [OUT_DIR]`` (default ``editor/data/mouth``) writes three
 RGBA PNGs. Everything is procedural (numpy + OpenCV, fixed random seed): no photographs, no
 downloads. Drawn at 4x and reduced with area averaging, so the edges are anti-aliased.
 
@@ -27,10 +27,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from editor.resources import MOUTH_DIR, source_path  # noqa: E402
+
 PX_PER_MM = 10
 SS = 4  # supersampling
 
-OUT = Path(__file__).resolve().parents[1] / "resources" / "mouth"
 
 # (mesiodistal width mm, crown length mm, pointed tip) from the midline backwards
 UPPER = [(8.5, 10.5, False), (6.6, 9.0, False), (7.6, 10.0, True), (7.0, 8.2, False),
@@ -77,17 +80,25 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
             inside_x = (t >= 0) & (t <= 1)
             persp = 0.80 + 0.20 * np.cos(phi)  # posterior crowns look shorter
             crown = ln * persp
+            # a shorter crown's gingival margin sits lower (laterals' zenith ~1 mm below the
+            # centrals'): its incisal edge ends only ~40 % of the length difference higher,
+            # not all of it (1.8 mm left only a 1-px sliver of laterals in a modest opening)
+            drop = 0.6 * (widths[0][1] - ln) * persp
             # gum margin: scalloped, highest (towards the root) at the tooth centre
-            margin = gum_mm + 0.9 * (1 - np.sin(np.pi * np.clip(t, 0, 1))) - 0.3
+            margin = gum_mm + drop + 0.9 * (1 - np.sin(np.pi * np.clip(t, 0, 1))) - 0.3
             # smile arc: posterior incisal edges rise towards the gum
-            tip = gum_mm + crown - 1.6 * (1 - np.cos(phi))
+            tip = gum_mm + drop + crown - 1.6 * (1 - np.cos(phi))
             if pointed:
                 tip = tip + 0.9 * (1 - np.abs(2 * t - 1)) - 0.5
-            # rounded incisal corners
-            corner = 0.35 * tw
+            # rounded incisal corners: nearly square towards the midline (mesial), rounder
+            # distally; large radii on both sides cut V notches between the teeth that read
+            # as dark dots once the row is a dozen pixels tall
             dx = np.minimum(t, 1 - t) * tw
-            round_off = np.where(dx < corner, corner - np.sqrt(np.maximum(
-                corner ** 2 - (corner - dx) ** 2, 0.0)), 0.0)
+            tm = np.clip(t if side > 0 else 1 - t, 0, 1)  # 0 at the mesial side
+            round_off = np.zeros_like(t)
+            for d, r in ((tm * tw, 0.10 * tw), ((1 - tm) * tw, 0.22 * tw)):
+                round_off += np.where(d < r, r - np.sqrt(np.maximum(r ** 2 - (r - d) ** 2,
+                                                                    0.0)), 0.0)
             tip_here = tip - round_off
             body = inside_x & (Y >= margin) & (Y <= tip_here)
             if not body.any():
@@ -100,9 +111,12 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
             roundness = 0.72 + 0.28 * np.sin(np.pi * np.clip(t, 0, 1)) ** 0.6
             light = shade * (0.45 + 0.55 * np.cos(phi) ** 1.3) * roundness * (0.78 + 0.22 * v)
             col = col * light[..., None]
-            # contact lines between neighbours
-            contact = np.minimum(dx / 0.22, 1.0)
-            col = col * (0.74 + 0.26 * contact)[..., None]
+            # contact lines between neighbours: the interproximal shadow, ~0.35 mm on each
+            # side and darkest towards the incisal edge and the gum (the embrasures), so that
+            # at ~1 px/mm (a 256-px face) each gap still dips by about a third
+            contact = _smooth(dx / 0.35)
+            emb = 0.55 + 0.45 * np.maximum(_smooth((v - 0.6) / 0.4), _smooth((0.25 - v) / 0.25))
+            col = col * (1.0 - 0.5 * emb * (1.0 - contact))[..., None]
             rgb[body] = col[body]
             alpha[body] = 1.0
     # gum band (behind the margins) across the visible arch
@@ -165,7 +179,7 @@ def _save(path: Path, rgba: np.ndarray) -> None:
 
 
 def main() -> None:
-    out = Path(sys.argv[1]) if len(sys.argv) > 1 else OUT
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else source_path(MOUTH_DIR)
     # premultiplied while drawing/reducing: multiply colour by alpha before the area reduction
     for name, img in (
         ("upper_teeth.png", draw_teeth(UPPER, 22.0, (46.0, 13.0), 2.6, True, 1.0)),

@@ -20,6 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from editor.core import Face, save_image  # noqa: E402
 from editor.core.expressions import apply_preset  # noqa: E402
 from editor.core.imageio import load_image  # noqa: E402
+from editor.resources import SAMPLE_FACE  # noqa: E402
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
 JAFFE_CODE = {"joy": "HA", "sadness": "SA", "surprise": "SU", "anger": "AN", "fear": "FE",
@@ -39,8 +40,21 @@ def tile(face: Face, img: np.ndarray, size: int, label: str) -> np.ndarray:
     return out
 
 
-def row(face: Face, size: int, reals: dict[str, Path] | None, render_kw: dict) -> np.ndarray:
-    tiles = [tile(face, face.image, size, "photo")]
+#: with --extras: visemes, then gaze and lids (FAP values in their units)
+EXTRAS: tuple[tuple[str, dict[str, float] | str], ...] = (
+    ("viseme u", "viseme_u"), ("viseme aa", "viseme_aa"), ("viseme pbm", "viseme_pbm"),
+    ("gaze left", {"yaw_l_eyeball": 30000, "yaw_r_eyeball": 30000}),
+    ("gaze right", {"yaw_l_eyeball": -30000, "yaw_r_eyeball": -30000}),
+    ("gaze up", {"pitch_l_eyeball": -25000, "pitch_r_eyeball": -25000}),
+    ("gaze down", {"pitch_l_eyeball": 25000, "pitch_r_eyeball": 25000}),
+    ("eyes closed", {"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080}),
+)
+
+
+def row(face: Face, size: int, reals: dict[str, Path] | None, render_kw: dict,
+        extras: bool = False) -> np.ndarray:
+    tiles = [tile(face, face.image, size, "photo"), tile(face, face.render(None), size,
+                                                          "neutralised")]
     for e in EMOTIONS:
         for k in (1.0, 1.5):
             img = face.render(apply_preset(e, k), **render_kw)
@@ -52,6 +66,9 @@ def row(face: Face, size: int, reals: dict[str, Path] | None, render_kw: dict) -
                 tiles.append(tile(rf, real, size, f"REAL {e}"))
             except Exception:  # noqa: BLE001
                 tiles.append(tile(face, real, size, f"REAL {e}"))
+    for label, what in EXTRAS if extras else ():
+        vec = apply_preset(what, 1.0) if isinstance(what, str) else what
+        tiles.append(tile(face, face.render(vec, **render_kw), size, label))
     return np.hstack(tiles)
 
 
@@ -63,13 +80,12 @@ def main() -> None:
     ap.add_argument("--photo", nargs="*", default=[])
     ap.add_argument("--tile", type=int, default=220)
     ap.add_argument("--no-sample", action="store_true")
+    ap.add_argument("--extras", action="store_true",
+                    help="add visemes u/aa/pbm, gaze left/right/up/down and closed eyes")
     args = ap.parse_args()
-    root = Path(__file__).resolve().parents[1]
-    photos = [] if args.no_sample else [root / "editor" / "data" / "sample_face.png"
-                                        if (root / "editor" / "data" / "sample_face.png").exists()
-                                        else root / "resources" / "sample_face.png"]
+    photos = [] if args.no_sample else [SAMPLE_FACE]
     photos += [Path(p) for p in args.photo]
-    rows = [row(Face.from_image(p), args.tile, None, {}) for p in photos]
+    rows = [row(Face.from_image(p), args.tile, None, {}, args.extras) for p in photos]
     if args.jaffe:
         d = Path(args.jaffe) / "images"
         for who in args.people.split(","):
@@ -81,7 +97,7 @@ def main() -> None:
                 hits = sorted(d.glob(f"{who}.{code}*.tiff"))
                 if hits:
                     reals[e] = hits[0]
-            rows.append(row(Face.from_image(ne[0]), args.tile, reals, {}))
+            rows.append(row(Face.from_image(ne[0]), args.tile, reals, {}, args.extras))
     width = max(r.shape[1] for r in rows)
     rows = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255)
             for r in rows]

@@ -9,9 +9,11 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 import pytest  # noqa: E402
 
+from editor.resources import SAMPLE_FACE, checkout_jaffe_dir
+
 ROOT = Path(__file__).resolve().parents[1]
-SAMPLE = ROOT / "resources" / "sample_face.png"
-JAFFE = ROOT.parent / "shared" / "data" / "jaffe"
+SAMPLE = SAMPLE_FACE
+JAFFE = checkout_jaffe_dir()  # $FAP_STUDIO_JAFFE, else ../shared/data/jaffe
 
 
 @pytest.fixture(scope="session")

@@ -37,8 +37,9 @@ from editor.core.bilinear_data import (
 )
 from editor.core.bilinear_eval import er_fp, evaluate, format_report, make_folds, s_within
 from editor.core.errors import ModelError
+from editor.resources import checkout_jaffe_dir
 
-JAFFE = Path(__file__).resolve().parents[1].parent / "shared/data/jaffe"
+JAFFE = checkout_jaffe_dir()
 JAFFE_LM = JAFFE / "landmarks_stasm77"
 needs_jaffe = pytest.mark.skipif(not (JAFFE_LM / "all_features.txt").exists(),
                                  reason="JAFFE data (../shared/data/jaffe) not available")

@@ -7,7 +7,7 @@ import pytest
 from conftest import SAMPLE, jaffe_images
 
 from editor.core import load_image
-from editor.core.creases import fold_lines, fold_strength
+from editor.core.creases import _MIN_STRENGTH, fold_lines, fold_strength
 from editor.core.layers import render_layers
 from editor.core.warp import warp
 
@@ -84,7 +84,10 @@ def test_creases_false_is_the_old_render(sample_neutral):
     V = f.plan.n_vertices
     v = pts[:V]
     tf = f.layer_transforms(v)
-    old = render_layers(f, warp(f.warp_plan, v, tf, cavity=False), v, pts[V:], vec, tf).image
+    from editor.core.lidskin import apply_lid_skin
+
+    base = apply_lid_skin(f, warp(f.warp_plan, v, tf, cavity=False), v)  # part of the warp
+    old = render_layers(f, base, v, pts[V:], vec, tf).image
     assert np.array_equal(f.render(vec, creases=False), old)
     assert not np.array_equal(f.render(vec), old)
 
@@ -112,13 +115,23 @@ def test_anger_and_sadness_darken_the_glabella(sample_neutral, emotion):
 
 
 def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
+    """The nasal-root lines follow the inner brows pushed down (AU4 procerus, AU9): the shipped
+    disgust and anger presets (inner brows -65 / -115 ENS; this file's old disgust lowers them by
+    only 30) wrinkle the nose, a smile does not."""
+    from editor.core.expressions import apply_preset as shipped
+
     f = sample_neutral
 
-    def bridge(e: str) -> float:
-        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(apply_preset(e, 1.0)))
-                   if k == "bridge")
-    assert bridge("disgust") > 0.02
-    assert bridge("joy") == 0.0 and bridge("surprise") == 0.0
+    def bridge(e: str, vec=None) -> float:
+        vec = apply_preset(e, 1.0) if vec is None else vec
+        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(vec)) if k == "bridge")
+    assert bridge("disgust", shipped("disgust")) > 0.05
+    assert bridge("joy", shipped("joy")) == 0.0
+    # not drawn (below the 2-grey-level threshold): the smile does not lower the brows' inner
+    # ends (the driver since the nasal-root lines follow AU4/AU9, not the lip); surprise
+    # spreads that skin
+    assert bridge("joy") < _MIN_STRENGTH and bridge("surprise") == 0.0
+    assert bridge("anger") > 0.02  # the procerus (AU4) wrinkles the nasal root too
 
 
 def test_strength_grows_monotonically_with_intensity(sample_neutral):
@@ -218,3 +231,96 @@ def test_gui_skin_creases_action_toggles_the_preview(qtbot, sample_neutral, isol
         assert np.array_equal(w.canvas.preview_image(), sample_neutral.render(vec2))
     finally:
         w.close_without_prompt()
+
+
+# ---------------------------------------------------------------- the photo's own folds
+def _own_fold_bands(face) -> list[np.ndarray]:
+    """Bands along the nasolabial lines of the neutralised face (the photo's smile folds)."""
+    v = face.deform(None)
+    return [_band(face.image.shape[:2], pts[4:-4], 0.06 * face.interocular)
+            for kind, pts, _s in fold_lines(face, v) if kind == "nasolabial"]
+
+
+def test_own_folds_untouched_on_the_photos_own_expression(sample_face):
+    """Rendering the photo's own expression changes nothing (the fade is exactly 0 there)."""
+    from editor.core.creases import unfold_strength
+
+    assert sample_face.has_expression
+    assert not unfold_strength(sample_face, sample_face.vertices).any()
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
+
+
+def test_own_smile_folds_fade_on_the_neutralised_face(sample_face):
+    """The sample smiles: its nasolabial folds are shaded valleys. Neutralised, the skin there
+    is spread, so the valleys are lifted towards the skin around them: brighter, less
+    contrasted, and no more saturated than before (no coloured line left behind)."""
+    from editor.core.creases import unfold_strength
+
+    v = sample_face.deform(None)
+    u = unfold_strength(sample_face, v)
+    assert u.max() > 0.9  # fully unfolded somewhere on the line
+    off = sample_face.render(None, creases=False).astype(np.float64)
+    on = sample_face.render(None).astype(np.float64)
+    for band in _own_fold_bands(sample_face):
+        lo, ln = _lum(off)[band], _lum(on)[band]
+        valley = lo < np.percentile(lo, 25)
+        assert (ln[valley] - lo[valley]).mean() > 8.0  # the valley is lifted (grey levels)
+        assert ln.std() < 0.85 * lo.std()  # flatter: the fold's shading is reduced
+        sat = [(x[band].max(1) - x[band].min(1)).mean() for x in (off, on)]
+        assert sat[1] <= sat[0] + 0.5
+    # outside every band nothing changes
+    anyband = np.logical_or.reduce(_own_fold_bands(sample_face))
+    far = ~_band(sample_face.image.shape[:2],
+                 np.argwhere(anyband)[:, ::-1].astype(float)[::25], 0.5 * sample_face.interocular)
+    assert np.array_equal(off[far], on[far])
+
+
+def test_own_folds_fade_only_as_far_as_the_skin_is_spread(sample_face):
+    """Half-way between the photo's smile and the neutral face the fade is partial; a target
+    that compresses the skin like the photo (or more: a broad smile) does not fade it."""
+    from editor.core.creases import unfold_strength
+
+    f0 = sample_face.expression
+    u_half = unfold_strength(sample_face, sample_face.deform(0.5 * f0)).max()
+    u_zero = unfold_strength(sample_face, sample_face.deform(None)).max()
+    assert 0.2 < u_half < 0.8 * u_zero
+    assert unfold_strength(sample_face, sample_face.deform(1.3 * f0)).max() < 0.02
+
+
+def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
+    from editor.core.creases import unfold_strength
+
+    for name in EMOTIONS:
+        v = sample_neutral.deform(apply_preset(name, 1.0))
+        assert not unfold_strength(sample_neutral, v).any()
+
+
+def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
+    """AU10 (disgust's raised upper lip) pushes the skin below the nose wing up: the upper part
+    of the nasolabial furrow darkens even without a smile; sadness and surprise do not."""
+    from editor.core.expressions import apply_preset as shipped
+
+    f = sample_neutral
+
+    def upper(name: str) -> float:
+        return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(shipped(name)))
+                   if k == "upper_lip")
+    assert upper("disgust") > 2 * _MIN_STRENGTH  # drawn, ~4 grey levels on this smiling sample
+    assert upper("sadness") < _MIN_STRENGTH and upper("surprise") < _MIN_STRENGTH
+
+
+def test_no_own_folds_faded_on_nearly_neutral_photos():
+    """JAFFE neutral photos opened as the product does (own expression estimated): the estimate
+    finds a trace of a smile on some (compression up to 0.07), which is no fold to fade; the
+    sample's real smile (0.15-0.27) is faded fully (test above)."""
+    from editor.core import Face
+    from editor.core.creases import unfold_strength
+    from editor.core.expressions import apply_preset as shipped
+
+    paths = [p for who in ("KA", "NA", "KR") for p in jaffe_images(f"{who}.NE*.tiff")[:1]]
+    if len(paths) < 3:
+        pytest.skip("JAFFE is not available")
+    for path in paths:
+        f = Face.from_image(path)
+        for name in ("sadness", "surprise", "anger", "fear", "disgust"):
+            assert unfold_strength(f, f.deform(shipped(name))).max() < 0.1, (path.name, name)

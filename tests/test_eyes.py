@@ -213,3 +213,27 @@ def test_closed_lids_show_skin_and_one_dark_lash_line(faces):
 def test_zero_vector_is_the_photo(faces):
     for face in faces:
         assert np.array_equal(face.render({}), face.image)
+
+
+def test_uncovered_white_is_as_bright_as_the_photos_sclera(big_faces):
+    """Wide-open lids (surprise at 150 %) uncover the eyeball: the new white is the photo's
+    brightest sclera, barely shaded (a lit ball, the lid's soft shadow), not a grey band
+    (median over the new pixels outside the iris, mean over the eyes: 0.85 of the photo's bright
+    sclera; 0.80 with the former reference, ball shade and lid shadow)."""
+    from editor.core.expressions import apply_preset
+
+    vec = apply_preset("surprise", 1.5)
+    ratios = []
+    for face in big_faces:
+        v = face.deform(vec)
+        lum = _lum(face.render(vec))
+        for name in ("eye_l", "eye_r"):
+            sc = _sclera_lum(face, name)
+            new = (_mask(lum.shape, v[face.mesh.holes[name]])
+                   & ~_mask(lum.shape, face.vertices[face.mesh.holes[name]]))
+            px = lum[new]
+            px = px[px > 0.5 * sc]  # not the iris
+            if len(px) > 20:
+                ratios.append(float(np.median(px)) / sc)
+    assert len(ratios) >= 6
+    assert np.mean(ratios) >= 0.82, ratios

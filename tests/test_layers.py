@@ -118,9 +118,10 @@ def test_open_jaw_exposes_teeth_on_closed_mouths(jaffe_faces):
         dark = inside & (lum < 0.35 * skin)
         assert bright.sum() >= 25, bright.sum()  # teeth
         assert dark.sum() >= 25, dark.sum()  # the cavity above them
-        # the lower teeth sit in the lower part of the opening
+        # the lower teeth sit in the lower part of the opening (the upper incisors show under
+        # the upper lip as well, 0.1 D below the lip line: not all bright pixels are low)
         ys = np.nonzero(inside)[0]
-        assert np.nonzero(bright)[0].mean() > ys.mean()
+        assert (np.nonzero(bright)[0] > ys.mean()).sum() >= 20
 
 
 def test_lower_teeth_follow_the_jaw(jaffe_faces):

@@ -127,6 +127,28 @@ def test_fleiss_kappa_unequal_raters_hand_value() -> None:
     assert math.isnan(fleiss_kappa(np.array([[3, 0], [3, 0]])).kappa)  # P_e == 1
 
 
+def test_fleiss_kappa_equals_statsmodels_on_equal_counts() -> None:
+    """With every subject rated equally often ours is Fleiss (1971): statsmodels agrees."""
+    inter_rater = pytest.importorskip("statsmodels.stats.inter_rater")
+    rng = np.random.default_rng(7)
+    for raters, cats in ((3, 2), (10, 6), (14, 5)):
+        counts = np.array([rng.multinomial(raters, rng.dirichlet(np.ones(cats)))
+                           for _ in range(25)])
+        assert fleiss_kappa(counts).kappa == pytest.approx(
+            inter_rater.fleiss_kappa(counts, method="fleiss"), abs=1e-12)
+
+
+def test_intervals_equal_statsmodels() -> None:
+    proportion = pytest.importorskip("statsmodels.stats.proportion")
+    weightstats = pytest.importorskip("statsmodels.stats.weightstats")
+    for k, n in ((7, 10), (1, 30), (140, 200)):
+        want = proportion.proportion_confint(k, n, alpha=0.05, method="wilson")
+        assert wilson_interval(k, n) == pytest.approx(want, abs=1e-12)
+    x = [3, 4, 5, 4, 4, 2, 5, 3]
+    want = weightstats.DescrStatsW(np.array(x, float)).tconfint_mean(alpha=0.05)
+    assert t_interval(x) == pytest.approx(want, abs=1e-12)
+
+
 def test_table4_reproduces_tables_5_6_and_overall() -> None:
     ratings = table4_ratings()
     assert len(ratings) == 200 and len({r.rater for r in ratings}) == 10

@@ -96,10 +96,10 @@ def test_jaffe_closed_loop_reproduces_real_expressions():
     from editor.core.closed_loop import closed_loop
 
     res = closed_loop(JAFFE / "images", noise_px=2.0)  # dlib's integer points: 1 px = 1.5 % IOD
-    # the issue's target is 2.5 %: met before the rigid brow band and the new mouth were merged
-    # (2.45-2.52), 2.57 now (brows 3.3 % against dlib's reading of the rigid band); this guards
-    # today's level until the target is reached
-    assert res.mean("estimate", "inner") < 2.65, res.table()
+    # the issue's target (2.57 before: the brows' band moved the alignment point 27, and wide-open
+    # mouths folded the chin against the margin ring, so the guard scaled whole renders down;
+    # 2.45 since the estimator leaves 27 out and bounds open_jaw by what the mesh renders)
+    assert res.mean("estimate", "inner") < 2.5, res.table()
     for region in ("brows", "lids", "lips", "jaw"):
         assert res.mean("estimate", region) < res.mean("nothing", region), res.table()
     for code in ("HA", "SA", "SU", "AN", "DI", "FE"):
@@ -155,3 +155,94 @@ def test_declared_neutral_photo_has_no_expression():
     assert not f.has_expression and f.expression_words == "neutral"
     assert np.array_equal(f.neutral_vertices, f.vertices)
     assert np.array_equal(f.render(None), f.image)
+
+
+@pytest.mark.gui
+def test_declaring_the_photo_neutral_is_one_undoable_step_and_saved(qtbot, sample_face, warnings,
+                                                                     tmp_path):
+    from editor.ui.main_window import MainWindow
+    from editor.ui.project import load_project
+
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.docs.remember = False
+    w.load_face(sample_face)
+    m = w.model
+    m.set_faps({"open_jaw": 600.0}, "open the jaw")  # an edit of the photo's expression
+    edited = m.doc.faps.copy()
+    n0 = m.undo_stack.count()
+    w.act_photo_neutral.trigger()
+    assert m.doc.photo_neutral and w.act_photo_neutral.isChecked()
+    assert m.undo_stack.count() == n0 + 1
+    assert w.expression_label.text() == "photo declared neutral"
+    assert not w.act_neutralize.isEnabled()
+    # the FAPs keep what they add to the photo: the photo's own estimate is subtracted
+    from editor.core import FAPS
+
+    np.testing.assert_allclose(m.doc.faps, FAPS.clamp(edited - sample_face.expression))
+    assert m.doc.faps.any()
+    assert not m.face.has_expression
+    assert np.array_equal(m.face.render(np.zeros(68)), sample_face.image)
+    path = tmp_path / "p.fapproj"
+    assert w.docs.save_to(str(path))
+    assert '"photo_is_neutral": true' in path.read_text()
+    data = load_project(path, sample_face.mesh.names)
+    assert data.photo_neutral and np.allclose(data.faps, m.doc.faps)
+    m.undo_stack.undo()
+    assert not m.doc.photo_neutral and not w.act_photo_neutral.isChecked()
+    assert np.array_equal(m.doc.faps, edited)
+    assert "photo shows: smile" in w.expression_label.text()
+    w.close_without_prompt()
+
+
+@pytest.mark.gui
+def test_gui_opens_a_photo_declared_neutral(qtbot, warnings):
+    from editor.ui.app import open_initial
+    from editor.ui.main_window import MainWindow
+
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.docs.remember = False
+    assert open_initial(w, str(SAMPLE), photo_neutral=True)
+    assert w.model.doc.photo_neutral and not w.model.doc.faps.any()
+    assert w.act_photo_neutral.isChecked()
+    assert np.array_equal(w.model.face.render(w.model.doc.faps), w.model.fitted.image)
+    w.close_without_prompt()
+
+
+def _corner_height(face, v: np.ndarray) -> float:
+    """Mouth corners (8.3, 8.4) above the inner lip line (middle of 2.2 and 2.3), in IOD."""
+    ey = face.frame.rot[:, 1]
+    line = 0.5 * (v[face.fdp["2.2"]] + v[face.fdp["2.3"]]) @ ey
+    return float(line - 0.5 * (v[face.fdp["8.3"]] + v[face.fdp["8.4"]]) @ ey) / face.interocular
+
+
+def test_neutralised_sample_mouth_is_flat(sample_face):
+    """The sample's open smile: corners 0.15 IOD above the lip line in the photo; the neutral
+    (mesh and as rendered) has them within 0.03 IOD of it (a neutral mouth is close to flat:
+    JAFFE neutrals -0.04..0.05), and no triangle folds."""
+    f = sample_face
+    assert _corner_height(f, f.vertices) > 0.12
+    assert abs(_corner_height(f, f.neutral_vertices)) < 0.03
+    assert abs(_corner_height(f, f.deform(None))) < 0.03
+    assert (signed_areas(f.deform(None).astype(np.float64), f.triangles) > 0).all()
+
+
+@pytest.mark.parametrize("name", ["sadness", "anger", "disgust"])
+def test_presets_without_a_smile_do_not_smile_on_the_sample(sample_face, name):
+    """Presets that do not raise the corners do not bring the photo's smile back: their corners
+    stay at (or below) the neutral's, not the photo's."""
+    f = sample_face
+    assert f.own_share(apply_preset(name)) < 0.05  # (disgust raises the upper lip a little)
+    h = _corner_height(f, f.deform(apply_preset(name)))
+    assert h < _corner_height(f, f.deform(None)) + 0.005 and h < 0.03, h
+
+
+def test_own_share_scales_the_photo_offset(sample_face):
+    """The part of the photo's expression the FAP model does not render comes with the share
+    of f0 a vector holds: all of it at f0 (the photo), none at 0, half way at f0 / 2."""
+    f = sample_face
+    f0 = f.expression
+    assert f.own_share(f0) == 1.0 and f.own_share(np.zeros(68)) == 0.0
+    assert abs(f.own_share(0.5 * f0) - 0.5) < 1e-6
+    assert f.own_share(f0 + apply_preset("joy")) == 1.0  # clipped

@@ -7,13 +7,14 @@ import json
 import cv2
 import numpy as np
 import pytest
-from conftest import ROOT, jaffe_images
+from conftest import jaffe_images
 
 from editor.core import Face
 from editor.core.faps import FAPS
 from editor.core.mesh import signed_areas
+from editor.resources import PRESETS_DIR, SAMPLE_FACE
 
-PRESETS = sorted((ROOT / "presets").glob("*.json"))
+PRESETS = sorted(PRESETS_DIR.glob("*.json"))
 BROW_FAPS = ("raise_{s}_i_eyebrow", "raise_{s}_m_eyebrow", "raise_{s}_o_eyebrow")
 
 
@@ -105,7 +106,7 @@ def test_surprise_keeps_a_smooth_arch(faces):
     """At 150 % surprise the brow's upper edge bends no more than its three FAP values ask:
     the slope change inner->middle vs middle->outer (3 steps each along the upper edge) plus
     3 % of the motion; a tent or spike from the band would exceed it."""
-    p = ROOT / "presets" / "surprise.json"
+    p = PRESETS_DIR / "surprise.json"
     v = _preset(p, 1.5)
     for face in faces:
         d = face.deform(v) - face.vertices
@@ -139,7 +140,7 @@ def _outside_changes(face: Face, img: np.ndarray) -> tuple[float, float]:
 @pytest.fixture(scope="module")
 def padded_face():
     """The sample with 400 px of replicated border below and beside it and a drawn collar."""
-    img = cv2.imread(str(ROOT / "resources" / "sample_face.png"))[:, :, ::-1]
+    img = cv2.imread(str(SAMPLE_FACE))[:, :, ::-1]
     p = cv2.copyMakeBorder(img, 0, 400, 200, 200, cv2.BORDER_REPLICATE)
     cx, y0 = p.shape[1] // 2, img.shape[0] - 40
     for sgn in (-1, 1):

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -15,10 +13,11 @@ from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
 from editor.core.expressions import apply_preset, get_preset, shipped_presets  # noqa: E402
+from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+SAMPLE = SAMPLE_FACE
 
 
 @pytest.fixture

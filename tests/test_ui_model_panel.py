@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -16,10 +14,11 @@ from editor.core.bilinear import save_model  # noqa: E402
 from editor.core.bilinear_photo import synthetic_model68  # noqa: E402
 from editor.core.expressions import apply_preset  # noqa: E402
 from editor.core.fapfile import read_fap  # noqa: E402
+from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+SAMPLE = SAMPLE_FACE
 
 
 class Boxes:

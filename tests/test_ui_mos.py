@@ -17,12 +17,13 @@ from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from editor.core.mos import CANNOT_TELL, Study  # noqa: E402
 from editor.core.mos_stats import analyse  # noqa: E402
+from editor.resources import SAMPLE_FACE
 from editor.study_cli import create_from_renders  # noqa: E402
 from editor.ui.mos_rating import RatingWindow  # noqa: E402
 from editor.ui.mos_results import ResultsWindow, ci, nat, pct  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+SAMPLE = SAMPLE_FACE
 LABELS = ["joy", "sadness", "fear"]
 K = Qt.Key
 

@@ -18,11 +18,12 @@ from editor.core.expressions import (  # noqa: E402
     blend_visemes,
     shipped_presets,
 )
+from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
 from editor.ui.presets_panel import ADD, REPLACE, PresetsPanel  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]
-SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
+SAMPLE = SAMPLE_FACE
 LIP_CORNERS = ("raise_l_cornerlip", "raise_r_cornerlip", "raise_l_cornerlip_o",
                "raise_r_cornerlip_o")
 

@@ -13,12 +13,14 @@ detected on the training images instead of the Stasm-77 points of
   fear (JAFFE's NE HA SA SU AN DI FE); the Stasm model's names (happy, sad, angry) are
   accepted as aliases.
 
-Synthesis on a photo (:func:`synthesize_on_face`): translate the photo's 68 points (plain /
+Synthesis on a photo (:func:`synthesize_on_face`) starts from the neutralised face (a smiling
+photo's own smile removed, :func:`neutral_points68`): translate its 68 points (plain /
 ridge / MALS), pin the gauge, replace ``a`` by the target mix ``A α``, rebuild with the face's
 own ``b``, undo the normalisation, keep the jaw contour; then fit the personalized mesh to the
 synthesized points (:func:`editor.core.fitting.fit_vertices`) and apply the
-displacement between that fit and the fit of the neutral points to the face's (possibly edited)
-mesh, through the crossing rule and the fold guard (:func:`editor.core.cloning.finish`).
+displacement between that fit and the fit of the neutral points to the face's neutral mesh as
+rendered (``face.deform(None)``), through the crossing rule and the fold guard
+(:func:`editor.core.cloning.finish`).
 
 Training images are research data (JAFFE): detections are cached in the user's cache
 directory (:func:`default_cache_dir`), never in the repository.
@@ -35,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ..resources import user_cache_dir
 from .bilinear import BilinearModel, RegionModel, fix_gauge, synthesize_region, train_bilinear
 from .bilinear import translate as translate_region
 from .bilinear_data import (
@@ -76,12 +79,9 @@ NORMALISATION68 = {
 
 # ---------------------------------------------------------------------------- training data
 def default_cache_dir() -> Path:
-    """``$FAP_STUDIO_CACHE`` or ``$XDG_CACHE_HOME/fap-studio`` (``~/.cache/fap-studio``)."""
-    env = os.environ.get("FAP_STUDIO_CACHE")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "fap-studio"
+    """``$FAP_STUDIO_CACHE``, else the per-OS cache folder (``~/.cache/fap-studio`` on Linux;
+    :func:`editor.resources.user_cache_dir`)."""
+    return user_cache_dir()
 
 
 def _jaffe_label(name: str) -> int:
@@ -323,19 +323,39 @@ class PhotoSynthesis:
     image: np.ndarray | None = None  # (H, W, 3) uint8 render, if asked for
 
 
-def mesh_for_points(face: Any, points68: np.ndarray) -> np.ndarray:
-    """The face's mesh moved so that it follows ``points68`` (fold-free), (V, 2) float32."""
+def neutral_points68(face: Any) -> np.ndarray:
+    """(68, 2) the photo's landmarks on the neutralised face, where FAPs and synthesis start.
+
+    A photo that shows an expression (:attr:`Face.expression`) is first neutralised: each
+    landmark keeps its barycentric place in the photo's mesh and follows that mesh to the
+    neutral face as rendered (``face.deform(None)``). A neutral photo's landmarks are returned
+    as they are.
+    """
+    pts = np.asarray(face.landmarks.points, np.float64)
+    if not face.has_expression:
+        return pts
+    from .cloning import landmark_map
+
+    A = landmark_map(face.vertices, face.triangles, face.mesh.names, pts)
+    return np.asarray(A @ face.deform(None).astype(np.float64))
+
+
+def mesh_for_points(face: Any, points68: np.ndarray, base68: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """The face's neutral mesh moved so that it follows ``points68`` (fold-free), (V, 2)
+    float32. ``base68`` are the landmarks of that neutral mesh (default
+    :func:`neutral_points68`): the mesh moves by the fitted displacement base68 -> points68."""
     from .cloning import finish
     from .fitting import fit_vertices
 
-    lm = face.landmarks
+    base = neutral_points68(face) if base68 is None else np.asarray(base68, np.float64)
     h, w = face.image.shape[:2]
     names = face.mesh.names
     fit_new, _ = fit_vertices(np.asarray(points68, np.float64), (w, h))
-    fit_old, _ = fit_vertices(np.asarray(lm.points, np.float64), (w, h))
+    fit_old, _ = fit_vertices(base, (w, h))
     D = np.array([fit_new[n] - fit_old[n] for n in names], np.float64)
     D[face.mesh.regions == "border"] = 0.0
-    return finish(face, face.vertices.astype(np.float64) + D)
+    return finish(face, face.deform(None).astype(np.float64) + D)
 
 
 def synthesize_on_face(face: Any, model: BilinearModel,
@@ -344,20 +364,24 @@ def synthesize_on_face(face: Any, model: BilinearModel,
                        render: bool = False) -> PhotoSynthesis:
     """Synthesize ``target`` on a :class:`~editor.core.face.Face` (see the module docstring).
 
-    Returns the fold-free deformed mesh, the synthesized 68 points and (``render``) the image.
+    The synthesis starts from the neutralised face (:func:`neutral_points68`), so a smiling
+    photo synthesized as anger shows anger, not anger over its smile. Returns the fold-free
+    deformed mesh, the synthesized 68 points and (``render``) the image.
     """
-    pts = synthesize_points68(model, face.landmarks.points, target, method, lam,
-                              keep_residual=keep_residual)
-    v = mesh_for_points(face, pts)
+    base = neutral_points68(face)
+    pts = synthesize_points68(model, base, target, method, lam, keep_residual=keep_residual)
+    v = mesh_for_points(face, pts, base)
     img = face.render_mesh(v).image if render else None
     return PhotoSynthesis(v, pts.astype(np.float32), img)
 
 
 def faps_for_points(face: Any, points68: np.ndarray) -> np.ndarray:
-    """(68,) FAP vector (the face's FAPU) that best reproduces the landmark motion."""
+    """(68,) FAP vector (the face's FAPU) that best reproduces the landmark motion from the
+    neutralised face (:func:`neutral_points68`) to ``points68``: the document's FAPs."""
     from .fap_estimate import FapEstimator
 
-    return FapEstimator(face).estimate(np.asarray(points68, np.float64)).faps
+    return FapEstimator(face).estimate(np.asarray(points68, np.float64),
+                                       neutral68=neutral_points68(face)).faps
 
 
 def synthetic_model68(points68: np.ndarray, n_people: int = 6, seed: int = 0) -> BilinearModel:

@@ -162,6 +162,8 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
 if __name__ == "__main__":  # pragma: no cover - a development aid
     import sys
 
-    root = Path(sys.argv[1] if len(sys.argv) > 1 else "../shared/data/jaffe")
+    from ..resources import checkout_jaffe_dir
+
+    root = Path(sys.argv[1]) if len(sys.argv) > 1 else checkout_jaffe_dir()
     res = closed_loop(root / "images", sys.argv[2].split(",") if len(sys.argv) > 2 else None)
     print(res.table())

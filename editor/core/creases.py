@@ -22,6 +22,12 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
   It is evaluated only in a small box around each active fold: the line is splatted
   (bilinear, sub-pixel) into the box and blurred with OpenCV.
 
+* **The photo's own folds.** A photo that smiles has folds of its own that the warp carries
+  into every expression. Where the target spreads the skin across a fold relative to the
+  photo's mesh, by the share of what the photo's neutral mesh spreads it
+  (:func:`unfold_strength`), the fold's shading is pulled towards the skin around it
+  (:func:`_unfold`); the photo's own expression is left exactly as it is.
+
 :func:`apply_creases` runs after :func:`render_layers`. A zero FAP vector gives no crease.
 """
 
@@ -59,19 +65,24 @@ class FoldStyle:
     ridge_off: float  # ridge distance from the line (in sigmas; sign = side)
     probe: float  # distance of the compression probes either side of the line
     spread: float = 0.5  # share of the fold's strongest compression given to the whole line
+    dead: float = 0.0  # compression that does not fold yet (subtracted first)
 
 
 STYLES: dict[str, FoldStyle] = {
     "nasolabial": FoldStyle(sigma=0.026, depth=0.17, c0=0.38, ridge=0.35, ridge_off=2.6,
                             probe=0.07, spread=0.75),
+    # the upper nasolabial furrow beside the nose wing, deepened by the upper lip raiser
+    # (AU10, disgust) pushing the skin below the nose wing up
+    "upper_lip": FoldStyle(sigma=0.026, depth=0.20, c0=0.10, ridge=0.35, ridge_off=2.6,
+                           probe=0.07, dead=0.04),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
                       probe=0.05),
     "forehead": FoldStyle(sigma=0.014, depth=0.12, c0=0.25, ridge=0.30, ridge_off=2.4,
                           probe=0.06),
     "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
                           probe=0.05),
-    "bridge": FoldStyle(sigma=0.011, depth=0.11, c0=0.08, ridge=0.25, ridge_off=2.2,
-                        probe=0.04),
+    "bridge": FoldStyle(sigma=0.011, depth=0.13, c0=0.07, ridge=0.25, ridge_off=2.2,
+                        probe=0.04, dead=0.04),
 }
 
 
@@ -99,6 +110,7 @@ class CreasePlan:
     iod: float
     tint: np.ndarray  # (3,) per-channel darkening weights (1, 1, 1 on grey photos)
     skin: np.ndarray  # (F, 3) skin colour around each fold in the photo
+    utaper: np.ndarray | None = None  # (N,) fade along each line of the photo's own fold
 
     @property
     def n_folds(self) -> int:
@@ -154,6 +166,7 @@ class _Line:
     side: tuple[float, float]  # frame direction of the ridge beside the line
     probes: np.ndarray | None = None  # (4, 2)
     measure: tuple[float, float] = (0.0, 1.0)
+    utaper: np.ndarray | None = None  # fade of the photo's own fold (default: ``taper``)
 
 
 def _fold_lines(face: Face) -> list[_Line]:
@@ -176,11 +189,22 @@ def _fold_lines(face: Face) -> list[_Line]:
         bot = corner + (sg * 0.14, 0.16)
         d = mid - top
         bow = np.array([-d[1], d[0]]) * (0.12 * sg)  # slightly convex towards the cheek
-        ctrl = np.array([top, 0.5 * (top + mid) + (bow if sg < 0 else -bow), mid, bot])
+        ctrl = np.array([top, 0.5 * (top + mid) - bow, mid, bot])  # mirror images
         pts = _catmull(ctrl, 28)
         t = np.linspace(0.0, 1.0, len(pts))
+        # a smiling photo's own fold reaches from the nose wing down past the corner
         lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
-                           (sg, -0.5)))
+                           (sg, -0.5), utaper=_fade(t, 0.2, 0.25)))
+        # its upper part, driven by the skin between the nose wing and the upper lip's
+        # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
+        up = pts[: int(0.6 * len(pts))]
+        tu = np.linspace(0.0, 1.0, len(up))
+        lip = q(f"lipo_u{2 if s == 'r' else 6}")
+        probes = np.array([0.6 * ala + 0.4 * lip, 0.35 * ala + 0.65 * lip,
+                           0.6 * (ala + (sg * 0.06, 0.0)) + 0.4 * lip,
+                           0.35 * (ala + (sg * 0.06, 0.0)) + 0.65 * lip])
+        lines.append(_Line("upper_lip", f"nasolabial_{s}", up, _fade(tu, 0.3, 0.5),
+                           (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
     for s, sg in (("r", -1.0), ("l", 1.0)):
@@ -209,39 +233,60 @@ def _fold_lines(face: Face) -> list[_Line]:
     yh = np.interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
     t = np.linspace(0.0, 1.0, len(xs))
-    for j, (f, ph, amp) in enumerate(((0.17, 0.3, 0.006), (0.31, 1.7, 0.008),
-                                      (0.45, 2.9, 0.007))):
-        y = yb_s - f * h + amp * np.sin(2 * np.pi * 1.3 * t + ph)
-        # real forehead lines are broken: a dip in strength near the middle of some
-        gap = 1.0 - (0.55 if j != 1 else 0.25) * np.exp(-((t - 0.5 - 0.06 * (j - 1)) / 0.07)
+    # real lines are irregular: uneven waviness, breaks, lengths and strength along the line
+    # (a fixed draw: the same at any resolution), so they do not look drawn with a ruler
+    rng = np.random.default_rng(1729)
+    for j, (f, amp) in enumerate(((0.16, 0.006), (0.30, 0.008), (0.44, 0.007))):
+        f = f + rng.uniform(-0.025, 0.025)
+        ph = rng.uniform(0, 2 * np.pi, 3)
+        y = (yb_s - f * h + amp * np.sin(2 * np.pi * 1.3 * t + ph[0])
+             + 0.5 * amp * np.sin(2 * np.pi * rng.uniform(2.5, 3.5) * t + ph[1])
+             + 0.25 * amp * np.sin(2 * np.pi * rng.uniform(6.0, 8.0) * t + ph[2]))
+        # broken lines: a dip near the middle and another somewhere else, of varying depth
+        gap = 1.0 - (0.55 if j != 1 else 0.25) * np.exp(-((t - 0.5 - 0.06 * (j - 1)
+                                                           - rng.uniform(-0.05, 0.05)) / 0.07)
                                                           ** 2)
+        gap *= 1.0 - rng.uniform(0.3, 0.8) * np.exp(-((t - rng.uniform(0.15, 0.85))
+                                                      / rng.uniform(0.03, 0.07)) ** 2)
+        # uneven depth along the line
+        pk = rng.uniform(0, 2 * np.pi, 2)
+        depth = 1.0 + 0.15 * np.sin(2 * np.pi * 2.1 * t + pk[0]) + 0.1 * np.sin(
+            2 * np.pi * 4.3 * t + pk[1])
         lines.append(_Line("forehead", "forehead", np.stack([xs, y], 1),
-                           _fade(t, 0.25, 0.25) * gap, (0.0, -1.0)))
-    # ---- glabella: two short vertical furrows between the inner brow ends
+                           _fade(t, rng.uniform(0.18, 0.32), rng.uniform(0.18, 0.32)) * gap
+                           * depth, (0.0, -1.0)))
+    # ---- glabella: two short vertical furrows between the inner brow ends, not mirror images
+    # (different lengths, bowed apart towards the top, uneven along their length)
     ri, li = q("brow_r_e1"), q("brow_l_e0")
     g = q("glabella")
     half = 0.5 * abs(li[0] - ri[0])
     for sg, tilt in ((-1.0, -0.01), (1.0, 0.01)):
-        x = g[0] + sg * max(0.32 * half, 0.07)
+        x = g[0] + sg * max(0.32 * half, 0.07) * rng.uniform(0.9, 1.1)
         y_brow = 0.5 * (ri[1] + li[1])
-        y_top, y_bot = y_brow - 0.24, max(g[1], y_brow + 0.04)
+        y_top, y_bot = y_brow - 0.24 * rng.uniform(0.85, 1.1), max(g[1], y_brow + 0.04)
         ys = np.linspace(y_top, y_bot, 14)
         u = (ys - y_top) / (y_bot - y_top)
-        pts = np.stack([x + tilt * u - sg * 0.02 * u * u, ys], 1)
-        lines.append(_Line("glabella", "glabella", pts, _fade(u, 0.4, 0.3), (sg, 0.0)))
-    # ---- nose bridge: short wrinkles across the nasal root, driven by the nose wrinkler's
-    # pull on the upper lip and the nose wings (the mesh does not bunch the bridge itself)
+        pts = np.stack([x + tilt * u - sg * 0.02 * u * u + sg * 0.015 * (1 - u) ** 2
+                        + 0.004 * np.sin(2 * np.pi * 1.5 * u + rng.uniform(0, 6.3)), ys], 1)
+        even = 1.0 + 0.15 * np.sin(2 * np.pi * 1.2 * u + rng.uniform(0, 6.3))
+        lines.append(_Line("glabella", "glabella", pts,
+                           _fade(u, rng.uniform(0.3, 0.5), 0.3) * even, (sg, 0.0)))
+    # ---- nose bridge: short wrinkles across the nasal root (procerus / nose wrinkler, AU4 and
+    # AU9), driven by the skin between the inner brow ends and the inner eye corners pushed
+    # down (the mesh does not bunch the bridge itself; a smile does not lower the brows)
     n27, n28 = q("nose_27"), q("nose_28")
-    probes = np.array([q("ala_r") + (-0.07, -0.05), q("ala_r") + (-0.06, 0.03),
-                       q("ala_l") + (0.07, -0.05), q("ala_l") + (0.06, 0.03)])
-    for j, f in enumerate((0.15, 0.5, 0.85)):
+    bi_r, bi_l = q("brow_r_e1"), q("brow_l_e0")
+    ec_r, ec_l = q("eye_r_c1"), q("eye_l_c0")
+    probes = np.array([0.5 * (bi_r + ec_r), 0.3 * bi_r + 0.7 * ec_r,
+                       0.5 * (bi_l + ec_l), 0.3 * bi_l + 0.7 * ec_l])
+    for j, f in enumerate((-0.3, 0.0, 0.3)):  # at the root, level with the inner canthi
         c = n27 + f * (n28 - n27)
         w = 0.1 + 0.025 * j
         xs_b = np.linspace(-w, w, 12)
         pts = np.stack([c[0] + xs_b, c[1] + 0.06 * xs_b ** 2 / w], 1)
         lines.append(_Line("bridge", "bridge", pts,
                            _fade(np.linspace(0, 1, 12), 0.35, 0.35), (0.0, -1.0), probes,
-                           (1.0, 0.0)))
+                           (0.0, 1.0)))
     return lines
 
 
@@ -281,14 +326,16 @@ def _build_plan(face: Face) -> CreasePlan:
     tris = mesh.triangles[cand]
     kinds, groups, gnames, starts = [], [], [], [0]
     all_tri, all_bary, all_probe, all_n, all_taper = [], [], [], [], []
+    all_utaper = []
     for ln in _fold_lines(face):
         kind, group, taper = ln.kind, ln.group, ln.taper
+        utaper = taper if ln.utaper is None else ln.utaper
         st = STYLES[kind]
         pts = fr.to_image(ln.pts * iod)
         nrm = _normals(pts)
         if float((nrm @ (fr.rot @ np.asarray(ln.side))).mean()) < 0:
             # orient the line so that its normal points to the ridge side
-            pts, taper = pts[::-1].copy(), taper[::-1].copy()
+            pts, taper, utaper = pts[::-1].copy(), taper[::-1].copy(), utaper[::-1].copy()
             nrm = _normals(pts)
         ti, bary = _locate(pts, V, tris)
         if ln.probes is None:
@@ -308,6 +355,7 @@ def _build_plan(face: Face) -> CreasePlan:
         all_probe.append(pt)
         all_n.append(nrm)
         all_taper.append(taper)
+        all_utaper.append(utaper)
     T = V[mesh.triangles]
     E = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)  # (T, 2, 2) columns = edges
     det = E[:, 0, 0] * E[:, 1, 1] - E[:, 0, 1] * E[:, 1, 0]
@@ -334,7 +382,8 @@ def _build_plan(face: Face) -> CreasePlan:
         skin[f] = np.median(img[y0:y1, x0:x1].reshape(-1, 3), axis=0)
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),
-                      np.concatenate(all_taper), fold, inv, iod, tint, skin)
+                      np.concatenate(all_taper), fold, inv, iod, tint, skin,
+                      np.concatenate(all_utaper))
 
 
 # ---------------------------------------------------------------------------- strength
@@ -354,6 +403,10 @@ class _Fast:
     ridge: np.ndarray  # (G,) ridge brightening relative to the darkening
     off: np.ndarray  # (G,) ridge offset, px
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
+    dead: np.ndarray  # (N,) compression that does not fold yet
+    own_gap: np.ndarray | None = None  # (F,) photo's own compression per fold (None: neutral)
+    own_w: np.ndarray | None = None  # (N,) log-spacing of the neutral mesh per sample (>= 0)
+    own_sum: np.ndarray | None = None  # (F,) sum of own_w ** 2 per fold
     # per-face constants of the per-frame path (gathered once, not every frame)
     used_tri: np.ndarray | None = None  # (U, 3) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
@@ -361,9 +414,9 @@ class _Fast:
     ty: np.ndarray | None = None
     sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
-    ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
     keep: np.ndarray | None = None  # (N,) 1 - spread
     seg_b: np.ndarray | None = None  # (M,) seg_a + 1: the last sample of each segment
+    ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -379,6 +432,7 @@ def _fast(face: Face) -> _Fast:
     depth = np.array([x.depth for x in st])[p.fold]
     c0 = np.array([x.c0 for x in st])[p.fold]
     spread = np.array([x.spread for x in st])[p.fold]
+    dead = np.array([x.dead for x in st])[p.fold]
     n = len(p.fold)
     edge = np.zeros(n, bool)
     for off in (0, 1):
@@ -396,7 +450,7 @@ def _fast(face: Face) -> _Fast:
     skin = np.array([p.skin[p.group == g].mean(0) for g in range(G)], np.float32)
     f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
-              skin)
+              skin, dead)
     f.used_tri = face.mesh.triangles[used]
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
@@ -404,16 +458,21 @@ def _fast(face: Face) -> _Fast:
     tri = face.mesh.triangles[p.tri]
     f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
-    f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     f.keep = 1.0 - spread
     f.seg_b = f.seg_a + 1
+    f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     _FAST[face] = f
+    if face.has_expression:  # the photo's own folds: how much its neutral spreads them
+        g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
+        f.own_gap = np.maximum.reduceat(g, p.start[:-1])
+        f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
+        f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
     return f
 
 
-def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
-    """(N,) darkening of every fold sample for a deformed mesh (0 at rest)."""
-    p = crease_plan(face)
+def _spacing(face: Face, vertices: np.ndarray) -> np.ndarray:
+    """(N,) spacing of skin lines parallel to each fold on ``vertices``, relative to the photo's
+    mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes."""
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     T = V[fa.used_tri]
@@ -431,29 +490,97 @@ def fold_strength(face: Face, vertices: np.ndarray) -> np.ndarray:
     ax = a00[pr] * tx + a01[pr] * ty
     ay = a10[pr] * tx + a11[pr] * ty
     r = det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)
-    c = 1.0 - (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25
+    return (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25  # the mean over the 4 probes
+
+
+def _smooth_taper(face: Face, s: np.ndarray, own: bool = False) -> np.ndarray:
+    """Smoothed along each line (no triangle steps), times the fade of its ends (``own``: that
+    of the photo's own fold)."""
+    p = crease_plan(face)
+    # (the first and last two samples of every line are not smoothed: the zero padding of
+    # "same" never shows)
+    sm = np.convolve(s, _SMOOTH, mode="same")
+    return np.where(_fast(face).edge, s, sm) * (p.utaper if own else p.taper)
+
+
+def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """(N,) darkening of every fold sample for a deformed mesh (0 at rest); ``spacing``:
+    :func:`_spacing` of that mesh when already known."""
+    p = crease_plan(face)
+    fa = _fast(face)
+    c = 1.0 - (_spacing(face, vertices) if spacing is None else spacing)
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
-    c = fa.keep * c + fa.spread * cmax
+    c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
-    # smooth along each line (no triangle steps), then taper the ends (the first and last two
-    # samples of every line are not smoothed, so the padding of "same" never shows)
-    sm = np.convolve(s, _SMOOTH, mode="same")
-    return np.where(fa.edge, s, sm) * p.taper
+    # smooth along each line (no triangle steps), then taper the ends
+    return _smooth_taper(face, s)
+
+
+def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """(N,) share in [0, 1] of the photo's own fold to smooth away at every fold sample.
+
+    A photo that smiles shows its own folds (nasolabial, cheeks). Its neutral mesh
+    (``face.deform(None)``) spreads that skin by ``g = log spacing(neutral)`` (> 0 where the
+    photo compresses it). A target mesh that spreads it by ``e = log spacing(target)`` unfolds
+    the photo's fold by ``e / g`` (per fold: ``sum(max(e, 0) g+) / sum(g+^2)``, the least-squares
+    ratio over its samples, clipped to [0, 1], faded in above :data:`_OWN_MIN` of own compression
+    so that the estimate's noise on a neutral photo is no fold): 1 on the neutralised face, 0 on
+    the photo's own expression (the photo's mesh: exactly no change) and wherever the target
+    compresses the skin as much or more (then :func:`fold_strength` draws the fold).
+    """
+    fa = _fast(face)
+    n = len(fa.depth)
+    if fa.own_gap is None:
+        return np.zeros(n)
+    p = crease_plan(face)
+    e = np.log(np.maximum(_spacing(face, vertices) if spacing is None else spacing, 1e-6))
+    e[e < _C_TOL] = 0.0
+    esum = np.add.reduceat(e * fa.own_w, p.start[:-1])
+    u = np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1)
+    # a fold the photo barely compresses (the estimate's noise on a neutral photo) is no fold:
+    # the share ramps in between _OWN_MIN and 1.7 * _OWN_MIN of own compression
+    u = u * np.clip((fa.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
+    return _smooth_taper(face, u[p.fold], own=True)
+
+
+#: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
+#: (JAFFE neutral photos: up to 0.07 from the estimate's noise; the sample's smile: 0.15-0.27)
+_OWN_MIN = 0.07
 
 
 _SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
 
 
 # ---------------------------------------------------------------------------- drawing
+def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarray,
+            w2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two canvases with weights added at sub-pixel positions (bilinear), one bincount."""
+    h, wd = shape
+    P = np.concatenate([xy, xy2])
+    W = np.concatenate([w, w2])
+    x0 = np.floor(P[:, 0])
+    y0 = np.floor(P[:, 1])
+    fx, fy = P[:, 0] - x0, P[:, 1] - y0
+    base = (y0.astype(np.int64) * wd + x0.astype(np.int64))
+    base[len(xy):] += h * wd  # the second canvas follows the first
+    idx = np.concatenate([base, base + 1, base + wd, base + wd + 1])
+    ws = np.concatenate([W * (1 - fx) * (1 - fy), W * fx * (1 - fy), W * (1 - fx) * fy,
+                         W * fx * fy])
+    acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
+    return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
+
+
 _TURN = np.array([-1.0, 1.0])
 
 
 def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Two canvases with weights added at sub-pixel positions (bilinear), one bincount: the
-    first ``n1`` points of ``P`` go to the first canvas, the others to the second."""
+    """:func:`_splat2` with both point sets in one array (the first ``n1`` points go to the
+    first canvas): one floor, one cast, the same corner-major summation order."""
     h, wd = shape
     P0 = np.floor(P)
     F = P - P0  # (fx, fy)
@@ -475,8 +602,10 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     Returns ``res`` unchanged when no fold is compressed (e.g. a zero FAP vector), else a
     result whose ``bbox`` also covers every pixel written.
     """
-    s = fold_strength(face, vertices)
-    if not np.count_nonzero(s > _MIN_STRENGTH):
+    sp = _spacing(face, vertices)
+    s = fold_strength(face, vertices, sp)
+    un = unfold_strength(face, vertices, sp)
+    if not np.count_nonzero(s > _MIN_STRENGTH) and not np.count_nonzero(un > _MIN_UNFOLD):
         return res
     p = crease_plan(face)
     fa = _fast(face)
@@ -486,6 +615,8 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
+    if np.count_nonzero(un > _MIN_UNFOLD):
+        bbox = _unfold(face, out, pos, un, bbox)
     live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
     tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
@@ -534,6 +665,88 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     if bbox == res.bbox:
         return res
     return _rebox(res, bbox, {})
+
+
+#: below this share a photo's own fold is left as it is
+_MIN_UNFOLD = 0.02
+
+
+def _skin_weight(patch: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Skin-likeness in [0, 1] of every pixel (hair, brows, eyes and lashes are not folded)."""
+    ref_l = max(float(ref.mean()), 20.0)
+    d = (patch - ref) ** 2
+    dist = np.sqrt((d[..., 0] + d[..., 1] + d[..., 2]) * np.float32(1.0 / 3.0))
+    return np.clip((0.45 - dist / np.float32(ref_l)) * 4.0, 0.0, 1.0)
+
+
+def _unfold(face: Face, out: np.ndarray, pos: np.ndarray, un: np.ndarray,
+            bbox: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """Smooth the photo's own folds away where the target spreads their skin (in place).
+
+    Along each fold (a band a few line widths wide, strength ``un``) the skin's shading is
+    pulled towards that of the skin around it: the gain ``G_l(L w) / G_l(w) / G_s(L)`` (``L``
+    luminance, ``w`` skin-likeness, ``G_l`` a blur wider than the fold, ``G_s`` one about the
+    fold's own width) lifts the fold's dark valley (and tones down the ridge beside it) while
+    the finer texture, the colour and the photo's light outside the band stay.
+    """
+    fa = _fast(face)
+    H, W = out.shape[:2]
+    for g, (g0, g1) in enumerate(fa.seg_rng):
+        ia = fa.seg_a[g0:g1]
+        if not (np.maximum(un[ia], un[ia + 1]) > _MIN_UNFOLD).any():
+            continue
+        sig = float(fa.sig[g])
+        sb = max(5.0 * sig, 1.0)  # half-width of the band that is smoothed
+        sl = 3.5 * sb  # the surrounding skin
+        ss = max(0.6 * sig, 0.6)  # the fold's own scale
+        a, d = pos[ia], pos[ia + 1] - pos[ia]
+        L = np.sqrt((d * d).sum(1))
+        K = int(min(max(np.ceil(L.max() / 0.5), 1), 64))
+        u = (np.arange(K) + 0.5) / K
+        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
+        ua, ub = un[ia], un[ia + 1]
+        w = ((ua[:, None] + (ub - ua)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+        # the box that is written (the band) and the larger one the surrounding skin is read in
+        lo, hi = pts.min(0) - 3.0 * sb, pts.max(0) + 3.0 * sb
+        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            continue
+        pad = int(2.0 * sl)
+        X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
+        X1, Y1 = min(x1 + pad, W), min(y1 + pad, H)
+        # the smooth fields (band, surrounding skin) at a lower resolution: R px per cell
+        R = max(1, int(sl / 4.0))
+        hs, ws = max((Y1 - Y0) // R, 2), max((X1 - X0) // R, 2)
+        fx, fy = ws / (X1 - X0), hs / (Y1 - Y0)
+        small = (cv2.resize(out[Y0:Y1, X0:X1], (ws, hs), interpolation=cv2.INTER_AREA)
+                 if R > 1 else out[Y0:Y1, X0:X1]).astype(np.float32)
+        wsk_s = _skin_weight(small, fa.skin[g])
+        num = cv2.GaussianBlur(small * wsk_s[..., None], (0, 0), sl * fx)
+        den = cv2.GaussianBlur(wsk_s, (0, 0), sl * fx)
+        sur = num / np.maximum(den, 1e-3)[..., None]
+        sur[den < 0.05] = 0.0  # no skin around: no change
+        q = (pts - (X0, Y0)) * (fx, fy)
+        band, _ = _splat2((hs + 1, ws + 1), q, w * fx, q[:0], w[:0])
+        band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb * fx)
+        band = np.minimum(band * np.float32(math.sqrt(2 * math.pi) * sb * fx), 1.0)
+        # back to full resolution, only over the written box (one bilinear warp of both)
+        M = np.array([[fx, 0.0, (x0 - X0 + 0.5) * fx - 0.5],
+                      [0.0, fy, (y0 - Y0 + 0.5) * fy - 0.5]])
+        full = cv2.warpAffine(np.dstack([sur, band]), M, (x1 - x0, y1 - y0),
+                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                              borderMode=cv2.BORDER_REPLICATE)
+        sur, band = full[..., :3], full[..., 3]
+        patch = out[y0:y1, x0:x1].astype(np.float32)
+        wsk = _skin_weight(patch, fa.skin[g])
+        # per channel: a fold's shadow is also more saturated than the skin around it
+        near = cv2.GaussianBlur(patch, (0, 0), ss)
+        gain = np.clip(sur / np.maximum(near, 1.0), 0.88, 1.45)
+        gain[sur[..., 0] <= 0.0] = 1.0
+        k = (gain - 1.0) * (band * wsk)[..., None]
+        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + k) + 0.5, 0, 255).astype(np.uint8)
+        bbox = _union(bbox, (x0, y0, x1, y1))
+    return bbox
 
 
 def creases_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:

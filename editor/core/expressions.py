@@ -1,6 +1,6 @@
 """Emotion and viseme presets (FAP 2 / FAP 1), user presets, sequence authoring, ``fap info``.
 
-A preset is a JSON file (shipped in ``presets/``, user ones in :func:`user_preset_dir`):
+A preset is a JSON file (shipped in ``editor/data/presets/``, user ones in :func:`user_preset_dir`):
 ``{"format": "fap-studio-preset", "version": 1, "kind": "emotion"|"viseme"|"custom",
 "name": "joy", "mpeg4_index": 1, "source": "...", "faps": {"open_jaw": 100, ...}}`` with values
 in FAPU keyed by low-level FAP name (3-68), finite and inside ``FAPS[n].range``; optional
@@ -19,7 +19,6 @@ import difflib
 import json
 import math
 import os
-import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import date
@@ -29,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..resources import PRESETS_DIR, user_data_dir
 from .errors import PresetError
 from .faps import FAPS
 
@@ -72,25 +72,14 @@ class Preset:
 
 
 def shipped_preset_dir() -> Path:
-    """The repository's ``presets/`` directory."""
-    return Path(__file__).resolve().parents[2] / "presets"
+    """The shipped presets' folder (package data ``editor/data/presets``)."""
+    return PRESETS_DIR
 
 
 def user_preset_dir() -> Path:
-    """``$FAP_STUDIO_DATA_DIR/presets``, else ``<data dir>/fap-studio/presets`` with the data dir
-    ``$XDG_DATA_HOME`` or ``~/.local/share`` (Linux), ``~/Library/Application Support`` (macOS),
-    ``%APPDATA%`` (Windows). Not created here."""
-    env = os.environ.get("FAP_STUDIO_DATA_DIR")
-    if env:
-        return Path(env).expanduser() / "presets"
-    if sys.platform == "win32":
-        base = Path(os.environ.get("APPDATA") or Path.home() / "AppData" / "Roaming")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Application Support"
-    else:
-        xdg = os.environ.get("XDG_DATA_HOME", "")
-        base = Path(xdg) if os.path.isabs(xdg) else Path.home() / ".local" / "share"
-    return base / "fap-studio" / "presets"
+    """``presets`` in :func:`editor.resources.user_data_dir` (``$FAP_STUDIO_DATA_DIR``, else the
+    per-OS user data folder, e.g. ``~/.local/share/fap-studio``). Not created here."""
+    return user_data_dir() / "presets"
 
 
 def _check_name(name: object, label: str) -> str:

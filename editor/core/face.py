@@ -6,10 +6,13 @@ Data flow: photo -> :func:`detect_landmarks` -> :func:`fit_vertices` (personaliz
 The photo's own expression (issue 21): a photo that smiles is the neutral face plus a FAP vector
 f0 (:attr:`Face.expression`, estimated by :func:`~editor.core.own_expression.estimate_own`).
 The mesh fitted to the photo (:attr:`Face.vertices`) is where the texture comes from; the
-neutral mesh (:attr:`Face.neutral_vertices`) is that mesh moved by -f0, and every FAP vector f
-is applied to the neutral mesh: ``deform(f) = N + D_N(f) + r`` with the small constant ``r``
-that makes ``deform(f0)`` equal the photo's mesh exactly (so f0 renders the photo unchanged and
-f = 0 the neutralised face). FAPU are measured on the neutral mesh.
+neutral mesh N (:attr:`Face.neutral_vertices`) is that mesh with its landmarks moved to the
+neutral the estimate implies (Laplacian editing, see ``Face._neutralise``), and every FAP vector
+f is applied to it: ``deform(f) = N + D_N(f) + s(f) r`` where ``r = P - N - D_N(f0)`` is the part
+of the photo's expression the FAP motion does not render and ``s(f)`` in [0, 1] the share of f0
+that f holds (:meth:`Face.own_share`): f0 renders the photo unchanged, f = 0 the neutral face,
+and a preset that does not go the photo's way (sadness on a smile) gets none of the photo's
+smile back. FAPU are measured on the neutral mesh.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from .deform import (
     build_plan,
     deform_points,
     eye_state,
+    guard,
     linear_positions,
 )
 from .errors import NoFaceError
@@ -38,8 +42,12 @@ from .fitting import FaceFrame, fit_vertices, snap_inner_lips
 from .imageio import as_rgb8, load_image
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
+from .lidskin import apply_lid_skin
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .warp import WarpPlan, WarpResult, warp
+
+#: estimate_own rounds, each against the FAPU of the neutral the previous one implies
+OWN_ROUNDS = 3
 
 FapInput = Mapping[object, float] | np.ndarray | None
 
@@ -79,6 +87,10 @@ class Face:
     source: str | None = None
     expression: np.ndarray | None = None
     expression_words: str = "neutral"
+    #: (68, 2) landmarks of the neutral face the own-expression estimate implies (prior mean
+    #: shape + identity modes, :attr:`OwnExpression.neutral68`); None: the photo's landmarks
+    #: moved back by f0's motion
+    neutral_landmarks: np.ndarray | None = field(default=None, repr=False)
     #: (FAPU, plan) of ``vertices`` if the caller has them (a copy of a face declared neutral):
     #: the neutralisation starts from them instead of building them again
     photo_plan: InitVar[tuple[dict[str, float], DeformPlan] | None] = None
@@ -108,35 +120,83 @@ class Face:
                           _extra_points(self.mesh, vertices, self.landmarks, fapu))
         return fapu, plan
 
-    def _neutralise(self, f0: np.ndarray, rounds: int = 4,
+    def _neutralise(self, f0: np.ndarray, rounds: int = 3,
                     photo_plan: tuple[dict[str, float], DeformPlan] | None = None
                     ) -> tuple[np.ndarray, dict[str, float], DeformPlan, np.ndarray | None]:
-        """Neutral mesh N with ``N + D_N(f0) ~ P`` (fixed point), its FAPU and plan, and the
-        offset ``r = P - (N + D_N(f0))`` over all points (None when f0 = 0)."""
+        """Neutral mesh N, its FAPU and plan, and the offset ``r = P - (N + D_N(f0))`` over all
+        points (None when f0 = 0).
+
+        N is the photo's mesh P with its landmarks moved back by the motion f0 gives them on N
+        (a fixed point: FAPU and influence are the neutral's), keeping P's local shape
+        (Laplacian editing, :class:`~editor.core.cloning.LaplacianDeformer`, border fixed); the
+        inner lips of the neutral meet. Undoing f0 vertex by vertex (``N = P - D_N(f0)``)
+        folds where the FAP influence does not match the photo's expression: on an open smile
+        the upper lip next to the corners drops below them, and the fold guard then keeps the
+        corners up (the neutral still smiled).
+        """
+        from .cloning import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
+
         P = self.vertices
         fapu, plan = self._build(P) if photo_plan is None else photo_plan
         if not f0.any():
             return P, fapu, plan, None
         V = len(P)
         target = plan.neutral.astype(np.float64)  # photo mesh + extra points at rest
+        plan_p = plan
+        A = landmark_map(P, self.mesh.triangles, self.mesh.names, self.landmarks.points)
+        lap = LaplacianDeformer(P, self.mesh.triangles, A, self.mesh.regions == "border", MU,
+                                CONSTRAINT_WEIGHTS)
+        x = A @ target[:V]
+        ey = self.frame.rot[:, 1]
+        up, low = np.array([61, 62, 63]), np.array([67, 66, 65])
         N = target.copy()
+        mouth_moves = bool(f0[2:13].any() or f0[50:60].any())  # jaw, inner and outer lips
         for _ in range(rounds):
-            moved = deform_points(plan, f0).astype(np.float64)
-            N = N + (target - moved)  # move the neutral until f0 lands on the photo's mesh
-            N[V:] = np.where(np.isfinite(N[V:]), N[V:], target[V:])
+            U = x - A @ (linear_positions(plan, f0)[:V] - N[:V])
+            if self.neutral_landmarks is not None and mouth_moves:  # the estimate's neutral
+                U[48:] = np.asarray(self.neutral_landmarks, np.float64)[48:]
+            # a neutral mouth is closed: the lower lip meets the upper one (the upper lip sits
+            # on the skull; the jaw and the lower lip close onto it)
+            U[low] -= ((U[low] - U[up]) @ ey)[:, None] * ey
+            N[:V] = lap.solve(U)
             fapu, plan = self._build(N[:V].astype(np.float32))
             N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
-        # lips and lids of the neutral meet but never cross (an overshooting estimate would
-        # leave the upper lip below the lower one); the offset absorbs the difference
-        pairs, ey = self.mesh.pairs, self.frame.rot[:, 1]
+        # lips and lids of the neutral meet but never cross, and the inner lips are closed
+        # (between the landmarks the Laplacian leaves them a little apart); the offset absorbs
+        # the difference
+        pairs = self.mesh.pairs
         u, lo = pairs[:, 0], pairs[:, 1]
-        cross = (N[lo] - N[u]) @ ey < 0
+        mouth = np.isin(u, self.mesh.holes["mouth"])
+        cross = ((N[lo] - N[u]) @ ey < 0) & ~mouth
         if cross.any():
             mean = 0.5 * (N[u[cross]] + N[lo[cross]])
             N[u[cross]] = N[lo[cross]] = mean
+        N[lo[mouth]] = N[u[mouth]]
+        cross |= mouth
+        # no triangle of the neutral folds: the outer-lip vertices of folded triangles (never
+        # the inner lips, which meet, nor the landmark-held corners) relax towards their
+        # neighbours; what still folds goes through the fold guard (it scales an upper/lower
+        # pair together: no crossing returns)
+        N[:V] = _unfold_lips(self.mesh, N[:V], plan_p.neutral_sigma)
+        D = N[None, :V] - target[None, :V]
+        Dg = guard(plan_p, D)
+        if Dg is not D or cross.any():
+            N[:V] = target[:V] + Dg[0]
             fapu, plan = self._build(N[:V].astype(np.float32))
+            N[V:] = plan.neutral[V:]
         offset = target - linear_positions(plan, f0)
         return plan.neutral[:V].copy(), fapu, plan, offset
+
+    def own_share(self, vec: np.ndarray) -> float:
+        """How much of the photo's own expression f0 a FAP vector holds, in [0, 1]: its
+        projection on f0 (FAP motion in pixels, FAPU x value). 1 at f0, 0 at the neutral and
+        for expressions that do not go the photo's way (a smiling photo's sadness)."""
+        f0 = self.expression.astype(np.float64)
+        u = self._fap_px ** 2
+        den = float((u * f0) @ f0)
+        if den <= 0:
+            return 0.0
+        return float(np.clip((u * np.asarray(vec, np.float64)) @ f0 / den, 0.0, 1.0))
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -170,17 +230,30 @@ class Face:
         own = estimate_own(base)
         if not own.faps.any():
             return base
-        return self.with_expression(own.faps, own.words)
+        face = base.with_expression(own.faps, own.words)
+        # FAPU are the neutral's (a smile widens the mouth and changes the mouth-nose
+        # distance): the estimate is redone with the motion per unit of the neutral it implies,
+        # else f0 renders a fraction of the photo's expression and neutralising leaves the rest
+        for _ in range(OWN_ROUNDS - 1):
+            own = estimate_own(face)
+            if not own.faps.any():
+                return base
+            face = base.with_expression(own.faps, own.words)
+        return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source,
+                    face.expression, face.expression_words, own.neutral68,
+                    photo_plan=base._photo_plan())
 
     def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
         """A copy with another own expression f0 (None or zeros: the photo is neutral)."""
         vec = None if expression is None else self.fap_vector(expression)
         if words is None:
             words = "neutral" if vec is None or not vec.any() else "edited"
-        # a face declared neutral has the photo mesh's FAPU and plan already
-        seed = None if self.expression.any() else (dict(self.fapu), self.plan)
         return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, vec,
-                    words, seed)
+                    words, photo_plan=self._photo_plan())
+
+    def _photo_plan(self) -> tuple[dict[str, float], DeformPlan] | None:
+        """FAPU and plan of the photo's mesh if this face has them (declared neutral)."""
+        return None if self.expression.any() else (dict(self.fapu), self.plan)
 
     @classmethod
     def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:
@@ -199,7 +272,8 @@ class Face:
     def with_vertices(self, vertices: np.ndarray) -> Face:
         """A copy with an edited photo mesh (FAPU and rendering follow; same own expression)."""
         return Face(self.image, self.landmarks, np.asarray(vertices, np.float32), self.mesh,
-                    self.source, self.expression, self.expression_words)
+                    self.source, self.expression, self.expression_words,
+                    self.neutral_landmarks)
 
     # ------------------------------------------------------------------ API
     @property
@@ -219,7 +293,17 @@ class Face:
     def _deform(self, vec: np.ndarray) -> np.ndarray:
         # the offset enters before the crossing rule and the fold guard, so lips/lids never
         # cross and no triangle folds for any vector (at f0 both leave the photo's mesh as is)
-        return deform_points(self.plan, vec, self._offset)
+        # the offset is the part of the photo's expression the FAP motion does not render: it
+        # comes with the share of f0 the vector holds (all of it at f0: the photo exactly)
+        if self._offset is None:
+            return deform_points(self.plan, vec)
+        return deform_points(self.plan, vec, self.own_share(vec) * self._offset)
+
+    @cached_property
+    def _fap_px(self) -> np.ndarray:
+        """(68,) pixels per unit of each FAP (its FAPU on the neutral; 0 for FAPs 1-2)."""
+        return np.array([self.fapu.get(FAPS[i + 1].unit, 0.0) if i >= 2 else 0.0
+                         for i in range(68)])
 
     @cached_property
     def warp_plan(self) -> WarpPlan:
@@ -277,7 +361,8 @@ class Face:
         if extra is None:
             extra = self._deform(vec)[self.plan.n_vertices:]
         tf = self.layer_transforms(v)
-        res = render_layers(self, warp(self.warp_plan, v, tf, cavity=False), v, extra, vec, tf)
+        w = apply_lid_skin(self, warp(self.warp_plan, v, tf, cavity=False), v)
+        res = render_layers(self, w, v, extra, vec, tf)
         return apply_creases(self, res, v) if creases else res
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
@@ -329,6 +414,38 @@ def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     sn = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()) / den
     R = np.array([[c, -sn], [sn, c]])
     return np.hstack([R, (md - R @ ms)[:, None]])
+
+
+def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
+                 iters: int = 100) -> np.ndarray:
+    """Move the lip vertices of folded triangles (signed area below 10 % of ``sigma0``, the
+    photo mesh's) towards the mean of their neighbours: outer lips, and the closed inner lips
+    together (the lower one on the upper one); the corners stay."""
+    names = np.array(mesh.names)
+    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
+               | np.char.startswith(names, "lipi_u")) & \
+        ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
+    pairs = mesh.pairs[np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])]
+    e = mesh.edges()
+    v = np.asarray(verts, np.float64).copy()
+    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
+    tri = mesh.triangles
+    for _ in range(iters):
+        bad = signed_areas(v, tri) * np.sign(sigma0) < 0.1 * np.abs(sigma0)
+        if not bad.any():
+            break
+        sel = np.zeros(len(v), bool)
+        sel[tri[bad].ravel()] = True
+        sel &= movable
+        if not sel.any():
+            break
+        acc = np.zeros_like(v)
+        np.add.at(acc, e[:, 0], v[e[:, 1]])
+        np.add.at(acc, e[:, 1], v[e[:, 0]])
+        avg = acc / np.maximum(deg, 1)[:, None]
+        v[sel] += 0.5 * (avg[sel] - v[sel])
+        v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
+    return v
 
 
 def _relax(mesh: StandardMesh, verts: np.ndarray, iters: int = 200) -> np.ndarray:

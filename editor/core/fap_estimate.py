@@ -7,11 +7,13 @@ landmarks only to triangles of their own lip/lid, since a closed mouth's lips co
 is piecewise affine, so a landmark moves with its triangle and the predicted motion is linear in
 the FAPs, ``d = A (f @ basis)``, in the performer's own FAPU. The renderer's inner/outer lip pair
 correction (``deform.LIP_PAIRS``) is piecewise linear and modelled exactly (re-solve with the
-Jacobian of the current sign/min pattern); the crossing rule and fold guard are not modelled.
+Jacobian of the current sign/min pattern); the crossing rule and fold guard are not modelled,
+but open_jaw is bounded by what the face's mesh renders without folding.
 
 Head motion: a weighted similarity maps the expression's stable points onto the neutral's: eye
-corners 36, 39, 42, 45 and nose bridge 27-29 (weight 1), nose tip 30 (0.5); never mouth, brows,
-jaw. Out-of-plane turns are not removed (they read as small brow/jaw FAPs).
+corners 36, 39, 42, 45 and nose bridge 28-29 (weight 1), nose tip 30 (0.5); never mouth, brows,
+jaw, nor the top of the bridge 27 (the brows' band moves it in the model, dlib does not).
+Out-of-plane turns are not removed (they read as small brow/jaw FAPs).
 
 Solve: bounded least squares (``scipy.optimize.lsq_linear``, the FAP table's ranges) on pixel
 residuals (jaw contour weighted 1/2 at the chin, 1/4 on the sides: dlib places it loosely) plus
@@ -40,7 +42,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 from scipy.signal import savgol_filter
 
-from .deform import LIP_PAIRS
+from .deform import LIP_PAIRS, deform_points, linear_positions
 from .errors import FapStudioError, NoFaceError
 from .fapfile import FapSequence
 from .faps import FAPS
@@ -50,9 +52,16 @@ OBSERVABLE: tuple[int, ...] = (3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 15, 19, 20, 
                                51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62)
 STABLE_POINTS = np.array([36, 39, 42, 45, 27, 28, 29, 30])
 STABLE_WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5])
-#: Residual weight per landmark: dlib places the jaw contour loosely (chin half, sides quarter).
-LANDMARK_WEIGHTS = np.select([np.arange(68) < 4, np.arange(68) < 13, np.arange(68) < 17],
-                             [0.25, 0.5, 0.25], 1.0)
+#: Alignment points of the estimator: :data:`STABLE_POINTS` without the top of the nose bridge
+#: (27). The brows move as a band that reaches the glabella, so the model moves 27 almost 1:1
+#: with the inner brows (4.8 px for fear's raised inner brows on the upscaled sample), while
+#: dlib places 27 from the eyes and the nose, on real faces and on renders alike (1.6 px there).
+ESTIMATE_STABLE = np.array([36, 39, 42, 45, 28, 29, 30])
+ESTIMATE_STABLE_WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5])
+#: Residual weight per landmark: dlib places the jaw contour loosely (chin half, sides quarter);
+#: 27 not at all (see :data:`ESTIMATE_STABLE`).
+LANDMARK_WEIGHTS = np.select([np.arange(68) < 4, np.arange(68) < 13, np.arange(68) < 17,
+                              np.arange(68) == 27], [0.25, 0.5, 0.25, 0.0], 1.0)
 
 
 # ---------------------------------------------------------------------------- geometry
@@ -109,11 +118,13 @@ class FapEstimator:
     faps : FAP numbers to estimate (default :data:`OBSERVABLE`); the others stay 0
     reg, symmetry, pair : prior weights (see the module docstring)
     bounds : (lo, hi) (68,) arrays, default the FAP table ranges
+    renderable : bound open_jaw by what the face's mesh renders without folding
+        (:meth:`_jaw_limit`)
     """
 
     def __init__(self, face, faps=OBSERVABLE, *, reg: float = 0.1, symmetry: float = 0.3,
                  pair: float = 1.0, bounds: tuple[np.ndarray, np.ndarray] | None = None,
-                 landmark_weights: np.ndarray | None = None) -> None:
+                 landmark_weights: np.ndarray | None = None, renderable: bool = True) -> None:
         self.face = face
         self.neutral = np.asarray(face.landmarks.points, np.float64)
         self.idx = np.array(sorted({int(FAPS.number(k)) for k in faps}), np.int64) - 1
@@ -133,6 +144,14 @@ class FapEstimator:
         lw = LANDMARK_WEIGHTS if landmark_weights is None else np.asarray(landmark_weights)
         self.w = np.repeat(np.asarray(lw, np.float64), 2)
         self._priors = self._prior_rows(reg, symmetry, pair)
+        self.stable, self.stable_w = ESTIMATE_STABLE, ESTIMATE_STABLE_WEIGHTS
+        self.renderable = renderable
+        # open_jaw no further than the mesh allows: the margin ring under a JAFFE chin is ~0.1
+        # IOD away, and beyond that the fold guard scales the *whole* deformation down (brows
+        # included: 0.46 on wide-open surprise, jaw at its 1080 bound)
+        if renderable and 2 in self.idx:
+            k = int(np.flatnonzero(self.idx == 2)[0])
+            self.hi[k] = self._jaw_limit(self.lo[k], self.hi[k])
 
     def _prior_rows(self, reg: float, symmetry: float, pair: float) -> np.ndarray:
         n = len(self.idx)
@@ -184,12 +203,32 @@ class FapEstimator:
         f = np.zeros(68)
         for _ in range(max(1, rounds)):
             ref = neutral + self.predict(f) if f.any() else neutral
-            M = similarity(expr[STABLE_POINTS], ref[STABLE_POINTS], STABLE_WEIGHTS)
+            M = similarity(expr[self.stable], ref[self.stable], self.stable_w)
             d = (apply_affine(M, expr) - neutral).ravel()
             f = self._solve(d)
         res = self.predict(f).ravel() - d
         return Estimate(f.astype(np.float32), float(np.sqrt(np.mean(res ** 2))), M,
                         d.reshape(68, 2))
+
+    def folds(self, f: np.ndarray) -> bool:
+        """True when the renderer's fold guard scales this (68,) vector down on the face."""
+        plan = self.face.plan
+        V = plan.n_vertices
+        lin = linear_positions(plan, f)[:V] - plan.neutral64[:V]
+        got = deform_points(plan, f)[:V] - plan.neutral64[:V]
+        return float(np.linalg.norm(got)) < 0.999 * float(np.linalg.norm(lin))
+
+    def _jaw_limit(self, lo: float, hi: float, steps: int = 10) -> float:
+        """The largest open_jaw in [lo, hi] that does not fold on its own (bisection)."""
+        v = np.zeros(68)
+        v[2] = hi
+        if not self.folds(v):
+            return hi
+        a, b = lo, hi
+        for _ in range(steps):
+            v[2] = 0.5 * (a + b)
+            a, b = (v[2], b) if not self.folds(v) else (a, v[2])
+        return max(a, lo + 1.0)
 
     def _solve(self, d: np.ndarray) -> np.ndarray:
         """Bounded least squares for a head-free landmark motion ``d`` (136,), re-solved at the

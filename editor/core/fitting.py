@@ -4,7 +4,7 @@ All rules work in the *face frame*: origin midway between the eye centres, x alo
 from the image-left eye to the image-right eye, y perpendicular to it and pointing down, pixel
 units. A tilted photo is thus fitted as if upright, and the parabolas are fitted in that frame.
 
-Rules, region by region (names are the vertex names of ``resources/mesh.json``):
+Rules, region by region (names are the vertex names of ``editor/data/mesh.json``):
 
 * eyes: upper and lower lids are parabolas through both corners, least-squares through the two
   middle lid landmarks (SPEC parabolas 5-8); 5 points per lid at x = k/6 of the corner span, so

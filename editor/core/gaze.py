@@ -145,7 +145,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     return out
 
 #: How much darker the white gets far above / below the lids' bands (a lit ball's top)
-BALL_SHADE = 0.12
+BALL_SHADE = 0.05
 
 
 def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float,
@@ -154,7 +154,7 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
 
     Per column of the opening, the reference rows lie one lid-shadow band (``band_up`` below
     the upper lid, ``band_low`` above the lower one) inside the opening; the reference colour
-    is the mean of the column's brighter 40 % between them (the plate has no iris; smoothed
+    is the mean of the column's brighter 20 % between them (the plate has no iris; smoothed
     along the eye). Above / below the reference rows the column repeats that colour, darkening
     with the distance like the top and bottom of a lit ball (up to :data:`BALL_SHADE`, 1/e
     at the iris radius). Between the two references the plate is kept. Columns without
@@ -181,7 +181,7 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     lum = plate @ np.array([0.299, 0.587, 0.114], np.float32)
     lum_m = np.where(mid_rows, lum, np.nan)
     with np.errstate(all="ignore"):
-        thr = np.nanpercentile(lum_m[:, cols], 60, axis=0)
+        thr = np.nanpercentile(lum_m[:, cols], 80, axis=0)
     sel = np.zeros_like(opening)
     sel[:, cols] = mid_rows[:, cols] & (lum[:, cols] >= thr[None, :] - 1e-3)
     cnt = sel.sum(0)
@@ -263,7 +263,7 @@ def _smooth01(t: np.ndarray) -> np.ndarray:
 
 
 #: Shadow the upper lid casts on the eyeball it uncovers: depth and 1/e fall-off (x iris r)
-LID_SHADOW, LID_SHADOW_FALL = 0.2, 0.25
+LID_SHADOW, LID_SHADOW_FALL = 0.12, 0.25
 
 
 @dataclass(eq=False)

@@ -1,8 +1,8 @@
 """Reading and writing photos: RGB uint8 in memory, EXIF orientation applied, size limited.
 
 Images live in memory as ``H x W x 3`` RGB ``uint8`` arrays (x to the right, y down). Files are
-decoded with OpenCV from bytes (so any path, including non-ASCII ones, works); grey, 16-bit and
-alpha images are converted; an alpha channel is composited over white.
+decoded once with OpenCV from bytes (so any path, including non-ASCII ones, works); grey, 16-bit
+and alpha images are converted; an alpha channel (PNG, WebP) is composited over white.
 """
 
 from __future__ import annotations
@@ -47,6 +47,25 @@ def _header_size(data: bytes) -> tuple[int, int] | None:
                 return int(w), int(h)
             i += 2 + seg
     return None
+
+
+def _declares_alpha(data: bytes) -> bool:
+    """Whether a PNG (colour type 4/6 or a tRNS chunk) or WebP header declares transparency."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 26:
+        if data[25] in (4, 6):
+            return True
+        i = 8
+        while i + 8 <= len(data):
+            n, kind = struct.unpack(">I", data[i : i + 4])[0], data[i + 4 : i + 8]
+            if kind == b"tRNS":
+                return True
+            if kind in (b"IDAT", b"IEND"):
+                return False
+            i += 12 + n
+        return False
+    if data[:4] == b"RIFF" and data[8:12] == b"WEBP" and len(data) >= 21:
+        return data[12:16] == b"VP8L" or (data[12:16] == b"VP8X" and bool(data[20] & 0x10))
+    return False
 
 
 def check_size(width: int, height: int, what: str = "image") -> None:
@@ -99,11 +118,11 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
         check_size(*size, what=str(p))
     buf = np.frombuffer(data, np.uint8)
     try:
-        # IMREAD_COLOR applies the EXIF orientation; alpha needs IMREAD_UNCHANGED (PNG/WebP
-        # with alpha carry no EXIF rotation in practice).
-        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-        if img is not None and not (img.ndim == 3 and img.shape[2] == 4):
-            img = cv2.imdecode(buf, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+        # One decode. IMREAD_COLOR applies the EXIF orientation but drops alpha; files whose
+        # header declares alpha (PNG/WebP; no EXIF rotation in practice) keep it.
+        flags = (cv2.IMREAD_UNCHANGED if _declares_alpha(data)
+                 else cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+        img = cv2.imdecode(buf, flags)
     except cv2.error as e:
         raise ImageError(f"{p}: cannot decode the image ({str(e).strip().splitlines()[-1]})") from e
     if img is None or img.size == 0:

@@ -104,6 +104,12 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         return float(P[n][1] + off * iod)
 
     slit = 0.5 * (Y("lipi_c0") + Y("lipi_c1"))
+    # the lip rectangles end 0.1 IOD past the lip line on the far side; the line is the corners'
+    # (slit) or the middle's, whichever is further: with the corners well above the middle (an
+    # upturned mouth) a rectangle ending at slit + 0.1 IOD would end at the upper lip's own
+    # middle and cut its neighbours out of the lip FAPs (the lip would open at one vertex)
+    mid = 0.5 * (Y("lipi_u4") + Y("lipi_d4"))
+    below, above = max(slit, mid) + 0.1 * iod, min(slit, mid) - 0.1 * iod
     chin = Y("contour_16")
     nose_base = Y("nose_33")
     labiomental = Y("jaw_1_4")
@@ -115,12 +121,12 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
     # Along a contour the tents of neighbouring feature points form a partition of unity (each
     # reaches 0 at the next point), so driving all of them by one value moves the contour
     # uniformly instead of overshooting where tents overlap.
-    R["2.2"] = Rect(X("lipi_u2"), nose_base, X("lipi_u6"), slit + 0.1 * iod, side="mouth_up")
-    R["2.3"] = Rect(X("lipi_d2"), slit - 0.1 * iod, X("lipi_d6"), labiomental, side="mouth_low")
+    R["2.2"] = Rect(X("lipi_u2"), nose_base, X("lipi_u6"), below, side="mouth_up")
+    R["2.3"] = Rect(X("lipi_d2"), above, X("lipi_d6"), labiomental, side="mouth_low")
     R["2.10"] = Rect(X("lipo_d2"), Y("lipo_d4"), X("lipo_d6"), chin, side="mouth_low")
     # paper's FAP 52 rectangle: outer corners to the chin, upper lip unaffected
     R["8.2"] = Rect(X("lipo_c0"), Y("lipo_c0"), X("lipo_c1"), chin, side="mouth_low")
-    R["8.1"] = Rect(X("lipo_u2"), nose_base, X("lipo_u6"), slit + 0.1 * iod, side="mouth_up")
+    R["8.1"] = Rect(X("lipo_u2"), nose_base, X("lipo_u6"), below, side="mouth_up")
     eyes = {"l": ("eye_l_c0", "eye_l_c1"), "r": ("eye_r_c0", "eye_r_c1")}
     for s, sign in (("l", 1.0), ("r", -1.0)):
         c_out = "c1" if s == "l" else "c0"
@@ -138,11 +144,11 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         R[fdp_c_o] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}") + sign * 0.45 * iod, lip_low,
                           py=corner_py)
         fdp_um = "2.6" if s == "l" else "2.7"
-        R[fdp_um] = Rect(X(lo_mid), nose_base, X(lo_c), slit + 0.1 * iod, side="mouth_up")
+        R[fdp_um] = Rect(X(lo_mid), nose_base, X(lo_c), below, side="mouth_up")
         fdp_lm = "2.8" if s == "l" else "2.9"
-        R[fdp_lm] = Rect(X("lipi_d4"), slit - 0.1 * iod, X(lo_c), labiomental, side="mouth_low")
+        R[fdp_lm] = Rect(X("lipi_d4"), above, X(lo_c), labiomental, side="mouth_low")
         fdp_uo = "8.5" if s == "l" else "8.6"
-        R[fdp_uo] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}"), slit + 0.1 * iod,
+        R[fdp_uo] = Rect(X("lipo_u4"), nose_base, X(f"lipo_{c_out}"), below,
                          side="mouth_up")
         fdp_lo = "8.7" if s == "l" else "8.8"
         R[fdp_lo] = Rect(X("lipo_d4"), slit, X(f"lipo_{c_out}"), labiomental, side="mouth_low")

@@ -1,9 +1,9 @@
 """Real feature-point motion of JAFFE neutral -> expression pairs, in each woman's FAPU.
 
 Used by ``scripts/derive_presets.py`` (the preset derivation table) and by the preset tests.
-It reads JAFFE at run time (``../shared/data/jaffe`` from the repository root by default) and
-ships no JAFFE data; the landmark detections are cached outside the repository (the system
-temporary directory) so that a second run takes seconds.
+It reads JAFFE at run time (``$FAP_STUDIO_JAFFE``, else ``../shared/data/jaffe`` beside the
+repository) and ships no JAFFE data; the landmark detections are cached outside the repository
+(the system temporary directory) so that a second run takes seconds.
 
 Per woman: her first neutral photo gives the :class:`Face` (mesh, FAPU, face frame); her
 neutral shape is the mean of all her neutral photos after head-motion removal
@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..resources import checkout_jaffe_dir
 from .closed_loop import JAFFE_EMOTIONS
 from .faps import FAPS
 from .landmarks import FDP_FROM_68, Iris, Landmarks
@@ -39,7 +40,8 @@ _AXIS = {"up": (1, -1.0), "down": (1, 1.0), "left": (0, 1.0), "right": (0, -1.0)
 
 
 def default_root() -> Path:
-    return Path(__file__).resolve().parents[3] / "shared" / "data" / "jaffe"
+    """``$FAP_STUDIO_JAFFE``, else ``../shared/data/jaffe`` beside the source checkout."""
+    return checkout_jaffe_dir()
 
 
 def fap_axis(n: int) -> tuple[str, int, float, str]:

@@ -37,7 +37,17 @@ import numpy as np
 
 from .deform import eye_state
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
-from .mouth import MouthPlan, _clamp, _lum, _poly_mask, _sat, _smoothstep, _smoothstep1
+from .mouth import (
+    CROWN,
+    GUM_FADE,
+    MouthPlan,
+    _clamp,
+    _lum,
+    _poly_mask,
+    _sat,
+    _smoothstep,
+    _smoothstep1,
+)
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -262,7 +272,12 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         alpha = hole.astype(np.float32)
         if moved > _TOL:
             t = min(moved, 1.0)
-            alpha += (t * t * (3.0 - 2.0 * t)) * (_coverage(poly, box) - alpha)
+            cov = _coverage(poly, box)
+            if kind == "mouth":
+                # a slit a pixel wide on a slant: its box-filtered coverage alternates from
+                # pixel to pixel and the dark line reads dotted; a slightly wider filter
+                cov = cv2.GaussianBlur(cov, (3, 3), 0.6)
+            alpha += (t * t * (3.0 - 2.0 * t)) * (cov - alpha)
         lip_shade = None
         if kind == "mouth":
             fade_in = _smoothstep1(min(moved, 1.0))
@@ -401,10 +416,15 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         full = np.zeros(pw)
         full[span] = 1.0
         ext_w = np.convolve(np.pad(full, 2), kern, mode="valid")
-        fade = max(0.15 * D, 1.0)
+        # the crown goes on above the opening for what the photo does not show of it (its
+        # visible height in the middle columns), then fades into the gum
+        fade = max(GUM_FADE * D, 1.0)
+        mid = span[np.abs(span - 0.5 * (span[0] + span[-1])) <= max(0.15 * len(span), 1.0)]
+        seen = float(np.median(split[mid] - col_top[mid])) if len(mid) else 0.0
+        hidden = max(CROWN * D - seen, 0.0)
         for j, jn in zip(span, near, strict=True):
             top = col_top[j]  # first row of the opening in this column
-            g = _smoothstep((top - np.arange(top)) / fade)[:, None]
+            g = _smoothstep((top - np.arange(top) - hidden) / fade)[:, None]
             rgb_up[:top, j] = (1.0 - g) * patch[first[jn], jn] + g * gum
             own_up[:top, j] = np.maximum(own_up[:top, j], ext_w[j])
             ext_mask[:top, j] = 1.0

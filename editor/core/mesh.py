@@ -1,4 +1,4 @@
-"""The standard mesh: topology (fixed for every face) loaded from ``resources/mesh.json``.
+"""The standard mesh: topology (fixed for every face) loaded from ``editor/data/mesh.json``.
 
 Only coordinates change from face to face; vertex indices, triangles, regions, feature-point
 tags and the eye/mouth openings (holes, no triangles inside) are the same for every face.
@@ -13,9 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..resources import MESH
 from .meshdef import crossing_pairs
-
-RESOURCES = Path(__file__).resolve().parents[2] / "resources"
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,7 +77,7 @@ def _name_index(mesh: StandardMesh) -> dict[str, int]:
 @lru_cache(maxsize=1)
 def standard_mesh(path: str | None = None) -> StandardMesh:
     """Load the standard mesh (cached)."""
-    p = Path(path) if path else RESOURCES / "mesh.json"
+    p = Path(path) if path else MESH
     d = json.loads(p.read_text())
     if d.get("format") != "fap-studio-mesh" or d.get("version") != 1:
         raise ValueError(f"{p}: not a version-1 FAP Studio mesh file")

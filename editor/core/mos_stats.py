@@ -1,4 +1,4 @@
-"""Statistics of a MOS rating study (numpy; scipy.special for normal and t quantiles).
+"""Statistics of a MOS rating study (numpy; scipy.stats for the Wilson and t intervals).
 
 Aggregation follows the paper (SPEC §4): a rating is correct when the chosen label is the
 intended one ("cannot tell" is wrong). A face x expression cell is the mean over its stimuli;
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy import special
+from scipy import stats
 
 from editor.core.mos import CANNOT_TELL
 
@@ -51,28 +51,27 @@ class StimulusInfo(Protocol):
 
 
 def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval for k successes in n trials (nan, nan when n == 0).
-
-    centre = (p + z²/2n) / (1 + z²/n), half = z / (1 + z²/n) · sqrt(p(1-p)/n + z²/4n²),
-    with p = k/n and z the (1 + confidence)/2 normal quantile.
+    """Wilson score interval for k successes in n trials (nan, nan when n == 0), from
+    ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``; exactly 0 / 1 at k = 0 / n.
     """
     if n <= 0:
         return math.nan, math.nan
-    z = float(special.ndtri((1.0 + confidence) / 2.0))
-    p, d = k / n, 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / d
-    half = z / d * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return (0.0 if k == 0 else centre - half), (1.0 if k == n else centre + half)
+    ci = stats.binomtest(int(k), int(n)).proportion_ci(confidence, method="wilson")
+    return (0.0 if k == 0 else float(ci.low)), (1.0 if k == n else float(ci.high))
 
 
 def t_interval(values: Sequence[float] | np.ndarray,
                confidence: float = 0.95) -> tuple[float, float]:
-    """Student t interval of the mean, mean ± t(n-1) · s / sqrt(n) (s: ddof 1); nan if n < 2."""
+    """Student t interval of the mean, mean ± t(n-1) · s / sqrt(n) (s: ddof 1), from
+    ``scipy.stats.t.interval``; nan if n < 2, the mean itself when all values are equal."""
     x = np.asarray(values, dtype=float)
     if x.size < 2:
         return math.nan, math.nan
-    half = special.stdtrit(x.size - 1, (1.0 + confidence) / 2.0) * x.std(ddof=1) / np.sqrt(x.size)
-    return float(x.mean() - half), float(x.mean() + half)
+    sem = float(stats.sem(x))
+    if sem == 0.0:
+        return float(x.mean()), float(x.mean())
+    lo, hi = stats.t.interval(confidence, x.size - 1, loc=x.mean(), scale=sem)
+    return float(lo), float(hi)
 
 
 @dataclass(frozen=True)

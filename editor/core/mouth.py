@@ -20,7 +20,7 @@ The photo's own mouth interior (when its mouth is open, e.g. smiling teeth) is k
 of the photo's opening, the bright teeth run from the top follows the skull, the rest (lower
 teeth, the lower lip's edge) follows the jaw anchor of eq. 8; the synthetic layers show only
 where neither covers (``layers._own_interior`` analyses the photo, :meth:`attach_own`).
-Textures (``resources/mouth``) are tinted to the photo: saturation and brightness from the
+Textures (``editor/data/mouth``) are tinted to the photo: saturation and brightness from the
 cheeks' skin, teeth colour from the photo's own teeth when it shows some.
 """
 
@@ -29,23 +29,35 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
-from pathlib import Path
 
 import cv2
 import numpy as np
 
+from ..resources import MOUTH_DIR
 from .deform import DeformPlan
 from .mesh import StandardMesh
 
-TEXTURES = Path(__file__).resolve().parents[2] / "resources" / "mouth"
+TEXTURES = MOUTH_DIR
 NAMES = ("upper_teeth", "lower_teeth", "tongue")
 #: upper incisors' edge below the neutral lip line, in units of D (mouth-nose distance)
-UPPER_TIP = 0.05
+UPPER_TIP = 0.10
 #: lower incisors' edge above the neutral lip line (overbite), and the tongue's top above
 #: theirs, in units of D
 LOWER_OVERBITE, TONGUE_RISE = 0.05, 0.2
+#: the tongue's mean luminance relative to the lit skin: it lies deep behind the opening, lit
+#: at a grazing angle under the upper lip (the lower part of real wide-open JAFFE mouths,
+#: tongue and lower teeth: median 0.48 of the skin over 13 surprise photos; it was 0.8; at 0.5
+#: a pale lower lip met it with a hard dark edge)
+TONGUE_L = 0.55
+#: the lower teeth's light relative to the upper ones (below and behind them, under the upper
+#: lip's and teeth's shadow; at 0.8 a wide-open mouth ended in a white block of lower teeth)
+LOWER_SHADE = 0.68
 #: teeth luminance relative to the lit skin, and how much of the skin's colour cast they take
 TEETH_L, TEETH_CAST = 0.92, 0.35
+#: the photo's upper teeth continued above its opening: crown height (central incisor,
+#: units of D; the drawn teeth are D/2 tall with their gum band) before they turn into gum,
+#: over a fade of GUM_FADE D; and the upper lip's shadow on them at contact
+CROWN, GUM_FADE, EXT_LIP_SHADOW = 0.42, 0.12, 0.12
 #: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
 CAVITY_RGB = np.array([70, 26, 30], np.float32)
 _LUM = np.array([0.299, 0.587, 0.114], np.float32)
@@ -204,10 +216,10 @@ class MouthPlan:
         target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
         tongue_mean = _opaque_mean(raw["tongue"], sat)
-        gain_g = np.full(3, 0.8 * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
+        gain_g = np.full(3, TONGUE_L * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
         tex = {}
-        for name, gain, shade in (("upper_teeth", gain_t, 1.0), ("lower_teeth", gain_t, 0.8),
-                                  ("tongue", gain_g, 1.0)):
+        for name, gain, shade in (("upper_teeth", gain_t, 1.0),
+                                  ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
             t = _tint(raw[name], sat, gain * shade)
             wpx, hpx = size[name]
             tw_, th_ = max(int(round(wpx)), 2), max(int(round(hpx)), 2)
@@ -275,9 +287,9 @@ class MouthPlan:
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
         cym = 0.5 * (lo_v + hi_v)
         side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
-        side *= side  # (only its square is used)
-        shade = (1.0 - 0.3 * np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5)))
-        shade = (shade * (1.0 - 0.35 * side)).astype(np.float32)[..., None]
+        lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
+        shade = (1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)
+        shade = shade.astype(np.float32)[..., None]
         if rim is None or depth is None:
             rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
             # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
@@ -287,7 +299,7 @@ class MouthPlan:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
             g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))[..., None]
-            back = (0.5 * (1.0 - 0.4 * side)).astype(np.float32)[..., None]
+            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)[..., None]
             deep = back * self.cavity[None, None, :]
             out = deep + (0.45 * rim - deep) * g
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
@@ -335,10 +347,14 @@ class MouthPlan:
         a_up, p_up = self._own(mx, my, 0, fade)
         a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
                                (sy - tjs[1]).astype(np.float32), 1, fade)
-        if a_up is not None and self.photo_upper:  # the continued teeth: lip shadow too
+        if a_up is not None and self.photo_upper:
+            # the continued teeth: a light shadow right under the lip (the photo's own top
+            # row, which they repeat, already carries the photo's lip shadow) and the drawn
+            # layers' darker corners
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)[..., None]
-            p_up = p_up * (1.0 - e * (1.0 - shade))
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            k = (1.0 - EXT_LIP_SHADOW * lip_sh) * (1.0 - 0.35 * side * side)
+            p_up = p_up * (1.0 - e * (1.0 - k.astype(np.float32)))[..., None]
         if a_up is not None or a_lo is not None:
             rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
             if a_up is not None:

@@ -19,7 +19,7 @@ Identity and expression are solved together (bounded least squares); the identit
 what people differ in, the FAPs what only an expression explains. FAPs whose motion stays below
 the landmark noise are set to 0 (a neutral photo gives an exactly neutral vector).
 
-The prior (``resources/neutral_prior.json``) is built by ``scripts/build_neutral_prior.py``
+The prior (``editor/data/neutral_prior.json``) is built by ``scripts/build_neutral_prior.py``
 from neutral photos; the shipped one comes from the JAFFE neutral images (10 women; summary
 statistics only, see the file's ``source``).
 """
@@ -29,14 +29,16 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import lsq_linear
+from scipy.stats import chi2
 
+from ..resources import NEUTRAL_PRIOR
+from .deform import LIP_PAIRS
 from .faps import FAPS
 
-PRIOR_PATH = Path(__file__).resolve().parents[2] / "resources" / "neutral_prior.json"
+PRIOR_PATH = NEUTRAL_PRIOR
 CORNER_SIGMA = 0.015  # prior spread of the corners' height above the lip line (IOD)
 
 #: iBUG-68 index of each point's mirror image (left/right swapped).
@@ -215,14 +217,15 @@ def _group(n: int) -> str:
 
 
 def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0.02,
-                 spread: float = 1.0) -> OwnExpression:
+                 spread: float = 1.0, significance: float = 0.999) -> OwnExpression:
     """Estimate the expression a photo shows against the neutral prior.
 
     ``min_move``: a FAP group (mouth, each lid pair, each brow) whose joint motion of its
     landmarks stays below this fraction of the inter-ocular distance is set to 0 (below the
-    landmark noise). ``spread`` scales :data:`FAP_SPREAD`, the prior standard deviation of each
-    FAP's motion of its feature point (expressions compete with the identity modes on the same
-    footing).
+    landmark noise), and so is one that does not lower the fit's cost significantly (chi-square
+    test at ``significance`` with as many degrees of freedom as its FAPs). ``spread`` scales
+    :data:`FAP_SPREAD`, the prior standard deviation of each FAP's motion of its feature point
+    (expressions compete with the identity modes on the same footing).
     """
     from .fap_estimate import STABLE_POINTS, STABLE_WEIGHTS, FapEstimator, apply_affine, similarity
 
@@ -243,6 +246,9 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     n_f = len(est.idx)
     u = np.array([face.fapu[FAPS[int(i) + 1].unit] for i in est.idx])  # px per unit
     sd = np.array([FAP_SPREAD[_group(int(i) + 1)] for i in est.idx]) * spread * scale
+    # an inner/outer lip pair drives one part of the lips (the renderer moves their shared part
+    # once; the pair prior keeps them equal): the spread is that motion's, not paid twice
+    sd[np.isin(est.idx, LIP_PAIRS)] *= np.sqrt(2.0)
     fap_prior = np.vstack([np.diag(u / sd),  # ridge, in prior spreads
                            est._priors / (0.02 * scale)])  # symmetry / lip pairs (px rows)
     rows_prior = np.vstack([np.hstack([np.zeros((K, n_f)), prior_c]),
@@ -267,14 +273,29 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
         sol = lsq_linear(Ab, b, bounds=(lo, hi), method="bvls").x
         f = np.zeros(68)
         f[est.idx] = sol[:n_f]
-        cost = float(np.sum((Ab @ sol - b) ** 2))
+        # the cost of a solution at its own lip-pair pattern (it was solved with the previous
+        # pattern's Jacobian: at f = 0 an inner and an outer lip FAP of the same sign both move
+        # their shared part, which the renderer moves once)
+        J = est._effective_jacobian(f)[:, est.idx]
+        As = np.vstack([w[:, None] * np.hstack([J, Bx]), rows_prior,
+                        np.hstack([G @ J, np.zeros((len(G), K))]) * wg])
+        cost = float(np.sum((As @ sol - b) ** 2))
         if best is None or cost < best[0]:
             best = (cost, f.copy(), sol[n_f:].copy())
     assert best is not None
     _, f, c = best
     iod = face.interocular
-    # a group whose joint motion of its landmarks stays below the noise is dropped as a whole
-    # (single FAPs of a group compensate each other, e.g. jaw down + lower lip up)
+    # a group is dropped as a whole (single FAPs of a group compensate each other, e.g. jaw
+    # down + lower lip up) when its joint motion of its landmarks stays below the noise, or
+    # when it does not explain the landmarks significantly better than the identity modes
+    # and the other groups do: the fit without it (re-solved) costs less than the chi-square
+    # bound of its FAPs more (residual rows are in units of the prior's landmark noise)
+    J = est._effective_jacobian(f)[:, est.idx]
+    Ab = np.vstack([w[:, None] * np.hstack([J, Bx]), rows_prior,
+                    np.hstack([G @ J, np.zeros((len(G), K))]) * wg])
+    b = np.concatenate([w * d, np.zeros(len(rows_prior)), (G @ d) * wg])
+    cost = float(np.sum((Ab @ np.concatenate([f[est.idx], c]) - b) ** 2))
+    drop = []
     for fap_nums, lms in GROUPS:
         sel = np.zeros(68)
         idx = np.array(fap_nums) - 1
@@ -282,7 +303,15 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
             idx = np.array(OWN_FAPS[:11] + OWN_FAPS[23:]) - 1
         sel[idx] = f[idx]
         if np.abs(est.predict(sel)[lms]).max(initial=0.0) < min_move * iod:
-            f[idx] = 0.0
+            drop.append(idx)
+            continue
+        keep = np.concatenate([~np.isin(est.idx, idx), np.ones(K, bool)])
+        sub = lsq_linear(Ab[:, keep], b, bounds=(lo[keep], hi[keep]), method="bvls").x
+        gain = float(np.sum((Ab[:, keep] @ sub - b) ** 2)) - cost
+        if gain < chi2.ppf(significance, len(idx)):
+            drop.append(idx)
+    for idx in drop:
+        f[idx] = 0.0
     f = FAPS.clamp(f).astype(np.float64)
     motion = est.predict(f)
     neutral68 = mu_x + (Bx @ c).reshape(68, 2)

@@ -16,12 +16,11 @@ from PySide6.QtCore import QEventLoop
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 from editor.core import FAPS
+from editor.resources import SAMPLE_FACE
 
 from .main_window import MainWindow
 from .qt_utils import APPLICATION, ORGANIZATION, settings
 
-ROOT = Path(__file__).resolve().parents[2]
-SAMPLE_FACE = ROOT / "resources" / "sample_face.png"
 SCREENSHOT_SIZE = (1400, 860)
 
 
@@ -56,7 +55,7 @@ def _pump(app: QApplication, seconds: float) -> None:
 
 
 def open_initial(window: MainWindow, photo: str | None = None,
-                 project: str | None = None) -> bool:
+                 project: str | None = None, photo_neutral: bool = False) -> bool:
     """Open what the editor starts with: ``project``, else ``photo``, else the last project
     (QSettings ``lastProject``), else the bundled sample face. False if the requested file
     could not be opened (the sample face is shown instead, after an error message)."""
@@ -64,18 +63,20 @@ def open_initial(window: MainWindow, photo: str | None = None,
     if project is not None:
         ok = window.docs.open_project(project, ask=False)
     elif photo is not None:
-        ok = window.docs.open_photo(photo, ask=False)
+        ok = window.docs.open_photo(photo, ask=False, photo_neutral=photo_neutral)
     else:
         last = str(settings().value("lastProject", "") or "")
         if last and Path(last).is_file():
             window.docs.open_project(last, ask=False)
     if window.model.doc is None:
-        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False) and ok
+        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False,
+                                    photo_neutral=photo_neutral) and ok
     return ok
 
 
 def run(photo: str | None = None, faps: dict[str, float] | None = None,
-        screenshot: str | None = None, project: str | None = None) -> int:
+        screenshot: str | None = None, project: str | None = None,
+        photo_neutral: bool = False, keep_expression: bool = False) -> int:
     """Open the editor window; returns the exit code.
 
     Parameters
@@ -86,6 +87,8 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
     screenshot : if given, lay the window out (offscreen works), render, save a PNG of the
         whole window there and return 0 without entering the event loop
     project : a project file to open (takes precedence over ``photo``)
+    photo_neutral : declare the photo neutral (FAPs apply to the photo itself)
+    keep_expression : ``faps`` add to the photo's own expression instead of replacing it
 
     A file that cannot be opened is reported (message box, or stderr and exit code 2 when
     headless); the interactive window then shows the sample face.
@@ -103,16 +106,18 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
         window.docs.remember = False
         window.docs.error = lambda _title, msg: print(f"fap-studio: error: {msg}",
                                                       file=sys.stderr)
-    ok = open_initial(window, photo, project)
+    ok = open_initial(window, photo, project, photo_neutral)
     if not ok and headless:
         return fail(f"cannot open {project or photo or SAMPLE_FACE}")
     if faps:
         try:
             # the requested FAPs replace the document's (the photo's own expression): they
-            # apply to the neutralised face, as presets and .fap files do
+            # apply to the neutralised face, as presets and .fap files do; with
+            # keep_expression they add to what the photo shows
             doc = window.model.doc
             if doc is not None:
-                window.model.push(doc.with_fap_vector(FAPS.vector(faps)), "Apply FAPs")
+                vec = FAPS.vector(faps) + (doc.faps if keep_expression else 0)
+                window.model.push(doc.with_fap_vector(vec), "Apply FAPs")
         except ValueError as e:
             if headless:
                 return fail(str(e))

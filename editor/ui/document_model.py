@@ -48,11 +48,15 @@ class Document:
         The neutral personalized mesh (possibly edited), image pixels (x, y), y down.
     faps : (68,) float32, read-only
         FAP values in FAPU (index i = FAP i + 1), clamped to the FAP table's ranges.
+    photo_neutral : bool
+        The photo is declared neutral: FAPs apply to the photo itself (0 = the photo), not to
+        the neutralised face with the photo's own expression estimated.
     """
 
     photo: str | None
     vertices: np.ndarray
     faps: np.ndarray
+    photo_neutral: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "vertices", _frozen(self.vertices, (None, 2)))
@@ -64,9 +68,11 @@ class Document:
         return cls(face.source, face.vertices, np.zeros(68, np.float32))
 
     @classmethod
-    def initial(cls, face: Face) -> Document:
-        """A new photo's document: its FAPs are the photo's own expression, so the untouched
-        document renders the photo unchanged."""
+    def initial(cls, face: Face, photo_neutral: bool = False) -> Document:
+        """A new photo's document: its FAPs are the photo's own expression (zero when the
+        photo is declared neutral), so the untouched document renders the photo unchanged."""
+        if photo_neutral:
+            return cls(face.source, face.vertices, np.zeros(68, np.float32), True)
         return cls(face.source, face.vertices, face.expression)
 
     def replace(self, **changes: object) -> Document:
@@ -77,6 +83,7 @@ class Document:
         if other is self:
             return True
         return (other is not None and self.photo == other.photo
+                and self.photo_neutral == other.photo_neutral
                 and np.array_equal(self.vertices, other.vertices)
                 and np.array_equal(self.faps, other.faps))
 
@@ -126,7 +133,8 @@ class DocumentModel(QObject):
         self.undo_stack = QUndoStack(self)
         self._doc: Document | None = None
         self._fitted: Face | None = None
-        self._faces: OrderedDict[int, tuple[np.ndarray, Face]] = OrderedDict()
+        self._fitted_neutral: Face | None = None
+        self._faces: OrderedDict[tuple[int, bool], tuple[np.ndarray, Face]] = OrderedDict()
         self._start: Document | None = None
         self._path: str | None = None
 
@@ -143,7 +151,25 @@ class DocumentModel(QObject):
     @property
     def face(self) -> Face | None:
         """The face for the current (possibly edited) mesh: FAPU and rendering follow it."""
-        return None if self._doc is None else self.face_for(self._doc.vertices)
+        if self._doc is None:
+            return None
+        return self.face_for(self._doc.vertices, self._doc.photo_neutral)
+
+    @property
+    def base_face(self) -> Face | None:
+        """The fitted face as the current document reads the photo: its own expression
+        estimated, or (declared neutral) none."""
+        if self._doc is None or self._fitted is None:
+            return None
+        return self._base(self._doc.photo_neutral)
+
+    def _base(self, photo_neutral: bool) -> Face:
+        assert self._fitted is not None
+        if not photo_neutral:
+            return self._fitted
+        if self._fitted_neutral is None:
+            self._fitted_neutral = self._fitted.with_expression(None)
+        return self._fitted_neutral
 
     @property
     def path(self) -> str | None:
@@ -160,18 +186,18 @@ class DocumentModel(QObject):
     def mark_clean(self) -> None:
         self.undo_stack.setClean()
 
-    def face_for(self, vertices: np.ndarray) -> Face:
-        """A Face for a neutral mesh (cached by array identity; arrays are read-only)."""
+    def face_for(self, vertices: np.ndarray, photo_neutral: bool = False) -> Face:
+        """A Face for a photo mesh (cached by array identity; arrays are read-only), with the
+        photo's own expression or, ``photo_neutral``, declared neutral."""
         assert self._fitted is not None
-        hit = self._faces.get(id(vertices))
+        key = (id(vertices), photo_neutral)
+        hit = self._faces.get(key)
         if hit is not None and hit[0] is vertices:
-            self._faces.move_to_end(id(vertices))
+            self._faces.move_to_end(key)
             return hit[1]
-        if np.array_equal(vertices, self._fitted.vertices):
-            face = self._fitted
-        else:
-            face = self._fitted.with_vertices(vertices)
-        self._faces[id(vertices)] = (vertices, face)
+        base = self._base(photo_neutral)
+        face = base if np.array_equal(vertices, base.vertices) else base.with_vertices(vertices)
+        self._faces[key] = (vertices, face)
         while len(self._faces) > 8:
             self._faces.popitem(last=False)
         return face
@@ -189,6 +215,7 @@ class DocumentModel(QObject):
         self._start = None
         self.undo_stack.clear()
         self._fitted = face
+        self._fitted_neutral = None
         self._faces.clear()
         self._doc = doc
         self.undo_stack.setClean()
@@ -283,9 +310,22 @@ class DocumentModel(QObject):
 
     def restore_photo_expression(self) -> None:
         """The FAPs back to the photo's own expression (the photo unchanged), one command."""
-        if self._doc is not None and self._fitted is not None:
-            self.push(self._doc.with_fap_vector(self._fitted.expression),
-                      "Back to the photo's expression")
+        base = self.base_face
+        if self._doc is not None and base is not None:
+            self.push(self._doc.with_fap_vector(base.expression), "Back to the photo's expression")
+
+    def set_photo_neutral(self, neutral: bool) -> None:
+        """Declare the photo neutral (FAPs then apply to the photo itself) or let its own
+        expression be estimated again, as one command. The FAPs keep what they add to the
+        photo: declaring subtracts the photo's estimated expression, undeclaring adds it."""
+        doc, fitted = self._doc, self._fitted
+        if doc is None or fitted is None or doc.photo_neutral == neutral:
+            return
+        f0 = fitted.expression
+        faps = doc.faps - f0 if neutral else doc.faps + f0
+        new = doc.replace(photo_neutral=neutral, faps=FAPS.clamp(faps))
+        self.push(new, "Declare the photo neutral" if neutral else
+                  "Estimate the photo's expression")
 
     def reset_mesh(self) -> None:
         """Put the mesh back to the fitted one (one command)."""

@@ -62,8 +62,10 @@ class Documents(QObject):
         """Open a photo or (by its suffix) a project, after the unsaved-changes prompt."""
         return self.open_project(path) if is_project(path) else self.open_photo(path)
 
-    def open_photo(self, path: str | None = None, ask: bool = True) -> bool:
-        """Open a photo (file dialog when ``path`` is None): detect, fit, new document."""
+    def open_photo(self, path: str | None = None, ask: bool = True,
+                   photo_neutral: bool = False) -> bool:
+        """Open a photo (file dialog when ``path`` is None): detect, fit, new document;
+        ``photo_neutral`` declares the photo neutral (Edit > Photo Is Neutral)."""
         if path is None:
             path, _ = QFileDialog.getOpenFileName(self.widget, "Open photo", self._dir(),
                                                   PHOTO_FILTER)
@@ -75,7 +77,7 @@ class Documents(QObject):
 
         def load() -> None:
             face = Face.from_image(path)
-            self.model.load(face)
+            self.model.load(face, Document.initial(face, photo_neutral))
 
         ok = self.guarded("Cannot open the photo", load)
         if ok:
@@ -98,7 +100,7 @@ class Documents(QObject):
             data = load_project(path, standard_mesh().names)
             face = Face.from_image(data.photo)
             verts = face.vertices if data.vertices is None else data.vertices
-            doc = Document(data.photo, verts, face.fap_vector(data.faps))
+            doc = Document(data.photo, verts, face.fap_vector(data.faps), data.photo_neutral)
             self.model.load(face, doc, str(Path(path).resolve()))
 
         ok = self.guarded("Cannot open the project", load)
@@ -138,7 +140,8 @@ class Documents(QObject):
             return False
 
         def write() -> None:
-            save_project(path, photo, doc.vertices, doc.faps, face.mesh.names)
+            save_project(path, photo, doc.vertices, doc.faps, face.mesh.names,
+                         doc.photo_neutral)
 
         ok = self.guarded("Cannot save the project", write)
         if ok:

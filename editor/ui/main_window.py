@@ -134,6 +134,11 @@ class MainWindow(QMainWindow):
         self.act_photo_expression = self._action(
             "Back to the &Photo's Expression", self.model.restore_photo_expression,
             "Ctrl+Shift+P", "Set the FAPs to what the photo shows (the photo unchanged)")
+        self.act_photo_neutral = self._action(
+            "Photo Is Ne&utral", self.model.set_photo_neutral, tip=(
+                "Declare the photo neutral: FAPs apply to the photo as it is (its own "
+                "expression is not estimated or removed)"))
+        self.act_photo_neutral.setCheckable(True)
         self.act_reset_mesh = self._action("Reset &Mesh", self.model.reset_mesh,
                                            tip="Put every vertex back where it was fitted")
         self.act_overlay = self._action("Show &Mesh", self.canvas.set_overlay_visible, "M")
@@ -162,8 +167,8 @@ class MainWindow(QMainWindow):
         e = mb.addMenu("&Edit")
         e.addActions([self.act_undo, self.act_redo])
         e.addSeparator()
-        e.addActions([self.act_neutralize, self.act_photo_expression, self.act_reset_faps,
-                      self.act_reset_mesh])
+        e.addActions([self.act_neutralize, self.act_photo_expression, self.act_photo_neutral,
+                      self.act_reset_faps, self.act_reset_mesh])
         v = mb.addMenu("&View")
         v.addActions([self.act_overlay, self.act_creases, self.act_fit, self.act_fit_face])
         v.addSeparator()
@@ -227,19 +232,33 @@ class MainWindow(QMainWindow):
         """Show an already detected face (a new, clean document)."""
         self.model.load(face, doc)
 
+    def _show_photo_expression(self, declared_neutral: bool) -> None:
+        """Status bar and Edit menu after a load or a change of how the photo is read."""
+        fitted = self.model.fitted
+        words = fitted.expression_words if fitted is not None else "neutral"
+        if declared_neutral:
+            self.expression_label.setText("photo declared neutral")
+        else:
+            self.expression_label.setText(f"photo shows: {words}")
+        shows = fitted is not None and fitted.has_expression and not declared_neutral
+        self.act_neutralize.setEnabled(shows)
+        self.act_photo_expression.setEnabled(shows)
+        self.act_photo_neutral.setEnabled(fitted is not None)
+        self.act_photo_neutral.blockSignals(True)
+        self.act_photo_neutral.setChecked(declared_neutral)
+        self.act_photo_neutral.blockSignals(False)
+
     def _on_changed(self, old: Document | None, new: Document) -> None:
         face = self.model.face
         if face is None:
             return
-        if old is None or old.faps is not new.faps or old.vertices is not new.vertices:
+        if (old is None or old.faps is not new.faps or old.vertices is not new.vertices
+                or old.photo_neutral != new.photo_neutral):
             self.scheduler.submit(face, new.faps, creases=self.act_creases.isChecked())
-        if old is None:
-            fitted = self.model.fitted
-            words = fitted.expression_words if fitted is not None else "neutral"
-            self.expression_label.setText(f"photo shows: {words}")
-            self.act_neutralize.setEnabled(fitted is not None and fitted.has_expression)
-            self.act_photo_expression.setEnabled(fitted is not None and fitted.has_expression)
-        if old is None or old.vertices is not new.vertices:
+        if old is None or old.photo_neutral != new.photo_neutral:
+            self._show_photo_expression(new.photo_neutral)
+        if (old is None or old.vertices is not new.vertices
+                or old.photo_neutral != new.photo_neutral):
             self._show_fapu(face)
             folded = self.model.folded_triangles()
             if folded:

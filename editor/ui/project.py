@@ -7,13 +7,16 @@ Example (``version`` 1)::
       "version": 1,
       "photo": "sample_face.png",
       "faps": {"open_jaw": 400, "raise_l_cornerlip_o": 120.5},
+      "photo_is_neutral": false,
       "mesh": {"vertices": {"brow_r_e0": [180.25, 96.5], ...}}
     }
 
 ``photo`` is relative to the project file's folder when possible. ``faps`` lists the non-zero
-FAPs by MPEG-4 name (numbers are accepted too); ``mesh.vertices`` maps every vertex name of the
-standard mesh to its neutral position (x, y) in image pixels, y down. Numbers are written as the
-shortest decimal that reads back to the same float32, so a project reopens bit-identical.
+FAPs by MPEG-4 name (numbers are accepted too), applied to the neutralised face, or to the
+photo itself when ``photo_is_neutral`` is true (absent: false). ``mesh.vertices`` maps every
+vertex name of the standard mesh to its position (x, y) in image pixels, y down. Numbers are
+written as the shortest decimal that reads back to the same float32, so a project reopens
+bit-identical.
 ``mesh`` may be absent: the fitted mesh is used. No Qt here.
 """
 
@@ -46,15 +49,17 @@ class ProjectData:
     photo : absolute path of the photo
     vertices : (V, 2) float32 neutral mesh in image pixels, or None (use the fitted mesh)
     faps : (68,) float32 FAP values in FAPU (not clamped; the document clamps)
+    photo_neutral : the photo is declared neutral (FAPs apply to the photo itself)
     """
 
     photo: str
     vertices: np.ndarray | None
     faps: np.ndarray
+    photo_neutral: bool = False
 
 
 def project_text(photo: str, vertices: np.ndarray, faps: np.ndarray, names: Sequence[str],
-                 base: Path | None = None) -> str:
+                 base: Path | None = None, photo_neutral: bool = False) -> str:
     """The JSON text of a project; ``photo`` is written relative to ``base`` when possible."""
     ph = str(Path(photo).resolve())
     if base is not None:
@@ -73,15 +78,16 @@ def project_text(photo: str, vertices: np.ndarray, faps: np.ndarray, names: Sequ
         f'  "version": {VERSION},\n'
         f'  "photo": {json.dumps(ph.replace(os.sep, "/"))},\n'
         f'  "faps": {faps_block},\n'
+        + ('  "photo_is_neutral": true,\n' if photo_neutral else "") +
         '  "mesh": {\n    "vertices": {\n' + ",\n".join(vert_items) + "\n    }\n  }\n}\n"
     )
 
 
 def save_project(path: str | os.PathLike[str], photo: str, vertices: np.ndarray,
-                 faps: np.ndarray, names: Sequence[str]) -> None:
+                 faps: np.ndarray, names: Sequence[str], photo_neutral: bool = False) -> None:
     """Write a project file atomically; ProjectError if it cannot be written."""
     p = Path(path)
-    text = project_text(photo, vertices, faps, names, p.parent)
+    text = project_text(photo, vertices, faps, names, p.parent, photo_neutral)
     tmp = p.with_name(p.name + ".tmp")
     try:
         tmp.write_text(text, encoding="utf-8")
@@ -143,6 +149,9 @@ def load_project(path: str | os.PathLike[str], names: Sequence[str]) -> ProjectD
         faps = FAPS.vector(faps_d)
     except ValueError as e:
         raise ProjectError(f"{p}: {e}") from e
+    neutral = d.get("photo_is_neutral", False)
+    if not isinstance(neutral, bool):
+        raise ProjectError(f'{p}: "photo_is_neutral" must be true or false')
     vertices = None
     mesh = d.get("mesh")
     if mesh is not None:
@@ -157,5 +166,5 @@ def load_project(path: str | os.PathLike[str], names: Sequence[str]) -> ProjectD
             raise ProjectError(f"{p}: the mesh lacks vertex {missing[0]!r} "
                                f"({len(missing)} missing)")
         vertices = np.array([_point(p, n, verts[n]) for n in names], np.float32)
-    return ProjectData(str(ph.resolve()), vertices, faps)
+    return ProjectData(str(ph.resolve()), vertices, faps, neutral)
 

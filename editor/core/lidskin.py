@@ -1,0 +1,135 @@
+"""The skin between the upper lid and the brow when it is stretched (surprise, fear). No Qt.
+
+The piecewise-affine warp stretches the skin between the upper lid's edge and the brow's lower
+edge uniformly. Real skin does not: when the brow rises and the lid opens (AU1+2, AU5), the lid
+skin near the edge and the lid crease keep their size and ride with the lid, and the thin skin
+under the brow takes the stretch. Uniformly stretched, the photo's lid crease and the orbital
+shadow become a wide, blurred band (a "smear").
+
+:func:`apply_lid_skin` resamples that strip of the warped image along frame-vertical columns:
+at height ``d`` above the deformed lid (strip height ``Hd``, ``Hs`` in the photo), the pixel
+shows the skin at source height ``f(d) = t Hs + m (Hd - Hs) t (1 - t)`` (``t = d / Hd``): rigid
+at the lid (``f'(0) = 1`` for ``m = 1``), the stretch moving up towards the brow, exact at both
+edges (``f(0) = 0``, ``f(Hd) = Hs``). ``m`` fades to 0 towards the ends of the strip (no seam
+with the warp beside it) and is bounded so that ``f`` stays monotonic. Only columns stretched
+by more than a tenth of a pixel are touched: at rest, on the photo's own expression and where
+the brow comes down (compression) the warp is left exactly as it is. One ``cv2.remap`` of a
+small box per eye; it runs between the warp and the layers (the lash line is drawn after it).
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from .layers import _rebox, _union
+from .warp import WarpResult
+
+if TYPE_CHECKING:
+    from .face import Face
+
+#: share of each strip's width over which the redistribution fades out towards its ends
+END_FADE = 0.25
+#: strips stretched by less than this (pixels) are left to the warp
+_MIN_STRETCH = 0.1
+
+
+@dataclass(eq=False)
+class _Strip:
+    lid: np.ndarray  # vertex indices of the upper lid edge, corner to corner (by frame x)
+    brow: np.ndarray  # vertex indices of the brow's lower edge (by frame x)
+    lid_s: np.ndarray  # (n, 2) frame coordinates on the photo's mesh
+    brow_s: np.ndarray  # (m, 2)
+
+
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _strips(face: Face) -> list[_Strip]:
+    s = _PLANS.get(face)
+    if s is not None:
+        return s
+    m = face.mesh
+    P = face.frame.to_frame(face.vertices.astype(np.float64))
+    out = []
+    for side in "lr":
+        lid = np.array([m.index(f"eye_{side}_c0"), m.index(f"eye_{side}_c1")]
+                       + [m.index(f"eye_{side}_u{k}") for k in range(1, 6)])
+        brow = np.array([m.index(f"brow_{side}_e0"), m.index(f"brow_{side}_e1")]
+                        + [m.index(f"brow_{side}_d{k}") for k in range(1, 4)])
+        lid, brow = lid[np.argsort(P[lid, 0])], brow[np.argsort(P[brow, 0])]
+        out.append(_Strip(lid, brow, P[lid], P[brow]))
+    _PLANS[face] = out
+    return out
+
+
+def _smooth01(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
+    """Redistribute the stretch of the lid-to-brow strips of ``res.image`` (in place)."""
+    fr = face.frame
+    V = fr.to_frame(np.asarray(vertices, np.float64))
+    img = res.image
+    H, W = img.shape[:2]
+    bbox = res.bbox
+    for st in _strips(face):
+        L, B = V[st.lid], V[st.brow]
+        x_lo = max(L[0, 0], B[0, 0])
+        x_hi = min(L[-1, 0], B[-1, 0])
+        if x_hi - x_lo < 2.0:
+            continue
+        # per column of the deformed strip: its height now and in the photo
+        xs = np.linspace(x_lo, x_hi, 64)
+        hd = np.interp(xs, L[:, 0], L[:, 1]) - np.interp(xs, B[:, 0], B[:, 1])
+        hs = (np.interp(xs, L[:, 0], st.lid_s[:, 1]) - np.interp(xs, B[:, 0], st.brow_s[:, 1]))
+        if not ((hd - hs) > _MIN_STRETCH).any():
+            continue
+        # image box of the strip
+        corners = fr.to_image(np.concatenate([L, B]))
+        x0, y0 = np.floor(corners.min(0)).astype(int) - 1
+        x1, y1 = np.ceil(corners.max(0)).astype(int) + 2
+        x0, y0, x1, y1 = max(int(x0), 0), max(int(y0), 0), min(int(x1), W), min(int(y1), H)
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            continue
+        yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+        q = fr.to_frame(np.stack([xx.ravel(), yy.ravel()], 1))
+        X, Y = q[:, 0], q[:, 1]
+        lid_y = np.interp(X, L[:, 0], L[:, 1])
+        Hd = lid_y - np.interp(X, B[:, 0], B[:, 1])
+        Hs = np.interp(X, L[:, 0], st.lid_s[:, 1]) - np.interp(X, B[:, 0], st.brow_s[:, 1])
+        d = lid_y - Y
+        t = d / np.maximum(Hd, 1e-6)
+        ex = Hd - Hs
+        fade = (_smooth01((X - x_lo) / (END_FADE * (x_hi - x_lo)))
+                * _smooth01((x_hi - X) / (END_FADE * (x_hi - x_lo))))
+        m = fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
+        live = (t > 0) & (t < 1) & (ex > _MIN_STRETCH) & (Hs > 0.5) & (m > 0)
+        if not live.any():
+            continue
+        # source height f, then where the warp put that height: e = f * Hd / Hs
+        f = t * Hs + m * ex * t * (1.0 - t)
+        e = np.where(live, f * Hd / np.maximum(Hs, 1e-6), d)
+        src = fr.to_image(np.stack([X, lid_y - e], 1)).astype(np.float32)
+        mx = src[:, 0].reshape(xx.shape)
+        my = src[:, 1].reshape(xx.shape)
+        patch = img[y0:y1, x0:x1]
+        # sample the warped frame around the box (the remap reads up to a pixel outside it)
+        X0, Y0 = max(x0 - 2, 0), max(y0 - 2, 0)
+        X1, Y1 = min(x1 + 2, W), min(y1 + 2, H)
+        new = cv2.remap(img[Y0:Y1, X0:X1], (mx - np.float32(X0)).astype(np.float32),
+                        (my - np.float32(Y0)).astype(np.float32), cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REPLICATE)
+        keep = ~live.reshape(xx.shape)
+        new[keep] = patch[keep]
+        img[y0:y1, x0:x1] = new
+        bbox = _union(bbox, (x0, y0, x1, y1))
+    if bbox == res.bbox:
+        return res
+    return _rebox(res, bbox, {})

@@ -1,0 +1,109 @@
+"""Every data file FAP Studio ships, in one place (``editor/data``, read via importlib.resources).
+
+The files are package data, so they are found the same way from a source checkout, an editable
+install and a wheel installed into site-packages. Reading code uses the constants below (real
+file-system paths); scripts that regenerate a file write it to ``source_path(CONSTANT)``, which
+refuses an installed copy.
+
+====================  ======================================================================
+``MESH``              the standard mesh (``scripts/build_mesh.py``)
+``NEUTRAL_PRIOR``     the neutral-shape prior (``scripts/build_neutral_prior.py``)
+``MOUTH_DIR``         mouth-interior textures ``<name>.png`` for :data:`MOUTH_TEXTURES`
+                      (``scripts/draw_mouth_textures.py``)
+``PRESETS_DIR``       the shipped emotion and viseme presets (``scripts/derive_presets.py``)
+``SAMPLE_FACE``       the bundled sample photo (NASA, public domain)
+``DATA_README``       origins and licences of the files above
+====================  ======================================================================
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+from contextlib import ExitStack
+from importlib.resources import as_file, files
+from importlib.resources.abc import Traversable
+from pathlib import Path
+
+#: The package data folder as an importlib.resources Traversable.
+DATA: Traversable = files("editor") / "data"
+#: Names of the mouth textures (``MOUTH_DIR / f"{name}.png"``).
+MOUTH_TEXTURES = ("upper_teeth", "lower_teeth", "tongue")
+
+_extracted = ExitStack()
+atexit.register(_extracted.close)
+
+
+def data_path(*parts: str) -> Path:
+    """A real file-system path of a data file or folder. An unpacked install (pip, editable,
+    source tree) gives the file itself; a zipped one a copy extracted for the process's life."""
+    item = DATA.joinpath(*parts)
+    if isinstance(item, Path):
+        return item
+    return _extracted.enter_context(as_file(item))
+
+
+def source_path(path: Path) -> Path:
+    """``path`` (one of the constants below) as a script's output: allowed only in a source
+    checkout (``editor/data`` beside ``pyproject.toml``); an installed copy raises
+    ``RuntimeError`` (regenerate the data in the repository, then rebuild the wheel)."""
+    root = Path(__file__).resolve().parent / "data"
+    target = Path(path).resolve()
+    if not (root.parent.parent / "pyproject.toml").is_file() or not target.is_relative_to(root):
+        raise RuntimeError(f"{target}: not in a source checkout of FAP Studio; run the script "
+                           "from the repository")
+    return target
+
+
+MESH = data_path("mesh.json")
+NEUTRAL_PRIOR = data_path("neutral_prior.json")
+MOUTH_DIR = data_path("mouth")
+PRESETS_DIR = data_path("presets")
+SAMPLE_FACE = data_path("sample_face.png")
+DATA_README = data_path("README.md")
+
+# ------------------------------------------------------------------ per-user folders
+APP_NAME = "fap-studio"
+
+
+def user_data_dir() -> Path:
+    """``$FAP_STUDIO_DATA_DIR``, else the per-OS user data folder from platformdirs:
+    ``$XDG_DATA_HOME/fap-studio`` or ``~/.local/share/fap-studio`` (Linux),
+    ``~/Library/Application Support/fap-studio`` (macOS), ``%APPDATA%\\fap-studio`` (Windows).
+    Not created here."""
+    env = os.environ.get("FAP_STUDIO_DATA_DIR", "").strip()
+    if env:
+        return Path(env).expanduser()
+    import platformdirs
+
+    return Path(platformdirs.user_data_dir(APP_NAME, appauthor=False, roaming=True))
+
+
+def user_cache_dir() -> Path:
+    """``$FAP_STUDIO_CACHE``, else the per-OS cache folder from platformdirs
+    (``$XDG_CACHE_HOME/fap-studio`` or ``~/.cache/fap-studio`` on Linux). Not created here."""
+    env = os.environ.get("FAP_STUDIO_CACHE", "").strip()
+    if env:
+        return Path(env).expanduser()
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir(APP_NAME, appauthor=False))
+
+# ------------------------------------------------------------------ external data (not shipped)
+#: Environment variable naming the JAFFE folder (``DIR/images/*.tiff``); research-only data that
+#: is never shipped or copied into the repository.
+JAFFE_ENV = "FAP_STUDIO_JAFFE"
+
+
+def jaffe_dir(explicit: str | Path | None = None) -> Path | None:
+    """The JAFFE folder: ``explicit``, else ``$FAP_STUDIO_JAFFE``, else None (not configured)."""
+    if explicit:
+        return Path(explicit).expanduser()
+    env = os.environ.get(JAFFE_ENV, "").strip()
+    return Path(env).expanduser() if env else None
+
+
+def checkout_jaffe_dir() -> Path:
+    """``$FAP_STUDIO_JAFFE``, else the development layout's ``../shared/data/jaffe`` beside the
+    source checkout (for tests and scripts/ run from the repository)."""
+    return jaffe_dir() or Path(__file__).resolve().parents[2] / "shared" / "data" / "jaffe"

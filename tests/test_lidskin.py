@@ -1,0 +1,56 @@
+"""The skin between the upper lid and the brow (editor/core/lidskin.py): the lid's own skin and
+crease ride with the lid, the stretch goes to the skin under the brow."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+import editor.core.face as face_mod
+from editor.core.expressions import apply_preset
+
+
+def _profile(img: np.ndarray, face, x: float, y_lid: float, ds: np.ndarray) -> np.ndarray:
+    """Luminance at heights ``ds`` above the frame point (x, y_lid), bilinear."""
+    pts = face.frame.to_image(np.stack([np.full_like(ds, x), y_lid - ds], 1)).astype(np.float32)
+    lum = (img.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32))
+    return cv2.remap(lum, pts[:, 0:1], pts[:, 1:2], cv2.INTER_LINEAR).ravel()
+
+
+def _render(face, vec, lid_skin: bool, monkeypatch) -> np.ndarray:
+    with monkeypatch.context() as m:
+        if not lid_skin:
+            m.setattr(face_mod, "apply_lid_skin", lambda f, res, v: res)
+        return face.render(vec, creases=False)
+
+
+@pytest.mark.parametrize("k", [1.0, 1.5])
+def test_lid_skin_rides_with_the_lid(sample_neutral, monkeypatch, k):
+    """Near the lid (lower 40 % of the strip) the rendered column shows the photo's skin at the
+    same height above the lid (the crease keeps its place); the plain warp shows it stretched."""
+    f = sample_neutral
+    vec = apply_preset("surprise", k)
+    v = f.frame.to_frame(f.deform(vec).astype(np.float64))
+    v0 = f.frame.to_frame(f.vertices.astype(np.float64))
+    new, old = (_render(f, vec, k, monkeypatch) for k in (True, False))
+    n = f.mesh.index
+    for side in "lr":
+        mid, brow = n(f"eye_{side}_u3"), n(f"brow_{side}_d2")
+        hd, hs = v[mid, 1] - v[brow, 1], v0[mid, 1] - v0[brow, 1]
+        assert hd > 1.15 * hs  # the strip is stretched (brows up more than the lid)
+        ds = np.linspace(0.5, 0.4 * hd, 12)
+        src = _profile(f.image, f, v0[mid, 0], v0[mid, 1], ds)
+        e_new = np.abs(_profile(new, f, v[mid, 0], v[mid, 1], ds) - src).mean()
+        e_old = np.abs(_profile(old, f, v[mid, 0], v[mid, 1], ds) - src).mean()
+        assert e_new < 0.7 * e_old, (side, e_new, e_old)
+
+
+def test_lid_skin_leaves_rest_and_compression_alone(sample_neutral, sample_face, monkeypatch):
+    """No stretch, no change: the photo's own expression, the neutral photo at rest, and anger
+    (brows down: the strip is compressed) render exactly as the plain warp."""
+    assert np.array_equal(sample_face.render(sample_face.expression), sample_face.image)
+    assert np.array_equal(sample_neutral.render(None), sample_neutral.image)
+    vec = apply_preset("anger", 1.0)
+    assert np.array_equal(_render(sample_neutral, vec, True, monkeypatch),
+                          _render(sample_neutral, vec, False, monkeypatch))

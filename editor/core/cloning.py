@@ -34,7 +34,9 @@ presets rendered on the target. No PCA: 136 parameters against 6 keys is well po
 
 from __future__ import annotations
 
+import threading
 import weakref
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,9 +99,33 @@ def _closest_on_triangles(p: np.ndarray, tri_pts: np.ndarray) -> tuple[np.ndarra
     return best, out
 
 
+#: the last few landmark maps by content (opening a photo with its own expression asks for
+#: the same map of its photo mesh several times: each neutralisation round's face and each
+#: estimator); keys are the inputs' bytes, never object ids
+_LANDMARK_MAPS: OrderedDict[tuple, sp.csr_matrix] = OrderedDict()
+_LANDMARK_LOCK = threading.Lock()
+
+
 def landmark_map(vertices: np.ndarray, triangles: np.ndarray, names: tuple[str, ...],
                  points68: np.ndarray) -> sp.csr_matrix:
     """(68, V) sparse barycentric map: landmark l = row l @ vertices (on the neutral mesh)."""
+    key = (np.asarray(vertices, np.float64).tobytes(), np.asarray(triangles, np.int64).tobytes(),
+           tuple(names), np.asarray(points68, np.float64).tobytes())
+    with _LANDMARK_LOCK:  # (photos may be opened from worker threads)
+        hit = _LANDMARK_MAPS.get(key)
+        if hit is not None:
+            _LANDMARK_MAPS.move_to_end(key)
+            return hit.copy()
+    hit = _landmark_map(vertices, triangles, names, points68)
+    with _LANDMARK_LOCK:
+        _LANDMARK_MAPS[key] = hit
+        while len(_LANDMARK_MAPS) > 8:
+            _LANDMARK_MAPS.popitem(last=False)
+    return hit.copy()
+
+
+def _landmark_map(vertices: np.ndarray, triangles: np.ndarray, names: tuple[str, ...],
+                  points68: np.ndarray) -> sp.csr_matrix:
     V = np.asarray(vertices, np.float64)
     tri = np.asarray(triangles, np.int64)
     tri_pts = V[tri]

@@ -34,7 +34,9 @@ presets rendered on the target. No PCA: 136 parameters against 6 keys is well po
 
 from __future__ import annotations
 
+import threading
 import weakref
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,49 +70,75 @@ _OPPOSITE = {"lipi_u": "lipi_d", "lipi_d": "lipi_u", "eye_r_u": "eye_r_d",
 
 
 def _closest_on_triangles(p: np.ndarray, tri_pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance from p to each triangle (T,) and barycentric coords of the closest point (T, 3)."""
+    """Distance from p to each triangle (T,) and barycentric coords of the closest point (T, 3).
+
+    ``p`` may also be a batch of points (L, 2): then (L, T) distances and (L, T, 3) coords.
+    """
+    p = np.asarray(p, np.float64)[..., None, :]  # (..., 1, 2) against (T, 2)
     A, B, C = tri_pts[:, 0], tri_pts[:, 1], tri_pts[:, 2]
     v0, v1, v2 = B - A, C - A, p - A
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+    d00, d01, d11 = (v0 * v0).sum(-1), (v0 * v1).sum(-1), (v1 * v1).sum(-1)
+    d20, d21 = (v2 * v0).sum(-1), (v2 * v1).sum(-1)
     den = np.where(np.abs(d00 * d11 - d01 * d01) > 1e-12, d00 * d11 - d01 * d01, 1e-12)
     v = (d11 * d20 - d01 * d21) / den
     w = (d00 * d21 - d01 * d20) / den
-    bary = np.stack([1.0 - v - w, v, w], 1)
-    inside = (bary >= -1e-9).all(1)
+    bary = np.stack([1.0 - v - w, v, w], -1)
+    inside = (bary >= -1e-9).all(-1)
     best = np.where(inside, 0.0, np.inf)
-    out = np.where(inside[:, None], bary, 0.0)
-    n = np.arange(len(A))
+    out = np.where(inside[..., None], bary, 0.0)
     for i, j in ((0, 1), (1, 2), (2, 0)):
         a, b = tri_pts[:, i], tri_pts[:, j]
         e = b - a
-        t = np.clip(((p - a) * e).sum(1) / np.maximum((e * e).sum(1), 1e-12), 0.0, 1.0)
-        dist = np.linalg.norm(p - (a + t[:, None] * e), axis=1)
+        t = np.clip(((p - a) * e).sum(-1) / np.maximum((e * e).sum(-1), 1e-12), 0.0, 1.0)
+        dist = np.linalg.norm(p - (a + t[..., None] * e), axis=-1)
         upd = ~inside & (dist < best)
-        nb = np.zeros((len(A), 3))
-        nb[n, i], nb[n, j] = 1.0 - t, t
+        nb = np.zeros(t.shape + (3,))
+        nb[..., i], nb[..., j] = 1.0 - t, t
         best = np.where(upd, dist, best)
-        out = np.where(upd[:, None], nb, out)
+        out = np.where(upd[..., None], nb, out)
     return best, out
+
+
+#: the last few landmark maps by content (opening a photo with its own expression asks for
+#: the same map of its photo mesh several times: each neutralisation round's face and each
+#: estimator); keys are the inputs' bytes, never object ids
+_LANDMARK_MAPS: OrderedDict[tuple, sp.csr_matrix] = OrderedDict()
+_LANDMARK_LOCK = threading.Lock()
 
 
 def landmark_map(vertices: np.ndarray, triangles: np.ndarray, names: tuple[str, ...],
                  points68: np.ndarray) -> sp.csr_matrix:
     """(68, V) sparse barycentric map: landmark l = row l @ vertices (on the neutral mesh)."""
+    key = (np.asarray(vertices, np.float64).tobytes(), np.asarray(triangles, np.int64).tobytes(),
+           tuple(names), np.asarray(points68, np.float64).tobytes())
+    with _LANDMARK_LOCK:  # (photos may be opened from worker threads)
+        hit = _LANDMARK_MAPS.get(key)
+        if hit is not None:
+            _LANDMARK_MAPS.move_to_end(key)
+            return hit.copy()
+    hit = _landmark_map(vertices, triangles, names, points68)
+    with _LANDMARK_LOCK:
+        _LANDMARK_MAPS[key] = hit
+        while len(_LANDMARK_MAPS) > 8:
+            _LANDMARK_MAPS.popitem(last=False)
+    return hit.copy()
+
+
+def _landmark_map(vertices: np.ndarray, triangles: np.ndarray, names: tuple[str, ...],
+                  points68: np.ndarray) -> sp.csr_matrix:
     V = np.asarray(vertices, np.float64)
     tri = np.asarray(triangles, np.int64)
     tri_pts = V[tri]
     nm = np.array(names)
+    # triangles touching a vertex of each side prefix (per vertex once, not per corner and
+    # landmark)
+    touch = {k: np.char.startswith(nm, k)[tri].any(1) for k in _OPPOSITE}
     rows, cols, vals = [], [], []
-    for l, p in enumerate(np.asarray(points68, np.float64)):
-        ok = np.ones(len(tri), bool)
+    dists, barys = _closest_on_triangles(np.asarray(points68, np.float64), tri_pts)
+    for l, (dist, bary) in enumerate(zip(dists, barys, strict=True)):
         side = _SIDES.get(l)
         if side:
-            has = np.char.startswith(nm[tri], side).any(1)
-            other = np.char.startswith(nm[tri], _OPPOSITE[side]).any(1)
-            ok = has & ~other
-        dist, bary = _closest_on_triangles(p, tri_pts)
-        dist = np.where(ok, dist, np.inf)
+            dist = np.where(touch[side] & ~touch[_OPPOSITE[side]], dist, np.inf)
         k = int(np.argmin(dist))
         rows += [l] * 3
         cols += list(tri[k])

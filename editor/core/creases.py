@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .layers import _rebox, _union
+from .layers import _rebox, _to_uint8, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -407,6 +407,16 @@ class _Fast:
     own_gap: np.ndarray | None = None  # (F,) photo's own compression per fold (None: neutral)
     own_w: np.ndarray | None = None  # (N,) log-spacing of the neutral mesh per sample (>= 0)
     own_sum: np.ndarray | None = None  # (F,) sum of own_w ** 2 per fold
+    # per-face constants of the per-frame path (gathered once, not every frame)
+    used_tri: np.ndarray | None = None  # (U, 3) vertex indices of the ``used`` triangles
+    used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
+    tx: np.ndarray | None = None  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
+    ty: np.ndarray | None = None
+    sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
+    bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
+    keep: np.ndarray | None = None  # (N,) 1 - spread
+    seg_b: np.ndarray | None = None  # (M,) seg_a + 1: the last sample of each segment
+    ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -441,6 +451,16 @@ def _fast(face: Face) -> _Fast:
     f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
               skin, dead)
+    f.used_tri = face.mesh.triangles[used]
+    inv = p.tri_inv[used]
+    f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
+    f.tx, f.ty = -p.normal[:, 1, None], p.normal[:, 0, None]
+    tri = face.mesh.triangles[p.tri]
+    f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
+    f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
+    f.keep = 1.0 - spread
+    f.seg_b = f.seg_a + 1
+    f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     _FAST[face] = f
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
@@ -453,27 +473,33 @@ def _fast(face: Face) -> _Fast:
 def _spacing(face: Face, vertices: np.ndarray) -> np.ndarray:
     """(N,) spacing of skin lines parallel to each fold on ``vertices``, relative to the photo's
     mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes."""
-    p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    T = V[face.mesh.triangles[fa.used]]
-    D = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], 2)
-    A = D @ p.tri_inv[fa.used]  # deformed = A @ photo (linear part per triangle)
-    Ap = A[fa.probe]  # (N, 4, 2, 2)
+    T = V[fa.used_tri]
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges,
+    # entry by entry (U,) and then gathered per probe (N, 4)
+    i00, i01, i10, i11 = fa.used_inv
+    e1x, e1y, e2x, e2y = e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1]
+    a00, a01 = e1x * i00 + e2x * i10, e1x * i01 + e2x * i11
+    a10, a11 = e1y * i00 + e2y * i10, e1y * i01 + e2y * i11
+    det = (a00 * a11 - a01 * a10)[fa.probe]
     # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
     # along the fold and stretch along it do not change it
-    tx, ty = -p.normal[:, 1, None], p.normal[:, 0, None]
-    ax = Ap[..., 0, 0] * tx + Ap[..., 0, 1] * ty
-    ay = Ap[..., 1, 0] * tx + Ap[..., 1, 1] * ty
-    det = Ap[..., 0, 0] * Ap[..., 1, 1] - Ap[..., 0, 1] * Ap[..., 1, 0]
-    return (det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)).mean(1)
+    pr, tx, ty = fa.probe, fa.tx, fa.ty
+    ax = a00[pr] * tx + a01[pr] * ty
+    ay = a10[pr] * tx + a11[pr] * ty
+    r = det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)
+    return (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25  # the mean over the 4 probes
 
 
 def _smooth_taper(face: Face, s: np.ndarray, own: bool = False) -> np.ndarray:
     """Smoothed along each line (no triangle steps), times the fade of its ends (``own``: that
     of the photo's own fold)."""
     p = crease_plan(face)
-    sm = np.convolve(np.pad(s, 2, mode="edge"), _SMOOTH, mode="valid")
+    # (the first and last two samples of every line are not smoothed: the zero padding of
+    # "same" never shows)
+    sm = np.convolve(s, _SMOOTH, mode="same")
     return np.where(_fast(face).edge, s, sm) * (p.utaper if own else p.taper)
 
 
@@ -487,7 +513,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
-    c = np.maximum((1.0 - fa.spread) * c + fa.spread * cmax - fa.dead, 0.0)
+    c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
     # smooth along each line (no triangle steps), then taper the ends
     return _smooth_taper(face, s)
@@ -548,6 +574,28 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
 
+_TURN = np.array([-1.0, 1.0])
+
+
+def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_splat2` with both point sets in one array (the first ``n1`` points go to the
+    first canvas): one floor, one cast, the same corner-major summation order."""
+    h, wd = shape
+    P0 = np.floor(P)
+    F = P - P0  # (fx, fy)
+    ip = P0.astype(np.int64)
+    base = ip[:, 1] * wd + ip[:, 0]
+    base[n1:] += h * wd  # the second canvas follows the first
+    # corner-major (all top-left weights, then top-right, bottom-left, bottom-right)
+    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
+    fx, fy = F[:, 0], F[:, 1]
+    wx = np.stack([W * (1 - fx), W * fx])  # (2, n): W (1 - fx), W fx
+    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
+    return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
+
+
 def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Darken the folds of the deformed mesh ``vertices`` into ``res.image`` (in place).
 
@@ -557,57 +605,62 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     sp = _spacing(face, vertices)
     s = fold_strength(face, vertices, sp)
     un = unfold_strength(face, vertices, sp)
-    if not (s > _MIN_STRENGTH).any() and not (un > _MIN_UNFOLD).any():
+    if not np.count_nonzero(s > _MIN_STRENGTH) and not np.count_nonzero(un > _MIN_UNFOLD):
         return res
     p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
-    if (un > _MIN_UNFOLD).any():
+    if np.count_nonzero(un > _MIN_UNFOLD):
         bbox = _unfold(face, out, pos, un, bbox)
-    live = np.maximum(s[fa.seg_a], s[fa.seg_a + 1]) > _MIN_STRENGTH
+    live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
     tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not live[g0:g1].any():
+        if not np.count_nonzero(live[g0:g1]):
             continue
-        ia = fa.seg_a[g0:g1]
-        a, d = pos[ia], pos[ia + 1] - pos[ia]
-        L = np.sqrt((d * d).sum(1))
+        ia, ib = fa.seg_a[g0:g1], fa.seg_b[g0:g1]
+        a = pos[ia]
+        d = pos[ib] - a
+        dx, dy = d[:, 0], d[:, 1]
+        L = np.sqrt(dx * dx + dy * dy)
         sig = float(fa.sig[g])
         sig_r = 1.6 * sig
-        K = int(min(max(np.ceil(L.max() / min(0.5, 0.5 * sig)), 1), 64))
+        K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        sa, sb = s[ia], s[ia + 1]
+        sa, sb = s[ia], s[ib]
         w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        nrm = np.stack([-d[:, 1], d[:, 0]], 1) / np.maximum(L, 1e-9)[:, None]
-        rpts = pts + np.repeat(nrm * fa.off[g], K, 0)
+        nrm = d[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]  # (-dy, dx) / L
+        # the line's samples, then the ridge's beside it (one array: one box, one splat)
+        both = np.concatenate([pts, pts + np.repeat(nrm * fa.off[g], K, 0)])
         pad = 3.0 * sig_r + 2.0
-        lo = np.minimum(pts.min(0), rpts.min(0)) - pad
-        hi = np.maximum(pts.max(0), rpts.max(0)) + pad
-        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        bx, by = both[:, 0], both[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
+        x0, y0 = max(int(bx.min() - pad), 0), max(int(by.min() - pad), 0)
+        x1, y1 = min(int(bx.max() + pad) + 1, W), min(int(by.max() + pad) + 1, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        o = np.array([x0, y0], np.float64)
-        dark, light = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, rpts - o,
-                              w * fa.ridge[g])
+        dark, light = _splat_cat((y1 - y0 + 1, x1 - x0 + 1), both - (x0, y0),
+                                 np.concatenate([w, w * fa.ridge[g]]), len(pts))
         dark = cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig)
         light = cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r)
         k1 = np.float32(math.sqrt(2 * math.pi) * sig)
         k2 = np.float32(math.sqrt(2 * math.pi) * sig_r)
         patch = out[y0:y1, x0:x1].astype(np.float32)
         # skin-likeness: hair, brows, eyes and lashes are not folded
-        ref = fa.skin[g]
-        ref_l = max(float(ref.mean()), 20.0)
-        dif = patch - ref
-        wskin = np.clip((0.45 - np.sqrt((dif * dif).mean(2)) / ref_l) * 4.0, 0.0, 1.0)
-        dl = (light * k2)[..., None] - (dark * k1)[..., None] * tint
-        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + dl * wskin[..., None]) + 0.5, 0,
-                                    255).astype(np.uint8)
+        dif = patch - fa.skin[g]
+        dif *= dif
+        wskin = np.sqrt((dif[..., 0] + dif[..., 1] + dif[..., 2]) / 3) / float(fa.ref_l[g])
+        wskin = np.minimum(np.maximum((0.45 - wskin) * 4.0, 0.0), 1.0)
+        dl = (dark * k1)[..., None] * tint
+        np.subtract((light * k2)[..., None], dl, out=dl)
+        dl *= wskin[..., None]
+        dl += 1.0
+        dl *= patch  # patch * (1 + dl * wskin)
+        _to_uint8(dl, out[y0:y1, x0:x1])
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox == res.bbox:
         return res

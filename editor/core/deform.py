@@ -14,6 +14,7 @@ Points: the V mesh vertices followed by extra feature points that are not mesh v
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -87,6 +88,48 @@ class DeformPlan:
         object.__setattr__(self, "tri_neutral", self.neutral64[self.triangles])
 
 
+@dataclass(frozen=True, eq=False)
+class _Topology:
+    """What :func:`build_plan` needs of a mesh that does not depend on the face (built once per
+    mesh: the neutralisation of a photo's own expression builds up to 7 plans per photo)."""
+
+    names: list[str]  # mesh vertex names + the extra points'
+    sides: dict[str, np.ndarray]  # influence.side_tags(names)
+    regions: np.ndarray  # (N,) vertex regions, "extra" for the extra points
+    movable: np.ndarray  # (N,) not margin/border
+    movable_lin: np.ndarray  # (N,) movable and not an iris
+    head_w: np.ndarray  # (N,) head-rotation weight
+    triangles: np.ndarray  # (T, 3) int64
+    incidence: np.ndarray  # (V, maxdeg) triangle ids per vertex, padded with T
+    pairs: np.ndarray  # (P, 2) int64
+
+
+@lru_cache(maxsize=4)
+def _topology(mesh: StandardMesh) -> _Topology:
+    names = list(mesh.names) + [f"tongue_{k}" if k.startswith("6") else f"iris_{k}"
+                                for k in EXTRA_POINTS]
+    regions = np.concatenate([mesh.regions, np.array(["extra"] * len(EXTRA_POINTS))])
+    movable = ~np.isin(regions, ("margin", "border"))
+    iris_mask = np.array([n.startswith("iris_") for n in names])
+    head_w = np.where(regions == "border", 0.0, np.where(regions == "margin", 0.4, 1.0))
+    tri = mesh.triangles.astype(np.int64)
+    V, T = mesh.n_vertices, len(tri)
+    # incidence: the triangles of each vertex in triangle order (padded with the dummy T)
+    corner_v = tri.ravel()
+    order = np.argsort(corner_v, kind="stable")  # by vertex, then by triangle id
+    deg = np.bincount(corner_v, minlength=V)
+    first = np.concatenate([[0], np.cumsum(deg)[:-1]])
+    slot = np.arange(len(order)) - np.repeat(first, deg)
+    inc = np.full((V, int(deg.max())), T, np.int64)
+    inc[corner_v[order], slot] = order // 3
+    topo = _Topology(names, side_tags(names), regions, movable, movable & ~iris_mask, head_w,
+                     tri, inc, mesh.pairs.astype(np.int64))
+    for a in (regions, movable, topo.movable_lin, head_w, tri, inc, topo.pairs,
+              *topo.sides.values()):
+        a.setflags(write=False)
+    return topo
+
+
 def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
                fapu: dict[str, float], extras: dict[str, np.ndarray]) -> DeformPlan:
     """Precompute the deformation of a personalized mesh.
@@ -97,8 +140,8 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     extras : feature point id -> (2,) image position, for :data:`EXTRA_POINTS`
     """
     V = len(vertices)
-    names = list(mesh.names) + [f"tongue_{k}" if k.startswith("6") else f"iris_{k}"
-                                for k in EXTRA_POINTS]
+    topo = _topology(mesh)
+    names = topo.names
     pts_img = np.vstack([vertices, np.array([extras[k] for k in EXTRA_POINTS])])
     P = frame.to_frame(pts_img)
     byname = {n: P[i] for i, n in enumerate(names)}
@@ -106,17 +149,14 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     rects = rectangles(byname, iod)
     brows = brow_weights(byname, P, iod)
     on_face = face_mask(byname, P, iod)
-    sides = side_tags(names)
-    regions = np.concatenate([mesh.regions, np.array(["extra"] * len(EXTRA_POINTS))])
-    movable = ~np.isin(regions, ("margin", "border"))
-    iris_mask = np.array([n.startswith("iris_") for n in names])
-    movable_lin = movable & ~iris_mask
+    sides, movable, movable_lin = topo.sides, topo.movable, topo.movable_lin
     fdp_pos = {k: P[i] for k, i in mesh.fdp.items()}
     for i, k in enumerate(EXTRA_POINTS):
         fdp_pos[k] = P[V + i]
     N = len(P)
     basis = np.zeros((68, N, 2), np.float64)
     single_w: dict[int, np.ndarray] = {}
+    point_w: dict[str, np.ndarray] = {}  # eq. 2 weights per feature point (several FAPs each)
     for f in FAPS.values():
         if f.number < 3 or f.number in _NONLINEAR:
             continue
@@ -129,7 +169,10 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
             elif fdp in brows:
                 w = brows[fdp] * movable_lin
             else:
-                w = weights(rects[fdp], fdp_pos[fdp], P, sides, movable_lin)
+                w = point_w.get(fdp)
+                if w is None:
+                    w = point_w[fdp] = weights(rects[fdp], fdp_pos[fdp], P, sides,
+                                               movable_lin)
             if fdp not in OUTLINE_FDPS:
                 w = w * on_face  # the motion stays inside the contour and the hairline
             basis[f.number - 1] += unit * w[:, None] * np.array([dx, dy])[None, :]
@@ -148,8 +191,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     basis = basis @ frame.rot.T
     pair_basis = pair_basis @ frame.rot.T
 
-    # head rotation: face 1, margin 0.4, border 0; dome depth for pitch/yaw
-    head_w = np.where(regions == "border", 0.0, np.where(regions == "margin", 0.4, 1.0))
+    # head rotation: face 1, margin 0.4, border 0 (topo.head_w); dome depth for pitch/yaw
     chin = P[mesh.fdp["2.1"]]
     hair = P[mesh.fdp["11.1"]]
     cl, cr = P[mesh.index("contour_0")], P[mesh.index("contour_32")]
@@ -159,15 +201,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     depth = 0.6 * a * np.clip(1.0 - rho2, 0.0, None)
     depth[mesh.fdp["9.3"]] += 0.25 * a
     pivot_f = np.array([chin[0], chin[1] + 0.15 * (chin[1] - hair[1])])
-    tri = mesh.triangles.astype(np.int64)
-    T = len(tri)
-    deg = np.bincount(tri.ravel(), minlength=V)
-    inc = np.full((V, int(deg.max())), T, np.int64)
-    fill = np.zeros(V, np.int64)
-    for t_id, vs in enumerate(tri):
-        for v in vs:
-            inc[v, fill[v]] = t_id
-            fill[v] += 1
+    tri, inc = topo.triangles, topo.incidence
     return DeformPlan(
         neutral=pts_img.astype(np.float32),
         basis=basis.astype(np.float32),
@@ -175,10 +209,10 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
         n_vertices=V,
         triangles=tri,
         incidence=inc,
-        pairs=mesh.pairs.astype(np.int64),
+        pairs=topo.pairs,
         frame_rot=frame.rot.astype(np.float64),
         fapu=dict(fapu),
-        head_weight=head_w,
+        head_weight=topo.head_w,
         depth=depth,
         pivot=frame.to_image(pivot_f),
         eye_radius=fapu["IRISD"] * 1024.0,

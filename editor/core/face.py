@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -91,8 +91,12 @@ class Face:
     #: shape + identity modes, :attr:`OwnExpression.neutral68`); None: the photo's landmarks
     #: moved back by f0's motion
     neutral_landmarks: np.ndarray | None = field(default=None, repr=False)
+    #: (FAPU, plan) of ``vertices`` if the caller has them (a copy of a face declared neutral):
+    #: the neutralisation starts from them instead of building them again
+    photo_plan: InitVar[tuple[dict[str, float], DeformPlan] | None] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, photo_plan: tuple[dict[str, float], DeformPlan] | None = None
+                      ) -> None:
         self.image = np.ascontiguousarray(self.image)
         self.image.setflags(write=False)
         self.vertices = np.asarray(self.vertices, np.float32)
@@ -101,7 +105,8 @@ class Face:
             FAPS.clamp(FAPS.vector(self.expression))
         self.expression = f0
         self.expression.setflags(write=False)
-        self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(f0)
+        self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(
+            f0, photo_plan=photo_plan)
 
     def _measure_fapu(self, vertices: np.ndarray) -> dict[str, float]:
         lm = self.landmarks
@@ -115,7 +120,8 @@ class Face:
                           _extra_points(self.mesh, vertices, self.landmarks, fapu))
         return fapu, plan
 
-    def _neutralise(self, f0: np.ndarray, rounds: int = 3
+    def _neutralise(self, f0: np.ndarray, rounds: int = 3,
+                    photo_plan: tuple[dict[str, float], DeformPlan] | None = None
                     ) -> tuple[np.ndarray, dict[str, float], DeformPlan, np.ndarray | None]:
         """Neutral mesh N, its FAPU and plan, and the offset ``r = P - (N + D_N(f0))`` over all
         points (None when f0 = 0).
@@ -131,7 +137,7 @@ class Face:
         from .cloning import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
 
         P = self.vertices
-        fapu, plan = self._build(P)
+        fapu, plan = self._build(P) if photo_plan is None else photo_plan
         if not f0.any():
             return P, fapu, plan, None
         V = len(P)
@@ -234,7 +240,8 @@ class Face:
                 return base
             face = base.with_expression(own.faps, own.words)
         return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source,
-                    face.expression, face.expression_words, own.neutral68)
+                    face.expression, face.expression_words, own.neutral68,
+                    photo_plan=base._photo_plan())
 
     def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
         """A copy with another own expression f0 (None or zeros: the photo is neutral)."""
@@ -242,7 +249,11 @@ class Face:
         if words is None:
             words = "neutral" if vec is None or not vec.any() else "edited"
         return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, vec,
-                    words)
+                    words, photo_plan=self._photo_plan())
+
+    def _photo_plan(self) -> tuple[dict[str, float], DeformPlan] | None:
+        """FAPU and plan of the photo's mesh if this face has them (declared neutral)."""
+        return None if self.expression.any() else (dict(self.fapu), self.plan)
 
     @classmethod
     def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:

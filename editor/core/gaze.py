@@ -251,8 +251,14 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     return out
 
 
+def _clamp(x, lo, hi):
+    """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
+    (several microseconds a call, as much as the arithmetic on a small layer box)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
 def _smooth01(t: np.ndarray) -> np.ndarray:
-    t = np.clip(t, 0.0, 1.0)
+    t = _clamp(t, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 
@@ -292,6 +298,9 @@ class EyePlan:
     band_low: float
     lid_up: np.ndarray  # (7, 2) neutral upper lid c0, u1..u5, c1 (frame, iris-centred)
     lid_low: np.ndarray  # (7, 2) neutral lower lid c0, d1..d5, c1
+
+    def __post_init__(self) -> None:
+        self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
 
     @classmethod
     def build(cls, image: np.ndarray, vertices: np.ndarray, hole: np.ndarray, name: str,
@@ -402,18 +411,21 @@ class EyePlan:
         neutral eye's frame (iris-centred), through the inverse of ``sim``."""
         inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
-        f = np.stack([n @ self.ex, n @ self.ey], -1)
-        return f[[0, 1, 2, 3, 4, 5, 6]], f[[0, 11, 10, 9, 8, 7, 6]]
+        f = n @ self._exy
+        return f[_UP], f[_LOW]
 
-    def lid_opening(self, poly: np.ndarray, sim: np.ndarray) -> float:
+    def lid_opening(self, poly: np.ndarray, sim: np.ndarray,
+                    lids: tuple[np.ndarray, np.ndarray] | None = None) -> float:
         """How far (px, neutral frame) the lids moved away from the eye's centre at most:
-        > 0 when an upper lid was raised or a lower lid lowered."""
-        up, low = self.lid_frame(poly, sim)
-        return float(max((self.lid_up[1:-1, 1] - up[1:-1, 1]).max(),
-                         (low[1:-1, 1] - self.lid_low[1:-1, 1]).max()))
+        > 0 when an upper lid was raised or a lower lid lowered. ``lids``: the
+        :meth:`lid_frame` of ``poly`` and ``sim`` when the caller has it already."""
+        up, low = self.lid_frame(poly, sim) if lids is None else lids
+        return float(np.maximum(self.lid_up[1:-1, 1] - up[1:-1, 1],
+                                low[1:-1, 1] - self.lid_low[1:-1, 1]).max())
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
-               r_new: float, p_new: float, poly: np.ndarray | None = None) -> np.ndarray:
+               r_new: float, p_new: float, poly: np.ndarray | None = None,
+               lids: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
 
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
@@ -423,19 +435,20 @@ class EyePlan:
         photo's shadow band along that lid is replaced by it as well (the shadow travels with
         the lid; the iris keeps its own pixels and catch-lights) and the raised upper lid casts
         a soft shadow on what it uncovers. Each column fades in over its lid's first
-        pixel of motion.
+        pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known.
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
         x0, y0, x1, y1 = box
         inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
-        xs = np.arange(x0, x1, dtype=np.float64)[None, :]
-        ys = np.arange(y0, y1, dtype=np.float64)[:, None]
-        nx = inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2] - self.centre[0]
-        ny = inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2] - self.centre[1]
+        xs = np.arange(x0, x1, dtype=np.float64)
+        ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
-        U = nx * ex[0] + ny * ex[1]
-        W = nx * ey[0] + ny * ey[1]
+        # (u, w) of every pixel: affine in x and y, so one row plus one column each
+        cu = self._exy.T @ inv[:, :2]  # (u, w) per unit of x (column 0) and of y (column 1)
+        c0 = (inv[:, 2] - self.centre) @ self._exy
+        U = (cu[0, 0] * xs + c0[0])[None, :] + (cu[0, 1] * ys)[:, None]
+        W = (cu[1, 0] * xs + c0[1])[None, :] + (cu[1, 1] * ys)[:, None]
         du, dw = float(shift[0]), float(shift[1])
         # the white: stretch / translate horizontally
         Us, Ws = U, W
@@ -459,59 +472,76 @@ class EyePlan:
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))
         t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
-        plate = self.plate if t >= 1.0 else self.photo + t * (self.plate - self.photo)
+        plate = self.plate if t >= 1.0 else self.photo if t <= 0.0 else \
+            self.photo + t * (self.plate - self.photo)
         white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         # opened lids: per pixel, how far its column's lid moved away and the weight of the
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep, shadow = None, None
         if poly is not None:
-            up, low = self.lid_frame(poly, sim)
+            up, low = self.lid_frame(poly, sim) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
             w_up = np.interp(U, up[:, 0], up[:, 1])
             w_up0 = np.interp(U, su[:, 0], su[:, 1])
             w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
             s_up = _smooth01(w_up0 - w_up)
             s_lo = _smooth01(np.interp(U, low[:, 0], low[:, 1]) - w_lo0)
-            if s_up.any() or s_lo.any():
-                keep = ((1.0 - s_up * (1.0 - np.clip(W - w_up0 - self.band_up + 0.5, 0, 1)))
-                        * (1.0 - s_lo * (1.0 - np.clip(w_lo0 - W - self.band_low + 0.5, 0, 1)))
-                        ).astype(np.float32)[..., None]
+            up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
+            if up_moved or low_moved:
+                # (a lid that did not open contributes a factor of exactly 1: skipped)
+                keep = 1.0 - s_up * (1.0 - _clamp(W - w_up0 - self.band_up + 0.5, 0, 1)) \
+                    if up_moved else None
+                if low_moved:
+                    k_lo = 1.0 - s_lo * (1.0 - _clamp(w_lo0 - W - self.band_low + 0.5, 0, 1))
+                    keep = k_lo if keep is None else keep * k_lo
+                keep = keep.astype(np.float32)[..., None]
                 ball = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
                                  borderMode=cv2.BORDER_REPLICATE)
                 white = ball + keep * (white - ball)
-                fall = LID_SHADOW_FALL * self.r0
-                shadow = (1.0 - LID_SHADOW * s_up
-                          * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
+                if up_moved:
+                    fall = LID_SHADOW_FALL * self.r0
+                    shadow = (1.0 - LID_SHADOW * s_up
+                              * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du
         Dw = W - dw
         rho = np.sqrt(Di * Di + Dw * Dw)
-        a = np.clip(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
-        if not a.any():
+        a = _clamp(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
+        if not np.count_nonzero(a):
             return white if shadow is None else white * shadow[..., None]
-        rn = rho / max(r_new, 1e-6)
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
-        rs = np.where(rn < pn, rn * pn0 / pn,
-                      pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * self.r0
-        k = rs / np.maximum(rho, 1e-6)
-        ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
-        iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
+        if du == 0.0 and dw == 0.0 and abs(r_new - self.r0) <= 1e-9 * self.r0 \
+                and abs(pn - pn0) <= 1e-12:
+            # the iris as in the photo (no gaze, thrust or pupil change): the radial map is
+            # the identity, the sprite is sampled where the white is
+            ix, iy = mx, my
+        else:
+            rn = rho / max(r_new, 1e-6)
+            rs = np.where(rn < pn, rn * pn0 / pn,
+                          pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * self.r0
+            k = rs / np.maximum(rho, 1e-6)
+            ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
+            iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
         iris = cv2.remap(self.iris, ix, iy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         p_rest = self.p0 * r_new / self.r0
         if p_new > p_rest:
             # a dilated pupil: the photo's pupil, radially stretched, may be faint (brown
             # irises); a dark disc of the pupil's colour fades in, sparing the catch-lights
             w = min((p_new - p_rest) / max(1.0, 0.3 * p_rest), 1.0)
-            ap = np.clip(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
+            ap = _clamp(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
             lum = iris @ np.array([0.299, 0.587, 0.114], np.float32)
             ap *= 1.0 - np.clip((lum - 1.3 * self.iris_lum) / (0.3 * self.iris_lum + 1.0),
                                 0.0, 1.0)
             ap = ap[..., None]
             iris = iris * (1.0 - ap) + self.pupil * ap
         a = a.astype(np.float32)[..., None]
-        col = iris * a + white * (1.0 - a)
-        return col if shadow is None else col * shadow[..., None]
+        col = iris * a
+        white *= 1.0 - a  # (white is this frame's own array)
+        col += white
+        if shadow is not None:
+            col *= shadow[..., None]
+        return col
 
 
     def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray
@@ -525,8 +555,11 @@ class EyePlan:
         lid-margin texture of the warp by one clean, slightly curved line.
         """
         x, y = poly[:, 0], poly[:, 1]
-        area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        nxt = _NEXT if len(poly) == len(_NEXT) else np.roll(np.arange(len(poly)), -1)
+        area = 0.5 * abs(float(np.dot(x, y[nxt]) - np.dot(y, x[nxt])))
         c = 1.0 - area / max(self.area0, 1e-6)
+        if c <= 0.6:  # no closure yet: no lash line (the fade below is 0)
+            return None
         fade = float(_smooth01(np.array((c - 0.6) / 0.3)))
         if fade <= 0.0:
             return None
@@ -538,15 +571,20 @@ class EyePlan:
         a, b = line[:-1], line[1:]  # segments
         d = b - a
         L2 = np.maximum((d * d).sum(1), 1e-9)
-        tt = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / L2, 0.0, 1.0)
+        tt = _clamp(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / L2, 0.0, 1.0)
         qx = a[:, 0] + tt * d[:, 0] - px
         qy = a[:, 1] + tt * d[:, 1] - py
         dist = np.sqrt(qx * qx + qy * qy)  # (w, h, segments)
         k = dist.argmin(-1)
         s = (k + np.take_along_axis(tt, k[..., None], -1)[..., 0]) / len(a)  # 0..1 along
         thick = max(1.2, 0.35 * self.r0) * (0.4 + 0.6 * np.sin(np.pi * s))
-        alpha = np.clip(0.5 * thick + 0.5 - dist.min(-1), 0.0, 1.0) * fade
+        alpha = _clamp(0.5 * thick + 0.5 - dist.min(-1), 0.0, 1.0) * fade
         return alpha.T.astype(np.float32), self.lash
+
+
+_UP = np.array([0, 1, 2, 3, 4, 5, 6])  # opening loop -> upper lid c0, u1..u5, c1
+_LOW = np.array([0, 11, 10, 9, 8, 7, 6])  # -> lower lid c0, d1..d5, c1
+_NEXT = np.roll(np.arange(12), -1)  # next vertex along the opening's loop
 
 
 def photo_through(img: np.ndarray, sim: np.ndarray, box: tuple[int, int, int, int]

@@ -25,9 +25,11 @@ them (skin lighting, its own teeth, what its mouth opening shows: :func:`_own_in
 
 from __future__ import annotations
 
+import math
 import time
 import weakref
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -35,7 +37,17 @@ import numpy as np
 
 from .deform import eye_state
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
-from .mouth import CROWN, GUM_FADE, MouthPlan, _lum, _poly_mask, _sat, _smoothstep
+from .mouth import (
+    CROWN,
+    GUM_FADE,
+    MouthPlan,
+    _clamp,
+    _lum,
+    _poly_mask,
+    _sat,
+    _smoothstep,
+    _smoothstep1,
+)
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -44,6 +56,7 @@ if TYPE_CHECKING:
 _SHIFT = 4
 _TOL = 1e-3
 _SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
+_EYE_FAP_IDX = {k: np.array(v) for k, v in EYE_FAPS.items()}
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 _SQUARE = np.ones((3, 3), np.uint8)
 
@@ -87,13 +100,21 @@ def layer_plan(face: Face) -> LayerPlan:
     return p
 
 
+@lru_cache(maxsize=4)
+def _opening_index(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The vertex loops of eye_l, eye_r and mouth concatenated, and where each starts."""
+    loops = [np.asarray(mesh.holes[k], np.intp) for k in ("eye_l", "eye_r", "mouth")]
+    cuts = np.cumsum([0] + [len(x) for x in loops[:-1]])
+    return np.concatenate(loops), cuts
+
+
 def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
     h, w = shape[:2]
-    lo, hi = poly.min(0), poly.max(0)
-    x0 = min(max(int(np.floor(lo[0])) - pad, 0), w)
-    y0 = min(max(int(np.floor(lo[1])) - pad, 0), h)
-    x1 = min(max(int(np.ceil(hi[0])) + pad + 1, 0), w)
-    y1 = min(max(int(np.ceil(hi[1])) + pad + 1, 0), h)
+    (lx, ly), (hx, hy) = poly.min(0).tolist(), poly.max(0).tolist()
+    x0 = min(max(math.floor(lx) - pad, 0), w)
+    y0 = min(max(math.floor(ly) - pad, 0), h)
+    x1 = min(max(math.ceil(hx) + pad + 1, 0), w)
+    y1 = min(max(math.ceil(hy) + pad + 1, 0), h)
     return x0, y0, x1, y1
 
 
@@ -101,13 +122,16 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
     x0, y0, x1, y1 = box
     m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.round((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
+    q = np.rint((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
-    return m.astype(bool)
+    return m.view(bool)  # 0 / 1 bytes
+
+
+_IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def _is_identity(m: np.ndarray, tol: float = 1e-4) -> bool:
-    return bool(np.abs(np.asarray(m) - np.array([[1, 0, 0], [0, 1, 0]])).max() < tol)
+    return bool(np.abs(np.asarray(m) - _IDENTITY).max() < tol)
 
 
 def _union(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int]
@@ -132,15 +156,15 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     inside = hole.astype(np.uint8)
     depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
-    lips = face[inside == 0].astype(np.float32)  # labels number the zero pixels row by row
-    rim = lips[np.clip(labels - 1, 0, len(lips) - 1)] if len(lips) else \
-        np.zeros(face.shape, np.float32)
+    lips = face[~hole]  # labels number the zero pixels row by row
+    rim = np.take(lips, labels - 1, axis=0, mode="clip").astype(np.float32) if len(lips) \
+        else np.zeros(face.shape, np.float32)
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
-    s = float(np.clip(0.03 * D, 0.7, 1.5))
+    s = min(max(0.03 * D, 0.7), 1.5)
     spread = cv2.GaussianBlur(alpha, (0, 0), s)
-    shade = 1.0 - 0.35 * strength * np.clip(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
+    shade = 1.0 - 0.35 * strength * _clamp(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
     return rim, depth, shade.astype(np.float32)
 
 
@@ -155,15 +179,23 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     """
     x0, y0, x1, y1 = box
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.round((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
+    q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3, cv2.LINE_8, _SHIFT)
-    w = band.astype(np.float32) * np.clip(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
-    if not w.any():
+    w = band.astype(np.float32) * _clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
+    if not np.count_nonzero(w):
         return
     patch = out[y0:y1, x0:x1]
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE)
     res = patch + w[..., None] * (opened.astype(np.float32) - patch)
-    out[y0:y1, x0:x1] = np.clip(res + 0.5, 0, 255).astype(np.uint8)
+    _to_uint8(res, out[y0:y1, x0:x1])
+
+
+def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
+    """``dst[:] = clip(res + 0.5, 0, 255)`` truncated to uint8, in place (``res`` is used up)."""
+    res += 0.5
+    np.maximum(res, 0, out=res)
+    np.minimum(res, 255, out=res)
+    np.copyto(dst, res, casting="unsafe")
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
@@ -174,16 +206,18 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     face = out[y0:y1, x0:x1].astype(np.float32)
     if shade is not None:
         face *= shade[..., None]
-    if hole.any():
+    if np.count_nonzero(hole):
         keep = (~hole).astype(np.float32)
         num = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
                             borderType=cv2.BORDER_REPLICATE)
         den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
-        ext = num / np.maximum(den, 1e-6)[..., None]
-        face = np.where(hole[..., None] & (den[..., None] > 0.5), ext, face)
+        num /= np.maximum(den, 1e-6)[..., None]
+        np.copyto(face, num, where=(hole & (den > 0.5))[..., None])
     a = alpha[..., None]
-    res = interior * a + face * (1.0 - a)
-    out[y0:y1, x0:x1] = np.clip(res + 0.5, 0, 255).astype(np.uint8)
+    res = interior * a
+    face *= 1.0 - a
+    res += face
+    _to_uint8(res, out[y0:y1, x0:x1])
 
 
 def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
@@ -193,21 +227,23 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     ``v`` deformed vertices (V, 2), ``extra`` the deformed extra points (3.5, 3.6, 6.1-6.4),
     ``faps`` the clamped FAP vector, ``transforms`` :meth:`Face.layer_transforms` of ``v``.
     """
-    plan_src = face.vertices
     out = res.image
     img = face.image
     jobs = []
+    # how far each opening's outline moved (one gather for the three) and the irises
+    idx_all, cuts = _opening_index(face.mesh)
+    polys = v[idx_all]
+    far = np.maximum.reduceat(np.abs(polys - face.vertices[idx_all]).max(1), cuts).tolist()
+    V = face.plan.n_vertices
+    iris_far = np.abs(extra[:2] - face.plan.neutral[V:V + 2]).max(1).tolist()  # 3.5, 3.6
+    ends = [*cuts.tolist(), len(idx_all)]
     # ---- eyes
     state = None
-    for name in ("eye_l", "eye_r"):
-        hole_idx = face.mesh.holes[name]
-        poly = v[hole_idx]
-        moved = float(np.abs(poly - plan_src[hole_idx]).max())
-        idx = list(EYE_FAPS[name])
-        eye_faps = bool(np.any(faps[idx]))
-        iris_dst = extra[EXTRA_INDEX[name]]
-        iris_moved = bool(np.abs(iris_dst - face.plan.neutral[face.plan.n_vertices
-                                                               + EXTRA_INDEX[name]]).max() > _TOL)
+    for k_open, name in enumerate(("eye_l", "eye_r")):
+        poly = polys[ends[k_open]:ends[k_open + 1]]
+        moved = far[k_open]
+        eye_faps = np.count_nonzero(faps[_EYE_FAP_IDX[name]]) > 0
+        iris_moved = iris_far[EXTRA_INDEX[name]] > _TOL
         sim = transforms[name]
         if not (moved > _TOL or eye_faps or iris_moved or not _is_identity(sim)):
             continue
@@ -216,10 +252,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lm = face.landmarks
             state = eye_state(face.plan, faps, np.array([lm.iris_left.r, lm.iris_right.r]))
     # ---- mouth
-    hole_idx = face.mesh.holes["mouth"]
-    poly = v[hole_idx]
+    poly = polys[ends[2]:]
     skull = transforms["mouth"]
-    moved = float(np.abs(poly - plan_src[hole_idx]).max())
+    moved = far[2]
     if moved > _TOL or not _is_identity(skull):
         jobs.append(("mouth", "mouth", poly, skull, True, moved))
     if not jobs:
@@ -245,8 +280,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             alpha += (t * t * (3.0 - 2.0 * t)) * (cov - alpha)
         lip_shade = None
         if kind == "mouth":
+            fade_in = _smoothstep1(min(moved, 1.0))
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
-                                               _smoothstep(min(moved, 1.0)))
+                                               fade_in)
             interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)
         else:
             ep = lp.eyes[name]
@@ -256,14 +292,15 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 shift = ep.gaze_shift(extra[k], tf)
             else:
                 r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-            if active or ep.lid_opening(poly, tf) > _TOL:
+            lids = ep.lid_frame(poly, tf)
+            if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
         _composite(out, box, alpha, hole, interior, lip_shade)
         if kind == "mouth":
-            _clean_lip_line(out, box, poly, alpha, _smoothstep(min(moved, 1.0)))
+            _clean_lip_line(out, box, poly, alpha, fade_in)
         else:
             lash = lp.eyes[name].lash_line(box, poly)
             if lash is not None:  # a closing eye: one clean lash line where the lids meet
@@ -271,7 +308,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 x0, y0, x1, y1 = box
                 o = out[y0:y1, x0:x1].astype(np.float32)
                 la = la[..., None]
-                out[y0:y1, x0:x1] = np.clip(o + la * (col - o) + 0.5, 0, 255).astype(np.uint8)
+                _to_uint8(o + la * (col - o), out[y0:y1, x0:x1])
         drawn[name] = (box, hole)
         bbox = _union(bbox, box)
     if bbox == res.bbox:
@@ -464,8 +501,11 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     if h <= 0 or w <= 0:
         return np.zeros((max(h, 0), max(w, 0)), np.float32)
     big = np.zeros((h * ss, w * ss), np.uint8)
-    q = ((np.asarray(poly, np.float64) - (x0, y0)) + 0.5) * ss - 0.5
-    cv2.fillPoly(big, [np.round(q * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
+    # sample grid, 4 fractional bits: ((p - box origin) + 0.5) * ss - 0.5, times 16, in one
+    # product and one sum (exact in float64 for power-of-two ss, as the step-by-step form)
+    k = 16.0 * ss
+    q = np.asarray(poly, np.float64) * k + (8.0 * ss - 8.0 - k * np.array([x0, y0]))
+    cv2.fillPoly(big, [np.rint(q).astype(np.int32)], 255, cv2.LINE_8, 4)
     # OpenCV also fills every sample the outline touches: remove that rim (a zero-area polygon,
     # e.g. closed lids, then covers nothing)
     if not dilate:

@@ -26,8 +26,9 @@ cheeks' skin, teeth colour from the photo's own teeth when it shows some.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import cv2
 import numpy as np
@@ -259,33 +260,33 @@ class MouthPlan:
         x0, y0, x1, y1 = box
         S = np.asarray(skull, np.float64)
         L = S[:, :2]
-        sc = float(np.sqrt(abs(np.linalg.det(L)))) or 1.0
-        ex = L @ self.ex
-        ex /= np.linalg.norm(ex)
-        ey = L @ self.ey
-        ey /= np.linalg.norm(ey)
+        sc = math.sqrt(abs(L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])) or 1.0
+        E = L @ self._exy  # the frame axes turned with the skull (columns), normalised
+        E /= np.sqrt((E * E).sum(0))
+        ex, ey = E[:, 0], E[:, 1]
         xs = np.arange(x0, x1, dtype=np.float64)[None, :]
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
         O = v[self.i93].astype(np.float64)
         Qx = (xs - O[0]) * ex[0] + (ys - O[1]) * ex[1]
         Qy = (xs - O[0]) * ey[0] + (ys - O[1]) * ey[1]
 
-        def fr(p: np.ndarray) -> np.ndarray:
-            d = np.asarray(p, np.float64) - O
-            return np.stack([d @ ex, d @ ey], -1)
-
-        q21, q23 = fr(v[self.i21]), fr(v[self.i23])
+        # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
+        # upper lip, the opening's loop
+        fp = (v[self._frame_idx].astype(np.float64) - O) @ E
+        q21, q23 = fp[0], fp[1]
+        n_lip = len(self.upper_lip)
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
-        lip = fr(v[self.upper_lip])
-        order = np.argsort(lip[:, 0])
-        y_up = np.interp(Qx, lip[order, 0], lip[order, 1])
-        hole = fr(v[self.hole])
-        cxm = 0.5 * (hole[:, 0].min() + hole[:, 0].max())
-        hw = max(0.5 * float(np.ptp(hole[:, 0])), 1.0)
-        hh = max(0.5 * float(np.ptp(hole[:, 1])), 1.0)
-        cym = 0.5 * (hole[:, 1].min() + hole[:, 1].max())
-        side = np.clip(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        lip = fp[2:2 + n_lip]
+        lip = lip[np.argsort(lip[:, 0])]
+        y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
+        hole = fp[2 + n_lip:]
+        (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)
+        cxm = 0.5 * (lo_h + hi_h)
+        hw = max(0.5 * float(hi_h - lo_h), 1.0)
+        hh = max(0.5 * float(hi_v - lo_v), 1.0)
+        cym = 0.5 * (lo_v + hi_v)
+        side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
         shade = (1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)
         shade = shade.astype(np.float32)[..., None]
@@ -327,8 +328,11 @@ class MouthPlan:
                              shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
-        sx = Si[0, 0] * xs + Si[0, 1] * ys + Si[0, 2]
-        sy = Si[1, 0] * xs + Si[1, 1] * ys + Si[1, 2]
+        # where each pixel samples the photo's own interior (its patch's pixels): skull part
+        ofx, ofy = self.own_off
+        sx = Si[0, 0] * xs + Si[0, 1] * ys + (Si[0, 2] - ofx)
+        sy = Si[1, 0] * xs + Si[1, 1] * ys + (Si[1, 2] - ofy)
+        mx, my = sx.astype(np.float32), sy.astype(np.float32)
         anchor = O + q21[0] * ex + y_lb * ey
         tj = anchor - (L @ self.anchor0 + S[:, 2])
         tjs = Si[:, :2] @ tj
@@ -337,30 +341,49 @@ class MouthPlan:
                              hu, shade, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
-        gap = (v[self.lip_pairs[:, 1]] - v[self.lip_pairs[:, 0]]).astype(np.float64) @ ey
-        fade = 1.0 - _smoothstep(float((gap - self.gap0).max()) / 2.0)
-        a_up, p_up = self._own(sx, sy, 0, fade)
-        a_lo, p_lo = self._own(sx - tjs[0], sy - tjs[1], 1, fade)
+        lp_u, lp_d = self._lip_idx
+        gap = (v[lp_d] - v[lp_u]).astype(np.float64) @ ey
+        fade = 1.0 - _smoothstep1(float((gap - self.gap0).max()) / 2.0)
+        a_up, p_up = self._own(mx, my, 0, fade)
+        a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
+                               (sy - tjs[1]).astype(np.float32), 1, fade)
         if a_up is not None and self.photo_upper:
             # the continued teeth: a light shadow right under the lip (the photo's own top
             # row, which they repeat, already carries the photo's lip shadow) and the drawn
             # layers' darker corners
-            e = cv2.remap(self.ext, (sx - self.own_off[0]).astype(np.float32),
-                          (sy - self.own_off[1]).astype(np.float32), cv2.INTER_LINEAR,
+            e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * (1.0 - 0.35 * side * side)
             p_up = p_up * (1.0 - e * (1.0 - k.astype(np.float32)))[..., None]
         if a_up is not None or a_lo is not None:
-            rest = np.ones_like(out[..., :1])
+            rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
             if a_up is not None:
                 out = out * (1.0 - a_up) + p_up * a_up
                 rest = 1.0 - a_up
             if a_lo is not None:
-                a_lo = np.minimum(a_lo, rest)
-                out = out + (p_lo - out) * (a_lo / np.maximum(rest, 1e-6))
+                if rest is not None:
+                    a_lo = np.minimum(a_lo, rest)
+                    a_lo /= np.maximum(rest, 1e-6)
+                out = out + (p_lo - out) * a_lo
         if alpha is not None:
             out = _thin_gap(out, cav, alpha, D)
         return out
+
+    @cached_property
+    def _exy(self) -> np.ndarray:
+        """(2, 2) the neutral frame axes ex, ey as columns."""
+        return np.stack([self.ex, self.ey], 1).astype(np.float64)
+
+    @cached_property
+    def _lip_idx(self) -> tuple[np.ndarray, np.ndarray]:
+        """The inner upper and lower lip vertices of :attr:`lip_pairs` (contiguous)."""
+        return (np.ascontiguousarray(self.lip_pairs[:, 0]),
+                np.ascontiguousarray(self.lip_pairs[:, 1]))
+
+    @cached_property
+    def _frame_idx(self) -> np.ndarray:
+        """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
+        return np.concatenate([[self.i21, self.i23], self.upper_lip, self.hole]).astype(np.intp)
 
     def _over(self, out, name, qx, qy, left, top, ww, hh, shade, gum=False):
         t = self.tex[name]
@@ -371,17 +394,18 @@ class MouthPlan:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=(0, 0, 0, 0))
-        return s[..., :3] * shade + (1.0 - s[..., 3:4]) * out
+        res = s[..., :3] * shade
+        res += (1.0 - s[..., 3:4]) * out
+        return res
 
-    def _own(self, sx, sy, k, fade):
-        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part."""
-        mx = (sx - self.own_off[0]).astype(np.float32)
-        my = (sy - self.own_off[1]).astype(np.float32)
+    def _own(self, mx, my, k, fade):
+        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part;
+        ``mx``, ``my`` (h, w) float32: positions in the own interior's patch."""
         src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
             self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
         a = cv2.remap(src, mx, my, cv2.INTER_LINEAR,
                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        if not a.any():
+        if not np.count_nonzero(a):
             return None, None
         px = cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR,
                        borderMode=cv2.BORDER_REPLICATE)
@@ -390,7 +414,7 @@ class MouthPlan:
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
         f = np.asarray(faps, np.float64)
-        if not (np.any(f[42:46]) or f[46]):
+        if not f[42:47].any():  # FAPs 43-47
             return None
         d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
         lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)
@@ -430,15 +454,30 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     px, 0.08 D) everything.
     """
     lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
-    k = 2 * int(np.ceil(lo + ramp)) + 3
+    k = 2 * math.ceil(lo + ramp) + 3
     h = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
-                      borderType=cv2.BORDER_CONSTANT) / np.float32(3.0)
-    vis = _smoothstep((h - lo) / ramp).astype(np.float32)[..., None]
+                      borderType=cv2.BORDER_CONSTANT)
+    h /= np.float32(3.0)
+    h -= lo
+    h /= ramp
+    vis = _smoothstep(h).astype(np.float32, copy=False)[..., None]
     return cav + vis * (out - cav)
 
 
+def _clamp(x, lo, hi):
+    """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
+    (several microseconds a call, as much as the arithmetic on a small layer box)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
+def _smoothstep1(t: float) -> np.float64:
+    """:func:`_smoothstep` of one number in Python arithmetic (the same value and type)."""
+    t = min(max(t, 0.0), 1.0)
+    return np.float64(t * t * (3.0 - 2.0 * t))
+
+
 def _smoothstep(t: np.ndarray | float) -> np.ndarray:
-    t = np.clip(t, 0.0, 1.0)
+    t = _clamp(t, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 

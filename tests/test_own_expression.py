@@ -264,3 +264,14 @@ def test_photo_lip_offset_follows_the_opening(sample_face):
     np.testing.assert_allclose(gaps(f.deform(0.5 * f.expression)), 0.5 * photo, atol=0.15)
     assert (gaps(f.deform(apply_preset("joy")))[1:-1] > 0.02 * f.interocular).all()
     assert np.abs(gaps(f.deform(apply_preset("viseme_pbm")))).max() < 1e-3
+
+
+def test_neutralising_moves_only_what_faps_move(sample_face):
+    """The neutral mesh differs from the photo's only where FAPs act: the margin and the image
+    border stay, so a frame re-warps the face region, not the whole photo."""
+    f = sample_face
+    V = f.plan.n_vertices
+    moved = np.abs(f.deform(None) - f.vertices).max(1) > 1e-4
+    still = ~np.abs(f.plan.basis[:, :V]).any(axis=(0, 2))
+    assert still.any() and not moved[still].any()
+    assert not moved[f.mesh.regions == "margin"].any()

@@ -128,7 +128,8 @@ class Face:
 
         N is the photo's mesh P with its landmarks moved back by the motion f0 gives them on N
         (a fixed point: FAPU and influence are the neutral's), keeping P's local shape
-        (Laplacian editing, :class:`~editor.core.cloning.LaplacianDeformer`, border fixed); the
+        (Laplacian editing, :class:`~editor.core.cloning.LaplacianDeformer`, what no FAP moves
+        fixed); the
         inner lips of the neutral meet. Undoing f0 vertex by vertex (``N = P - D_N(f0)``)
         folds where the FAP influence does not match the photo's expression: on an open smile
         the upper lip next to the corners drops below them, and the fold guard then keeps the
@@ -144,8 +145,11 @@ class Face:
         target = plan.neutral.astype(np.float64)  # photo mesh + extra points at rest
         plan_p = plan
         A = landmark_map(P, self.mesh.triangles, self.mesh.names, self.landmarks.points)
-        lap = LaplacianDeformer(P, self.mesh.triangles, A, self.mesh.regions == "border", MU,
-                                CONSTRAINT_WEIGHTS)
+        # what no FAP moves stays where the photo has it (margin, border, hair, ears): the
+        # neutral differs from the photo only where expressions act, so a frame warps only
+        # that region (a free margin moved every vertex: each frame warped the whole image)
+        still = ~np.abs(plan.basis[:, :V]).any(axis=(0, 2)) | (self.mesh.regions == "border")
+        lap = LaplacianDeformer(P, self.mesh.triangles, A, still, MU, CONSTRAINT_WEIGHTS)
         x = A @ target[:V]
         ey = self.frame.rot[:, 1]
         up, low = np.array([61, 62, 63]), np.array([67, 66, 65])

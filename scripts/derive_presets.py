@@ -66,6 +66,12 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "c_raise": (420, "AU12, joy's defining action: set so the outer corners rise ~0.11 "
                          "pupil distances, the real median (the plain fit gave 355, held down "
                          "by the inner corners' smaller rise)"),
+        "b_mid": (-60, "AU25 parts the lips: set so that the inner lips part (2.3 - 2.2) by "
+                       "the real median; JAFFE smiles are closed (at most 175 MNS, 15 of 31) "
+                       "or open (at least 331, 16 of 31), median 332: the plain fit (55, the "
+                       "lower lip point's band is wide and weighs little) parted them by 215, "
+                       "a slit between the two no real smile shows, which renders as a dark "
+                       "line instead of the teeth"),
     },
     "sadness": {
         18: (100, "AU17 chin raiser, common in sadness (MPEG-4 FAP 18 'as in sadness'); no "

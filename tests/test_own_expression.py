@@ -275,3 +275,42 @@ def test_neutralising_moves_only_what_faps_move(sample_face):
     still = ~np.abs(f.plan.basis[:, :V]).any(axis=(0, 2))
     assert still.any() and not moved[still].any()
     assert not moved[f.mesh.regions == "margin"].any()
+
+
+def test_photo_lip_offset_scales_with_the_rendered_opening(sample_face):
+    """A vector opens each inner-lip pair by its FAP model's gap (as deform renders it, the
+    inner/outer lip pairs' shared part moved once) times the photo's gap over the model's at
+    f0 (main before: joy's share was taken from the basis without that correction, 1.73 px in
+    the middle where this gives 1.88, and the corner pairs lost more to the fold guard)."""
+    from editor.core.deform import deform_points
+
+    f = sample_face
+    ey = f.frame.rot[:, 1]
+    pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]
+
+    def gaps(v):
+        return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
+
+    photo, model0 = gaps(f.vertices), gaps(deform_points(f.plan, f.expression))
+    assert (model0 > photo + 0.5).all()  # the case at hand: the model over-opens the photo
+    for k in (1.0, 1.5):
+        joy = f.fap_vector(apply_preset("joy", k))
+        want = gaps(deform_points(f.plan, joy)) * photo / model0
+        np.testing.assert_allclose(gaps(f.deform(joy)), want, atol=0.03)
+
+
+def test_photo_offset_folds_no_smile_corner(sample_face):
+    """The offset must not turn the sliver triangles at the mouth corners inside out for a
+    vector that opens them less than f0 (main before: joy folded both, the guard then took
+    2-6 px of the corners' rise away, unevenly left and right)."""
+    from editor.core.deform import deform_points
+
+    f = sample_face
+    joy = f.fap_vector(apply_preset("joy"))
+    got = f.deform(joy).astype(np.float64)
+    lin = deform_points(f.plan, joy).astype(np.float64) + f.own_share(joy) * f._offset
+    for n in ("lipi_c0", "lipo_c0", "lipi_c1", "lipo_c1"):
+        i = f.mesh.index(n)
+        assert np.abs(got[i] - lin[i]).max() < 0.5, (n, got[i] - lin[i])
+    s0 = np.sign(signed_areas(f.neutral_vertices.astype(np.float64), f.triangles))
+    assert (np.sign(signed_areas(got[: len(f.vertices)], f.triangles)) == s0).all()

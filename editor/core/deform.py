@@ -322,11 +322,18 @@ def _pair_rule(plan: DeformPlan, pos: np.ndarray) -> None:
         pos[:, u], pos[:, lo] = pu, pl
 
 
-def _tau(plan: DeformPlan, D: np.ndarray) -> np.ndarray:
-    """First t in (0, 1] where a triangle's area reaches EPS_SOLVE of its neutral area. (B, T)."""
+def _tau(plan: DeformPlan, D: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
+    """First t in (0, 1] where a triangle's area reaches EPS_SOLVE of its neutral area. (B, T).
+
+    ``base`` (B, V, 2): the displacement ``D`` starts from these positions instead of the
+    neutral; a triangle already at or below the limit there is not constrained (t = 1).
+    """
     t = plan.triangles
-    tn = plan.tri_neutral  # (T, 3, 2) neutral corners, precomputed
-    A0, B0, C0 = tn[:, 0], tn[:, 1], tn[:, 2]
+    if base is None:
+        tn = plan.tri_neutral  # (T, 3, 2) neutral corners, precomputed
+        A0, B0, C0 = tn[:, 0], tn[:, 1], tn[:, 2]
+    else:
+        A0, B0, C0 = base[:, t[:, 0]], base[:, t[:, 1]], base[:, t[:, 2]]
     dA, dB, dC = D[:, t[:, 0]], D[:, t[:, 1]], D[:, t[:, 2]]
     u0, w0 = C0 - A0, C0 - B0
     du, dw = dC - dA, dC - dB
@@ -338,7 +345,13 @@ def _tau(plan: DeformPlan, D: np.ndarray) -> np.ndarray:
     sg = np.sign(c0)
     a2 = sg * cross(du, dw)
     a1 = sg * (cross(u0, dw) + cross(du, w0))
-    a0 = (1.0 - EPS_SOLVE) * np.abs(c0) * np.ones_like(a1)
+    if base is None:
+        a0 = (1.0 - EPS_SOLVE) * np.abs(c0) * np.ones_like(a1)
+    else:
+        a0 = sg * cross(u0, w0) - EPS_SOLVE * np.abs(c0)
+        a1 = np.where(a0 > 0, a1, 0.0)  # already at the limit: left to the guard
+        a2 = np.where(a0 > 0, a2, 0.0)
+        a0 = np.maximum(a0, 1e-12)
     lin = np.abs(a2) < 1e-12
     with np.errstate(divide="ignore", invalid="ignore"):
         r_lin = np.where(lin & (a1 < 0), -a0 / a1, np.inf)
@@ -350,6 +363,40 @@ def _tau(plan: DeformPlan, D: np.ndarray) -> np.ndarray:
     q2 = np.where(~lin & (disc >= 0) & (q2 > 0), q2, np.inf)
     first = np.minimum(np.minimum(q1, q2), r_lin)
     return np.where(first <= 1.0, first * 0.999, 1.0)
+
+
+def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int = 8
+                ) -> np.ndarray:
+    """The offset (B, N, 2) scaled per vertex so that it folds no triangle the FAP motion
+    ``base`` (B, N, 2) leaves unfolded.
+
+    A neutralised face's offset is the photo's shape the FAPs do not render, taken with the
+    share of the photo's expression a vector holds; where the photo's own motion opens a
+    triangle the offset then narrows (a smiling photo's mouth corner: the FAP model at f0 opens
+    the sliver between the inner and the outer corner to 4.2 px², the photo has 2.4), a vector
+    opening it less (joy: 1.0) is turned inside out, and the fold guard then took two thirds
+    of that vector's own motion off the whole corner. Here only the offset gives way, in the
+    triangles it folds (none at f0: the photo itself).
+    """
+    V = plan.n_vertices
+    D = off[:, :V]
+    base = base[:, :V]
+    pairs = plan.pairs
+    for _ in range(rounds):
+        tau = _tau(plan, D, base)
+        if (tau >= 1.0).all():
+            break
+        tau_pad = np.concatenate([tau, np.ones((tau.shape[0], 1))], 1)
+        f = tau_pad[:, plan.incidence].min(-1)
+        fp = np.minimum(f[:, pairs[:, 0]], f[:, pairs[:, 1]])
+        f[:, pairs[:, 0]] = fp
+        f[:, pairs[:, 1]] = fp
+        D = D * f[..., None]
+    if D is off[:, :V]:
+        return off
+    out = off.copy()
+    out[:, :V] = D
+    return out
 
 
 def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
@@ -436,7 +483,7 @@ def deform_points(plan: DeformPlan, faps: np.ndarray,
     n0 = plan.neutral64
     pos = _linear(plan, f)
     if offset is not None:
-        pos += offset
+        pos += _fit_offset(plan, pos, np.broadcast_to(offset, pos.shape))
     _pair_rule(plan, pos)
     if f[:, _NONLINEAR_IDX].any():
         pos = _nonlinear(plan, f, pos)

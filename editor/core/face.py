@@ -28,6 +28,7 @@ import numpy as np
 from .creases import apply_creases
 from .deform import (
     EXTRA_POINTS,
+    LIP_PAIRS,
     DeformPlan,
     build_plan,
     deform_points,
@@ -308,8 +309,8 @@ class Face:
         off = own * self._offset
         lip = self._lip_gap
         if lip is not None:
-            up, lo, G, g0, d = lip
-            s = np.clip(G @ np.asarray(vec, np.float64) / g0, 0.0, 1.0)
+            up, lo, G, Gc, g0, d = lip
+            s = np.clip(_fap_gap(G, Gc, vec) / g0, 0.0, 1.0)
             corr = (own - s)[:, None] * d
             off[up] += corr
             off[lo] -= corr
@@ -318,9 +319,9 @@ class Face:
     @cached_property
     def _lip_gap(self) -> tuple[np.ndarray, ...] | None:
         """Inner-lip pairs whose FAP model opens at the photo's own expression: upper and
-        lower vertex, the gap's FAP basis (P, 68) and its value at f0 over the neutral's gap
-        (pixels), and the offset's half difference (P, 2) across each pair (along the face's
-        vertical)."""
+        lower vertex, the gap's FAP basis (P, 68) and its inner/outer lip pairs' shared part
+        (P, 10) (see :func:`_fap_gap`), the gap at f0 over the neutral's (pixels), and the
+        offset's half difference (P, 2) across each pair (along the face's vertical)."""
         if self._offset is None:
             return None
         names = self.mesh.names
@@ -330,14 +331,16 @@ class Face:
         basis = self.plan.basis.astype(np.float64)
         G = (basis[:, lo] - basis[:, up]) @ ey  # (68, P): gap opened per FAP unit
         G = G.T
-        g0 = G @ self.expression.astype(np.float64)
+        pb = self.plan.pair_basis.astype(np.float64).reshape(len(LIP_PAIRS), -1, 2)
+        Gc = ((pb[:, lo] - pb[:, up]) @ ey).T  # (P, 10)
+        g0 = _fap_gap(G, Gc, self.expression)
         keep = g0 > 1e-3  # the model opens these pairs at f0
         if not keep.any():
             return None
         half = 0.5 * ((self._offset[lo] - self._offset[up]) @ ey)
         d = half[:, None] * ey[None, :]
         k = keep
-        return up[k], lo[k], G[k], g0[k], d[k]
+        return up[k], lo[k], G[k], Gc[k], g0[k], d[k]
 
     @cached_property
     def _fap_px(self) -> np.ndarray:
@@ -441,6 +444,17 @@ class Face:
     @property
     def interocular(self) -> float:
         return self.landmarks.interocular
+
+
+def _fap_gap(G: np.ndarray, Gc: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    """Inner-lip gaps (P,) the FAP model opens for ``vec``, px: its linear basis ``G`` (P, 68)
+    less the inner/outer lip pairs' shared part ``Gc`` (P, 10) moved once, not twice (as
+    ``deform._linear`` renders it; without it a vector setting both, such as joy or a
+    smiling photo's f0, was credited with up to a quarter more opening than it makes)."""
+    f = np.asarray(vec, np.float64)
+    va, vb = f[LIP_PAIRS[:, 0]], f[LIP_PAIRS[:, 1]]
+    common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
+    return G @ f - Gc @ common
 
 
 def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:

@@ -7,6 +7,7 @@ Every user error (bad file, no face, malformed value) prints one line
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from collections.abc import Sequence
@@ -20,8 +21,9 @@ SAMPLE = Path(__file__).resolve().parents[1] / "resources" / "sample_face.png"
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # usage errors: exit 2 with one line
-        self.print_usage(sys.stderr)
-        self.exit(2, f"fap-studio: error: {message}\n")
+        cmd = self.prog.removeprefix("fap-studio").strip()
+        hint = f" (see fap-studio {cmd + ' ' if cmd else ''}--help)"
+        self.exit(2, f"fap-studio: error: {' '.join(message.split())}{hint}\n")
 
 
 def _fap_pairs(items: Sequence[str] | None) -> dict[str, float]:
@@ -169,12 +171,9 @@ def cmd_gui(a: argparse.Namespace) -> int:
 
 
 def _write_json(path: str, data: dict) -> None:
-    p = Path(path)
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(json.dumps(data))
-    except OSError as e:
-        raise FapStudioError(f"{p}: cannot write ({e.strerror or e})") from e
+    from .core.safeio import atomic_write_text
+
+    atomic_write_text(path, json.dumps(data))
 
 
 def _expression_options(s: argparse.ArgumentParser) -> None:
@@ -249,13 +248,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(a.func(a) or 0)
+        code = int(a.func(a) or 0)
+        sys.stdout.flush()
+        return code
     except FapStudioError as e:
-        print(f"fap-studio: error: {e}", file=sys.stderr)
+        print(f"fap-studio: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("fap-studio: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # ``fap-studio fap info x.fap | head``: the reader went away
+        import os
+
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

@@ -14,10 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ImageError
+from .safeio import atomic_write_bytes, quiet_stderr, read_bounded
 
 #: Largest image accepted, in pixels (about 8000 x 8000). Larger images are refused before
 #: they are decoded so that a decompression bomb cannot exhaust memory.
 MAX_PIXELS = 64_000_000
+#: Largest image file read (bytes), checked before reading: no device, FIFO or huge file.
+MAX_FILE_BYTES = 512 * 1024 * 1024
 
 # OpenCV reads its own decoder limit once, at the first decode: keep it in step with ours.
 os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_PIXELS))
@@ -86,12 +89,7 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     p = Path(path)
     if not p.exists():
         raise ImageError(f"{p}: no such file")
-    if p.is_dir():
-        raise ImageError(f"{p}: is a folder, not an image file")
-    try:
-        data = p.read_bytes()
-    except OSError as e:
-        raise ImageError(f"{p}: cannot read ({e.strerror or e})") from e
+    data = read_bounded(p, MAX_FILE_BYTES, error=ImageError, what="an image file")
     if not data:
         raise ImageError(f"{p}: the file is empty (0 bytes)")
     size = _header_size(data)
@@ -101,9 +99,10 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     try:
         # IMREAD_COLOR applies the EXIF orientation; alpha needs IMREAD_UNCHANGED (PNG/WebP
         # with alpha carry no EXIF rotation in practice).
-        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-        if img is not None and not (img.ndim == 3 and img.shape[2] == 4):
-            img = cv2.imdecode(buf, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+        with quiet_stderr():  # libpng/libjpeg warnings: the one-line error says it
+            img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+            if img is not None and not (img.ndim == 3 and img.shape[2] == 4):
+                img = cv2.imdecode(buf, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
     except cv2.error as e:
         raise ImageError(f"{p}: cannot decode the image ({str(e).strip().splitlines()[-1]})") from e
     if img is None or img.size == 0:
@@ -141,9 +140,4 @@ def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> None:
         raise ImageError(f"{p}: cannot encode as {ext} ({e})") from e
     if not ok:
         raise ImageError(f"{p}: cannot encode as {ext}")
-    try:
-        if p.parent and not p.parent.exists():
-            p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_bytes(enc.tobytes())
-    except OSError as e:
-        raise ImageError(f"{p}: cannot write ({e.strerror or e})") from e
+    atomic_write_bytes(p, enc.tobytes(), error=ImageError)

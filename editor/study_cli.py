@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import struct
 import zlib
 from collections.abc import Sequence
@@ -21,6 +22,7 @@ import numpy as np
 from editor.cli_util import guarded
 from editor.core.errors import ImageError, StudyError
 from editor.core.mos import StimulusSpec, Study
+from editor.core.safeio import atomic_write_text
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
@@ -109,16 +111,14 @@ def export_answers_csv(study: Study, out: str | Path) -> int:
     Returns the number of answer rows written.
     """
     answers = study.answers()
-    try:
-        with Path(out).open("w", newline="", encoding="utf-8") as f:
-            writer = csv.writer(f)
-            writer.writerow(EXPORT_COLUMNS)
-            for a in answers:
-                writer.writerow([a.study, a.rater, a.stimulus_id, a.face, a.intensity,
-                                 a.true_label, a.label, int(a.correct), a.naturalness,
-                                 a.response_ms, a.answered_at, a.position, a.revisions])
-    except OSError as e:
-        raise StudyError(f"{out}: cannot write CSV ({e.strerror or e})") from e
+    buf = io.StringIO(newline="")
+    writer = csv.writer(buf)
+    writer.writerow(EXPORT_COLUMNS)
+    for a in answers:
+        writer.writerow([a.study, a.rater, a.stimulus_id, a.face, a.intensity,
+                         a.true_label, a.label, int(a.correct), a.naturalness,
+                         a.response_ms, a.answered_at, a.position, a.revisions])
+    atomic_write_text(out, buf.getvalue(), error=StudyError, label=f"{out} (CSV)")
     return len(answers)
 
 

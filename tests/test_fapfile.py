@@ -257,10 +257,11 @@ def test_write_error_is_a_fap_file_error(tmp_path, monkeypatch):
         write_fap(seq, tmp_path / "a_file" / "x.fap")
     old = write_fap(FapSequence(np.ones((1, 68))), tmp_path / "x.fap").read_bytes()
 
-    def full(path):
+    def full(fh, data):
+        fh.write(data[: len(data) // 2])
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(safeio, "_fsync", full)  # the disk fills while writing
+    monkeypatch.setattr(safeio, "_write_all", full)  # the disk fills while writing
     with pytest.raises(FapFileError, match="x.fap: cannot write .No space left"):
         write_fap(seq, tmp_path / "x.fap")
     assert (tmp_path / "x.fap").read_bytes() == old  # the old file is intact

@@ -82,7 +82,9 @@ def cmd_clone(a: argparse.Namespace) -> int:
     from .core.errors import NoFaceError
     from .core.fap_estimate import FapEstimator
     from .core.landmarks import detect_landmarks
+    from .core.safeio import finite_in
 
+    finite_in(a.mu, 0, 1e6, "--mu", lo_open=True)
     src_neutral = Face.from_image(a.source_neutral, own_expression=False)
     try:
         expr = detect_landmarks(load_image(a.source)).points

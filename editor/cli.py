@@ -122,7 +122,6 @@ def cmd_render(a: argparse.Namespace) -> int:
 
     vec = _requested_vector(a)
     face = _load_face(a.photo, a.photo_is_neutral)
-    _expression_note(face, a.keep_expression)
     if a.keep_expression:
         vec = face.expression + vec
     save_image(a.output, face.render(vec, creases=not a.no_creases))
@@ -136,6 +135,7 @@ def cmd_render(a: argparse.Namespace) -> int:
                             for k, p in extra.items()})
         data["faps"] = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
         _write_json(a.mesh_json, data)
+    _expression_note(face, a.keep_expression)  # after the output: an error stays one line
     return 0
 
 

@@ -266,9 +266,10 @@ class Study:
             study = cls(con, path)  # reads and checks meta before anything is written
             cls._pragmas(con)
             return study
-        except sqlite3.Error as e:
+        except (sqlite3.Error, UnicodeDecodeError) as e:
             con.close()
-            raise StudyError(f"{path}: corrupt or unreadable study database ({e})") from e
+            raise StudyError(f"{path}: corrupt or unreadable study database "
+                             f"({str(e)[:80]})") from None
         except StudyError:
             con.close()
             raise
@@ -297,21 +298,31 @@ class Study:
         except sqlite3.Error as e:
             raise StudyError(f"{self.path}: database error ({e})") from e
 
+    def _rows(self, sql: str, params: tuple = ()) -> list[tuple]:
+        """All rows of a query; a damaged database (sqlite error, text that is not UTF-8)
+        raises :class:`StudyError`."""
+        try:
+            return self._con.execute(sql, params).fetchall()
+        except (sqlite3.Error, UnicodeDecodeError) as e:
+            raise StudyError(f"{self.path}: corrupt or unreadable study database "
+                             f"({type(e).__name__})") from None
+
     def stimuli(self) -> list[Stimulus]:
         """All stimuli in id order (without image bytes; see :meth:`image_bytes`)."""
         sql = "SELECT id, face, label, intensity, source FROM stimuli ORDER BY id"
-        return [Stimulus(*row, study_uid=self.uid) for row in self._con.execute(sql)]
+        return [Stimulus(*row, study_uid=self.uid) for row in self._rows(sql)]
 
     def image_bytes(self, stimulus_id: int) -> bytes:
         """The encoded image stored for a stimulus (PNG, JPEG or BMP bytes)."""
-        row = self._con.execute("SELECT image FROM stimuli WHERE id=?", (stimulus_id,)).fetchone()
+        rows = self._rows("SELECT image FROM stimuli WHERE id=?", (stimulus_id,))
+        row = rows[0] if rows else None
         if row is None:
             raise StudyError(f"no stimulus {stimulus_id} in study {self.name!r}")
         return bytes(row[0])
 
     def raters(self) -> list[str]:
         """Ids of raters who have started a session, in start order."""
-        return [r for (r,) in self._con.execute("SELECT id FROM raters ORDER BY rowid")]
+        return [r for (r,) in self._rows("SELECT id FROM raters ORDER BY rowid")]
 
     def answers(self, rater: str | None = None) -> list[AnswerRecord]:
         """All committed answers (optionally of one rater), ordered by rater then position."""
@@ -321,7 +332,7 @@ class Study:
                " ON o.rater = a.rater AND o.stimulus = a.stimulus"
                + (" WHERE a.rater = ?" if rater is not None else "")
                + " ORDER BY (SELECT rowid FROM raters WHERE id = a.rater), o.position")
-        rows = self._con.execute(sql, () if rater is None else (rater,))
+        rows = self._rows(sql, () if rater is None else (rater,))
         return [AnswerRecord(self.name, *row) for row in rows]
 
     def start_session(self, rater_id: str, seed: int | None = None) -> RaterSession:

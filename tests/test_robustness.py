@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from editor.cli import main
-from editor.core import FAPS, safeio
+from editor.core import FAPS
 from editor.core.errors import (
     FapFileError,
     FapStudioError,
@@ -165,7 +165,9 @@ def test_case03_editor_starts_with_bad_user_presets(qtbot, bad_user_presets, iso
 
     w = MainWindow()
     qtbot.addWidget(w)
-    assert "joy" in w.presets_panel.presets if hasattr(w, "presets_panel") else True
+    panel = w.presets_panel
+    assert "joy" in panel.presets and len(panel.problems) == len(BAD_PRESETS) + 1
+    assert all(name not in panel.presets for name in BAD_PRESETS)
     w.close_without_prompt()
 
 
@@ -222,6 +224,8 @@ def small_disk(tmp_path):
 @pytest.fixture
 def full_disk(monkeypatch):
     """Every atomic write fails half-way with ENOSPC, as on a full disk."""
+    from editor.core import safeio
+
     def write_half(fh, data):
         fh.write(data[: len(data) // 2])
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -788,6 +792,8 @@ def test_fuzz_image_header(tmp_path):
 
 
 def test_safeio_atomic_dir_and_file(tmp_path):
+    from editor.core import safeio
+
     target = tmp_path / "frames"
     with pytest.raises(KeyboardInterrupt), safeio.atomic_dir(target) as stage:
         (stage / "a.png").write_bytes(b"x")

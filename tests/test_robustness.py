@@ -812,3 +812,68 @@ def test_safeio_atomic_dir_and_file(tmp_path):
             safeio.finite_in(bad, 0, 3, "x")
     assert math.isfinite(safeio.finite_in(3, 0, 3, "x"))
     assert zipfile  # (used by the model tests)
+
+
+# ------------------------------------------------------------------------------ case 13
+ISSUE_VECTOR = {"lower_t_lip_rm": 419.7, "raise_b_lip_rm": -418.9, "raise_r_cornerlip": 101.0,
+                "yaw_l_eyeball": 39709, "raise_l_ear": 255.4, "raise_r_ear": -265.8,
+                "pull_l_ear": -138.4}
+
+
+def _portraits() -> list[tuple[str, np.ndarray]]:
+    """The sample, rotated, scaled, mirrored and shifted copies of it (other face geometry in
+    the image, other FAPU, other mesh), and two JAFFE faces when the data are there."""
+    import cv2
+
+    from editor.core.imageio import load_image
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    try:
+        from conftest import jaffe_images
+    finally:
+        sys.path.pop(0)
+    img = load_image(SAMPLE)
+    h, w = img.shape[:2]
+    out = [("sample", img)]
+    for name, ang, sc in (("rot+20", 20, 1.0), ("rot-25 x0.6", -25, 0.6), ("x0.5", 0, 0.5)):
+        m = cv2.getRotationMatrix2D((w / 2, h / 2), ang, sc)
+        out.append((name, cv2.warpAffine(img, m, (w, h), borderMode=cv2.BORDER_REPLICATE)))
+    out.append(("mirrored", np.ascontiguousarray(img[:, ::-1])))
+    big = cv2.resize(img, (int(w * 1.6), int(h * 1.3)))  # anisotropic: a wider face
+    out.append(("wide", big))
+    for p in jaffe_images("*.SU1.*.tiff")[:1] + jaffe_images("*.HA2.*.tiff")[1:2]:
+        out.append((p.name, load_image(p)))
+    return out
+
+
+def test_case13_fold_guard_floor_on_many_faces():
+    from editor.core import Face
+    from editor.core.deform import EPS_CHECK, deform_points
+    from editor.core.mesh import signed_areas
+
+    rng = np.random.default_rng(1613)
+    vecs = rng.uniform(FAPS.lo, FAPS.hi, (160, 68))
+    vecs[:80] *= rng.random((80, 68)) < 0.15  # sparse ones, as real expressions are
+    alt = np.where(np.arange(68) % 2, FAPS.lo, FAPS.hi)
+    vecs = np.vstack([FAPS.clamp(FAPS.vector(ISSUE_VECTOR))[None], FAPS.lo, FAPS.hi, alt, vecs])
+    vecs[:, :2] = 0
+    worst = {}
+    for name, img in _portraits():
+        for own in (False, True):
+            face = Face.from_image(img, own_expression=own)
+            pts = deform_points(face.plan, vecs, face._offset)[:, : face.plan.n_vertices]
+            a = signed_areas(pts.astype(np.float64), face.triangles)
+            a0 = signed_areas(face.neutral_vertices.astype(np.float64), face.triangles)
+            ratio = a * np.sign(a0) / np.abs(a0)
+            worst[name, own] = float(ratio.min())
+            # the public path gives the same mesh
+            np.testing.assert_allclose(face.deform(ISSUE_VECTOR), pts[0], atol=1e-3)
+            # lips and lids meet but never cross (without head rotation, which turns the frame)
+            v2 = vecs.copy()
+            v2[:, 47:50] = 0
+            p2 = deform_points(face.plan, v2, face._offset)[:, : face.plan.n_vertices]
+            ey = face.frame.rot[:, 1]
+            pairs = face.mesh.pairs
+            assert (p2[:, pairs[:, 1]] @ ey >= p2[:, pairs[:, 0]] @ ey - 1e-3).all(), name
+    assert min(worst.values()) >= EPS_CHECK * 0.999, worst
+    assert len(worst) >= 12

@@ -52,12 +52,9 @@ class _Bar:
 
 
 def _write_text(path: str | Path, text: str) -> None:
-    p = Path(path)
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(text, encoding="utf-8")
-    except OSError as e:
-        raise FapStudioError(f"{p}: cannot write ({e.strerror or e})") from e
+    from .core.safeio import atomic_write_text
+
+    atomic_write_text(Path(path), text)
 
 
 def faps_document(faps: np.ndarray, name: str, source: str, extra: dict | None = None) -> dict:

@@ -580,7 +580,17 @@ def test_case12_nan_never_reaches_a_project(model, tmp_path, sample_neutral):
 # ----------------------------------------------------------------------------- fuzzing
 def _mutate(rng: np.random.Generator, data: bytes) -> bytes:
     b = bytearray(data)
-    op = int(rng.integers(0, 9))
+    op = int(rng.integers(0, 10))
+    if op == 9:  # replace one whole token (whitespace-separated) by an odd one
+        import re
+
+        toks = [m.span() for m in re.finditer(rb"[^\s]+", bytes(b))]
+        if toks:
+            lo, hi = toks[int(rng.integers(0, len(toks)))]
+            b[lo:hi] = rng.choice([b"9" * 400, b"-" + b"9" * 400, b"1" * 5000, b"1e400",
+                                   b"1e39", b"nan", b"inf", b"-0", b"0x10", b"1_0", b"",
+                                   b"2.5", b"-2147483649", b"9223372036854775808"])
+        return bytes(b)
     i = int(rng.integers(0, max(len(b), 1)))
     if op == 0 and b:
         b[i] = int(rng.integers(0, 256))

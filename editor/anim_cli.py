@@ -55,8 +55,14 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
 def cmd_fap_export(a: argparse.Namespace) -> int:
     from .core.expressions import sequence_from_keyframes
-    from .core.fapfile import FapSequence, write_fap
+    from .core.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
+    from .core.safeio import finite_in
 
+    fps = finite_in(a.fps, 0, MAX_FPS, "--fps", lo_open=True)
+    if a.keyframes:
+        finite_in(a.duration, 0, (MAX_FRAMES - 1) / fps, "--duration", lo_open=True)
+    elif not 1 <= a.frames <= MAX_FRAMES:
+        raise FapStudioError(f"--frames: expected 1-{MAX_FRAMES}, got {a.frames}")
     vec = preset_vector(a.preset)
     if a.keyframes:
         # neutral -> expression -> neutral over the given duration

@@ -231,10 +231,8 @@ def run_synth(args: argparse.Namespace) -> int:
         faps = faps_for_points(face, res.points68)
         doc = faps_document(faps, f"bilinear_{args.expression}_{args.method}",
                             f"bilinear synth {args.photo}")
-        try:
-            with open(args.faps_json, "w", encoding="utf-8") as fh:
-                fh.write(json.dumps(doc, indent=2) + "\n")
-        except OSError as exc:
-            raise ModelError(f"cannot write {args.faps_json}: {exc.strerror or exc}") from exc
+        from editor.core.safeio import atomic_write_text
+
+        atomic_write_text(args.faps_json, json.dumps(doc, indent=2) + "\n", error=ModelError)
     print(f"{args.expression} ({args.method}) -> {args.output}")
     return 0

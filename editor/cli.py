@@ -7,10 +7,10 @@ Every user error (bad file, no face, malformed value) prints one line
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 
 from . import __version__
 from .cli_util import PHOTO_HELP, photo_arg
@@ -19,8 +19,9 @@ from .core.errors import FapStudioError
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # usage errors: exit 2 with one line
-        self.print_usage(sys.stderr)
-        self.exit(2, f"fap-studio: error: {message}\n")
+        cmd = self.prog.removeprefix("fap-studio").strip()
+        hint = f" (see fap-studio {cmd + ' ' if cmd else ''}--help)"
+        self.exit(2, f"fap-studio: error: {' '.join(message.split())}{hint}\n")
 
 
 def _fap_pairs(items: Sequence[str] | None) -> dict[str, float]:
@@ -119,7 +120,6 @@ def cmd_render(a: argparse.Namespace) -> int:
 
     vec = _requested_vector(a)
     face = _load_face(a.photo, a.photo_is_neutral)
-    _expression_note(face, a.keep_expression)
     if a.keep_expression:
         vec = face.expression + vec
     save_image(a.output, face.render(vec, creases=not a.no_creases))
@@ -133,6 +133,7 @@ def cmd_render(a: argparse.Namespace) -> int:
                             for k, p in extra.items()})
         data["faps"] = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
         _write_json(a.mesh_json, data)
+    _expression_note(face, a.keep_expression)  # after the output: an error stays one line
     return 0
 
 
@@ -168,12 +169,9 @@ def cmd_gui(a: argparse.Namespace) -> int:
 
 
 def _write_json(path: str, data: dict) -> None:
-    p = Path(path)
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(json.dumps(data))
-    except OSError as e:
-        raise FapStudioError(f"{p}: cannot write ({e.strerror or e})") from e
+    from .core.safeio import atomic_write_text
+
+    atomic_write_text(path, json.dumps(data))
 
 
 def _expression_options(s: argparse.ArgumentParser) -> None:
@@ -248,13 +246,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(a.func(a) or 0)
+        code = int(a.func(a) or 0)
+        sys.stdout.flush()
+        return code
     except FapStudioError as e:
-        print(f"fap-studio: error: {e}", file=sys.stderr)
+        print(f"fap-studio: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("fap-studio: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # ``fap-studio fap info x.fap | head``: the reader went away
+        import os
+
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

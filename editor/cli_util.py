@@ -67,7 +67,7 @@ def guarded(handler: Handler) -> Callable[[argparse.Namespace], int]:
         try:
             return int(handler(args) or 0)
         except FapStudioError as e:
-            print(f"fap-studio: error: {e}", file=sys.stderr)
+            print(f"fap-studio: error: {' '.join(str(e).split())}", file=sys.stderr)
             return 2
 
     return run

@@ -31,12 +31,9 @@ JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "F
 
 
 def _write_text(path: str | Path, text: str) -> None:
-    p = Path(path)
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(text, encoding="utf-8")
-    except OSError as e:
-        raise FapStudioError(f"{p}: cannot write ({e.strerror or e})") from e
+    from .core.safeio import atomic_write_text
+
+    atomic_write_text(Path(path), text)
 
 
 def faps_document(faps: np.ndarray, name: str, source: str, extra: dict | None = None) -> dict:
@@ -61,7 +58,9 @@ def cmd_clone(a: argparse.Namespace) -> int:
     from .core.errors import NoFaceError
     from .core.fap_estimate import FapEstimator
     from .core.landmarks import detect_landmarks
+    from .core.safeio import finite_in
 
+    finite_in(a.mu, 0, 1e6, "--mu", lo_open=True)
     src_neutral = Face.from_image(a.source_neutral, own_expression=False)
     try:
         expr = detect_landmarks(load_image(a.source)).points

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -18,7 +20,9 @@ import numpy as np
 
 from editor.cli_util import guarded, photo_arg
 from editor.core.errors import ImageError, StudyError
+from editor.core.imageio import MAX_FILE_BYTES
 from editor.core.mos import StimulusSpec, Study
+from editor.core.safeio import atomic_write_text, read_bounded
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
@@ -60,7 +64,12 @@ def from_folder(path: str | Path, folder: str | Path, csv_path: str | Path,
     if not folder.is_dir():
         raise StudyError(f"{folder}: image folder not found")
     try:
-        with csv_path.open(newline="", encoding="utf-8-sig") as f:
+        raw = read_bounded(csv_path, MAX_CSV_BYTES, error=StudyError, what="a CSV file")
+    except StudyError as e:
+        why = str(e).partition(": cannot read ")[2] or str(e)
+        raise StudyError(f"{csv_path}: cannot read labels CSV {why}") from None
+    try:
+        with io.StringIO(raw.decode("utf-8-sig"), newline="") as f:
             reader = csv.DictReader(f)
             fields = [(h or "").strip().lower() for h in reader.fieldnames or []]
             if not {"file", "label"} <= set(fields):
@@ -80,11 +89,12 @@ def from_folder(path: str | Path, folder: str | Path, csv_path: str | Path,
         seen.add(file)
         try:
             intensity = float((row.get("intensity") or "1").strip())
-            data = (folder / file).read_bytes()
         except ValueError as e:
             raise StudyError(f"{csv_path}:{line}: bad intensity ({e})") from e
-        except OSError as e:
-            raise ImageError(f"{folder / file}: cannot read image ({e.strerror or e})") from e
+        if not math.isfinite(intensity):
+            raise StudyError(f"{csv_path}:{line}: bad intensity ({intensity})")
+        data = read_bounded(folder / file, MAX_FILE_BYTES, error=ImageError,
+                            label=f"{folder / file}", what="an image file")
         face = (row.get("face") or "").strip() or Path(file).stem
         specs.append(StimulusSpec(face, label, data, intensity, file))
     if not specs:
@@ -92,6 +102,8 @@ def from_folder(path: str | Path, folder: str | Path, csv_path: str | Path,
     labels = list(dict.fromkeys(s.label for s in specs)) if labels is None else list(labels)
     return Study.create(path, name or Path(path).stem, labels, specs, allow_revise, break_every)
 
+
+MAX_CSV_BYTES = 16 * 1024 * 1024
 
 EXPORT_COLUMNS = ("study", "rater", "stimulus_id", "face", "intensity", "true_label",
                   "chosen_label", "correct", "naturalness", "response_ms", "timestamp",
@@ -104,16 +116,14 @@ def export_answers_csv(study: Study, out: str | Path) -> int:
     Returns the number of answer rows written.
     """
     answers = study.answers()
-    try:
-        with Path(out).open("w", newline="", encoding="utf-8") as f:
-            writer = csv.writer(f)
-            writer.writerow(EXPORT_COLUMNS)
-            for a in answers:
-                writer.writerow([a.study, a.rater, a.stimulus_id, a.face, a.intensity,
-                                 a.true_label, a.label, int(a.correct), a.naturalness,
-                                 a.response_ms, a.answered_at, a.position, a.revisions])
-    except OSError as e:
-        raise StudyError(f"{out}: cannot write CSV ({e.strerror or e})") from e
+    buf = io.StringIO(newline="")
+    writer = csv.writer(buf)
+    writer.writerow(EXPORT_COLUMNS)
+    for a in answers:
+        writer.writerow([a.study, a.rater, a.stimulus_id, a.face, a.intensity,
+                         a.true_label, a.label, int(a.correct), a.naturalness,
+                         a.response_ms, a.answered_at, a.position, a.revisions])
+    atomic_write_text(out, buf.getvalue(), error=StudyError, label=f"{out} (CSV)")
     return len(answers)
 
 

@@ -33,7 +33,7 @@ def test_bad_preset_is_one_line_error(tmp_path):
     for spec in ("nope", "joy:2", "joy:x"):
         r = _cli("render", str(SAMPLE), "--preset", spec, "-o", str(tmp_path / "x.png"))
         assert r.returncode == 2 and r.stderr.startswith("fap-studio: error:"), spec
-        assert "Traceback" not in r.stderr
+        assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
 
 
 def test_fap_export_info_and_animate(tmp_path):

@@ -252,10 +252,26 @@ def test_missing_file(tmp_path):
         read_fap(tmp_path / "nope.fap")
 
 
-def test_write_error_is_a_fap_file_error(tmp_path):
+def test_write_error_is_a_fap_file_error(tmp_path, monkeypatch):
+    import errno
+
+    from editor.core import safeio
+
     seq = FapSequence(np.zeros((1, 68)))
-    with pytest.raises(FapFileError, match="cannot write"):
-        write_fap(seq, tmp_path / "no_dir" / "x.fap")
+    (tmp_path / "a_file").write_text("x")
+    with pytest.raises(FapFileError, match="cannot write"):  # the folder is a file
+        write_fap(seq, tmp_path / "a_file" / "x.fap")
+    old = write_fap(FapSequence(np.ones((1, 68))), tmp_path / "x.fap").read_bytes()
+
+    def full(fh, data):
+        fh.write(data[: len(data) // 2])
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(safeio, "_write_all", full)  # the disk fills while writing
+    with pytest.raises(FapFileError, match="x.fap: cannot write .No space left"):
+        write_fap(seq, tmp_path / "x.fap")
+    assert (tmp_path / "x.fap").read_bytes() == old  # the old file is intact
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "x.fap"]  # no temp file
 
 
 # ---------------------------------------------------------------------------- helpers

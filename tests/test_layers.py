@@ -242,6 +242,9 @@ def test_gaze_right_moves_the_round_iris(jaffe_faces):
 def test_closed_lids_hide_the_iris(sample_face, jaffe_faces):
     closed = {19: 1080, 20: 1080, 21: 600, 22: 600}
     for face in (sample_face, jaffe_faces[1]):
+        # the eye mask exists and is sizeable with open eyes (else "<= 2" below says nothing)
+        opened = face.render_full({23: 40000, 24: -40000})
+        assert opened.eye_mask is not None and opened.eye_mask.sum() > 50
         a = face.render_full(closed)
         b = face.render_full({**closed, 23: 40000, 24: -40000, 25: 30000, 29: 300, 30: -300})
         # moving the irises behind closed lids changes nothing: no iris pixel shows

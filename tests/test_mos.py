@@ -116,7 +116,27 @@ def test_resume_continues_same_order(study_path: Path) -> None:
         assert all(a.correct and a.naturalness == 4 and a.response_ms == 1500.0 for a in answers)
 
 
-@pytest.mark.parametrize("how", ["os._exit(1)", "os.kill(os.getpid(), signal.SIGKILL)"])
+# killed at a quiet moment, or inside the (k+1)-th answer's transaction: its statements ran,
+# SIGKILL arrives just before COMMIT (that answer must vanish, the k before it must stay)
+_KILL_IN_TX = """
+class _KillAtCommit:
+    def __init__(self, con):
+        self._con = con
+    def execute(self, sql, *a):
+        if sql == "COMMIT":
+            os.kill(os.getpid(), signal.SIGKILL)
+        return self._con.execute(sql, *a)
+    def __getattr__(self, name):
+        return getattr(self._con, name)
+study._con = _KillAtCommit(study._con)
+stim = session.next_stimulus()
+session.answer(stim, "joy", 5, 900)
+os._exit(0)
+"""
+
+
+@pytest.mark.parametrize("how", ["os._exit(1)", "os.kill(os.getpid(), signal.SIGKILL)",
+                                 _KILL_IN_TX])
 def test_killed_session_keeps_exactly_k_answers(study_path: Path, how: str) -> None:
     k = 4
     script = textwrap.dedent(f"""
@@ -127,8 +147,7 @@ def test_killed_session_keeps_exactly_k_answers(study_path: Path, how: str) -> N
         for _ in range({k}):
             stim = session.next_stimulus()
             session.answer(stim, "{CANNOT_TELL}", 3, 800)
-        {how}
-    """)
+    """) + textwrap.dedent(how)
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.run([sys.executable, "-c", script, str(study_path)], env=env,
                           capture_output=True, timeout=60)

@@ -16,7 +16,9 @@ plus one JSON metadata string.
 
 from __future__ import annotations
 
+import io
 import json
+import math
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +27,12 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from editor.core.errors import ModelError
+from editor.core.safeio import atomic_file, read_bounded
+
+#: Largest model file, and largest total of its unpacked arrays (bytes).
+MAX_MODEL_BYTES = 256 * 1024 * 1024
+#: Landmark indices of a model region are 0 .. MAX_LANDMARK - 1 (the 77-point layout).
+MAX_LANDMARK = 77
 
 FORMAT_NAME = "fap-studio-bilinear"
 FORMAT_VERSION = 1
@@ -339,37 +347,41 @@ def save_model(model: BilinearModel, path: str | Path) -> None:
     }
     arrays = {f"{n}.{x}": getattr(r, x) for n, r in model.regions.items() for x in "WAB"}
     arrays["metadata"] = np.array(json.dumps(meta))
-    try:
-        with open(path, "wb") as fh:
-            np.savez(fh, **arrays)
-    except OSError as exc:
-        raise ModelError(f"cannot write model file {path}: {exc.strerror or exc}") from exc
+    with atomic_file(path, error=ModelError, label=f"model file {path}") as tmp, \
+            open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
 
 
 def load_model(path: str | Path) -> BilinearModel:
     """Read a model written by :func:`save_model`; anything else raises :class:`ModelError`."""
+    if not Path(path).exists():
+        raise ModelError(f"model file {path} does not exist")
+    data = read_bounded(path, MAX_MODEL_BYTES, error=ModelError, what="a model file (.npz)")
     try:
-        npz = np.load(path, allow_pickle=False)
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:  # sizes before anything is inflated
+            if sum(i.file_size for i in zf.infolist()) > MAX_MODEL_BYTES:
+                raise ModelError(f"{path}: its arrays unpack to more than {MAX_MODEL_BYTES} "
+                                 "bytes; not a FAP Studio bilinear model")
+        npz = np.load(io.BytesIO(data), allow_pickle=False)
         if not isinstance(npz, np.lib.npyio.NpzFile):
             raise ValueError("a plain .npy array")
         with npz:
             arrays = {k: npz[k] for k in npz.files}
-    except FileNotFoundError as exc:
-        raise ModelError(f"model file {path} does not exist") from exc
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         raise ModelError(f"{path} is not a FAP Studio bilinear model (.npz) file") from exc
     try:
         return _model_from_arrays(arrays)
     except ModelError as exc:
         raise ModelError(f"{path}: {exc}") from exc
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise ModelError(f"{path} is not a valid bilinear model ({exc!r})") from exc
+    except (KeyError, TypeError, ValueError, AttributeError, OverflowError,
+            RecursionError) as exc:
+        raise ModelError(f"{path} is not a valid bilinear model ({str(exc)[:80]!r})") from None
 
 
 def _model_from_arrays(arrays: dict[str, np.ndarray]) -> BilinearModel:
     if "metadata" not in arrays or arrays["metadata"].dtype.kind != "U":
         raise ModelError("not a FAP Studio bilinear model (no metadata)")
-    meta = json.loads(str(arrays["metadata"][()]))
+    meta = json.loads(str(arrays["metadata"][()]), parse_constant=_no_constant)
     if not isinstance(meta, dict) or meta.get("format") != FORMAT_NAME:
         raise ModelError("not a FAP Studio bilinear model (foreign metadata)")
     if meta.get("version") != FORMAT_VERSION:
@@ -381,6 +393,11 @@ def _model_from_arrays(arrays: dict[str, np.ndarray]) -> BilinearModel:
     for reg in meta["regions"] or [{}]:
         name, K, I, J = str(reg["name"]), int(reg["K"]), int(reg["I"]), int(reg["J"])  # noqa: E741
         idx = tuple(int(i) for i in reg["indices"])
+        if not (K > 0 and I > 0 and J > 0) or any(  # noqa: E741
+                isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < MAX_LANDMARK
+                for i in reg["indices"]):
+            raise ModelError(f"region {name!r}: K, I, J must be positive and the landmark "
+                             f"indices integers 0-{MAX_LANDMARK - 1}")
         try:
             W, A, B = (arrays[f"{name}.{x}"] for x in "WAB")
         except KeyError as exc:
@@ -395,4 +412,17 @@ def _model_from_arrays(arrays: dict[str, np.ndarray]) -> BilinearModel:
         regions[name] = RegionModel(W=W.astype(np.float64), A=A.astype(np.float64),
                                     B=B.astype(np.float64), K=K)
         indices[name] = idx
-    return BilinearModel(regions, indices, expressions, identities, dict(meta.get("meta", {})))
+    extra = meta.get("meta", {})
+    lam = extra.get("lambda", {}) if isinstance(extra, dict) else None
+    norm = extra.get("normalisation", {}) if isinstance(extra, dict) else None
+    if (not isinstance(lam, dict) or not isinstance(norm, dict)
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) and v >= 0 for v in lam.values())
+            or not isinstance(norm.get("layout", ""), str)):
+        raise ModelError("metadata \"meta\" must be an object; its \"lambda\" maps methods "
+                         "to finite numbers >= 0, its \"normalisation\" is an object")
+    return BilinearModel(regions, indices, expressions, identities, dict(extra))
+
+
+def _no_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a number JSON allows")

@@ -49,6 +49,7 @@ from editor.core.bilinear import (
     translate,
 )
 from editor.core.errors import ModelError
+from editor.core.safeio import read_bounded
 
 N_LANDMARKS = 77
 NOSE_TIP = 52
@@ -93,10 +94,10 @@ class LandmarkSet:
 
 
 def _read_lines(path: Path) -> list[str]:
+    data = read_bounded(path, 256 * 1024 * 1024, error=ModelError, label=f"cannot read {path}",
+                        what="a text file")
     try:
-        return [ln for ln in path.read_text(encoding="utf-8").splitlines() if ln.strip()]
-    except OSError as exc:
-        raise ModelError(f"cannot read {path}: {exc.strerror or exc}") from exc
+        return [ln for ln in data.decode("utf-8").splitlines() if ln.strip()]
     except UnicodeDecodeError as exc:
         raise ModelError(f"{path} is not a text file") from exc
 

@@ -189,6 +189,8 @@ class LaplacianDeformer:
         self.delta = self.L @ self.v0
         self.S = sp.csr_matrix(constraints)
         self.mu = float(mu)
+        if not 0 < self.mu < 1e6:  # NaN, infinite, zero or negative weights: no valid solve
+            raise ValueError(f"mu must be a finite number in (0, 1e6), got {mu!r}")
         m = self.S.shape[0]
         self.c = np.ones(m) if weights is None else np.asarray(weights, np.float64).reshape(m)
         Sw = (sp.diags(self.c) @ self.S).tocsr()

@@ -31,6 +31,7 @@ import numpy as np
 from ..resources import PRESETS_DIR, user_data_dir
 from .errors import PresetError
 from .faps import FAPS
+from .safeio import read_bounded
 
 if TYPE_CHECKING:
     from .fapfile import FapSequence
@@ -133,8 +134,11 @@ def preset_from_dict(data: object, label: str = "<preset>", *, path: Path | None
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise PresetError(f"{label}: unknown FAP name {key!r}{hint}; expected an MPEG-4 "
                               "low-level FAP name (3-68)")
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-            raise PresetError(f"{label}: {key} = {val!r} is not a finite number")
+        if isinstance(val, int) and not isinstance(val, bool):
+            val = float(val) if abs(val) < 2**63 else math.inf  # no OverflowError on 10**400
+        if isinstance(val, bool) or not isinstance(val, float) or not math.isfinite(val):
+            raise PresetError(f"{label}: {key} = {str(val)[:24]} is not a finite number in "
+                              "its range")
         lo, hi = fap.range
         if not lo <= val <= hi:
             raise PresetError(f"{label}: {key} = {val:g} is outside its range {lo:g} .. {hi:g}")
@@ -146,18 +150,19 @@ def preset_from_dict(data: object, label: str = "<preset>", *, path: Path | None
 def load_preset(path: str | os.PathLike, *, shipped: bool = False) -> Preset:
     """Load and validate one preset file; :class:`PresetError` if it is malformed."""
     path = Path(path)
+    data = read_bounded(path, MAX_PRESET_BYTES, error=PresetError, label=path.name,
+                        what="a preset file")
     try:
-        if path.stat().st_size > MAX_PRESET_BYTES:
-            raise PresetError(f"{path.name}: larger than {MAX_PRESET_BYTES} bytes")
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise PresetError(f"{path.name}: cannot read the preset ({e})") from e
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise PresetError(f"{path.name}: cannot read the preset (not UTF-8 text)") from e
     try:
         data = json.loads(text, object_pairs_hook=_no_duplicates)
     except json.JSONDecodeError as e:
         raise PresetError(f"{path.name} line {e.lineno}: not valid JSON ({e.msg})") from e
-    except ValueError as e:
-        raise PresetError(f"{path.name}: {e}") from e
+    except (ValueError, RecursionError) as e:  # int digit limit, duplicate key, deep nesting
+        why = "nested too deeply" if isinstance(e, RecursionError) else str(e)[:120]
+        raise PresetError(f"{path.name}: not a valid preset ({why})") from None
     return preset_from_dict(data, path.name, path=path, shipped=shipped)
 
 

@@ -359,8 +359,9 @@ class Face:
     def deform(self, faps: FapInput) -> np.ndarray:
         """Deformed mesh vertices (V, 2) float32 for FAP values in FAPU.
 
-        Keys are FAP names or numbers; unknown keys and non-finite values raise ValueError;
-        out-of-range values are clamped to the FAP table's range.
+        Keys are FAP names or numbers; unknown keys and values that are not finite numbers
+        within ±1e9 (:data:`~editor.core.faps.MAX_VALUE`; dict or array alike) raise
+        ValueError; other out-of-range values are clamped to the FAP table's range.
         """
         pts = self._deform(self.fap_vector(faps))
         return pts[: self.plan.n_vertices]

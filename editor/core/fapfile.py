@@ -28,6 +28,7 @@ import numpy as np
 
 from .errors import FapFileError
 from .faps import FAPS
+from .safeio import atomic_write_text, read_bounded
 
 __all__ = ["MAX_FRAMES", "ExpressionField", "FapSequence", "VisemeField", "fap_info",
            "format_fap", "read_fap", "round_half_away", "sequence_from_keyframes", "write_fap",
@@ -203,12 +204,8 @@ def read_fap(source: str | os.PathLike | bytes, *, label: str | None = None) -> 
     else:
         path = Path(source)
         label = label or path.name
-        try:
-            if (size := path.stat().st_size) > MAX_FILE_BYTES:
-                raise FapFileError(f"{label}: expected at most {MAX_FILE_BYTES} bytes, got {size}")
-            data = path.read_bytes()
-        except OSError as e:
-            raise FapFileError(f"{label}: cannot read the file ({e.strerror or e})") from e
+        data = read_bounded(path, MAX_FILE_BYTES, error=FapFileError, label=label,
+                            what="a .fap file")
     return _Parser(_decode(data, label), label).parse()
 
 
@@ -226,8 +223,15 @@ def _decode(data: bytes, label: str) -> str:
                            ) from None
 
 
+def _short(tok: str) -> str:
+    """repr of a token, cut to 24 characters (a 5000-digit token is not echoed whole)."""
+    return repr(tok) if len(tok) <= 24 else repr(tok[:20]) + f"... ({len(tok)} characters)"
+
+
 def _number(tok: str) -> tuple[float, bool] | None:
     """(value, was_decimal) of a plain decimal number token, else None (no nan/inf/1_0)."""
+    if len(tok) > 40:  # never convert a huge token (int limit, OverflowError): out of range
+        return (float("inf") if tok.lstrip("+-")[:1].isdigit() else None), False
     if _INT.match(tok):
         return float(int(tok)), False
     return (float(tok), True) if _NUM.match(tok) else None
@@ -257,10 +261,11 @@ class _Parser:
         fps = _number(toks[-2])
         if fps is None or not 0 < fps[0] <= MAX_FPS:
             raise self.fail(h, f"expected a frame rate in (0, {MAX_FPS:g}] as the "
-                               f"second-to-last header token, got {toks[-2]!r}")
-        if not _INT.match(toks[-1]) or not 1 <= int(toks[-1]) <= MAX_FRAMES:
+                               f"second-to-last header token, got {_short(toks[-2])}")
+        if (len(toks[-1]) > 12 or not _INT.match(toks[-1])
+                or not 1 <= int(toks[-1]) <= MAX_FRAMES):
             raise self.fail(h, f"expected a frame count 1-{MAX_FRAMES} as the last header "
-                               f"token, got {toks[-1]!r}")
+                               f"token, got {_short(toks[-1])}")
         self.notes += [t for c, t in ((toks[0] == "2.0", "version 2.0 read as 2.1 (no rescaling)"),
                                       (len(toks) > 4, "header name with spaces (Greta style)"))
                        if c]
@@ -274,7 +279,7 @@ class _Parser:
                                  f"got {len(toks)} tokens{hint}")
         for j, t in enumerate(toks):
             if t != "0" and t != "1":
-                raise self.fail(idx, f"mask flag {j + 1} is {t!r}, expected 0 or 1")
+                raise self.fail(idx, f"mask flag {j + 1} is {_short(t)}, expected 0 or 1")
         return np.array([t == "1" for t in toks[:68]]), len(toks) == 69
 
     def data(self, idx: int, mask: np.ndarray, expected_frame: int | None, row: np.ndarray
@@ -289,8 +294,8 @@ class _Parser:
                 want += f" (one per masked FAP) or {xface} (Xface 4/6-token FAP 1/2 fields)"
             raise self.fail(idx, f"expected {want} for {plain} masked FAPs, got {got}")
         num = _number(toks[0])
-        if num is None or num[0] != int(num[0]):
-            raise self.fail(idx, f"expected a frame number, got {toks[0]!r}")
+        if num is None or abs(num[0]) > 2**53 or num[0] != int(num[0]):
+            raise self.fail(idx, f"expected a frame number, got {_short(toks[0])}")
         frame = int(num[0])
         if frame != expected_frame and (expected_frame is not None or frame not in (0, 1)):
             raise self.fail(idx, f"frame number {frame} out of order, expected "
@@ -302,7 +307,7 @@ class _Parser:
             num = _number(tok)
             if num is None or abs(num[0]) > MAX_ABS_VALUE:
                 what = "a number" if num is None else f"a number with |value| <= {MAX_ABS_VALUE}"
-                raise self.fail(idx, f"value {k} (FAP {fap} {FAPS[fap].name}) is {tok!r}, "
+                raise self.fail(idx, f"value {k} (FAP {fap} {FAPS[fap].name}) is {_short(tok)}, "
                                      f"expected {what}")
             self.decimals += num[1]
             values.append(num[0])
@@ -384,15 +389,7 @@ def format_fap(seq: FapSequence, *, high_level: str = "expand") -> str:
 def write_fap(seq: FapSequence, path: str | os.PathLike, *, high_level: str = "expand") -> Path:
     """Write ``seq`` to ``path`` atomically (see :func:`format_fap`); returns the path."""
     path, text = Path(path), format_fap(seq, high_level=high_level)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise FapFileError(f"{path.name}: cannot write the file ({e.strerror or e})") from e
-    return path
+    return atomic_write_text(path, text, error=FapFileError, label=path.name)
 
 
 # Imported last: expressions imports this module lazily (inside its functions).

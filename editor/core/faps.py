@@ -189,6 +189,11 @@ def _mirror_of(name: str) -> str | None:
     return None
 
 
+#: Largest |value| a FAP vector accepts (anything beyond is an input error, never clamped
+#: silently): far outside every FAP range, well inside float32.
+MAX_VALUE = 1e9
+
+
 class FapTable(Mapping[object, Fap]):
     """The 68 FAPs, indexable by number (1..68) or name (``FAPS["open_jaw"]``)."""
 
@@ -237,21 +242,25 @@ class FapTable(Mapping[object, Fap]):
         if faps is None:
             return v
         if isinstance(faps, np.ndarray):
-            a = np.asarray(faps, np.float32)
+            a = np.asarray(faps, np.float64)
             if a.shape != (68,):
                 raise ValueError(f"a FAP vector has shape (68,), got {a.shape}")
-            if not np.isfinite(a).all():
-                bad = int(np.flatnonzero(~np.isfinite(a))[0]) + 1
-                raise ValueError(f"FAP {bad} ({self[bad].name}) is not a finite number")
-            return a.copy()
+            bad = ~(np.abs(a) <= MAX_VALUE)  # NaN, infinite or beyond float32
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0]) + 1
+                raise ValueError(f"FAP {i} ({self[i].name}) is not a finite number within "
+                                 f"±{MAX_VALUE:g}")
+            return a.astype(np.float32)
         for key, val in faps.items():
             n = self.number(key)
             try:
                 x = float(val)
-            except (TypeError, ValueError) as e:
-                raise ValueError(f"FAP {key!r}: value {val!r} is not a number") from e
-            if not np.isfinite(x):
-                raise ValueError(f"FAP {key!r}: value {val!r} is not a finite number")
+            except (TypeError, ValueError, OverflowError) as e:
+                raise ValueError(f"FAP {key!r}: value {str(val)[:40]!r} is not a finite "
+                                 f"number within ±{MAX_VALUE:g}") from e
+            if not abs(x) <= MAX_VALUE:
+                raise ValueError(f"FAP {key!r}: value {x!r} is not a finite number within "
+                                 f"±{MAX_VALUE:g}")
             v[n - 1] = x
         return v
 

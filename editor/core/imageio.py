@@ -14,10 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ImageError
+from .safeio import atomic_write_bytes, quiet_stderr, read_bounded
 
 #: Largest image accepted, in pixels (about 8000 x 8000). Larger images are refused before
 #: they are decoded so that a decompression bomb cannot exhaust memory.
 MAX_PIXELS = 64_000_000
+#: Largest image file read (bytes), checked before reading: no device, FIFO or huge file.
+MAX_FILE_BYTES = 512 * 1024 * 1024
 
 # OpenCV reads its own decoder limit once, at the first decode: keep it in step with ours.
 os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_PIXELS))
@@ -105,12 +108,7 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     p = Path(path)
     if not p.exists():
         raise ImageError(f"{p}: no such file")
-    if p.is_dir():
-        raise ImageError(f"{p}: is a folder, not an image file")
-    try:
-        data = p.read_bytes()
-    except OSError as e:
-        raise ImageError(f"{p}: cannot read ({e.strerror or e})") from e
+    data = read_bounded(p, MAX_FILE_BYTES, error=ImageError, what="an image file")
     if not data:
         raise ImageError(f"{p}: the file is empty (0 bytes)")
     size = _header_size(data)
@@ -122,7 +120,8 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
         # header declares alpha (PNG/WebP; no EXIF rotation in practice) keep it.
         flags = (cv2.IMREAD_UNCHANGED if _declares_alpha(data)
                  else cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
-        img = cv2.imdecode(buf, flags)
+        with quiet_stderr():  # libpng/libjpeg warnings: the one-line error says it
+            img = cv2.imdecode(buf, flags)
     except cv2.error as e:
         raise ImageError(f"{p}: cannot decode the image ({str(e).strip().splitlines()[-1]})") from e
     if img is None or img.size == 0:
@@ -160,9 +159,4 @@ def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> None:
         raise ImageError(f"{p}: cannot encode as {ext} ({e})") from e
     if not ok:
         raise ImageError(f"{p}: cannot encode as {ext}")
-    try:
-        if p.parent and not p.parent.exists():
-            p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_bytes(enc.tobytes())
-    except OSError as e:
-        raise ImageError(f"{p}: cannot write ({e.strerror or e})") from e
+    atomic_write_bytes(p, enc.tobytes(), error=ImageError)

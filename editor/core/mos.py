@@ -13,11 +13,12 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import secrets
 import sqlite3
 import uuid
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -130,8 +131,33 @@ class Study:
             self.allow_revise: bool = meta["allow_revise"] == "1"
             self.break_every: int = int(meta["break_every"])
             self.created: str = meta["created"]
-        except (KeyError, ValueError, TypeError) as e:
-            raise StudyError(f"{path}: corrupt study metadata ({e})") from e
+        except (KeyError, ValueError, TypeError, RecursionError) as e:
+            raise StudyError(f"{path}: corrupt study metadata ({str(e)[:80]})") from None
+        if (not all(isinstance(v, str) for v in (self.uid, self.name, self.created))
+                or not self.labels or not all(isinstance(x, str) and x for x in self.labels)
+                or len(set(self.labels)) != len(self.labels) or self.break_every < 0):
+            raise StudyError(f"{path}: corrupt study metadata (labels must be distinct "
+                             "non-empty strings; name, uid and created text; break_every >= 0)")
+
+    @staticmethod
+    def _check_schema(con: sqlite3.Connection, path: Path) -> None:
+        """StudyError unless every table of the schema exists with its columns."""
+        ref = sqlite3.connect(":memory:")
+        try:
+            ref.executescript(_SCHEMA)
+            tables = [r[0] for r in ref.execute("SELECT name FROM sqlite_master "
+                                                "WHERE type = 'table'")]
+            for t in tables:
+                want = [r[1:3] for r in ref.execute(f"PRAGMA table_info({t})")]
+                got = [r[1:3] for r in con.execute(f"PRAGMA table_info({t})")]
+                if not got:
+                    raise StudyError(f"{path}: corrupt or unreadable study database (no such "
+                                     f"table: {t})")
+                if got != want:
+                    raise StudyError(f"{path}: corrupt or unreadable study database "
+                                     f"(table {t} has other columns)")
+        finally:
+            ref.close()
 
     @staticmethod
     def _pragmas(con: sqlite3.Connection) -> None:
@@ -177,8 +203,9 @@ class Study:
                 "labels": json.dumps(labels), "allow_revise": "1" if allow_revise else "0",
                 "break_every": str(break_every), "created": _now()}
         con = None
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
         try:
-            con = sqlite3.connect(str(path), isolation_level=None, timeout=10.0)
+            con = sqlite3.connect(str(tmp), isolation_level=None, timeout=10.0)
             con.execute(f"PRAGMA application_id={APPLICATION_ID}")
             cls._pragmas(con)
             con.execute("BEGIN IMMEDIATE")
@@ -189,18 +216,31 @@ class Study:
             con.executemany("INSERT INTO stimuli VALUES (?, ?, ?, ?, ?, ?, ?, ?)", rows)
             con.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
             con.execute("COMMIT")
-            return cls(con, path)
-        except (sqlite3.Error, OSError) as e:
+            con.close()  # the last connection: SQLite folds the WAL into the file
+            con = None
+            os.link(tmp, path)  # complete study appears at once, never over an existing file
+            tmp.unlink()
+        except BaseException as e:  # also Ctrl-C and a full disk: no partial study remains
             if con is not None:
                 con.close()
-            for leftover in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
-                leftover.unlink(missing_ok=True)
-            raise StudyError(f"{path}: cannot create study ({e})") from e
+            for leftover in (tmp, Path(f"{tmp}-wal"), Path(f"{tmp}-shm")):
+                with suppress(OSError):
+                    leftover.unlink()
+            if isinstance(e, FileExistsError):
+                raise StudyError(f"{path}: already exists; a study file holds exactly one "
+                                 "study") from None
+            if isinstance(e, (sqlite3.Error, OSError)):
+                why = e.strerror if isinstance(e, OSError) and e.strerror else e
+                raise StudyError(f"{path}: cannot create study ({why})") from None
+            raise
+        return cls.open(path)
 
     @classmethod
     def open(cls, path: str | Path) -> Study:
         """Open an existing study; anything that is not one raises :class:`StudyError`."""
         path = Path(path)
+        if path.exists() and not path.is_file():
+            raise StudyError(f"{path}: cannot read study file (not a regular file)")
         try:
             with path.open("rb") as f:
                 head = f.read(len(_SQLITE_HEADER))
@@ -222,12 +262,14 @@ class Study:
             check = con.execute("PRAGMA quick_check").fetchone()[0]
             if check != "ok":
                 raise StudyError(f"{path}: study database is corrupt ({check})")
+            cls._check_schema(con, path)
             study = cls(con, path)  # reads and checks meta before anything is written
             cls._pragmas(con)
             return study
-        except sqlite3.Error as e:
+        except (sqlite3.Error, UnicodeDecodeError) as e:
             con.close()
-            raise StudyError(f"{path}: corrupt or unreadable study database ({e})") from e
+            raise StudyError(f"{path}: corrupt or unreadable study database "
+                             f"({str(e)[:80]})") from None
         except StudyError:
             con.close()
             raise
@@ -256,21 +298,31 @@ class Study:
         except sqlite3.Error as e:
             raise StudyError(f"{self.path}: database error ({e})") from e
 
+    def _rows(self, sql: str, params: tuple = ()) -> list[tuple]:
+        """All rows of a query; a damaged database (sqlite error, text that is not UTF-8)
+        raises :class:`StudyError`."""
+        try:
+            return self._con.execute(sql, params).fetchall()
+        except (sqlite3.Error, UnicodeDecodeError) as e:
+            raise StudyError(f"{self.path}: corrupt or unreadable study database "
+                             f"({type(e).__name__})") from None
+
     def stimuli(self) -> list[Stimulus]:
         """All stimuli in id order (without image bytes; see :meth:`image_bytes`)."""
         sql = "SELECT id, face, label, intensity, source FROM stimuli ORDER BY id"
-        return [Stimulus(*row, study_uid=self.uid) for row in self._con.execute(sql)]
+        return [Stimulus(*row, study_uid=self.uid) for row in self._rows(sql)]
 
     def image_bytes(self, stimulus_id: int) -> bytes:
         """The encoded image stored for a stimulus (PNG, JPEG or BMP bytes)."""
-        row = self._con.execute("SELECT image FROM stimuli WHERE id=?", (stimulus_id,)).fetchone()
+        rows = self._rows("SELECT image FROM stimuli WHERE id=?", (stimulus_id,))
+        row = rows[0] if rows else None
         if row is None:
             raise StudyError(f"no stimulus {stimulus_id} in study {self.name!r}")
         return bytes(row[0])
 
     def raters(self) -> list[str]:
         """Ids of raters who have started a session, in start order."""
-        return [r for (r,) in self._con.execute("SELECT id FROM raters ORDER BY rowid")]
+        return [r for (r,) in self._rows("SELECT id FROM raters ORDER BY rowid")]
 
     def answers(self, rater: str | None = None) -> list[AnswerRecord]:
         """All committed answers (optionally of one rater), ordered by rater then position."""
@@ -280,7 +332,7 @@ class Study:
                " ON o.rater = a.rater AND o.stimulus = a.stimulus"
                + (" WHERE a.rater = ?" if rater is not None else "")
                + " ORDER BY (SELECT rowid FROM raters WHERE id = a.rater), o.position")
-        rows = self._con.execute(sql, () if rater is None else (rater,))
+        rows = self._rows(sql, () if rater is None else (rater,))
         return [AnswerRecord(self.name, *row) for row in rows]
 
     def start_session(self, rater_id: str, seed: int | None = None) -> RaterSession:

@@ -7,13 +7,16 @@ process) when ``out`` ends in ``.mp4``/``.mov`` (H.264, yuv420p, ``+faststart`` 
 comes first and browsers and players start at once) or ``.avi`` (Motion JPEG), otherwise PNG
 files ``frame_00000.png`` ... into the folder ``out``. yuv420p needs even sizes: an odd width or
 height is padded by one replicated pixel column/row. ``progress(done, total)`` is called after
-each frame; returning ``False`` cancels (a video file is then removed, PNG frames already written
-are kept and counted in the result).
+each frame; returning ``False`` cancels. Output is staged next to the target (a temporary file
+or folder) and moved there only when complete and, for a video, read back with the right frame
+count: on cancel, error, Ctrl-C or a full disk nothing partial is left (``frames`` counts those
+rendered).
 """
 
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
@@ -25,6 +28,7 @@ import numpy as np
 from .errors import FapStudioError
 from .faps import FAPS
 from .imageio import save_image
+from .safeio import atomic_dir, atomic_file, quiet_stderr
 
 #: suffix -> (FFmpeg encoder, pixel format, container options)
 VIDEO_SUFFIXES: dict[str, tuple[str, str, dict[str, str]]] = {
@@ -108,37 +112,71 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
     if n == 0:
         raise FapStudioError("the sequence has no frames")
     p = Path(out)
+    codec = VIDEO_SUFFIXES.get(p.suffix.lower())
+    try:
+        # staged next to the target, moved there only when complete (issue 16)
+        with (atomic_file if codec else atomic_dir)(p) as tmp:
+            done = _write_frames(face, vecs, tmp, codec, seq.fps, progress, creases)
+            if done < n:
+                raise _Cancelled(done)
+            if codec:
+                check_video(tmp, done, p)
+    except _Cancelled as c:  # nothing partial is kept
+        return ExportResult(p, c.args[0], True)
+    except FapStudioError as e:  # name the target, not the staging folder
+        msg = re.sub(r"\.[^/\\]*\.\d+\.[0-9a-f]{8}\.part[^/\\]*", p.name, str(e))
+        raise type(e)(msg) from None
+    return ExportResult(p, n, False)
+
+
+def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
+                  progress: Callable[[int, int], bool | None] | None, creases: bool) -> int:
+    """Render into the video file or folder ``out``; the number of frames written (fewer
+    when ``progress`` cancelled). The video is finalised (released) before returning."""
+    n = len(vecs)
     h, w = face.image.shape[:2]
     writer = None
-    if p.suffix.lower() in VIDEO_SUFFIXES:
-        try:
-            p.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as e:
-            raise FapStudioError(f"{p.parent}: cannot create the folder ({e.strerror or e})"
-                                 ) from e
-        fps = float(seq.fps) if seq.fps and seq.fps > 0 else 25.0
-        writer = VideoWriter(p, (w, h), fps)
-    else:
-        try:
-            p.mkdir(parents=True, exist_ok=True)
-        except OSError as e:
-            raise FapStudioError(f"{p}: cannot create the folder ({e.strerror or e})") from e
+    if codec:
+        fps = float(fps) if fps and fps > 0 else 25.0
+        with quiet_stderr():
+            writer = VideoWriter(out, (w, h), fps)
     done = 0
-    cancelled = False
     try:
         for i, vec in enumerate(vecs):
             img = face.render(vec, creases=creases)
             if writer is not None:
-                writer.write(img)
+                with quiet_stderr():  # a full disk is checked after (check_video)
+                    writer.write(img)
             else:
-                save_image(p / f"frame_{i:05d}.png", img)
+                save_image(out / f"frame_{i:05d}.png", img)
             done += 1
             if progress is not None and progress(done, n) is False:
-                cancelled = done < n
                 break
     finally:
         if writer is not None:
-            writer.close()
-    if cancelled and writer is not None:
-        p.unlink(missing_ok=True)
-    return ExportResult(p, done, cancelled)
+            with quiet_stderr():
+                writer.close()
+    return done
+
+
+class _Cancelled(Exception):
+    pass
+
+
+def check_video(path: Path, frames: int, label: Path) -> None:
+    """Raise FapStudioError unless ``path`` is a finished video of ``frames`` frames (a full
+    disk leaves a truncated file the encoder does not report)."""
+    try:
+        size = path.stat().st_size
+    except OSError as e:
+        raise FapStudioError(f"{label}: cannot write the video ({e.strerror or e})") from None
+    with quiet_stderr():
+        cap = cv2.VideoCapture(str(path))
+        try:
+            got = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+        finally:
+            cap.release()
+    if size == 0 or got != frames:
+        raise FapStudioError(f"{label}: the video could not be written completely "
+                             f"({got if got >= 0 else 0} of {frames} frames readable; "
+                             "is the disk full?)")

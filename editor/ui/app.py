@@ -12,10 +12,12 @@ import traceback
 from pathlib import Path
 from types import TracebackType
 
-from PySide6.QtCore import QEventLoop
+from PySide6.QtCore import QEventLoop, QMessageLogContext, QtMsgType, qInstallMessageHandler
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 from editor.core import FAPS
+from editor.core.errors import FapStudioError
+from editor.core.safeio import atomic_file
 from editor.resources import SAMPLE_FACE
 
 from .main_window import MainWindow
@@ -28,12 +30,25 @@ def application() -> QApplication:
     """The QApplication (created on first use) with FAP Studio's names set."""
     app = QApplication.instance()
     if app is None:
+        qInstallMessageHandler(_qt_messages)
         app = QApplication(sys.argv[:1])
     assert isinstance(app, QApplication)
     app.setOrganizationName(ORGANIZATION)
     app.setApplicationName(APPLICATION)
     app.setApplicationDisplayName(APPLICATION)
     return app
+
+
+#: Qt messages that say nothing to a user (the offscreen platform cannot resize a window to
+#: its size hints; harmless) and would break the "one line on stderr" rule.
+QUIET_QT_MESSAGES = ("propagateSizeHints",)
+
+
+def _qt_messages(mode: QtMsgType, context: QMessageLogContext, message: str) -> None:
+    """Qt's messages: the harmless ones above dropped, the others on stderr as Qt does."""
+    if any(m in message for m in QUIET_QT_MESSAGES):
+        return
+    print(message, file=sys.stderr)
 
 
 def _excepthook(kind: type[BaseException], value: BaseException,
@@ -97,15 +112,17 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
     headless = screenshot is not None
     window = MainWindow()
 
-    def fail(message: str) -> int:
-        print(f"fap-studio: error: {message}", file=sys.stderr)
+    errors: list[str] = []
+
+    def fail(message: str) -> int:  # one line: the first error said, else ``message``
+        print(f"fap-studio: error: {' '.join((errors or [message])[0].split())}",
+              file=sys.stderr)
         window.close_without_prompt()
         return 2
 
     if headless:  # no dialogs (errors go to stderr), no recent files
         window.docs.remember = False
-        window.docs.error = lambda _title, msg: print(f"fap-studio: error: {msg}",
-                                                      file=sys.stderr)
+        window.docs.error = lambda _title, msg: errors.append(str(msg))
     ok = open_initial(window, photo, project, photo_neutral)
     if not ok and headless:
         return fail(f"cannot open {project or photo or SAMPLE_FACE}")
@@ -145,11 +162,10 @@ def _screenshot(app: QApplication, window: MainWindow, path: str) -> int:
         return 2
     out = Path(path)
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        print(f"fap-studio: error: {out}: cannot write ({e.strerror or e})", file=sys.stderr)
-        return 2
-    if not image.save(str(out), "PNG"):
-        print(f"fap-studio: error: {out}: cannot write the screenshot", file=sys.stderr)
+        with atomic_file(out) as tmp:
+            if not image.save(str(tmp), "PNG"):
+                raise FapStudioError(f"{out}: cannot write the screenshot")
+    except FapStudioError as e:
+        print(f"fap-studio: error: {e}", file=sys.stderr)
         return 2
     return 0

@@ -95,7 +95,7 @@ class Document:
         """A copy with some FAPs set (names or numbers), clamped; ``self`` if nothing changes."""
         v = self.faps.copy()
         for key, val in values.items():
-            v[FAPS.number(key) - 1] = float(val)
+            v[FAPS.number(key) - 1] = FAPS.vector({key: val})[FAPS.number(key) - 1]
         v = FAPS.clamp(v)
         return self if np.array_equal(v, self.faps) else self.replace(faps=v)
 
@@ -106,7 +106,10 @@ class Document:
     def with_vertex(self, index: int, xy: tuple[float, float] | np.ndarray) -> Document:
         """A copy with one neutral mesh vertex moved to ``xy`` (image pixels)."""
         v = self.vertices.copy()
-        v[index] = np.asarray(xy, np.float32)
+        p = np.asarray(xy, np.float64).reshape(2)
+        if not (np.abs(p) < 1e9).all():
+            raise ValueError(f"vertex {index}: position {xy!r} is not two finite numbers")
+        v[index] = p
         return self if np.array_equal(v, self.vertices) else self.replace(vertices=v)
 
 

@@ -30,7 +30,7 @@ def expression_presets() -> list[str]:
     """Names of the available expression presets (visemes left out), paper's five first."""
     from editor.core.expressions import all_presets
 
-    names = [n for n, p in all_presets().items() if not n.startswith("viseme")
+    names = [n for n, p in all_presets([]).items() if not n.startswith("viseme")
              and getattr(p, "kind", "expression") != "viseme"]
     return [*[n for n in PAPER_EXPRESSIONS if n in names],
             *sorted(n for n in names if n not in PAPER_EXPRESSIONS)]

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
 from editor.core.errors import FapStudioError
 from editor.core.mos import CANNOT_TELL, Study
 from editor.core.mos_stats import StudyReport, Summary, analyse, format_report
+from editor.core.safeio import atomic_file
 from editor.study_cli import export_answers_csv
 
 from .plots import BarPlot, ConfusionPlot
@@ -206,8 +207,15 @@ class ResultsWindow(QWidget):
             return False
         shown = self.tabs.currentWidget()
         self.tabs.setCurrentWidget(self.plots)  # a hidden tab may have no valid geometry
-        ok = self.plots.grab().save(str(path), "PNG")
+        image = self.plots.grab()
         self.tabs.setCurrentWidget(shown)
+        try:  # atomically: a failed save leaves no partial PNG
+            with atomic_file(path) as tmp:
+                if not image.save(str(tmp), "PNG"):
+                    raise FapStudioError(f"{path}: cannot write PNG")
+            ok = True
+        except FapStudioError:
+            ok = False
         if not ok:
             QMessageBox.warning(self, "Cannot save the plots", f"{path}: cannot write PNG")
         return ok

@@ -31,10 +31,16 @@ from pathlib import Path
 import numpy as np
 
 from editor.core import FAPS, ProjectError
+from editor.core.safeio import atomic_write_text, read_bounded
 
 FORMAT = "fap-studio-project"
 VERSION = 1
 SUFFIX = ".fapproj"
+MAX_PROJECT_BYTES = 16 * 1024 * 1024
+
+
+def _no_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a number JSON allows")
 
 
 def _num(x: float) -> str:
@@ -87,23 +93,17 @@ def save_project(path: str | os.PathLike[str], photo: str, vertices: np.ndarray,
                  faps: np.ndarray, names: Sequence[str], photo_neutral: bool = False) -> None:
     """Write a project file atomically; ProjectError if it cannot be written."""
     p = Path(path)
+    for what, a in (("FAP values", faps), ("mesh vertices", vertices)):
+        if not np.isfinite(np.asarray(a, np.float64)).all():
+            raise ProjectError(f"{p}: not saved: the {what} hold NaN or infinite numbers")
     text = project_text(photo, vertices, faps, names, p.parent, photo_neutral)
-    tmp = p.with_name(p.name + ".tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    except OSError as e:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
-        raise ProjectError(f"{p}: cannot write ({e.strerror or e})") from e
+    atomic_write_text(p, text, error=ProjectError)
 
 
 def _point(p: Path, name: str, xy: object) -> tuple[float, float]:
     if (not isinstance(xy, list) or len(xy) != 2
-            or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in xy)
-            or not np.isfinite(xy).all()):
+            or not all(isinstance(c, (int, float)) and not isinstance(c, bool)
+                       and abs(c) < 1e9 for c in xy)):
         raise ProjectError(f"{p}: mesh vertex {name!r} must be [x, y] with two finite numbers")
     return float(xy[0]), float(xy[1])
 
@@ -114,17 +114,17 @@ def load_project(path: str | os.PathLike[str], names: Sequence[str]) -> ProjectD
     Raises ProjectError with a one-line message naming the file and what is wrong.
     """
     p = Path(path)
+    raw = read_bounded(p, MAX_PROJECT_BYTES, error=ProjectError, what="a project file")
     try:
-        raw = p.read_bytes()
-    except OSError as e:
-        raise ProjectError(f"{p}: cannot read ({e.strerror or e})") from e
-    try:
-        d = json.loads(raw.decode("utf-8"))
+        d = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
     except UnicodeDecodeError as e:
         raise ProjectError(f"{p}: not a project file (not UTF-8 text)") from e
     except json.JSONDecodeError as e:
         raise ProjectError(f"{p}: not a project file (invalid JSON at line {e.lineno}: "
                            f"{e.msg})") from e
+    except (ValueError, RecursionError) as e:  # NaN/Infinity, a 5000-digit number, nesting
+        why = "nested too deeply" if isinstance(e, RecursionError) else str(e)[:80]
+        raise ProjectError(f"{p}: not a project file ({why})") from None
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise ProjectError(f'{p}: not a FAP Studio project (no "format": "{FORMAT}")')
     version = d.get("version")
@@ -143,7 +143,7 @@ def load_project(path: str | os.PathLike[str], names: Sequence[str]) -> ProjectD
     if not isinstance(faps_d, dict):
         raise ProjectError(f'{p}: "faps" must map FAP names to values')
     for k, v in faps_d.items():
-        if not isinstance(v, (int, float)) or isinstance(v, bool):
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not abs(v) < 1e9:
             raise ProjectError(f"{p}: FAP {k!r}: value {v!r} is not a number")
     try:
         faps = FAPS.vector(faps_d)

@@ -618,12 +618,13 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
 _MIN_UNFOLD = 0.02
 
 
-def _skin_weight(patch: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """Skin-likeness in [0, 1] of every pixel (hair, brows, eyes and lashes are not folded)."""
+def _skin_weight(patch: np.ndarray, ref: np.ndarray, tol: float = 0.45) -> np.ndarray:
+    """Skin-likeness in [0, 1] of every pixel (hair, brows, eyes and lashes are not folded):
+    1 up to ``tol - 0.25`` of relative colour distance to ``ref``, 0 from ``tol``."""
     ref_l = max(float(ref.mean()), 20.0)
     d = (patch - ref) ** 2
     dist = np.sqrt((d[..., 0] + d[..., 1] + d[..., 2]) * np.float32(1.0 / 3.0))
-    return np.clip((0.45 - dist / np.float32(ref_l)) * 4.0, 0.0, 1.0)
+    return np.clip((np.float32(tol) - dist / np.float32(ref_l)) * 4.0, 0.0, 1.0)
 
 
 _VALLEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -693,6 +694,16 @@ _VALLEY_REACH = 0.08
 _VALLEY_WIDTH = 4.0
 
 
+def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
+    """Normalised anisotropic Gaussian kernel, ``along`` px along ``angle`` (radians)."""
+    h = int(math.ceil(3.0 * along))
+    y, x = np.mgrid[-h:h + 1, -h:h + 1].astype(np.float64)
+    c, s = math.cos(angle), math.sin(angle)
+    u, v = x * c + y * s, -x * s + y * c
+    k = np.exp(-0.5 * ((u / along) ** 2 + (v / across) ** 2))
+    return (k / k.sum()).astype(np.float32)
+
+
 def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             bbox: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
@@ -739,13 +750,21 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         # flat across the valley, falling off over the band's edge
         band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
         big = out[Y0:Y1, X0:X1].astype(np.float32)
-        S = cv2.GaussianBlur(big, (0, 0), 0.5)
+        # smoothed along the fold only: the valley keeps its profile across the line (its
+        # sharp core is lifted too) while the skin's grain along it stays in ``patch / S``
+        dd = d * (w.reshape(len(ia), K).sum(1) / np.maximum(L, 1e-9))[:, None]
+        ang = 0.5 * math.atan2(float((2 * dd[:, 0] * dd[:, 1]).sum()),
+                               float((dd[:, 0] ** 2 - dd[:, 1] ** 2).sum()))
+        S = cv2.filter2D(big, -1, _line_kernel(ang, max(1.5 * sig, 1.0), 0.35),
+                         borderType=cv2.BORDER_REPLICATE)
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        C = cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker)
+        # the skin level either side of the valley; blurred so that between shoulders of
+        # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps
+        C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
         iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
         S, C = S[iy, ix], C[iy, ix]
-        gain = np.clip(C / np.maximum(S, 1.0), 1.0, 3.0)
-        wt = band * _skin_weight(C, fa.skin[g])
+        gain = np.clip(C / np.maximum(S, 1.0), 1.0, 4.0)
+        wt = band * _skin_weight(C, fa.skin[g], 0.6)
         patch = out[y0:y1, x0:x1].astype(np.float32)
         out[y0:y1, x0:x1] = np.clip(patch * (1.0 + (gain - 1.0) * wt[..., None]) + 0.5, 0,
                                     255).astype(np.uint8)

@@ -375,3 +375,11 @@ def test_own_fold_is_lifted_where_the_photo_shows_it(sample_face):
     # nothing darker than without creases along either fold (main: up to 17 grey levels)
     region = np.logical_or.reduce(_own_fold_bands(f))
     assert (_lum(off) - _lum(on))[region].max() <= 1.0
+
+
+def test_closing_the_eyes_makes_no_nasal_root_lines(sample_face):
+    """The nasal-root lines follow the inner brows pushed down, not the upper lids: closed eyes
+    (the lids and the ring above them move down) draw none (main: 0.13, as strong as anger)."""
+    f = sample_face
+    vec = f.fap_vector({"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080})
+    assert not any(s.any() for k, _p, s in fold_lines(f, f.deform(vec)) if k == "bridge")

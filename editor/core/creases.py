@@ -277,8 +277,12 @@ def _fold_lines(face: Face) -> list[_Line]:
     n27, n28 = q("nose_27"), q("nose_28")
     bi_r, bi_l = q("brow_r_e1"), q("brow_l_e0")
     ec_r, ec_l = q("eye_r_c1"), q("eye_l_c0")
-    probes = np.array([0.5 * (bi_r + ec_r), 0.3 * bi_r + 0.7 * ec_r,
-                       0.5 * (bi_l + ec_l), 0.3 * bi_l + 0.7 * ec_l])
+    # probes between the inner brow end, the inner canthus and the nasal root, in the skin
+    # the lowered brow head squeezes but not on the upper lid's ring (closing the eyes moves
+    # that ring down and is no frown)
+    probes = np.array([b + k * (e - b) + 0.8 * k * (n27 - b) for b, e in ((bi_r, ec_r),
+                                                                          (bi_l, ec_l))
+                       for k in (0.2, 0.27)])
     for j, f in enumerate((-0.3, 0.0, 0.3)):  # at the root, level with the inner canthi
         c = n27 + f * (n28 - n27)
         w = 0.1 + 0.025 * j

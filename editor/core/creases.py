@@ -25,14 +25,18 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
 * **The photo's own folds.** A photo that smiles has folds of its own that the warp carries
   into every expression. Where the target spreads the skin across a fold relative to the
   photo's mesh, by the share of what the photo's neutral mesh spreads it
-  (:func:`unfold_strength`), the fold's shading is pulled towards the skin around it
-  (:func:`_unfold`); the photo's own expression is left exactly as it is.
+  (:func:`unfold_strength`), the fold's valley is lifted to the skin level either side of it
+  (:func:`_unfold`: a closing of the image smoothed along the fold, as a per-channel gain >= 1,
+  so the skin's grain and colour stay and nothing darkens), in a band centred on the valley the
+  photo actually shows near the laid-out line (:func:`_own_valleys`, found once per face); the
+  photo's own expression is left exactly as it is.
 
 :func:`apply_creases` runs after :func:`render_layers`. A zero FAP vector gives no crease.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import weakref
@@ -681,7 +685,9 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         score = prof * (1.0 - 0.3 * (ds / reach) ** 2)[None]
         k = np.argmax(score, 1)
         off, depth = ds[k], prof[np.arange(b - a), k]
-        w = np.maximum(depth - 1.0, 0.0) + 1e-3  # a sample without a valley follows the others
+        # a sample without a valley (or at the fold's faded ends, where the search may catch the
+        # nose wing or the mouth corner) follows the others
+        w = (np.maximum(depth - 1.0, 0.0) + 1e-3) * (p.utaper[a:b] + 1e-3)
         kern = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
         num = np.convolve(np.pad(off * w, 4, mode="edge"), kern, mode="valid")
         den = np.convolve(np.pad(w, 4, mode="edge"), kern, mode="valid")
@@ -698,6 +704,11 @@ _VALLEY_REACH = 0.08
 _VALLEY_WIDTH = 4.0
 
 
+#: directions of the along-fold smoothing (every 180 / _N_DIR degrees)
+_N_DIR = 6
+
+
+@functools.lru_cache(maxsize=64)
 def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
     """Normalised anisotropic Gaussian kernel, ``along`` px along ``angle`` (radians)."""
     h = int(math.ceil(3.0 * along))
@@ -756,17 +767,35 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         big = out[Y0:Y1, X0:X1].astype(np.float32)
         # smoothed along the fold only: the valley keeps its profile across the line (its
         # sharp core is lifted too) while the skin's grain along it stays in ``patch / S``
+        # (per pixel, the direction of the nearest part of the fold, in _N_DIR steps: a
+        # nasolabial fold curves around the mouth)
         dd = d * (w.reshape(len(ia), K).sum(1) / np.maximum(L, 1e-9))[:, None]
-        ang = 0.5 * math.atan2(float((2 * dd[:, 0] * dd[:, 1]).sum()),
-                               float((dd[:, 0] ** 2 - dd[:, 1] ** 2).sum()))
-        S = cv2.filter2D(big, -1, _line_kernel(ang, max(1.5 * sig, 1.0), 0.35),
-                         borderType=cv2.BORDER_REPLICATE)
+        c2 = np.repeat((dd[:, 0] ** 2 - dd[:, 1] ** 2) / np.maximum(L, 1e-9), K)
+        s2 = np.repeat(2 * dd[:, 0] * dd[:, 1] / np.maximum(L, 1e-9), K)
+        # (only over the written box; around it, where the closing finds the shoulders, an
+        # isotropic blur does)
+        qb = pts - o
+        fc, fs = _splat2((y1 - y0 + 1, x1 - x0 + 1), qb, c2 / K, qb, s2 / K)
+        fc = cv2.GaussianBlur(fc[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * c2.sum())
+        fs = cv2.GaussianBlur(fs[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * s2.sum())
+        k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
+        iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
+        S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
+        h = int(math.ceil(4.5 * max(1.5 * sig, 1.0)))
+        sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
+        cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
+        Si = S[iy, ix]
+        for j in np.unique(k):
+            m = k == j
+            Si[m] = cv2.filter2D(sub, -1, _line_kernel(int(j) * math.pi / _N_DIR,
+                                                       round(max(1.5 * sig, 1.0), 2), 0.35),
+                                 borderType=cv2.BORDER_REPLICATE)[cy:cy + y1 - y0,
+                                                                   cx:cx + x1 - x0][m]
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
         # the skin level either side of the valley; blurred so that between shoulders of
         # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps
         C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
-        iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
-        S, C = S[iy, ix], C[iy, ix]
+        S, C = Si, C[iy, ix]
         gain = np.clip(C / np.maximum(S, 1.0), 1.0, 4.0)
         wt = band * _skin_weight(C, fa.skin[g], 0.6)
         patch = out[y0:y1, x0:x1].astype(np.float32)

@@ -797,7 +797,10 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
         S, C = Si, C[iy, ix]
         gain = np.clip(C / np.maximum(S, 1.0), 1.0, 4.0)
-        wt = band * _skin_weight(C, fa.skin[g], 0.6)
+        # the lifted level is skin unless it is much darker than the skin or off its colour
+        # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
+        ref = fa.skin[g]
+        wt = band * _skin_weight(np.minimum(C, ref + 0.3 * (C - ref)), ref, 0.6)
         patch = out[y0:y1, x0:x1].astype(np.float32)
         out[y0:y1, x0:x1] = np.clip(patch * (1.0 + (gain - 1.0) * wt[..., None]) + 0.5, 0,
                                     255).astype(np.uint8)

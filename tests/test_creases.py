@@ -324,3 +324,62 @@ def test_no_own_folds_faded_on_nearly_neutral_photos():
         f = Face.from_image(path)
         for name in ("sadness", "surprise", "anger", "fear", "disgust"):
             assert unfold_strength(f, f.deform(shipped(name))).max() < 0.1, (path.name, name)
+
+
+def _valley(L: np.ndarray, pts: np.ndarray, iod: float) -> tuple[float, float]:
+    """Median depth and sharpness of the dark valley across a fold line in luminance ``L``.
+
+    Profiles across the middle of the line (+-0.18 IOD); the valley's bottom is looked for
+    within 0.1 IOD of the line (the laid-out line need not sit on the photo's valley). Depth:
+    the lower of the brightest points either side (beyond 0.035 IOD) minus the bottom; sharpness:
+    the profile 0.02-0.035 IOD either side of the bottom minus the bottom (a thin line)."""
+    import cv2
+
+    tang = np.gradient(pts, axis=0)
+    tang /= np.linalg.norm(tang, axis=1, keepdims=True)
+    nrm = np.stack([-tang[:, 1], tang[:, 0]], 1)
+    ds = np.arange(-0.18, 0.1801, 0.01)
+    depth, sharp = [], []
+    for i in range(int(0.3 * len(pts)), int(0.7 * len(pts)) + 1):
+        q = (pts[i] + ds[:, None] * iod * nrm[i]).astype(np.float32)
+        p = cv2.remap(L.astype(np.float32), q[None, :, 0], q[None, :, 1], cv2.INTER_LINEAR)[0]
+        c = np.flatnonzero(np.abs(ds) <= 0.1)
+        b = c[np.argmin(p[c])]
+        r = ds - ds[b]
+        sides = [p[(r < -0.035) & (r > -0.16)].max(), p[(r > 0.035) & (r < 0.16)].max()]
+        depth.append(min(sides) - p[b])
+        sharp.append(p[(np.abs(r) > 0.015) & (np.abs(r) <= 0.035)].mean() - p[b])
+    return float(np.median(depth)), float(np.median(sharp))
+
+
+def test_own_fold_is_lifted_where_the_photo_shows_it(sample_face):
+    """The sample's image-left smile fold (the subject's right) lies 1-3 px medial of its laid-out
+    line. Neutralised, its valley is lifted wherever it is: shallower than in the photo and no
+    sharper than without creases (a lift beside it left a harsh thin line, outlined by brightened
+    skin), and the fading never darkens the skin."""
+    f = sample_face
+    v = f.deform(None)
+    on, off = f.render(None), f.render(None, creases=False)
+    naso = [(pts, pts0) for (k, pts, _s), (_k, pts0, _s0) in zip(fold_lines(f, v),
+                                                                  fold_lines(f, f.vertices),
+                                                                  strict=True)
+            if k == "nasolabial"]
+    pts, pts0 = min(naso, key=lambda t: float(t[0][:, 0].mean()))  # image-left
+    iod = f.interocular
+    d_photo, s_photo = _valley(_lum(f.image), pts0, iod)
+    d_off, s_off = _valley(_lum(off), pts, iod)
+    d_on, s_on = _valley(_lum(on), pts, iod)
+    assert d_photo > 40 and d_off > 40  # a real valley (71 / 56 grey levels)
+    assert d_on < 0.3 * d_photo and d_on < 0.3 * d_off  # main: 41
+    assert s_on < 0.6 * s_off  # main: 22.0 against 16.4 without creases
+    # nothing darker than without creases along either fold (main: up to 17 grey levels)
+    region = np.logical_or.reduce(_own_fold_bands(f))
+    assert (_lum(off) - _lum(on))[region].max() <= 1.0
+
+
+def test_closing_the_eyes_makes_no_nasal_root_lines(sample_face):
+    """The nasal-root lines follow the inner brows pushed down, not the upper lids: closed eyes
+    (the lids and the ring above them move down) draw none (main: 0.13, as strong as anger)."""
+    f = sample_face
+    vec = f.fap_vector({"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080})
+    assert not any(s.any() for k, _p, s in fold_lines(f, f.deform(vec)) if k == "bridge")

@@ -25,14 +25,18 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
 * **The photo's own folds.** A photo that smiles has folds of its own that the warp carries
   into every expression. Where the target spreads the skin across a fold relative to the
   photo's mesh, by the share of what the photo's neutral mesh spreads it
-  (:func:`unfold_strength`), the fold's shading is pulled towards the skin around it
-  (:func:`_unfold`); the photo's own expression is left exactly as it is.
+  (:func:`unfold_strength`), the fold's valley is lifted to the skin level either side of it
+  (:func:`_unfold`: a closing of the image smoothed along the fold, as a per-channel gain >= 1,
+  so the skin's grain and colour stay and nothing darkens), in a band centred on the valley the
+  photo actually shows near the laid-out line (:func:`_own_valleys`, found once per face); the
+  photo's own expression is left exactly as it is.
 
 :func:`apply_creases` runs after :func:`render_layers`. A zero FAP vector gives no crease.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import weakref
@@ -277,8 +281,12 @@ def _fold_lines(face: Face) -> list[_Line]:
     n27, n28 = q("nose_27"), q("nose_28")
     bi_r, bi_l = q("brow_r_e1"), q("brow_l_e0")
     ec_r, ec_l = q("eye_r_c1"), q("eye_l_c0")
-    probes = np.array([0.5 * (bi_r + ec_r), 0.3 * bi_r + 0.7 * ec_r,
-                       0.5 * (bi_l + ec_l), 0.3 * bi_l + 0.7 * ec_l])
+    # probes between the inner brow end, the inner canthus and the nasal root, in the skin
+    # the lowered brow head squeezes but not on the upper lid's ring (closing the eyes moves
+    # that ring down and is no frown)
+    probes = np.array([b + k * (e - b) + 0.8 * k * (n27 - b) for b, e in ((bi_r, ec_r),
+                                                                          (bi_l, ec_l))
+                       for k in (0.2, 0.27)])
     for j, f in enumerate((-0.3, 0.0, 0.3)):  # at the root, level with the inner canthi
         c = n27 + f * (n28 - n27)
         w = 0.1 + 0.025 * j
@@ -616,7 +624,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     H, W = out.shape[:2]
     bbox = res.bbox
     if np.count_nonzero(un > _MIN_UNFOLD):
-        bbox = _unfold(face, out, pos, un, bbox)
+        bbox = _unfold(face, out, V, un, bbox)
     live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
     tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
@@ -671,34 +679,123 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
 _MIN_UNFOLD = 0.02
 
 
-def _skin_weight(patch: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """Skin-likeness in [0, 1] of every pixel (hair, brows, eyes and lashes are not folded)."""
+def _skin_weight(patch: np.ndarray, ref: np.ndarray, tol: float = 0.45) -> np.ndarray:
+    """Skin-likeness in [0, 1] of every pixel (hair, brows, eyes and lashes are not folded):
+    1 up to ``tol - 0.25`` of relative colour distance to ``ref``, 0 from ``tol``."""
     ref_l = max(float(ref.mean()), 20.0)
     d = (patch - ref) ** 2
     dist = np.sqrt((d[..., 0] + d[..., 1] + d[..., 2]) * np.float32(1.0 / 3.0))
-    return np.clip((0.45 - dist / np.float32(ref_l)) * 4.0, 0.0, 1.0)
+    return np.clip((np.float32(tol) - dist / np.float32(ref_l)) * 4.0, 0.0, 1.0)
 
 
-def _unfold(face: Face, out: np.ndarray, pos: np.ndarray, un: np.ndarray,
+_VALLEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
+    """``(tri, bary)`` (N,) / (N, 3): every fold sample moved across its line onto the photo's
+    own valley (cached per face; depends on the photo only).
+
+    The fold lines are laid out from feature points and need not sit on the dark valley a
+    smiling photo shows (the sample's image-left nasolabial fold lies 1-3 px medial of its
+    line). Per sample, the valley is searched across the line within :data:`_VALLEY_REACH`
+    on the photo's smoothed luminance: the deepest point of its black top-hat (a closing
+    wider than the fold minus the luminance: how far the skin dips below the shoulders on
+    either side), slightly favouring the laid-out line; the offsets are smoothed along the
+    line (weighted by the valley's depth) so that the band follows the valley, not the noise.
+    """
+    got = _VALLEYS.get(face)
+    if got is not None:
+        return got
+    p = crease_plan(face)
+    fa = _fast(face)
+    V = face.vertices.astype(np.float64)
+    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    tri, bary = p.tri.copy(), p.bary.copy()
+    img = face.image
+    H, W = img.shape[:2]
+    lum = img.astype(np.float32) @ np.float32([0.299, 0.587, 0.114])
+    reach = max(_VALLEY_REACH * p.iod, 2.0)
+    ds = np.arange(-reach, reach + 1e-6, 0.25)
+    ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)
+    cand = np.flatnonzero(ok)
+    for f in range(p.n_folds):
+        a, b = int(p.start[f]), int(p.start[f + 1])
+        if fa.own_gap is None or fa.own_gap[f] < _OWN_MIN or not p.utaper[a:b].any():
+            continue
+        sig = max(STYLES[p.kinds[f]].sigma * p.iod, 0.6)
+        r = int(math.ceil(_VALLEY_WIDTH * sig))
+        q = pos[a:b]
+        pad = reach + 2 * r + 3
+        x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
+        x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
+        ls = cv2.GaussianBlur(lum[y0:y1, x0:x1], (0, 0), 0.7 * sig)
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
+        nrm = p.normal[a:b]
+        xy = (q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - (x0, y0)).astype(np.float32)
+        prof = cv2.remap(hat, xy[..., 0], xy[..., 1], cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE)
+        score = prof * (1.0 - 0.3 * (ds / reach) ** 2)[None]
+        k = np.argmax(score, 1)
+        off, depth = ds[k], prof[np.arange(b - a), k]
+        # a sample without a valley (or at the fold's faded ends, where the search may catch the
+        # nose wing or the mouth corner) follows the others
+        w = (np.maximum(depth - 1.0, 0.0) + 1e-3) * (p.utaper[a:b] + 1e-3)
+        kern = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
+        num = np.convolve(np.pad(off * w, 4, mode="edge"), kern, mode="valid")
+        den = np.convolve(np.pad(w, 4, mode="edge"), kern, mode="valid")
+        off = np.clip(num / den, -reach, reach)
+        ti, bc = _locate(q + off[:, None] * nrm, V, face.mesh.triangles[cand])
+        tri[a:b], bary[a:b] = cand[ti], bc
+    _VALLEYS[face] = (tri, bary)
+    return tri, bary
+
+
+#: how far across its laid-out line a photo's own fold is looked for (inter-ocular distances)
+_VALLEY_REACH = 0.08
+#: the widest valley a fold is (radius of the closing, in line widths ``sigma``)
+_VALLEY_WIDTH = 4.0
+
+
+#: directions of the along-fold smoothing (every 180 / _N_DIR degrees)
+_N_DIR = 6
+
+
+@functools.lru_cache(maxsize=64)
+def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
+    """Normalised anisotropic Gaussian kernel, ``along`` px along ``angle`` (radians)."""
+    h = int(math.ceil(3.0 * along))
+    y, x = np.mgrid[-h:h + 1, -h:h + 1].astype(np.float64)
+    c, s = math.cos(angle), math.sin(angle)
+    u, v = x * c + y * s, -x * s + y * c
+    k = np.exp(-0.5 * ((u / along) ** 2 + (v / across) ** 2))
+    return (k / k.sum()).astype(np.float32)
+
+
+def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             bbox: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
-    Along each fold (a band a few line widths wide, strength ``un``) the skin's shading is
-    pulled towards that of the skin around it: the gain ``G_l(L w) / G_l(w) / G_s(L)`` (``L``
-    luminance, ``w`` skin-likeness, ``G_l`` a blur wider than the fold, ``G_s`` one about the
-    fold's own width) lifts the fold's dark valley (and tones down the ridge beside it) while
-    the finer texture, the colour and the photo's light outside the band stay.
+    Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
+    line widths wide, strength ``un``) the valley is lifted to its shoulders: per channel, the
+    gain ``C(S) / S`` (``S`` the image lightly smoothed, ``C`` a closing wider than the fold:
+    the skin level on either side of the valley, whatever the valley's exact place and shape
+    inside the band) raised to the strength. It is >= 1 (nothing is darkened) and ~1 off the
+    valley; the finer texture and the colour of the skin around the valley stay. Weighted by how
+    skin-like that lifted level is (hair, brows, eyes are not).
     """
     fa = _fast(face)
+    tri, bary = _own_valleys(face)
+    V = np.asarray(vertices, np.float64)
+    pos = (V[face.mesh.triangles[tri]] * bary[..., None]).sum(1)
     H, W = out.shape[:2]
     for g, (g0, g1) in enumerate(fa.seg_rng):
         ia = fa.seg_a[g0:g1]
         if not (np.maximum(un[ia], un[ia + 1]) > _MIN_UNFOLD).any():
             continue
         sig = float(fa.sig[g])
-        sb = max(5.0 * sig, 1.0)  # half-width of the band that is smoothed
-        sl = 3.5 * sb  # the surrounding skin
-        ss = max(0.6 * sig, 0.6)  # the fold's own scale
+        sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
+        r = int(math.ceil(_VALLEY_WIDTH * sig * 1.25))  # the target may widen the valley
         a, d = pos[ia], pos[ia + 1] - pos[ia]
         L = np.sqrt((d * d).sum(1))
         K = int(min(max(np.ceil(L.max() / 0.5), 1), 64))
@@ -706,45 +803,60 @@ def _unfold(face: Face, out: np.ndarray, pos: np.ndarray, un: np.ndarray,
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ua, ub = un[ia], un[ia + 1]
         w = ((ua[:, None] + (ub - ua)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        # the box that is written (the band) and the larger one the surrounding skin is read in
+        # the box that is written (the band) and the larger one the closing reads
         lo, hi = pts.min(0) - 3.0 * sb, pts.max(0) + 3.0 * sb
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        pad = int(2.0 * sl)
+        pad = 2 * r + 2
         X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
         X1, Y1 = min(x1 + pad, W), min(y1 + pad, H)
-        # the smooth fields (band, surrounding skin) at a lower resolution: R px per cell
-        R = max(1, int(sl / 4.0))
-        hs, ws = max((Y1 - Y0) // R, 2), max((X1 - X0) // R, 2)
-        fx, fy = ws / (X1 - X0), hs / (Y1 - Y0)
-        small = (cv2.resize(out[Y0:Y1, X0:X1], (ws, hs), interpolation=cv2.INTER_AREA)
-                 if R > 1 else out[Y0:Y1, X0:X1]).astype(np.float32)
-        wsk_s = _skin_weight(small, fa.skin[g])
-        num = cv2.GaussianBlur(small * wsk_s[..., None], (0, 0), sl * fx)
-        den = cv2.GaussianBlur(wsk_s, (0, 0), sl * fx)
-        sur = num / np.maximum(den, 1e-3)[..., None]
-        sur[den < 0.05] = 0.0  # no skin around: no change
-        q = (pts - (X0, Y0)) * (fx, fy)
-        band, _ = _splat2((hs + 1, ws + 1), q, w * fx, q[:0], w[:0])
-        band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb * fx)
-        band = np.minimum(band * np.float32(math.sqrt(2 * math.pi) * sb * fx), 1.0)
-        # back to full resolution, only over the written box (one bilinear warp of both)
-        M = np.array([[fx, 0.0, (x0 - X0 + 0.5) * fx - 0.5],
-                      [0.0, fy, (y0 - Y0 + 0.5) * fy - 0.5]])
-        full = cv2.warpAffine(np.dstack([sur, band]), M, (x1 - x0, y1 - y0),
-                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                              borderMode=cv2.BORDER_REPLICATE)
-        sur, band = full[..., :3], full[..., 3]
+        o = np.array([x0, y0], np.float64)
+        band, _ = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, pts[:0], w[:0])
+        band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb)
+        # flat across the valley, falling off over the band's edge
+        band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
+        big = out[Y0:Y1, X0:X1].astype(np.float32)
+        # smoothed along the fold only: the valley keeps its profile across the line (its
+        # sharp core is lifted too) while the skin's grain along it stays in ``patch / S``
+        # (per pixel, the direction of the nearest part of the fold, in _N_DIR steps: a
+        # nasolabial fold curves around the mouth)
+        dd = d * (w.reshape(len(ia), K).sum(1) / np.maximum(L, 1e-9))[:, None]
+        c2 = np.repeat((dd[:, 0] ** 2 - dd[:, 1] ** 2) / np.maximum(L, 1e-9), K)
+        s2 = np.repeat(2 * dd[:, 0] * dd[:, 1] / np.maximum(L, 1e-9), K)
+        # (only over the written box; around it, where the closing finds the shoulders, an
+        # isotropic blur does)
+        qb = pts - o
+        fc, fs = _splat2((y1 - y0 + 1, x1 - x0 + 1), qb, c2 / K, qb, s2 / K)
+        fc = cv2.GaussianBlur(fc[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * c2.sum())
+        fs = cv2.GaussianBlur(fs[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * s2.sum())
+        k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
+        iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
+        S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
+        h = int(math.ceil(4.5 * max(1.5 * sig, 1.0)))
+        sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
+        cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
+        Si = S[iy, ix]
+        for j in np.unique(k):
+            m = k == j
+            Si[m] = cv2.filter2D(sub, -1, _line_kernel(int(j) * math.pi / _N_DIR,
+                                                       round(max(1.5 * sig, 1.0), 2), 0.35),
+                                 borderType=cv2.BORDER_REPLICATE)[cy:cy + y1 - y0,
+                                                                   cx:cx + x1 - x0][m]
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        # the skin level either side of the valley; blurred so that between shoulders of
+        # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps
+        C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
+        S, C = Si, C[iy, ix]
+        gain = np.clip(C / np.maximum(S, 1.0), 1.0, 4.0)
+        # the lifted level is skin unless it is much darker than the skin or off its colour
+        # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
+        ref = fa.skin[g]
+        wt = band * _skin_weight(np.minimum(C, ref + 0.3 * (C - ref)), ref, 0.6)
         patch = out[y0:y1, x0:x1].astype(np.float32)
-        wsk = _skin_weight(patch, fa.skin[g])
-        # per channel: a fold's shadow is also more saturated than the skin around it
-        near = cv2.GaussianBlur(patch, (0, 0), ss)
-        gain = np.clip(sur / np.maximum(near, 1.0), 0.88, 1.45)
-        gain[sur[..., 0] <= 0.0] = 1.0
-        k = (gain - 1.0) * (band * wsk)[..., None]
-        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + k) + 0.5, 0, 255).astype(np.uint8)
+        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + (gain - 1.0) * wt[..., None]) + 0.5, 0,
+                                    255).astype(np.uint8)
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
 

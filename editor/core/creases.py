@@ -840,14 +840,32 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         Si = S[iy, ix]
         for j in np.unique(k):
             m = k == j
-            Si[m] = cv2.filter2D(sub, -1, _line_kernel(int(j) * math.pi / _N_DIR,
+            # filtered only over the rows/columns where this direction is used (+ the kernel)
+            rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
+            r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+            sy0, sx0 = cy + r0, cx + c0
+            part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
+            oy, ox = min(sy0, h), min(sx0, h)
+            filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR,
                                                        round(max(1.5 * sig, 1.0), 2), 0.35),
-                                 borderType=cv2.BORDER_REPLICATE)[cy:cy + y1 - y0,
-                                                                   cx:cx + x1 - x0][m]
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+                                borderType=cv2.BORDER_REPLICATE)
+            mm = m[r0:r1, c0:c1]
+            Si[r0:r1, c0:c1][mm] = filt[oy:oy + r1 - r0, ox:ox + c1 - c0][mm]
         # the skin level either side of the valley; blurred so that between shoulders of
-        # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps
-        C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
+        # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps.
+        # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
+        q = max(1, r // 6)
+        if q > 1:
+            rq = max(r // q, 1)
+            small = cv2.resize(S, (max(S.shape[1] // q, 1), max(S.shape[0] // q, 1)),
+                               interpolation=cv2.INTER_AREA)
+            ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rq + 1, 2 * rq + 1))
+            C = cv2.GaussianBlur(cv2.morphologyEx(small, cv2.MORPH_CLOSE, ker), (0, 0),
+                                 0.6 * r / q)
+            C = cv2.resize(C, (S.shape[1], S.shape[0]), interpolation=cv2.INTER_LINEAR)
+        else:
+            ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+            C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
         S, C = Si, C[iy, ix]
         gain = np.clip(C / np.maximum(S, 1.0), 1.0, 4.0)
         # the lifted level is skin unless it is much darker than the skin or off its colour

@@ -79,8 +79,13 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "jaw": (0, "no AU26 in the sadness prototype (AU1+4+15); JAFFE's chin median 84 MNS is "
                    "inside the neutral noise (p90 92), and a jaw drop would pull the corners "
                    "down for the wrong reason"),
-        "brow_i": (40, "AU1 inner brow raiser: the sad brow's key cue; JAFFE median 17/21 ENS is "
-                       "below the noise, set in the upper half of the p10-p90 band"),
+        "brow_i": (50, "AU1 inner brow raiser: the sad brow's key cue; JAFFE median 17/21 ENS is "
+                       "below the noise; at 40 sadness 100 % read as neutral on the contact "
+                       "sheets (KL, NA, the sample): set under p90 (59/60) so that 150 % stays "
+                       "inside the real max (78/81)"),
+        "squeeze": (30, "AU4 brow lowerer of the prototype (AU1+4+15) draws the inner brows "
+                        "together under the raise (the oblique sad brow); the fit gave 15 "
+                        "(median 22/11, p90 53/33)"),
         "c_raise": (-100, "AU15 lip corner depressor, the sad mouth's key cue (at the median "
                           "-34/-41 MNS the corners barely move): towards p10 -143/-150; 150 % "
                           "inside the min -184/-291"),

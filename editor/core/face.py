@@ -494,13 +494,18 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
         sel &= movable
         if not sel.any():
             break
-        acc = np.zeros_like(v)
-        np.add.at(acc, e[:, 0], v[e[:, 1]])
-        np.add.at(acc, e[:, 1], v[e[:, 0]])
-        avg = acc / np.maximum(deg, 1)[:, None]
+        avg = _neighbour_mean(e, v, deg)
         v[sel] += 0.5 * (avg[sel] - v[sel])
         v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
     return v
+
+
+def _neighbour_mean(edges: np.ndarray, v: np.ndarray, deg: np.ndarray) -> np.ndarray:
+    """(V, 2) mean position of each vertex's mesh neighbours (``deg``: neighbour counts)."""
+    acc = np.zeros_like(v)
+    np.add.at(acc, edges[:, 0], v[edges[:, 1]])
+    np.add.at(acc, edges[:, 1], v[edges[:, 0]])
+    return acc / np.maximum(deg, 1)[:, None]
 
 
 def _relax(mesh: StandardMesh, verts: np.ndarray, iters: int = 200) -> np.ndarray:
@@ -520,9 +525,6 @@ def _relax(mesh: StandardMesh, verts: np.ndarray, iters: int = 200) -> np.ndarra
         sig = signed_areas(v, mesh.triangles)
         if (sig > 0).all():
             break
-        acc = np.zeros_like(v)
-        np.add.at(acc, e[:, 0], v[e[:, 1]])
-        np.add.at(acc, e[:, 1], v[e[:, 0]])
-        avg = acc / np.maximum(deg, 1)[:, None]
+        avg = _neighbour_mean(e, v, deg)
         v[free] += 0.5 * (avg[free] - v[free])
     return v.astype(np.float32)

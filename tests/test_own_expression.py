@@ -292,10 +292,12 @@ def test_photo_lip_offset_scales_with_the_rendered_opening(sample_face):
         return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
 
     photo, model0 = gaps(f.vertices), gaps(deform_points(f.plan, f.expression))
-    assert (model0 > photo + 0.5).all()  # the case at hand: the model over-opens the photo
+    assert (model0 > 1e-3).all()  # the model opens every pair at f0 (as the photo)
     for k in (1.0, 1.5):
         joy = f.fap_vector(apply_preset("joy", k))
-        want = gaps(deform_points(f.plan, joy)) * photo / model0
+        model = gaps(deform_points(f.plan, joy))
+        # beyond f0's opening the photo's whole offset comes with it (the share is clipped at 1)
+        want = np.where(model < model0, model * photo / model0, model + photo - model0)
         np.testing.assert_allclose(gaps(f.deform(joy)), want, atol=0.03)
 
 

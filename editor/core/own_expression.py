@@ -230,7 +230,7 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     from .fap_estimate import STABLE_POINTS, STABLE_WEIGHTS, FapEstimator, apply_affine, similarity
 
     pr = prior or default_prior()
-    x = np.asarray(face.landmarks.points, np.float64)
+    x = np.array(face.landmarks.points, np.float64)  # a copy: the inner lips are moved below
     M = similarity(pr.mean[STABLE_POINTS], x[STABLE_POINTS], STABLE_WEIGHTS)
     mu_x = apply_affine(M, pr.mean)
     scale = float(np.hypot(*M[:, 0]))  # canonical unit -> pixels (the photo's IOD)
@@ -254,12 +254,37 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     rows_prior = np.vstack([np.hstack([np.zeros((K, n_f)), prior_c]),
                             np.hstack([fap_prior, np.zeros((len(fap_prior), K))])])
     # lip contact: the gaps between the inner lips (along the face's vertical) are the surest
-    # cue; no identity mode opens them, so they are fitted tightly
-    G = np.zeros((3, 136))
+    # cue; no identity mode opens them, so they are fitted tightly. They are the mesh's inner
+    # lips' gaps (snapped to the photo's lip/teeth edges, :func:`~editor.core.fitting.
+    # snap_inner_lips`), which the renderer opens, not dlib's inner-lip points' (on the sample's
+    # open smile 6-7 px where the lips show 3.6-4.8: f0 opened the side pairs to 6.5-8.1 px)
     ey = face.frame.rot[:, 1]
-    for r, (a, b_) in enumerate(((61, 67), (62, 66), (63, 65))):
-        G[r, 2 * b_:2 * b_ + 2] = ey
-        G[r, 2 * a:2 * a + 2] = -ey
+    names = face.mesh.names
+    lp = np.array([(u_, l_) for u_, l_ in face.mesh.pairs if names[u_].startswith("lipi")])
+    basis = face.plan.basis.astype(np.float64)
+    Gm = ((basis[:, lp[:, 1]] - basis[:, lp[:, 0]]) @ ey).T  # (P, 68) gap per FAP unit
+    pb = face.plan.pair_basis.astype(np.float64).reshape(len(LIP_PAIRS), -1, 2)
+    Gc = ((pb[:, lp[:, 1]] - pb[:, lp[:, 0]]) @ ey).T  # (P, 10) the lip pairs' shared part
+    verts = np.asarray(face.vertices, np.float64)
+    gap_p = np.maximum((verts[lp[:, 1]] - verts[lp[:, 0]]) @ ey, 0.0)
+    # dlib's inner-lip points follow the mesh's snapped edge along the vertical (their own
+    # residuals would otherwise pull the opening back to dlib's)
+    for a_, ids in ((lp[:, 0], (61, 62, 63)), (lp[:, 1], (67, 66, 65))):
+        ex = face.frame.rot[:, 0]
+        t = verts[a_] @ ex
+        o = np.argsort(t)
+        for i_ in ids:
+            on = np.interp(x[i_] @ ex, t[o], (verts[a_] @ ey)[o])
+            x[i_] = x[i_] + (on - x[i_] @ ey) * ey
+    d = (x - mu_x).ravel()
+
+    def gap_rows(f_: np.ndarray) -> np.ndarray:
+        Ge = Gm.copy()
+        for k_, (a_, b_) in enumerate(LIP_PAIRS):
+            if f_[a_] * f_[b_] > 0:
+                Ge[:, a_ if abs(f_[a_]) <= abs(f_[b_]) else b_] -= Gc[:, k_]
+        return Ge[:, est.idx]
+
     wg = 1.0 / (0.005 * scale)
     lo = np.concatenate([est.lo, np.full(K, -np.inf)])
     hi = np.concatenate([est.hi, np.full(K, np.inf)])
@@ -268,8 +293,8 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     for _ in range(4):  # re-solve at the lip-pair pattern of the previous solution
         J = est._effective_jacobian(f)[:, est.idx]
         Ab = np.vstack([w[:, None] * np.hstack([J, Bx]), rows_prior,
-                        np.hstack([G @ J, np.zeros((len(G), K))]) * wg])
-        b = np.concatenate([w * d, np.zeros(len(rows_prior)), (G @ d) * wg])
+                        np.hstack([gap_rows(f), np.zeros((len(lp), K))]) * wg])
+        b = np.concatenate([w * d, np.zeros(len(rows_prior)), gap_p * wg])
         sol = lsq_linear(Ab, b, bounds=(lo, hi), method="bvls").x
         f = np.zeros(68)
         f[est.idx] = sol[:n_f]
@@ -278,7 +303,7 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
         # their shared part, which the renderer moves once)
         J = est._effective_jacobian(f)[:, est.idx]
         As = np.vstack([w[:, None] * np.hstack([J, Bx]), rows_prior,
-                        np.hstack([G @ J, np.zeros((len(G), K))]) * wg])
+                        np.hstack([gap_rows(f), np.zeros((len(lp), K))]) * wg])
         cost = float(np.sum((As @ sol - b) ** 2))
         if best is None or cost < best[0]:
             best = (cost, f.copy(), sol[n_f:].copy())
@@ -292,8 +317,8 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     # bound of its FAPs more (residual rows are in units of the prior's landmark noise)
     J = est._effective_jacobian(f)[:, est.idx]
     Ab = np.vstack([w[:, None] * np.hstack([J, Bx]), rows_prior,
-                    np.hstack([G @ J, np.zeros((len(G), K))]) * wg])
-    b = np.concatenate([w * d, np.zeros(len(rows_prior)), (G @ d) * wg])
+                    np.hstack([gap_rows(f), np.zeros((len(lp), K))]) * wg])
+    b = np.concatenate([w * d, np.zeros(len(rows_prior)), gap_p * wg])
     cost = float(np.sum((Ab @ np.concatenate([f[est.idx], c]) - b) ** 2))
     drop = []
     for fap_nums, lms in GROUPS:

@@ -316,3 +316,25 @@ def test_photo_offset_folds_no_smile_corner(sample_face):
         assert np.abs(got[i] - lin[i]).max() < 0.5, (n, got[i] - lin[i])
     s0 = np.sign(signed_areas(f.neutral_vertices.astype(np.float64), f.triangles))
     assert (np.sign(signed_areas(got[: len(f.vertices)], f.triangles)) == s0).all()
+
+
+def test_sample_own_expression_opens_the_lips_as_the_photo(sample_face):
+    """The FAP model opens each inner-lip pair at f0 as the photo shows it (within 1 px), so the
+    photo's offset does not pinch the sides of other openings (main before: the estimate fitted
+    dlib's inner-lip points, 6-7 px apart where the mesh's lips, snapped to the lip/teeth edge,
+    are 3.6-4.8: f0 opened the side pairs to 6.5-8.1 px and the offset scaled every vector's
+    side opening by 0.45-0.55; joy showed teeth only across the middle third)."""
+    from editor.core.deform import deform_points
+
+    f = sample_face
+    ey = f.frame.rot[:, 1]
+    pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]
+
+    def gaps(v):
+        return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
+
+    photo = gaps(f.vertices)
+    assert np.abs(gaps(deform_points(f.plan, f.expression)) - photo).max() < 1.0
+    for name, side in (("joy", 0.55), ("surprise", 0.65), ("viseme_aa", 0.65)):
+        g = gaps(f.deform(apply_preset(name)))[1:-1]  # the corner pairs close by design
+        assert g.min() > side * g.max(), (name, g.round(2))

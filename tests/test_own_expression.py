@@ -249,9 +249,9 @@ def test_own_share_scales_the_photo_offset(sample_face):
 
 
 def test_photo_lip_offset_follows_the_opening(sample_face):
-    """The sample's FAP model opens its lips wider than the photo; the offset that makes f0 the
-    photo must not close a smaller opening: half of f0 opens half the photo's gaps, joy opens
-    every middle pair, p/b/m closes them, f0 is the photo."""
+    """The sample's FAP model opens its lips about as the photo (not exactly); the offset that
+    makes f0 the photo must not close a smaller opening: half of f0 opens half the photo's
+    gaps, joy opens every middle pair, p/b/m closes them, f0 is the photo."""
     f = sample_face
     ey = f.frame.rot[:, 1]
     pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]

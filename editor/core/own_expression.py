@@ -237,7 +237,6 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     A = M[:, :2]
     Bx = np.stack([(m @ A.T).ravel() for m in pr.modes], 1)  # (136, K) pixels per unit coef
     est = FapEstimator(face, OWN_FAPS, reg=0.0, symmetry=0.3, pair=1.0)
-    d = (x - mu_x).ravel()
     w = np.repeat(1.0 / (pr.noise * scale), 2)
     w[np.repeat(STABLE_POINTS, 2)] *= 0.25  # they fixed the alignment
     w[:34] *= 0.5  # the contour: dlib places it loosely, people differ most there

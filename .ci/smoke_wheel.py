@@ -25,10 +25,10 @@ def main() -> None:
     import editor
     from editor import resources
     from editor.core import load_image
-    from editor.core.expressions import shipped_presets
-    from editor.core.mesh import standard_mesh
-    from editor.core.mouth import load_textures
-    from editor.core.own_expression import default_prior
+    from editor.engine.mesh import standard_mesh
+    from editor.engine.mouth import load_textures
+    from editor.engine.own_expression import default_prior
+    from editor.formats.expressions import shipped_presets
 
     site = Path(sysconfig.get_paths()["purelib"]).resolve()
     check(Path(editor.__file__).resolve().is_relative_to(site),

@@ -10,8 +10,9 @@ import sys
 
 import numpy as np
 
-from .cli_util import PHOTO_HELP, ProgressBar, photo_arg
-from .core.errors import FapStudioError
+from editor.errors import FapStudioError
+
+from .util import PHOTO_HELP, ProgressBar, photo_arg
 
 
 def parse_preset(spec: str) -> tuple[str, float]:
@@ -30,8 +31,8 @@ def parse_preset(spec: str) -> tuple[str, float]:
 
 def preset_vector(specs: list[str] | None) -> np.ndarray:
     """Sum of presets ``NAME[:INTENSITY]`` as a (68,) vector (clamped)."""
-    from .core.expressions import apply_preset, get_preset
-    from .core.faps import FAPS
+    from editor.engine.faps import FAPS
+    from editor.formats.expressions import apply_preset, get_preset
 
     total = np.zeros(68, np.float32)
     for spec in specs or []:
@@ -41,9 +42,9 @@ def preset_vector(specs: list[str] | None) -> np.ndarray:
 
 
 def cmd_animate(a: argparse.Namespace) -> int:
-    from .core import Face
-    from .core.fapfile import read_fap
-    from .core.video import export_sequence
+    from editor.engine.face import Face
+    from editor.formats.fapfile import read_fap
+    from editor.formats.video import export_sequence
 
     seq = read_fap(a.fap_file)
     face = Face.from_image(a.photo)
@@ -54,9 +55,9 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_export(a: argparse.Namespace) -> int:
-    from .core.expressions import sequence_from_keyframes
-    from .core.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
-    from .core.safeio import finite_in
+    from editor.formats.expressions import sequence_from_keyframes
+    from editor.formats.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
+    from editor.safeio import finite_in
 
     fps = finite_in(a.fps, 0, MAX_FPS, "--fps", lo_open=True)
     if a.keyframes:
@@ -78,8 +79,8 @@ def cmd_fap_export(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_info(a: argparse.Namespace) -> int:
-    from .core.expressions import fap_info
-    from .core.fapfile import read_fap
+    from editor.formats.expressions import fap_info
+    from editor.formats.fapfile import read_fap
 
     print(fap_info(read_fap(a.fap_file)))
     return 0

@@ -2,11 +2,12 @@
 
 ``train`` fits the Stasm-77 model on a landmark set, or (``--detect IMAGES_DIR``, or a directory
 of images without ``all_features.txt``) the dlib-68 photo model on landmarks detected in
-JAFFE-style images (:mod:`editor.core.bilinear_photo`). ``synth`` detects the photo's landmarks,
+JAFFE-style images (:mod:`editor.synthesis.bilinear_photo`).
+``synth`` detects the photo's landmarks,
 synthesizes the target expression with a dlib-68 model, maps it onto the personalized mesh and
 warps the photo. Each handler is registered with
 ``set_defaults(func=handler)``; it takes the parsed namespace and returns an exit code
-(0 success, 2 for a :class:`~editor.core.errors.FapStudioError`, printed as one line
+(0 success, 2 for a :class:`~editor.errors.FapStudioError`, printed as one line
 ``fap-studio: error: ...`` on stderr).
 """
 
@@ -16,8 +17,8 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from editor.cli_util import PHOTO_HELP, guarded, photo_arg
-from editor.core.errors import ModelError
+from editor.cli.util import PHOTO_HELP, guarded, photo_arg
+from editor.errors import ModelError
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -131,9 +132,9 @@ def run_train(args: argparse.Namespace) -> int:
     """``bilinear train``: fit, choose λ, save."""
     from pathlib import Path
 
-    from editor.core.bilinear import save_model
-    from editor.core.bilinear_data import load_stasm77, train_model
-    from editor.core.bilinear_eval import DEFAULT_GRID, choose_lambdas
+    from editor.synthesis.bilinear import save_model
+    from editor.synthesis.bilinear_data import load_stasm77, train_model
+    from editor.synthesis.bilinear_eval import DEFAULT_GRID, choose_lambdas
 
     if args.detect or (args.landmarks and Path(args.landmarks).is_dir()
                        and not (Path(args.landmarks) / "all_features.txt").exists()):
@@ -170,8 +171,8 @@ def run_train(args: argparse.Namespace) -> int:
 
 def run_eval(args: argparse.Namespace) -> int:
     """``bilinear eval``: print the evaluation table."""
-    from editor.core.bilinear_data import load_stasm77
-    from editor.core.bilinear_eval import DEFAULT_GRID, evaluate, format_report
+    from editor.synthesis.bilinear_data import load_stasm77
+    from editor.synthesis.bilinear_eval import DEFAULT_GRID, evaluate, format_report
 
     data = load_stasm77(args.landmarks)
     if args.test_size >= len(data.people):
@@ -187,8 +188,8 @@ def run_eval(args: argparse.Namespace) -> int:
 
 def _train_detect(args: argparse.Namespace, images: str) -> int:
     """``bilinear train --detect``: dlib-68 detections -> photo model."""
-    from editor.core.bilinear import save_model
-    from editor.core.bilinear_photo import detect_training_set, train_model68
+    from editor.synthesis.bilinear import save_model
+    from editor.synthesis.bilinear_photo import detect_training_set, train_model68
 
     people = (tuple(p.strip() for p in args.people.split(",") if p.strip())
               if args.people else None)
@@ -208,9 +209,10 @@ def run_synth(args: argparse.Namespace) -> int:
     """``bilinear synth``: photo -> synthesized expression -> PNG."""
     import json
 
-    from editor.core import Face, save_image
-    from editor.core.bilinear import load_model
-    from editor.core.bilinear_photo import (
+    from editor.engine.face import Face
+    from editor.engine.imageio import save_image
+    from editor.synthesis.bilinear import load_model
+    from editor.synthesis.bilinear_photo import (
         check_model68,
         faps_for_points,
         parse_mix,
@@ -226,12 +228,12 @@ def run_synth(args: argparse.Namespace) -> int:
     assert res.image is not None
     save_image(args.output, res.image)
     if args.faps_json:
-        from editor.clone_cli import faps_document
+        from editor.cli.clone import faps_document
 
         faps = faps_for_points(face, res.points68)
         doc = faps_document(faps, f"bilinear_{args.expression}_{args.method}",
                             f"bilinear synth {args.photo}")
-        from editor.core.safeio import atomic_write_text
+        from editor.safeio import atomic_write_text
 
         atomic_write_text(args.faps_json, json.dumps(doc, indent=2) + "\n", error=ModelError)
     print(f"{args.expression} ({args.method}) -> {args.output}")

@@ -21,9 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_util import ProgressBar, guarded
-from .core.errors import FapStudioError
-from .resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
+from editor.errors import FapStudioError
+from editor.resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
+
+from .util import ProgressBar, guarded
 
 SAMPLE = SAMPLE_FACE
 JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "FE": "fear",
@@ -31,16 +32,16 @@ JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "F
 
 
 def _write_text(path: str | Path, text: str) -> None:
-    from .core.safeio import atomic_write_text
+    from editor.safeio import atomic_write_text
 
     atomic_write_text(Path(path), text)
 
 
 def faps_document(faps: np.ndarray, name: str, source: str, extra: dict | None = None) -> dict:
     """A preset document (``fap-studio-preset``, kind custom) of a FAP vector, rounded."""
-    from .core.expressions import PRESET_FORMAT, PRESET_VERSION, preset_from_dict
-    from .core.fapfile import round_half_away
-    from .core.faps import FAPS
+    from editor.engine.faps import FAPS
+    from editor.formats.expressions import PRESET_FORMAT, PRESET_VERSION, preset_from_dict
+    from editor.formats.fapfile import round_half_away
 
     clean = re.sub(r"[^A-Za-z0-9_-]", "_", name)[:64] or "cloned"
     v = round_half_away(FAPS.clamp(np.asarray(faps, np.float32)))
@@ -53,12 +54,13 @@ def faps_document(faps: np.ndarray, name: str, source: str, extra: dict | None =
 
 
 def cmd_clone(a: argparse.Namespace) -> int:
-    from .core import Face, load_image, save_image
-    from .core.cloning import clone
-    from .core.errors import NoFaceError
-    from .core.fap_estimate import FapEstimator
-    from .core.landmarks import detect_landmarks
-    from .core.safeio import finite_in
+    from editor.engine.face import Face
+    from editor.engine.imageio import load_image, save_image
+    from editor.engine.landmarks import detect_landmarks
+    from editor.errors import NoFaceError
+    from editor.safeio import finite_in
+    from editor.synthesis.cloning import clone
+    from editor.synthesis.fap_estimate import FapEstimator
 
     finite_in(a.mu, 0, 1e6, "--mu", lo_open=True)
     src_neutral = Face.from_image(a.source_neutral, own_expression=False)
@@ -86,8 +88,8 @@ def cmd_clone(a: argparse.Namespace) -> int:
 
 
 def cmd_track(a: argparse.Namespace) -> int:
-    from .core.fap_estimate import track_video
-    from .core.fapfile import write_fap
+    from editor.formats.fapfile import write_fap
+    from editor.synthesis.fap_estimate import track_video
 
     with ProgressBar("track", quiet=a.quiet) as bar:
         seq, rep = track_video(a.video, fps=a.fps, smoothing=a.smoothing, progress=bar)
@@ -118,9 +120,9 @@ def upscaled_face(rgb: np.ndarray, points: np.ndarray, scale: float = 3.0) -> np
 def roundtrip_vectors(n_random: int = 4, seed: int = 0) -> tuple[list[str], np.ndarray]:
     """The six emotion presets restricted to the observable FAPs, plus random vectors
     (each observable FAP uniform in +-25 % of its larger range end, left/right independent)."""
-    from .core.expressions import apply_preset
-    from .core.fap_estimate import OBSERVABLE
-    from .core.faps import FAPS
+    from editor.engine.faps import FAPS
+    from editor.formats.expressions import apply_preset
+    from editor.synthesis.fap_estimate import OBSERVABLE
 
     obs = np.array(OBSERVABLE) - 1
     names, out = [], []
@@ -141,9 +143,9 @@ def roundtrip_vectors(n_random: int = 4, seed: int = 0) -> tuple[list[str], np.n
 
 def roundtrip_table(face, vectors: np.ndarray) -> tuple[str, np.ndarray]:
     """Markdown table of the per-FAP recovery error; also the (n, 68) errors."""
-    from .core.cloning import round_trip
-    from .core.fap_estimate import OBSERVABLE
-    from .core.faps import FAPS
+    from editor.engine.faps import FAPS
+    from editor.synthesis.cloning import round_trip
+    from editor.synthesis.fap_estimate import OBSERVABLE
 
     err = round_trip(face, vectors) - vectors
     lines = ["| FAP | name | RMS error (FAPU) | max abs (FAPU) | RMS, % of range |",
@@ -164,18 +166,20 @@ def jaffe_evaluation(images: Path, persons: list[str] | None = None,
     """Clone every person's expressions (instances >= 2; instance 1 of each emotion are the key
     models) onto the sample face and onto the next person's neutral; closed-loop landmark error
     (inner 17-67, % of the target's inter-ocular distance) per route, as Markdown tables."""
-    from .core import Face, load_image, save_image, signed_areas
-    from .core.cloning import (
+    from editor.engine.face import Face
+    from editor.engine.imageio import load_image, save_image
+    from editor.engine.landmarks import detect_landmarks
+    from editor.engine.mesh import signed_areas
+    from editor.errors import NoFaceError
+    from editor.synthesis.cloning import (
         clone,
         closed_loop_error,
         face_deformer,
         key_models,
         transfer_motion,
     )
-    from .core.closed_loop import jaffe_files
-    from .core.errors import NoFaceError
-    from .core.fap_estimate import FapEstimator, remove_head_motion
-    from .core.landmarks import detect_landmarks
+    from editor.synthesis.closed_loop import jaffe_files
+    from editor.synthesis.fap_estimate import FapEstimator, remove_head_motion
 
     files = jaffe_files(images)
     people = [p for p in (persons or sorted(files)) if "NE" in files.get(p, {})]
@@ -297,7 +301,8 @@ def _sheet_row(src_neutral: np.ndarray, src_expr: np.ndarray, results: list[np.n
 
 
 def cmd_clone_eval(a: argparse.Namespace) -> int:
-    from .core import Face, load_image
+    from editor.engine.face import Face
+    from editor.engine.imageio import load_image
 
     t0 = time.perf_counter()
     if not a.skip_roundtrip:

@@ -12,9 +12,14 @@ import json
 import sys
 from collections.abc import Sequence
 
-from . import __version__
-from .cli_util import PHOTO_HELP, photo_arg
-from .core.errors import FapStudioError
+from editor import __version__
+from editor.errors import FapStudioError
+
+from .anim import add_anim_parser
+from .bilinear import add_bilinear_parser
+from .clone import add_clone_parser
+from .study import add_study_parser
+from .util import PHOTO_HELP, photo_arg
 
 
 class _Parser(argparse.ArgumentParser):
@@ -39,7 +44,7 @@ def _fap_pairs(items: Sequence[str] | None) -> dict[str, float]:
 
 def _load_face(photo: str, neutral: bool = False):
     """The photo's Face; its own expression is estimated unless ``neutral`` declares it so."""
-    from .core import Face
+    from editor.engine.face import Face
 
     return Face.from_image(photo, own_expression=not neutral)
 
@@ -54,8 +59,8 @@ def _expression_note(face, keep: bool) -> None:
 
 
 def cmd_landmarks(a: argparse.Namespace) -> int:
-    from .core import save_image
-    from .core.overlay import draw_landmarks
+    from editor.engine.imageio import save_image
+    from editor.engine.overlay import draw_landmarks
 
     face = _load_face(a.photo)
     lm = face.landmarks
@@ -90,8 +95,8 @@ def _mesh_json(face, v=None) -> dict:
 
 
 def cmd_mesh(a: argparse.Namespace) -> int:
-    from .core import save_image
-    from .core.overlay import draw_mesh
+    from editor.engine.imageio import save_image
+    from editor.engine.overlay import draw_mesh
 
     face = _load_face(a.photo)
     if a.output:
@@ -106,8 +111,9 @@ def cmd_mesh(a: argparse.Namespace) -> int:
 
 def _requested_vector(a: argparse.Namespace):
     """(68,) FAP vector of the command's ``--preset`` and ``--fap`` options (they add up)."""
-    from .anim_cli import preset_vector
-    from .core import FAPS
+    from editor.engine.faps import FAPS
+
+    from .anim import preset_vector
 
     try:
         return preset_vector(a.preset) + FAPS.vector(_fap_pairs(a.fap))
@@ -116,7 +122,8 @@ def _requested_vector(a: argparse.Namespace):
 
 
 def cmd_render(a: argparse.Namespace) -> int:
-    from .core import FAPS, save_image
+    from editor.engine.faps import FAPS
+    from editor.engine.imageio import save_image
 
     vec = _requested_vector(a)
     face = _load_face(a.photo, a.photo_is_neutral)
@@ -156,10 +163,10 @@ def _ensure_display(headless_ok: bool) -> None:
 def cmd_gui(a: argparse.Namespace) -> int:
     _ensure_display(headless_ok=bool(a.screenshot))
     try:
-        from .ui.app import run
+        from editor.ui.app import run
     except ImportError as e:  # pragma: no cover - depends on the installation
         raise FapStudioError(f"the editor window is not available ({e})") from e
-    from .core import FAPS
+    from editor.engine.faps import FAPS
 
     vec = _requested_vector(a)
     named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
@@ -169,7 +176,7 @@ def cmd_gui(a: argparse.Namespace) -> int:
 
 
 def _write_json(path: str, data: dict) -> None:
-    from .core.safeio import atomic_write_text
+    from editor.safeio import atomic_write_text
 
     atomic_write_text(path, json.dumps(data))
 
@@ -226,13 +233,8 @@ def build_parser() -> argparse.ArgumentParser:
     _expression_options(s)
     s.set_defaults(func=cmd_gui)
 
-    for mod, fn in (("anim_cli", "add_anim_parser"), ("clone_cli", "add_clone_parser"),
-                    ("study_cli", "add_study_parser"), ("bilinear_cli", "add_bilinear_parser")):
-        try:
-            module = __import__(f"editor.{mod}", fromlist=[fn])
-        except ImportError:  # pragma: no cover
-            continue
-        getattr(module, fn)(sub)
+    for add in (add_anim_parser, add_clone_parser, add_study_parser, add_bilinear_parser):
+        add(sub)
     return p
 
 

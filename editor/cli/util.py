@@ -9,8 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .core.errors import FapStudioError
-from .resources import SAMPLE_FACE
+from editor.errors import FapStudioError
+from editor.resources import SAMPLE_FACE
 
 Handler = Callable[[argparse.Namespace], int | None]
 

@@ -470,7 +470,7 @@ def deform_points(plan: DeformPlan, faps: np.ndarray,
         FAP values in FAPU, already clamped to the table ranges.
     offset : (N, 2) array, optional
         A constant displacement added before the crossing rule and the guard (a neutralised
-        face's offset, see :class:`~editor.core.face.Face`).
+        face's offset, see :class:`~editor.engine.face.Face`).
 
     Returns
     -------

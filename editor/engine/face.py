@@ -4,7 +4,7 @@ Data flow: photo -> :func:`detect_landmarks` -> :func:`fit_vertices` (personaliz
 :func:`measure_fapu` -> FAP vector -> :func:`deform_points` -> :func:`warp` -> image.
 
 The photo's own expression (issue 21): a photo that smiles is the neutral face plus a FAP vector
-f0 (:attr:`Face.expression`, estimated by :func:`~editor.core.own_expression.estimate_own`).
+f0 (:attr:`Face.expression`, estimated by :func:`~editor.engine.own_expression.estimate_own`).
 The mesh fitted to the photo (:attr:`Face.vertices`) is where the texture comes from; the
 neutral mesh N (:attr:`Face.neutral_vertices`) is that mesh with its landmarks moved to the
 neutral the estimate implies (Laplacian editing, see ``Face._neutralise``), and every FAP vector
@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from editor.errors import NoFaceError
+
 from .creases import apply_creases
 from .deform import (
     EXTRA_POINTS,
@@ -36,7 +38,6 @@ from .deform import (
     guard,
     linear_positions,
 )
-from .errors import NoFaceError
 from .faps import FAPS
 from .fapu import measure_fapu
 from .fitting import FaceFrame, fit_vertices, snap_inner_lips
@@ -129,14 +130,14 @@ class Face:
 
         N is the photo's mesh P with its landmarks moved back by the motion f0 gives them on N
         (a fixed point: FAPU and influence are the neutral's), keeping P's local shape
-        (Laplacian editing, :class:`~editor.core.cloning.LaplacianDeformer`, what no FAP moves
+        (Laplacian editing, :class:`~editor.synthesis.cloning.LaplacianDeformer`, what no FAP moves
         fixed); the
         inner lips of the neutral meet. Undoing f0 vertex by vertex (``N = P - D_N(f0)``)
         folds where the FAP influence does not match the photo's expression: on an open smile
         the upper lip next to the corners drops below them, and the fold guard then keeps the
         corners up (the neutral still smiled).
         """
-        from .cloning import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
+        from editor.synthesis.cloning import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
 
         P = self.vertices
         fapu, plan = self._build(P) if photo_plan is None else photo_plan
@@ -360,7 +361,7 @@ class Face:
         """Deformed mesh vertices (V, 2) float32 for FAP values in FAPU.
 
         Keys are FAP names or numbers; unknown keys and values that are not finite numbers
-        within ±1e9 (:data:`~editor.core.faps.MAX_VALUE`; dict or array alike) raise
+        within ±1e9 (:data:`~editor.engine.faps.MAX_VALUE`; dict or array alike) raise
         ValueError; other out-of-range values are clamped to the FAP table's range.
         """
         pts = self._deform(self.fap_vector(faps))

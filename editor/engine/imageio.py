@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ImageError
-from .safeio import atomic_write_bytes, quiet_stderr, read_bounded
+from editor.errors import ImageError
+from editor.safeio import atomic_write_bytes, quiet_stderr, read_bounded
 
 #: Largest image accepted, in pixels (about 8000 x 8000). Larger images are refused before
 #: they are decoded so that a decompression bomb cannot exhaust memory.

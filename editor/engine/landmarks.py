@@ -24,7 +24,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from .errors import FapStudioError, NoFaceError
+from editor.errors import FapStudioError, NoFaceError
 
 #: Detection runs on a copy whose longer side is at most this many pixels.
 DETECT_MAX_SIDE = 800

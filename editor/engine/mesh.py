@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..resources import MESH
+from editor.resources import MESH
+
 from .meshdef import crossing_pairs
 
 

@@ -33,7 +33,8 @@ from functools import cached_property, lru_cache
 import cv2
 import numpy as np
 
-from ..resources import MOUTH_DIR
+from editor.resources import MOUTH_DIR
+
 from .deform import DeformPlan
 from .mesh import StandardMesh
 

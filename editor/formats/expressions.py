@@ -28,10 +28,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..resources import PRESETS_DIR, user_data_dir
-from .errors import PresetError
-from .faps import FAPS
-from .safeio import read_bounded
+from editor.engine.faps import FAPS
+from editor.errors import PresetError
+from editor.resources import PRESETS_DIR, user_data_dir
+from editor.safeio import read_bounded
 
 if TYPE_CHECKING:
     from .fapfile import FapSequence

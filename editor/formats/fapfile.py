@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FapFileError
-from .faps import FAPS
-from .safeio import atomic_write_text, read_bounded
+from editor.engine.faps import FAPS
+from editor.errors import FapFileError
+from editor.safeio import atomic_write_text, read_bounded
 
 __all__ = ["MAX_FRAMES", "ExpressionField", "FapSequence", "VisemeField", "fap_info",
            "format_fap", "read_fap", "round_half_away", "sequence_from_keyframes", "write_fap",

@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from editor.core import FAPS, ProjectError
-from editor.core.safeio import atomic_write_text, read_bounded
+from editor.engine.faps import FAPS
+from editor.errors import ProjectError
+from editor.safeio import atomic_write_text, read_bounded
 
 FORMAT = "fap-studio-project"
 VERSION = 1

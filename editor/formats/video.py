@@ -1,7 +1,7 @@
 """Rendering a FAP sequence to a video file or a folder of PNG frames (no Qt).
 
 ``export_sequence(face, seq, out, progress=cb)`` renders every frame of a
-:class:`~editor.core.fapfile.FapSequence` (FAP 1/2 fields expanded into low-level FAPs, values
+:class:`~editor.formats.fapfile.FapSequence` (FAP 1/2 fields expanded into low-level FAPs, values
 clamped to the FAP table's ranges) and writes a video through PyAV (FFmpeg's libraries in
 process) when ``out`` ends in ``.mp4``/``.mov`` (H.264, yuv420p, ``+faststart`` so that the index
 comes first and browsers and players start at once) or ``.avi`` (Motion JPEG), otherwise PNG
@@ -25,10 +25,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import FapStudioError
-from .faps import FAPS
-from .imageio import save_image
-from .safeio import atomic_dir, atomic_file, quiet_stderr
+from editor.engine.faps import FAPS
+from editor.engine.imageio import save_image
+from editor.errors import FapStudioError
+from editor.safeio import atomic_dir, atomic_file, quiet_stderr
 
 #: suffix -> (FFmpeg encoder, pixel format, container options)
 VIDEO_SUFFIXES: dict[str, tuple[str, str, dict[str, str]]] = {

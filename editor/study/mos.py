@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from editor.core.errors import ImageError, StudyError
+from editor.errors import ImageError, StudyError
 
 CANNOT_TELL = "cannot tell"
 APPLICATION_ID = 0x46415053  # "FAPS"

@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 from scipy import stats
 
-from editor.core.mos import CANNOT_TELL
+from editor.study.mos import CANNOT_TELL
 
 
 class Rating(Protocol):

@@ -1,7 +1,7 @@
 """Symmetric bilinear identity × expression model (SPEC §5, seed 003), numpy only.
 
 A region of the face is a K-vector ``z`` (its landmarks ``x0, y0, x1, y1, ...`` after shape
-normalisation, see :mod:`editor.core.bilinear_data`). For expression (style) ``s`` and identity
+normalisation, see :mod:`editor.synthesis.bilinear_data`). For expression (style) ``s`` and identity
 (content) ``c`` the model is ``z_k = sum_ij w_ijk a_i b_j`` with ``a`` in R^I, ``b`` in R^J.
 
 Shapes (SPEC §5): ``A`` is I×S and ``B`` is J×C with orthonormal rows (columns are the trained
@@ -26,8 +26,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from editor.core.errors import ModelError
-from editor.core.safeio import atomic_file, read_bounded
+from editor.errors import ModelError
+from editor.safeio import atomic_file, read_bounded
 
 #: Largest model file, and largest total of its unpacked arrays (bytes).
 MAX_MODEL_BYTES = 256 * 1024 * 1024

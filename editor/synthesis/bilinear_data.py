@@ -40,7 +40,9 @@ from typing import Any
 
 import numpy as np
 
-from editor.core.bilinear import (
+from editor.errors import ModelError
+from editor.safeio import read_bounded
+from editor.synthesis.bilinear import (
     BilinearModel,
     RegionModel,
     fix_gauge,
@@ -48,8 +50,6 @@ from editor.core.bilinear import (
     train_bilinear,
     translate,
 )
-from editor.core.errors import ModelError
-from editor.core.safeio import read_bounded
 
 N_LANDMARKS = 77
 NOSE_TIP = 52
@@ -268,7 +268,7 @@ def synthesize_shape(model: BilinearModel, points: np.ndarray, target: Any,
     """Landmarks (77, 2) of the face ``points`` (77, 2) with the target expression.
 
     Each region is translated (``method``, ``lam``; default λ from ``model.meta["lambda"]``),
-    its gauge pinned (:func:`~editor.core.bilinear.fix_gauge`), its expression vector
+    its gauge pinned (:func:`~editor.synthesis.bilinear.fix_gauge`), its expression vector
     replaced by ``A α`` and rebuilt with its own identity vector; the scale (default the face's
     own inner-eye distance) is undone and the nose tip added back. Contour points are copied.
     """

@@ -12,8 +12,8 @@ over the test images labelled neutral / surprise (per fold, then averaged over f
 out cross-validation on the training people only. ER_FP cannot choose λ (the unregularised fit
 always reconstructs best), so the criterion is the *synthesis error*: translate the held-out
 person's neutral images, swap in each trained expression vector ``a^s`` (after
-:func:`~editor.core.bilinear.fix_gauge`) and measure ER_FP against that person's real mean shape
-for ``s``, averaged over the six non-neutral expressions and the four regions. The same
+:func:`~editor.synthesis.bilinear.fix_gauge`) and measure ER_FP against that person's real mean
+shape for ``s``, averaged over the six non-neutral expressions and the four regions. The same
 synthesis error is reported on the test people, beside two baselines that use no model.
 """
 
@@ -24,8 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from editor.core.bilinear import BilinearModel, RegionModel, fix_gauge, translate
-from editor.core.bilinear_data import (
+from editor.errors import ModelError
+from editor.synthesis.bilinear import BilinearModel, RegionModel, fix_gauge, translate
+from editor.synthesis.bilinear_data import (
     EXPRESSIONS,
     REGIONS,
     LandmarkSet,
@@ -35,7 +36,6 @@ from editor.core.bilinear_data import (
     region_vectors,
     train_from_means,
 )
-from editor.core.errors import ModelError
 
 DEFAULT_GRID = tuple(float(x) for x in np.logspace(-4, 3, 15))
 PAPER_MOUTH_EXPRESSIONS = ("neutral", "happy", "fear", "sad", "surprise")

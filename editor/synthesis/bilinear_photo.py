@@ -1,9 +1,9 @@
 """The bilinear model on photos: dlib-68 training data and synthesis on a :class:`Face` (issue 9).
 
 The photo pipeline detects iBUG/dlib-68 landmarks, so the photo route trains the same symmetric
-bilinear model (:func:`editor.core.bilinear.train_bilinear`, SPEC §5) on dlib-68 points
+bilinear model (:func:`editor.synthesis.bilinear.train_bilinear`, SPEC §5) on dlib-68 points
 detected on the training images instead of the Stasm-77 points of
-:mod:`editor.core.bilinear_data`. Conventions (stored in the model's metadata):
+:mod:`editor.synthesis.bilinear_data`. Conventions (stored in the model's metadata):
 
 * origin = the image's nose tip (68-point index 30); scale = the person's mean neutral
   inner-eye-corner distance ``|p39 - p42|`` (a single photo: its own distance);
@@ -17,10 +17,10 @@ Synthesis on a photo (:func:`synthesize_on_face`) starts from the neutralised fa
 photo's own smile removed, :func:`neutral_points68`): translate its 68 points (plain /
 ridge / MALS), pin the gauge, replace ``a`` by the target mix ``A α``, rebuild with the face's
 own ``b``, undo the normalisation, keep the jaw contour; then fit the personalized mesh to the
-synthesized points (:func:`editor.core.fitting.fit_vertices`) and apply the
+synthesized points (:func:`editor.engine.fitting.fit_vertices`) and apply the
 displacement between that fit and the fit of the neutral points to the face's neutral mesh as
 rendered (``face.deform(None)``), through the crossing rule and the fold guard
-(:func:`editor.core.cloning.finish`).
+(:func:`editor.synthesis.cloning.finish`).
 
 Training images are research data (JAFFE): detections are cached in the user's cache
 directory (:func:`default_cache_dir`), never in the repository.
@@ -37,7 +37,9 @@ from typing import Any
 
 import numpy as np
 
-from ..resources import user_cache_dir
+from editor.errors import ModelError, NoFaceError
+from editor.resources import user_cache_dir
+
 from .bilinear import BilinearModel, RegionModel, fix_gauge, synthesize_region, train_bilinear
 from .bilinear import translate as translate_region
 from .bilinear_data import (
@@ -48,7 +50,6 @@ from .bilinear_data import (
     region_vectors,
     training_matrix,
 )
-from .errors import ModelError, NoFaceError
 
 LAYOUT = "dlib68"
 N68 = 68
@@ -101,8 +102,8 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
     (person, expression). Detections are cached (one ``.npz`` per image list) in ``cache_dir``
     (default :func:`default_cache_dir`; ``""`` disables). Images without a face are skipped.
     """
-    from .imageio import load_image
-    from .landmarks import default_detector
+    from editor.engine.imageio import load_image
+    from editor.engine.landmarks import default_detector
 
     root = Path(images_dir)
     if not root.is_dir():
@@ -345,8 +346,9 @@ def mesh_for_points(face: Any, points68: np.ndarray, base68: np.ndarray | None =
     """The face's neutral mesh moved so that it follows ``points68`` (fold-free), (V, 2)
     float32. ``base68`` are the landmarks of that neutral mesh (default
     :func:`neutral_points68`): the mesh moves by the fitted displacement base68 -> points68."""
+    from editor.engine.fitting import fit_vertices
+
     from .cloning import finish
-    from .fitting import fit_vertices
 
     base = neutral_points68(face) if base68 is None else np.asarray(base68, np.float64)
     h, w = face.image.shape[:2]
@@ -362,7 +364,7 @@ def synthesize_on_face(face: Any, model: BilinearModel,
                        target: str | Mapping[str, float] | np.ndarray, method: str = "mals",
                        lam: float | None = None, keep_residual: bool = False,
                        render: bool = False) -> PhotoSynthesis:
-    """Synthesize ``target`` on a :class:`~editor.core.face.Face` (see the module docstring).
+    """Synthesize ``target`` on a :class:`~editor.engine.face.Face` (see the module docstring).
 
     The synthesis starts from the neutralised face (:func:`neutral_points68`), so a smiling
     photo synthesized as anger shows anger, not anger over its smile. Returns the fold-free

@@ -44,8 +44,9 @@ import scipy.sparse as sp
 from scipy.optimize import nnls
 from scipy.sparse.linalg import splu
 
-from .deform import guard
-from .errors import NoFaceError
+from editor.engine.deform import guard
+from editor.errors import NoFaceError
+
 from .fap_estimate import FapEstimator, remove_head_motion
 
 MU = 10.0
@@ -287,7 +288,7 @@ def key_models(source_face, key_points: dict[str, np.ndarray], target_face,
     ``target="transfer"``: each target key is the Laplacian clone of the source key;
     ``"presets"``: the target's key is its emotion preset (names must be preset names).
     """
-    from .expressions import apply_preset
+    from editor.formats.expressions import apply_preset
 
     names = tuple(key_points)
     neutral = np.asarray(source_face.landmarks.points, np.float64)
@@ -371,7 +372,7 @@ def closed_loop_error(image: np.ndarray, expected: np.ndarray, target, detector=
     (its landmark box grown by 60 % of its width), so that another face-like thing in the photo
     (a badge, a poster) cannot be taken instead.
     """
-    from .landmarks import detect_landmarks
+    from editor.engine.landmarks import detect_landmarks
 
     img = np.asarray(image)
     p = target.landmarks.points
@@ -394,7 +395,7 @@ def round_trip(face, vectors: np.ndarray, estimator: FapEstimator | None = None,
 
     Returns the estimated vectors (n, 68); NaN rows where no face is found on the render.
     """
-    from .landmarks import detect_landmarks
+    from editor.engine.landmarks import detect_landmarks
 
     est = estimator or FapEstimator(face)
     out = []

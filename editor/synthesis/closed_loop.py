@@ -112,14 +112,15 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
     """Run the closed loop over JAFFE (see the module docstring). Detections are not cached.
 
     ``estimator_factory(face)`` returns an object with ``estimate(points68).faps`` (default
-    :class:`~editor.core.fap_estimate.FapEstimator`). ``noise_px``: real landmark motion below
+    :class:`~editor.synthesis.fap_estimate.FapEstimator`). ``noise_px``: real landmark motion below
     this is not sign-checked (dlib's integer points on 256 px faces).
     """
-    from .errors import NoFaceError
-    from .face import Face
+    from editor.engine.face import Face
+    from editor.engine.imageio import load_image
+    from editor.engine.landmarks import detect_landmarks
+    from editor.errors import NoFaceError
+
     from .fap_estimate import FapEstimator
-    from .imageio import load_image
-    from .landmarks import detect_landmarks
 
     files = jaffe_files(images)
     who = [p for p in (people or sorted(files)) if "NE" in files.get(p, {})]
@@ -162,7 +163,7 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
 if __name__ == "__main__":  # pragma: no cover - a development aid
     import sys
 
-    from ..resources import checkout_jaffe_dir
+    from editor.resources import checkout_jaffe_dir
 
     root = Path(sys.argv[1]) if len(sys.argv) > 1 else checkout_jaffe_dir()
     res = closed_loop(root / "images", sys.argv[2].split(",") if len(sys.argv) > 2 else None)

@@ -1,6 +1,6 @@
 """FAPs measured from a performer's photos or video (issue 10; SPEC §6, source side).
 
-Model: the performer's neutral :class:`~editor.core.face.Face` (mesh, FAPU, ``plan.basis`` =
+Model: the performer's neutral :class:`~editor.engine.face.Face` (mesh, FAPU, ``plan.basis`` =
 pixels per unit of every linear FAP). Each iBUG-68 landmark is tied to the neutral mesh by the
 barycentric coordinates of its closest point (:func:`.cloning.landmark_map`; inner-lip and eyelid
 landmarks only to triangles of their own lip/lid, since a closed mouth's lips coincide). The warp
@@ -42,10 +42,10 @@ import numpy as np
 from scipy.optimize import lsq_linear
 from scipy.signal import savgol_filter
 
-from .deform import LIP_PAIRS, deform_points, linear_positions
-from .errors import FapStudioError, NoFaceError
-from .fapfile import FapSequence
-from .faps import FAPS
+from editor.engine.deform import LIP_PAIRS, deform_points, linear_positions
+from editor.engine.faps import FAPS
+from editor.errors import FapStudioError, NoFaceError
+from editor.formats.fapfile import FapSequence
 
 OBSERVABLE: tuple[int, ...] = (3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 15, 19, 20, 21, 22,
                                31, 32, 33, 34, 35, 36, 37, 38, 41, 42,
@@ -372,8 +372,8 @@ def track_video(path: str | os.PathLike[str], fps: float | None = None,
     """
     import cv2
 
-    from .face import Face
-    from .landmarks import detect_landmarks
+    from editor.engine.face import Face
+    from editor.engine.landmarks import detect_landmarks
 
     t0 = time.perf_counter()
     cap = cv2.VideoCapture(str(path))

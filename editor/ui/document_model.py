@@ -19,7 +19,9 @@ import numpy as np
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QUndoStack
 
-from editor.core import FAPS, Face, signed_areas
+from editor.engine.face import Face
+from editor.engine.faps import FAPS
+from editor.engine.mesh import signed_areas
 
 from .commands import SetDocument
 

@@ -11,6 +11,7 @@ from conftest import SAMPLE, jaffe_images
 
 from editor.cli.clone import add_clone_parser, roundtrip_vectors, upscaled_face
 from editor.core import FAPS, Face, FapStudioError, load_image, save_image, signed_areas
+from editor.engine.laplacian import mean_value_weights
 from editor.formats.fapfile import read_fap, write_fap
 from editor.synthesis.cloning import (
     KeyModels,
@@ -19,7 +20,6 @@ from editor.synthesis.cloning import (
     face_deformer,
     finish,
     landmark_map,
-    mean_value_weights,
     round_trip,
 )
 from editor.synthesis.fap_estimate import (

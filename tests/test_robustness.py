@@ -483,7 +483,7 @@ def test_case10_clone_mu(capfd, tmp_path, mu):
 def test_case10_deformer_rejects_bad_mu():
     import scipy.sparse as sp
 
-    from editor.synthesis.cloning import LaplacianDeformer
+    from editor.engine.laplacian import LaplacianDeformer
 
     v = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
     tri = np.array([[0, 1, 2], [1, 3, 2]])

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from editor.engine.deform import _topology
+from editor.engine.laplacian import _closest_on_triangles, landmark_map
 from editor.engine.mesh import standard_mesh
-from editor.synthesis.cloning import _closest_on_triangles, landmark_map
 
 
 def test_incidence_lists_each_vertex_triangles_in_order():

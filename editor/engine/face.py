@@ -130,14 +130,14 @@ class Face:
 
         N is the photo's mesh P with its landmarks moved back by the motion f0 gives them on N
         (a fixed point: FAPU and influence are the neutral's), keeping P's local shape
-        (Laplacian editing, :class:`~editor.synthesis.cloning.LaplacianDeformer`, what no FAP moves
+        (Laplacian editing, :class:`~editor.engine.laplacian.LaplacianDeformer`, what no FAP moves
         fixed); the
         inner lips of the neutral meet. Undoing f0 vertex by vertex (``N = P - D_N(f0)``)
         folds where the FAP influence does not match the photo's expression: on an open smile
         the upper lip next to the corners drops below them, and the fold guard then keeps the
         corners up (the neutral still smiled).
         """
-        from editor.synthesis.cloning import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
+        from .laplacian import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
 
         P = self.vertices
         fapu, plan = self._build(P) if photo_plan is None else photo_plan

@@ -335,7 +335,7 @@ def neutral_points68(face: Any) -> np.ndarray:
     pts = np.asarray(face.landmarks.points, np.float64)
     if not face.has_expression:
         return pts
-    from .cloning import landmark_map
+    from editor.engine.laplacian import landmark_map
 
     A = landmark_map(face.vertices, face.triangles, face.mesh.names, pts)
     return np.asarray(A @ face.deform(None).astype(np.float64))

@@ -2,7 +2,7 @@
 
 Model: the performer's neutral :class:`~editor.engine.face.Face` (mesh, FAPU, ``plan.basis`` =
 pixels per unit of every linear FAP). Each iBUG-68 landmark is tied to the neutral mesh by the
-barycentric coordinates of its closest point (:func:`.cloning.landmark_map`; inner-lip and eyelid
+barycentric coordinates of its closest point (``laplacian.landmark_map``; inner-lip and eyelid
 landmarks only to triangles of their own lip/lid, since a closed mouth's lips coincide). The warp
 is piecewise affine, so a landmark moves with its triangle and the predicted motion is linear in
 the FAPs, ``d = A (f @ basis)``, in the performer's own FAPU. The renderer's inner/outer lip pair
@@ -134,7 +134,7 @@ class FapEstimator:
         self.lo = np.asarray(lo, np.float64)[self.idx]
         self.hi = np.asarray(hi, np.float64)[self.idx]
         V = face.plan.n_vertices
-        from .cloning import landmark_map  # (cloning imports this module)
+        from editor.engine.laplacian import landmark_map
 
         A = landmark_map(face.vertices, face.triangles, face.mesh.names, self.neutral)
         basis = face.plan.basis.astype(np.float64)[:, :V]  # (68, V, 2)

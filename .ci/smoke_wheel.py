@@ -7,6 +7,7 @@ the console script renders the sample headless and exports an H.264 MP4.
 
 from __future__ import annotations
 
+import importlib
 import subprocess
 import sys
 import sysconfig
@@ -25,14 +26,19 @@ def main() -> None:
     import editor
     from editor import resources
     from editor.core import load_image
-    from editor.core.expressions import shipped_presets
-    from editor.core.mesh import standard_mesh
-    from editor.core.mouth import load_textures
-    from editor.core.own_expression import default_prior
+    from editor.engine.mesh import standard_mesh
+    from editor.engine.mouth import load_textures
+    from editor.engine.own_expression import default_prior
+    from editor.formats.expressions import shipped_presets
 
     site = Path(sysconfig.get_paths()["purelib"]).resolve()
     check(Path(editor.__file__).resolve().is_relative_to(site),
           f"editor imported from the installed wheel ({Path(editor.__file__).parent})")
+    subpackages = ("editor.cli", "editor.core", "editor.engine", "editor.formats", "editor.study",
+                   "editor.synthesis", "editor.ui")
+    for name in subpackages:
+        importlib.import_module(name)
+    check(True, f"subpackages import ({', '.join(subpackages)})")
     presets = shipped_presets()
     check(len(presets) == 21, f"21 shipped presets (got {len(presets)})")
     mesh = standard_mesh()

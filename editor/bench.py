@@ -77,7 +77,7 @@ def _emit(d: dict) -> None:
 
 def _canvas(size: tuple[int, int]) -> np.ndarray:
     """The sample photo scaled to fit ``size`` (aspect kept), padded by reflection."""
-    from editor.core import load_image
+    from editor.engine.imageio import load_image
 
     img = load_image(SAMPLE)
     w, h = size
@@ -90,7 +90,7 @@ def _canvas(size: tuple[int, int]) -> np.ndarray:
 
 
 def _face_at(size: tuple[int, int]):
-    from editor.core import Face
+    from editor.engine.face import Face
 
     face = Face.from_image(_canvas(size))
     # the detector must have found the sample's face, not something else in the padding
@@ -101,8 +101,8 @@ def _face_at(size: tuple[int, int]):
 
 
 def fap_header_bench() -> None:
-    from editor.core.errors import FapFileError
-    from editor.core.fapfile import MAX_FRAMES, read_fap
+    from editor.errors import FapFileError
+    from editor.formats.fapfile import MAX_FRAMES, read_fap
 
     mask = " ".join(["0", "0"] + ["1"] * 66)
     text = f"2.1 bench 25 {MAX_FRAMES}\n{mask}\n0 " + " ".join(["0"] * 66) + "\n"
@@ -146,7 +146,7 @@ def gui_bench() -> None:
     import tempfile
 
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
-    from editor.core import save_image
+    from editor.engine.imageio import save_image
     from editor.ui.latency import slider_latency
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -166,14 +166,16 @@ def gui_bench() -> None:
 def main() -> None:
     import sys
 
-    from editor.core.deform import deform_points
-    from editor.core.warp import warp
+    from editor.engine.deform import deform_points
+    from editor.engine.warp import warp
 
     if "--gui" in sys.argv[1:]:
         gui_bench()
         return
     cv2.setNumThreads(1)
-    from editor.core import FAPS, Face, load_image
+    from editor.engine.face import Face
+    from editor.engine.faps import FAPS
+    from editor.engine.imageio import load_image
 
     _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
     fap_header_bench()
@@ -214,9 +216,9 @@ def main() -> None:
         _emit({"bench": "layers_cost", **res,
                "median_ms": round(ours["median_ms"] - eng["median_ms"], 3),
                "note": "fap_to_image minus deform_warp_no_layers"})
-        # skin creases (editor/core/creases.py): render with minus without, timed alternately
-        from editor.core.creases import creases_cost_ms
-        from editor.core.expressions import apply_preset
+        # skin creases (editor/engine/creases.py): render with minus without, timed alternately
+        from editor.engine.creases import creases_cost_ms
+        from editor.formats.expressions import apply_preset
 
         for emo in ("joy", "fear"):
             _emit({"bench": "creases_cost", **res, "preset": emo,

@@ -2,7 +2,7 @@
 
 The topology is designed once on a template face: the landmarks of the bundled sample photo,
 made left/right symmetric and scaled to an inter-ocular distance of 100. Every vertex is placed
-by the rules of ``editor.core.fitting`` (the same code that fits the mesh on any photo); the
+by the rules of ``editor.engine.fitting`` (the same code that fits the mesh on any photo); the
 triangles are a constrained Delaunay triangulation (Shewchuk's Triangle, ``pip install triangle``,
 needed only here) with the eye and mouth openings as holes and the feature curves as
 constrained edges. Run from the repository root: ``python scripts/build_mesh.py``.
@@ -20,10 +20,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from editor.core import meshdef  # noqa: E402
-from editor.core.fitting import MARGIN_COUNT, FaceFrame, fit_vertices  # noqa: E402
-from editor.core.imageio import load_image, save_image  # noqa: E402
-from editor.core.landmarks import MIRROR_68, detect_landmarks  # noqa: E402
+from editor.engine import meshdef  # noqa: E402
+from editor.engine.fitting import MARGIN_COUNT, FaceFrame, fit_vertices  # noqa: E402
+from editor.engine.imageio import load_image, save_image  # noqa: E402
+from editor.engine.landmarks import MIRROR_68, detect_landmarks  # noqa: E402
 from editor.resources import MESH, SAMPLE_FACE, source_path  # noqa: E402
 
 

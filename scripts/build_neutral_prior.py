@@ -18,8 +18,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from editor.core import detect_landmarks, load_image  # noqa: E402
-from editor.core.errors import NoFaceError  # noqa: E402
-from editor.core.own_expression import NeutralPrior, canonical  # noqa: E402
+from editor.engine.own_expression import NeutralPrior, canonical  # noqa: E402
+from editor.errors import NoFaceError  # noqa: E402
 from editor.resources import NEUTRAL_PRIOR, source_path  # noqa: E402
 
 

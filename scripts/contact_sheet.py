@@ -16,7 +16,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from editor.cli_util import photo_arg  # noqa: E402
+from editor.cli.util import photo_arg  # noqa: E402
 from editor.core import FAPS, Face, save_image  # noqa: E402
 
 TILE = 170

@@ -2,7 +2,7 @@
 
 ``python scripts/derive_presets.py [--jaffe DIR] [--write] [--check] [--table OUT.md]``
 
-1. :func:`editor.core.jaffe_stats.measure`: every JAFFE expression photo against its woman's
+1. :func:`editor.synthesis.jaffe_stats.measure`: every JAFFE expression photo against its woman's
    neutral, head motion removed, each feature point's motion along its FAP's axis in her FAPU.
 2. Per emotion a bounded least-squares fit (``scipy.optimize.least_squares`` through the real
    renderer, ``Face.deform`` on every woman's neutral mesh) of the observable FAP groups
@@ -30,9 +30,9 @@ from scipy.optimize import least_squares
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from editor.core import jaffe_stats as js  # noqa: E402
-from editor.core.faps import FAPS  # noqa: E402
+from editor.engine.faps import FAPS  # noqa: E402
 from editor.resources import PRESETS_DIR, source_path  # noqa: E402
+from editor.synthesis import jaffe_stats as js  # noqa: E402
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
 #: Fitted unknowns: FAPs tied together (left = right; inner lip = outer lip as in Xface).

@@ -11,9 +11,9 @@ import pytest
 from conftest import SAMPLE
 
 from editor.core import FapStudioError, load_image
-from editor.core.expressions import apply_preset, get_preset
-from editor.core.fapfile import FapSequence, read_fap
-from editor.core.video import export_sequence
+from editor.formats.expressions import apply_preset, get_preset
+from editor.formats.fapfile import FapSequence, read_fap
+from editor.formats.video import export_sequence
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:

@@ -1,4 +1,4 @@
-"""Tests of the bilinear identity × expression model (editor/core/bilinear*.py, the CLI)."""
+"""Tests of the bilinear identity × expression model (editor/synthesis/bilinear*.py, the CLI)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from editor.bilinear_cli import add_bilinear_parser
-from editor.core.bilinear import (
+from editor.cli.bilinear import add_bilinear_parser
+from editor.errors import ModelError
+from editor.resources import checkout_jaffe_dir
+from editor.synthesis.bilinear import (
     RegionModel,
     fix_gauge,
     load_model,
@@ -23,7 +25,7 @@ from editor.core.bilinear import (
     translate_ridge,
     vector_transpose,
 )
-from editor.core.bilinear_data import (
+from editor.synthesis.bilinear_data import (
     CONTOUR,
     EXPRESSIONS,
     INNER_EYE_CORNERS,
@@ -35,9 +37,7 @@ from editor.core.bilinear_data import (
     synthesize_shape,
     train_model,
 )
-from editor.core.bilinear_eval import er_fp, evaluate, format_report, make_folds, s_within
-from editor.core.errors import ModelError
-from editor.resources import checkout_jaffe_dir
+from editor.synthesis.bilinear_eval import er_fp, evaluate, format_report, make_folds, s_within
 
 JAFFE = checkout_jaffe_dir()
 JAFFE_LM = JAFFE / "landmarks_stasm77"

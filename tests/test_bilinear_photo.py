@@ -9,8 +9,11 @@ import pytest
 
 from editor.cli import main
 from editor.core import load_image
-from editor.core.bilinear import BilinearModel, load_model, save_model
-from editor.core.bilinear_photo import (
+from editor.engine.mesh import signed_areas
+from editor.errors import ModelError
+from editor.resources import SAMPLE_FACE, checkout_jaffe_dir
+from editor.synthesis.bilinear import BilinearModel, load_model, save_model
+from editor.synthesis.bilinear_photo import (
     CONTOUR68,
     EXPRESSIONS68,
     check_model68,
@@ -25,9 +28,6 @@ from editor.core.bilinear_photo import (
     synthetic_model68,
     train_model68,
 )
-from editor.core.errors import ModelError
-from editor.core.mesh import signed_areas
-from editor.resources import SAMPLE_FACE, checkout_jaffe_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = SAMPLE_FACE

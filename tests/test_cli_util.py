@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from editor.cli_util import ProgressBar
+from editor.cli.util import ProgressBar
 
 
 def test_progress_bar_follows_done_and_a_growing_total(capsys):

@@ -9,19 +9,20 @@ import numpy as np
 import pytest
 from conftest import SAMPLE, jaffe_images
 
-from editor.clone_cli import add_clone_parser, roundtrip_vectors, upscaled_face
+from editor.cli.clone import add_clone_parser, roundtrip_vectors, upscaled_face
 from editor.core import FAPS, Face, FapStudioError, load_image, save_image, signed_areas
-from editor.core.cloning import (
+from editor.engine.laplacian import mean_value_weights
+from editor.formats.fapfile import read_fap, write_fap
+from editor.synthesis.cloning import (
     KeyModels,
     clone,
     closed_loop_error,
     face_deformer,
     finish,
     landmark_map,
-    mean_value_weights,
     round_trip,
 )
-from editor.core.fap_estimate import (
+from editor.synthesis.fap_estimate import (
     OBSERVABLE,
     FapEstimator,
     estimate_faps,
@@ -29,7 +30,6 @@ from editor.core.fap_estimate import (
     smooth,
     track_video,
 )
-from editor.core.fapfile import read_fap, write_fap
 
 OBS = np.array(OBSERVABLE) - 1
 RANGE = (FAPS.hi - FAPS.lo)[OBS]
@@ -245,7 +245,7 @@ def _run(argv):
 
 
 def test_cli_clone_and_errors(tmp_path, sample_face, sample_neutral, capsys):
-    from editor.core.expressions import load_preset
+    from editor.formats.expressions import load_preset
 
     expr = tmp_path / "expr.png"
     # the performer's expression photo is surprise on the photo the clone opens as the
@@ -284,7 +284,7 @@ def jaffe_ka():
 
 
 def test_jaffe_real_source(jaffe_ka, sample_face):
-    from editor.core.landmarks import detect_landmarks
+    from editor.engine.landmarks import detect_landmarks
 
     src = Face.from_image(jaffe_ka["NE"], own_expression=False)
     est = FapEstimator(src)

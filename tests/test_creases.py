@@ -1,4 +1,5 @@
-"""Skin creases (editor/core/creases.py): where, how strong, and the switches that turn them off."""
+"""Skin creases (editor/engine/creases.py): where, how strong, and the switches that turn them
+off."""
 
 from __future__ import annotations
 
@@ -7,9 +8,9 @@ import pytest
 from conftest import SAMPLE, jaffe_images
 
 from editor.core import load_image
-from editor.core.creases import _MIN_STRENGTH, fold_lines, fold_strength
-from editor.core.layers import render_layers
-from editor.core.warp import warp
+from editor.engine.creases import _MIN_STRENGTH, fold_lines, fold_strength
+from editor.engine.layers import render_layers
+from editor.engine.warp import warp
 
 # Today's emotion presets (FAP number -> value in FAPU), fixed here so that tuning the presets
 # does not move these tests; scaled by an intensity like apply_preset.
@@ -78,13 +79,13 @@ def test_creases_false_is_the_old_render(sample_neutral):
     f = sample_neutral
     vec = f.fap_vector(apply_preset("joy", 1.0))
     pts = f.plan.neutral.copy()
-    from editor.core.deform import deform_points
+    from editor.engine.deform import deform_points
 
     pts = deform_points(f.plan, vec)
     V = f.plan.n_vertices
     v = pts[:V]
     tf = f.layer_transforms(v)
-    from editor.core.lidskin import apply_lid_skin
+    from editor.engine.lidskin import apply_lid_skin
 
     base = apply_lid_skin(f, warp(f.warp_plan, v, tf, cavity=False), v)  # part of the warp
     old = render_layers(f, base, v, pts[V:], vec, tf).image
@@ -118,7 +119,7 @@ def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
     """The nasal-root lines follow the inner brows pushed down (AU4 procerus, AU9): the shipped
     disgust and anger presets (inner brows -65 / -115 ENS; this file's old disgust lowers them by
     only 30) wrinkle the nose, a smile does not."""
-    from editor.core.expressions import apply_preset as shipped
+    from editor.formats.expressions import apply_preset as shipped
 
     f = sample_neutral
 
@@ -171,7 +172,7 @@ def test_width_follows_the_face_not_the_resolution():
 def test_cli_no_creases_flag(tmp_path, sample_face):
     # the CLI opens the photo as the product does (own expression estimated)
     from editor.cli import main
-    from editor.core.expressions import apply_preset as shipped
+    from editor.formats.expressions import apply_preset as shipped
 
     a, b = tmp_path / "on.png", tmp_path / "off.png"
     assert main(["render", str(SAMPLE), "--preset", "surprise", "-o", str(a)]) == 0
@@ -243,7 +244,7 @@ def _own_fold_bands(face) -> list[np.ndarray]:
 
 def test_own_folds_untouched_on_the_photos_own_expression(sample_face):
     """Rendering the photo's own expression changes nothing (the fade is exactly 0 there)."""
-    from editor.core.creases import unfold_strength
+    from editor.engine.creases import unfold_strength
 
     assert sample_face.has_expression
     assert not unfold_strength(sample_face, sample_face.vertices).any()
@@ -254,7 +255,7 @@ def test_own_smile_folds_fade_on_the_neutralised_face(sample_face):
     """The sample smiles: its nasolabial folds are shaded valleys. Neutralised, the skin there
     is spread, so the valleys are lifted towards the skin around them: brighter, less
     contrasted, and no more saturated than before (no coloured line left behind)."""
-    from editor.core.creases import unfold_strength
+    from editor.engine.creases import unfold_strength
 
     v = sample_face.deform(None)
     u = unfold_strength(sample_face, v)
@@ -278,7 +279,7 @@ def test_own_smile_folds_fade_on_the_neutralised_face(sample_face):
 def test_own_folds_fade_only_as_far_as_the_skin_is_spread(sample_face):
     """Half-way between the photo's smile and the neutral face the fade is partial; a target
     that compresses the skin like the photo (or more: a broad smile) does not fade it."""
-    from editor.core.creases import unfold_strength
+    from editor.engine.creases import unfold_strength
 
     f0 = sample_face.expression
     u_half = unfold_strength(sample_face, sample_face.deform(0.5 * f0)).max()
@@ -288,7 +289,7 @@ def test_own_folds_fade_only_as_far_as_the_skin_is_spread(sample_face):
 
 
 def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
-    from editor.core.creases import unfold_strength
+    from editor.engine.creases import unfold_strength
 
     for name in EMOTIONS:
         v = sample_neutral.deform(apply_preset(name, 1.0))
@@ -298,7 +299,7 @@ def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
 def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
     """AU10 (disgust's raised upper lip) pushes the skin below the nose wing up: the upper part
     of the nasolabial furrow darkens even without a smile; sadness and surprise do not."""
-    from editor.core.expressions import apply_preset as shipped
+    from editor.formats.expressions import apply_preset as shipped
 
     f = sample_neutral
 
@@ -314,8 +315,8 @@ def test_no_own_folds_faded_on_nearly_neutral_photos():
     finds a trace of a smile on some (compression up to 0.07), which is no fold to fade; the
     sample's real smile (0.15-0.27) is faded fully (test above)."""
     from editor.core import Face
-    from editor.core.creases import unfold_strength
-    from editor.core.expressions import apply_preset as shipped
+    from editor.engine.creases import unfold_strength
+    from editor.formats.expressions import apply_preset as shipped
 
     paths = [p for who in ("KA", "NA", "KR") for p in jaffe_images(f"{who}.NE*.tiff")[:1]]
     if len(paths) < 3:

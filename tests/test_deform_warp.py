@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from editor.core import FAPS, Face, signed_areas
-from editor.core.deform import EPS_CHECK, EXTRA_POINTS, deform_points
-from editor.core.landmarks import detect_landmarks
+from editor.engine.deform import EPS_CHECK, EXTRA_POINTS, deform_points
+from editor.engine.landmarks import detect_landmarks
 
 DIRS = {"up": (0, -1), "down": (0, 1), "left": (1, 0), "right": (-1, 0)}
 MESH_FAPS = [f for f in FAPS.values() if f.number >= 3 and f.direction in DIRS

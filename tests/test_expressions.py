@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from editor.core.errors import PresetError
-from editor.core.expressions import (
+from editor.engine.faps import FAPS
+from editor.errors import PresetError
+from editor.formats.expressions import (
     EXPRESSIONS,
     VISEMES,
     Preset,
@@ -26,7 +27,6 @@ from editor.core.expressions import (
     user_preset_dir,
     user_presets,
 )
-from editor.core.faps import FAPS
 
 MOUTH = {3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 16, 17, 43, 44, 45, 46, *range(51, 61)}
 INNER_OUTER = {4: 51, 5: 52, 6: 53, 7: 54, 8: 55, 9: 56, 10: 57, 11: 58, 12: 59, 13: 60}
@@ -249,8 +249,8 @@ def test_malformed_json_and_structure(tmp_path):
 
 
 def test_broken_user_preset_is_named_not_unknown(tmp_path, monkeypatch):
-    from editor.core.errors import PresetError
-    from editor.core.expressions import get_preset
+    from editor.errors import PresetError
+    from editor.formats.expressions import get_preset
 
     monkeypatch.setenv("FAP_STUDIO_DATA_DIR", str(tmp_path))
     (tmp_path / "presets").mkdir()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from editor.core import Face
-from editor.core.deform import deform_points
+from editor.engine.deform import deform_points
 
 LUM = np.array([0.299, 0.587, 0.114], np.float32)
 EYES = (("eye_l", "iris_left"), ("eye_r", "iris_right"))
@@ -220,7 +220,7 @@ def test_uncovered_white_is_as_bright_as_the_photos_sclera(big_faces):
     brightest sclera, barely shaded (a lit ball, the lid's soft shadow), not a grey band
     (median over the new pixels outside the iris, mean over the eyes: 0.85 of the photo's bright
     sclera; 0.80 with the former reference, ball shade and lid shadow)."""
-    from editor.core.expressions import apply_preset
+    from editor.formats.expressions import apply_preset
 
     vec = apply_preset("surprise", 1.5)
     ratios = []

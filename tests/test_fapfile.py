@@ -7,9 +7,10 @@ import re
 import numpy as np
 import pytest
 
-from editor.core.errors import FapFileError
-from editor.core.expressions import blend_expressions, blend_visemes
-from editor.core.fapfile import (
+from editor.engine.faps import FAPS
+from editor.errors import FapFileError
+from editor.formats.expressions import blend_expressions, blend_visemes
+from editor.formats.fapfile import (
     MAX_FRAMES,
     ExpressionField,
     FapSequence,
@@ -20,7 +21,6 @@ from editor.core.fapfile import (
     sequence_from_keyframes,
     write_fap,
 )
-from editor.core.faps import FAPS
 
 
 def mask_line(faps: list[int], n: int = 68) -> str:
@@ -255,7 +255,7 @@ def test_missing_file(tmp_path):
 def test_write_error_is_a_fap_file_error(tmp_path, monkeypatch):
     import errno
 
-    from editor.core import safeio
+    from editor import safeio
 
     seq = FapSequence(np.zeros((1, 68)))
     (tmp_path / "a_file").write_text("x")

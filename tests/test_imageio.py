@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from editor.core import imageio
-from editor.core.imageio import load_image
+from editor.engine import imageio
+from editor.engine.imageio import load_image
 from editor.resources import SAMPLE_FACE
 
 
@@ -69,8 +69,8 @@ def test_palette_png_with_transparency_keeps_its_alpha(tmp_path):
 
 
 def test_study_png_encoder_round_trips_losslessly(tmp_path):
-    from editor.core.errors import ImageError
-    from editor.study_cli import encode_png
+    from editor.errors import ImageError
+    from editor.study.stimuli import encode_png
 
     rgb = np.random.default_rng(3).integers(0, 256, (37, 53, 3), dtype=np.uint8)
     png = encode_png(rgb)

@@ -11,7 +11,7 @@ import pytest
 from conftest import JAFFE, SAMPLE, jaffe_images
 
 from editor.core import Face, ImageError, NoFaceError, load_image, signed_areas, standard_mesh
-from editor.core.imageio import MAX_PIXELS
+from editor.engine.imageio import MAX_PIXELS
 
 # Reference points on the sample face, read by eye off a 6x zoom with a 5-px grid:
 # eye corners, nose tip, mouth corners, chin (x, y) in pixels.
@@ -187,7 +187,7 @@ def test_cli_mesh_and_landmarks_outputs(tmp_path):
 
 
 def test_core_does_not_import_qt():
-    code = ("import sys, editor.core, editor.core.deform, editor.core.warp;"
+    code = ("import sys, editor.core, editor.engine.deform, editor.engine.warp;"
             "bad=[m for m in sys.modules if m.startswith(('PySide6','pyqtgraph'))];"
             "print(bad); sys.exit(1 if bad else 0)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

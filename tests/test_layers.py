@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from editor.core import Face
-from editor.core.layers import layer_plan, layers_cost_ms
-from editor.core.mouth import UPPER_TIP
+from editor.engine.layers import layer_plan, layers_cost_ms
+from editor.engine.mouth import UPPER_TIP
 
 LUM = np.array([0.299, 0.587, 0.114], np.float32)
 

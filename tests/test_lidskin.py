@@ -1,4 +1,4 @@
-"""The skin between the upper lid and the brow (editor/core/lidskin.py): the lid's own skin and
+"""The skin between the upper lid and the brow (editor/engine/lidskin.py): the lid's own skin and
 crease ride with the lid, the stretch goes to the skin under the brow."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-import editor.core.face as face_mod
-from editor.core.expressions import apply_preset
+import editor.engine.face as face_mod
+from editor.formats.expressions import apply_preset
 
 
 def _profile(img: np.ndarray, face, x: float, y_lid: float, ds: np.ndarray) -> np.ndarray:

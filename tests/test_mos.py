@@ -1,4 +1,5 @@
-"""MOS study storage (editor.core.mos), builders/export and the ``study`` CLI (editor.study_cli)."""
+"""MOS study storage (editor.study.mos), builders and export (editor.study.stimuli) and the
+``study`` CLI (editor.cli.study)."""
 
 from __future__ import annotations
 
@@ -15,11 +16,11 @@ import cv2
 import numpy as np
 import pytest
 
-from editor.core.errors import ImageError, StudyError
-from editor.core.mos import APPLICATION_ID, CANNOT_TELL, SCHEMA_VERSION, StimulusSpec, Study
-from editor.study_cli import (
+from editor.cli.study import add_study_parser
+from editor.errors import ImageError, StudyError
+from editor.study.mos import APPLICATION_ID, CANNOT_TELL, SCHEMA_VERSION, StimulusSpec, Study
+from editor.study.stimuli import (
     EXPORT_COLUMNS,
-    add_study_parser,
     create_from_renders,
     encode_png,
     export_answers_csv,
@@ -141,7 +142,7 @@ def test_killed_session_keeps_exactly_k_answers(study_path: Path, how: str) -> N
     k = 4
     script = textwrap.dedent(f"""
         import os, signal, sys
-        from editor.core.mos import Study
+        from editor.study.mos import Study
         study = Study.open(sys.argv[1])
         session = study.start_session("victim", seed=99)
         for _ in range({k}):

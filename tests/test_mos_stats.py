@@ -1,4 +1,4 @@
-"""Statistics of MOS studies (editor.core.mos_stats) against hand-computed values and the paper."""
+"""Statistics of MOS studies (editor.study.mos_stats) against hand-computed values and the paper."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from editor.core.mos import CANNOT_TELL
-from editor.core.mos_stats import (
+from editor.study.mos import CANNOT_TELL
+from editor.study.mos_stats import (
     analyse,
     bt500_screening,
     confusion_matrix,

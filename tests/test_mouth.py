@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from editor.core import Face
-from editor.core.expressions import apply_preset
+from editor.formats.expressions import apply_preset
 
 LUM = np.float32([0.299, 0.587, 0.114])
 #: FAPs that bring the sample's parted lips together (inner lips meet at the middle)
@@ -121,7 +121,7 @@ def test_upper_teeth_show_in_a_smile(sample_face, jaffe_faces):
 
 
 def test_drawn_teeth_take_the_photos_colour(sample_face, jaffe_faces):
-    from editor.core.layers import _photo_teeth, layer_plan
+    from editor.engine.layers import _photo_teeth, layer_plan
 
     def hsv(rgb):
         px = np.clip(np.asarray(rgb, np.float32).reshape(1, 1, 3), 0, 255).astype(np.uint8)

@@ -11,8 +11,8 @@ import pytest
 from conftest import JAFFE, SAMPLE, jaffe_images
 
 from editor.core import Face, signed_areas
-from editor.core.expressions import apply_preset
-from editor.core.own_expression import canonical, default_prior, estimate_own, symmetrize
+from editor.engine.own_expression import canonical, default_prior, estimate_own, symmetrize
+from editor.formats.expressions import apply_preset
 
 
 def test_sample_smile_is_estimated_and_neutralised(sample_face):
@@ -93,7 +93,7 @@ def test_jaffe_closed_loop_reproduces_real_expressions():
     doing nothing, upper lids and brows never estimated against their real motion."""
     if len(jaffe_images("*.NE*.tiff")) < 10:
         pytest.skip("../shared/data/jaffe is not available")
-    from editor.core.closed_loop import closed_loop
+    from editor.synthesis.closed_loop import closed_loop
 
     res = closed_loop(JAFFE / "images", noise_px=2.0)  # dlib's integer points: 1 px = 1.5 % IOD
     # the issue's target (2.57 before: the brows' band moved the alignment point 27, and wide-open
@@ -160,8 +160,8 @@ def test_declared_neutral_photo_has_no_expression():
 @pytest.mark.gui
 def test_declaring_the_photo_neutral_is_one_undoable_step_and_saved(qtbot, sample_face, warnings,
                                                                      tmp_path):
+    from editor.formats.project import load_project
     from editor.ui.main_window import MainWindow
-    from editor.ui.project import load_project
 
     w = MainWindow()
     qtbot.addWidget(w)
@@ -282,7 +282,7 @@ def test_photo_lip_offset_scales_with_the_rendered_opening(sample_face):
     inner/outer lip pairs' shared part moved once) times the photo's gap over the model's at
     f0 (main before: joy's share was taken from the basis without that correction, 1.73 px in
     the middle where this gives 1.88, and the corner pairs lost more to the fold guard)."""
-    from editor.core.deform import deform_points
+    from editor.engine.deform import deform_points
 
     f = sample_face
     ey = f.frame.rot[:, 1]
@@ -305,7 +305,7 @@ def test_photo_offset_folds_no_smile_corner(sample_face):
     """The offset must not turn the sliver triangles at the mouth corners inside out for a
     vector that opens them less than f0 (main before: joy folded both, the guard then took
     2-6 px of the corners' rise away, unevenly left and right)."""
-    from editor.core.deform import deform_points
+    from editor.engine.deform import deform_points
 
     f = sample_face
     joy = f.fap_vector(apply_preset("joy"))

@@ -41,8 +41,8 @@ def test_package_data_globs_cover_every_data_file():
 
 
 def test_shipped_presets_and_mesh_load_from_the_package():
-    from editor.core.expressions import shipped_preset_dir, shipped_presets
-    from editor.core.mesh import standard_mesh
+    from editor.engine.mesh import standard_mesh
+    from editor.formats.expressions import shipped_preset_dir, shipped_presets
 
     assert shipped_preset_dir() == resources.PRESETS_DIR
     presets = shipped_presets()
@@ -66,7 +66,7 @@ def test_sample_keyword_renders_the_bundled_face(tmp_path):
 
 
 def test_a_file_named_sample_wins_over_the_keyword(tmp_path, monkeypatch):
-    from editor.cli_util import photo_arg
+    from editor.cli.util import photo_arg
 
     assert photo_arg("sample") == str(resources.SAMPLE_FACE)
     monkeypatch.chdir(tmp_path)
@@ -88,7 +88,7 @@ def test_clone_eval_needs_an_explicit_jaffe_location(monkeypatch, capsys, tmp_pa
 def test_per_user_folders_follow_env_then_platformdirs(monkeypatch, tmp_path):
     import sys
 
-    from editor.core.bilinear_photo import default_cache_dir
+    from editor.synthesis.bilinear_photo import default_cache_dir
 
     monkeypatch.setenv("FAP_STUDIO_DATA_DIR", str(tmp_path / "data"))
     monkeypatch.setenv("FAP_STUDIO_CACHE", str(tmp_path / "cache"))

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 from conftest import JAFFE, ROOT
 
-from editor.core import jaffe_stats as js
-from editor.core.expressions import apply_preset, shipped_presets
-from editor.core.faps import FAPS
+from editor.engine.faps import FAPS
+from editor.formats.expressions import apply_preset, shipped_presets
+from editor.synthesis import jaffe_stats as js
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
 

@@ -26,7 +26,7 @@ import pytest
 
 from editor.cli import main
 from editor.core import FAPS
-from editor.core.errors import (
+from editor.errors import (
     FapFileError,
     FapStudioError,
     ImageError,
@@ -35,13 +35,13 @@ from editor.core.errors import (
     ProjectError,
     StudyError,
 )
-from editor.core.fapfile import FapSequence, read_fap, write_fap
+from editor.formats.fapfile import FapSequence, read_fap, write_fap
 from editor.resources import PRESETS_DIR, SAMPLE_FACE
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = SAMPLE_FACE
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "QT_QPA_PLATFORM": "offscreen"}
-_REAL_VIDEO_WRITER = __import__("editor.core.video", fromlist=["VideoWriter"]).VideoWriter
+_REAL_VIDEO_WRITER = __import__("editor.formats.video", fromlist=["VideoWriter"]).VideoWriter
 MASK_JAW = " ".join(["0", "0", "1"] + ["0"] * 65)
 
 
@@ -141,7 +141,7 @@ def bad_user_presets(tmp_path, monkeypatch):
 
 
 def test_case03_bad_user_presets_are_skipped(capfd, tmp_path, bad_user_presets):
-    from editor.core.expressions import all_presets, get_preset
+    from editor.formats.expressions import all_presets, get_preset
 
     problems: list[str] = []
     presets = all_presets(problems)
@@ -225,7 +225,7 @@ def small_disk(tmp_path):
 @pytest.fixture
 def full_disk(monkeypatch):
     """Every atomic write fails half-way with ENOSPC, as on a full disk."""
-    from editor.core import safeio
+    from editor import safeio
 
     def write_half(fh, data):
         fh.write(data[: len(data) // 2])
@@ -269,7 +269,7 @@ def test_case05_full_disk_leaves_nothing(capfd, tmp_path, full_disk, monkeypatch
 
 
 def test_case05_truncated_video_is_an_error(capfd, tmp_path, monkeypatch):
-    from editor.core import video
+    from editor.formats import video
 
     made = []
 
@@ -334,8 +334,8 @@ def test_case06_ctrl_c_during_animate_leaves_nothing(tmp_path, name):
 
 # ------------------------------------------------------------------------------ case 7
 def test_case07_devices_and_fifos_are_refused(capfd, tmp_path):
-    from editor.core.imageio import load_image
-    from editor.ui.project import load_project
+    from editor.engine.imageio import load_image
+    from editor.formats.project import load_project
 
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
@@ -365,7 +365,7 @@ def test_case07_project_photo_is_dev_zero(tmp_path):
 
 # ------------------------------------------------------------------------------ case 8
 def _study(tmp_path: Path) -> Path:
-    from editor.study_cli import create_from_renders
+    from editor.study.stimuli import create_from_renders
 
     rng = np.random.default_rng(0)
     renders = [(f, lab, 1.0, rng.integers(0, 256, (6, 5, 3), dtype=np.uint8))
@@ -387,7 +387,7 @@ def _study(tmp_path: Path) -> Path:
     "ALTER TABLE answers RENAME COLUMN label TO x",
 ])
 def test_case08_broken_study_files(capfd, tmp_path, sql):
-    from editor.core.mos import Study
+    from editor.study.mos import Study
 
     path = _study(tmp_path)
     con = sqlite3.connect(path)
@@ -405,8 +405,8 @@ def test_case08_broken_study_files(capfd, tmp_path, sql):
 # ------------------------------------------------------------------------------ case 9
 @pytest.fixture(scope="module")
 def model_arrays(tmp_path_factory):
-    from editor.core.bilinear import save_model
-    from editor.core.bilinear_data import train_model
+    from editor.synthesis.bilinear import save_model
+    from editor.synthesis.bilinear_data import train_model
 
     sys.path.insert(0, str(ROOT / "tests"))
     try:
@@ -451,7 +451,7 @@ def _set(d: dict, key: str, value) -> None:
     ("zero I", lambda m: _set(m["regions"][0], "I", 0)),
 ])
 def test_case09_malformed_model_metadata(tmp_path, model_arrays, label, change):
-    from editor.core.bilinear import load_model
+    from editor.synthesis.bilinear import load_model
 
     path = _npz(tmp_path / "m.npz", _with_meta(model_arrays, change))
     with pytest.raises(ModelError, match="m.npz"):
@@ -459,7 +459,7 @@ def test_case09_malformed_model_metadata(tmp_path, model_arrays, label, change):
 
 
 def test_case09_zip_bomb_model_is_refused_before_inflating(tmp_path, model_arrays, monkeypatch):
-    from editor.core import bilinear
+    from editor.synthesis import bilinear
 
     monkeypatch.setattr(bilinear, "MAX_MODEL_BYTES", 1 << 20)  # as 256 MiB for a 2 GiB bomb
     path = _npz(tmp_path / "bomb.npz", model_arrays | {"pad": np.zeros(1 << 18)}, compress=True)
@@ -483,7 +483,7 @@ def test_case10_clone_mu(capfd, tmp_path, mu):
 def test_case10_deformer_rejects_bad_mu():
     import scipy.sparse as sp
 
-    from editor.core.cloning import LaplacianDeformer
+    from editor.engine.laplacian import LaplacianDeformer
 
     v = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
     tri = np.array([[0, 1, 2], [1, 3, 2]])
@@ -548,7 +548,7 @@ def test_case11_broken_pipe(tmp_path):
 
 # ------------------------------------------------------------------------------ case 12
 def test_case12_nan_never_reaches_a_project(model, tmp_path, sample_neutral):
-    from editor.ui.project import load_project, save_project
+    from editor.formats.project import load_project, save_project
 
     before = model.doc.faps.copy()
     for bad in (float("nan"), float("inf"), 10**400, "x"):
@@ -633,7 +633,7 @@ def _fuzz(seed: int, base: list[bytes], n: int, read, expected: type[Exception])
 
 
 def test_fuzz_fap_reader():
-    from editor.core.fapfile import format_fap
+    from editor.formats.fapfile import format_fap
 
     vec = np.eye(68)[2] * 300 + np.eye(68)[40] * 200
     base = [fap_text().encode(), format_fap(FapSequence.single(vec, frames=3)).encode(),
@@ -649,7 +649,7 @@ def test_fuzz_fap_reader():
 
 
 def test_fuzz_preset_reader(tmp_path):
-    from editor.core.expressions import load_preset
+    from editor.formats.expressions import load_preset
 
     base = [p.read_bytes() for p in sorted(PRESETS_DIR.glob("*.json"))[:6]]
     path = tmp_path / "p.json"
@@ -663,7 +663,7 @@ def test_fuzz_preset_reader(tmp_path):
 
 
 def test_fuzz_project_reader(tmp_path, sample_neutral):
-    from editor.ui.project import load_project, project_text
+    from editor.formats.project import load_project, project_text
 
     names = list(sample_neutral.mesh.names)
     text = project_text(str(SAMPLE), sample_neutral.vertices, np.eye(68)[2] * 300, names,
@@ -682,7 +682,7 @@ def test_fuzz_project_reader(tmp_path, sample_neutral):
 
 
 def test_fuzz_study_reader(tmp_path):
-    from editor.core.mos import Study
+    from editor.study.mos import Study
 
     good = _study(tmp_path).read_bytes()
     path = tmp_path / "f.db"
@@ -735,7 +735,7 @@ def test_fuzz_study_reader(tmp_path):
 
 
 def test_fuzz_model_reader(tmp_path, model_arrays):
-    from editor.core.bilinear import load_model
+    from editor.synthesis.bilinear import load_model
 
     buf = io.BytesIO()
     np.savez(buf, **model_arrays)
@@ -764,7 +764,7 @@ def test_fuzz_model_reader(tmp_path, model_arrays):
 def test_fuzz_image_header(tmp_path):
     import cv2
 
-    from editor.core.imageio import load_image
+    from editor.engine.imageio import load_image
 
     rgb = np.random.default_rng(0).integers(0, 256, (24, 32, 3), dtype=np.uint8)
     base = [cv2.imencode(ext, rgb)[1].tobytes() for ext in (".png", ".jpg", ".bmp")]
@@ -797,7 +797,7 @@ def test_fuzz_image_header(tmp_path):
 
 
 def test_safeio_atomic_dir_and_file(tmp_path):
-    from editor.core import safeio
+    from editor import safeio
 
     target = tmp_path / "frames"
     with pytest.raises(KeyboardInterrupt), safeio.atomic_dir(target) as stage:
@@ -830,7 +830,7 @@ def _portraits() -> list[tuple[str, np.ndarray]]:
     the image, other FAPU, other mesh), and two JAFFE faces when the data are there."""
     import cv2
 
-    from editor.core.imageio import load_image
+    from editor.engine.imageio import load_image
 
     sys.path.insert(0, str(ROOT / "tests"))
     try:
@@ -853,8 +853,8 @@ def _portraits() -> list[tuple[str, np.ndarray]]:
 
 def test_case13_fold_guard_floor_on_many_faces():
     from editor.core import Face
-    from editor.core.deform import EPS_CHECK
-    from editor.core.mesh import signed_areas
+    from editor.engine.deform import EPS_CHECK
+    from editor.engine.mesh import signed_areas
 
     rng = np.random.default_rng(1613)
     vecs = rng.uniform(FAPS.lo, FAPS.hi, (160, 68))

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from editor.core.cloning import _closest_on_triangles, landmark_map
-from editor.core.deform import _topology
-from editor.core.mesh import standard_mesh
+from editor.engine.deform import _topology
+from editor.engine.laplacian import _closest_on_triangles, landmark_map
+from editor.engine.mesh import standard_mesh
 
 
 def test_incidence_lists_each_vertex_triangles_in_order():
@@ -48,8 +48,8 @@ def test_landmark_map_reproduces_the_landmarks(sample_neutral):
 
 
 def test_clamp_is_clip():
-    from editor.core.gaze import _clamp as clamp_g
-    from editor.core.mouth import _clamp as clamp_m
+    from editor.engine.gaze import _clamp as clamp_g
+    from editor.engine.mouth import _clamp as clamp_m
 
     x = np.linspace(-2.0, 3.0, 101, dtype=np.float32).reshape(1, -1)
     for clamp in (clamp_g, clamp_m):

@@ -8,9 +8,10 @@ import cv2
 import numpy as np
 from conftest import SAMPLE
 
-from editor.core.expressions import apply_preset, get_preset
-from editor.core.mos import Study
-from editor.study_cli import PAPER_EXPRESSIONS, add_study_parser, face_crop
+from editor.cli.study import add_study_parser
+from editor.formats.expressions import apply_preset, get_preset
+from editor.study.mos import Study
+from editor.study.stimuli import PAPER_EXPRESSIONS, face_crop
 
 
 def test_paper_design_from_one_face(tmp_path, sample_face):

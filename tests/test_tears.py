@@ -10,8 +10,8 @@ import pytest
 from conftest import jaffe_images
 
 from editor.core import Face
-from editor.core.faps import FAPS
-from editor.core.mesh import signed_areas
+from editor.engine.faps import FAPS
+from editor.engine.mesh import signed_areas
 from editor.resources import PRESETS_DIR, SAMPLE_FACE
 
 PRESETS = sorted(PRESETS_DIR.glob("*.json"))

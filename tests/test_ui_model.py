@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("pytestqt")
 
 from editor.core import FAPS  # noqa: E402
-from editor.ui.document_model import Document  # noqa: E402
+from editor.formats.document import Document  # noqa: E402
 from editor.ui.render_scheduler import RenderRequest, RenderResult, RenderScheduler  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]

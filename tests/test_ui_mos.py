@@ -15,10 +15,10 @@ from PySide6.QtCore import Qt  # noqa: E402
 from PySide6.QtGui import QImage  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
-from editor.core.mos import CANNOT_TELL, Study  # noqa: E402
-from editor.core.mos_stats import analyse  # noqa: E402
 from editor.resources import SAMPLE_FACE
-from editor.study_cli import create_from_renders  # noqa: E402
+from editor.study.mos import CANNOT_TELL, Study  # noqa: E402
+from editor.study.mos_stats import analyse  # noqa: E402
+from editor.study.stimuli import create_from_renders  # noqa: E402
 from editor.ui.mos_rating import RatingWindow  # noqa: E402
 from editor.ui.mos_results import ResultsWindow, ci, nat, pct  # noqa: E402
 

@@ -13,7 +13,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QPushButton  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
-from editor.core.fapfile import FapSequence, read_fap, write_fap  # noqa: E402
+from editor.formats.fapfile import FapSequence, read_fap, write_fap  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
 from editor.ui.playback_clock import Playhead  # noqa: E402

@@ -12,7 +12,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QInputDialog, QMessageBox  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
-from editor.core.expressions import (  # noqa: E402
+from editor.formats.expressions import (  # noqa: E402
     apply_preset,
     blend_expressions,
     blend_visemes,

@@ -15,10 +15,10 @@ from PySide6.QtGui import QDropEvent, QImage  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from editor.core import FAPS, load_image  # noqa: E402
+from editor.formats.project import FORMAT, load_project  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.ui import app as app_module  # noqa: E402
 from editor.ui.main_window import MainWindow  # noqa: E402
-from editor.ui.project import FORMAT, load_project  # noqa: E402
 from editor.ui.qt_utils import settings  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]

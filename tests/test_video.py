@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from editor.core import Face, load_image
-from editor.core.expressions import apply_preset, get_preset
-from editor.core.fapfile import FapSequence
-from editor.core.video import export_sequence
+from editor.formats.expressions import apply_preset, get_preset
+from editor.formats.fapfile import FapSequence
+from editor.formats.video import export_sequence
 from editor.resources import SAMPLE_FACE
 
 

@@ -1,4 +1,9 @@
-"""FAP Studio core: pure numpy/OpenCV, no Qt.
+"""FAP Studio's public API for scripts: re-exports from the subpackages, no Qt.
+
+The code lives in :mod:`editor.engine` (photo -> mesh -> FAPU, deformation, warp, layers,
+:class:`Face`), :mod:`editor.formats` (.fap files, presets, video, projects), :mod:`editor.study`
+(MOS studies) and :mod:`editor.synthesis` (FAP estimation, cloning, bilinear model); errors in
+:mod:`editor.errors`. Names not listed in ``__all__`` are internal to those modules.
 
 Data flow::
 
@@ -14,7 +19,12 @@ Public API::
     img = face.render({"open_jaw": 400})         # H x W x 3 uint8
 """
 
-from .errors import (
+from editor.engine.face import Face
+from editor.engine.faps import FAPS, Fap
+from editor.engine.imageio import MAX_PIXELS, load_image, save_image
+from editor.engine.landmarks import LandmarkDetector, Landmarks, detect_landmarks
+from editor.engine.mesh import StandardMesh, signed_areas, standard_mesh
+from editor.errors import (
     FapFileError,
     FapStudioError,
     ImageError,
@@ -24,15 +34,13 @@ from .errors import (
     ProjectError,
     StudyError,
 )
-from .face import Face
-from .faps import FAPS, Fap
-from .imageio import MAX_PIXELS, load_image, save_image
-from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
-from .mesh import StandardMesh, signed_areas, standard_mesh
+from editor.formats.expressions import Preset, all_presets, apply_preset, get_preset
+from editor.formats.fapfile import FapSequence, read_fap, write_fap
 
 __all__ = [
-    "FAPS", "MAX_PIXELS", "Face", "Fap", "FapFileError", "FapStudioError", "ImageError",
-    "Landmarks", "LandmarkDetector", "ModelError", "NoFaceError", "PresetError",
-    "ProjectError", "StandardMesh", "StudyError", "detect_landmarks", "load_image",
-    "save_image", "signed_areas", "standard_mesh",
+    "FAPS", "MAX_PIXELS", "Face", "Fap", "FapFileError", "FapSequence", "FapStudioError",
+    "ImageError", "Landmarks", "LandmarkDetector", "ModelError", "NoFaceError", "Preset",
+    "PresetError", "ProjectError", "StandardMesh", "StudyError", "all_presets", "apply_preset",
+    "detect_landmarks", "get_preset", "load_image", "read_fap", "save_image", "signed_areas",
+    "standard_mesh", "write_fap",
 ]

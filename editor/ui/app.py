@@ -15,10 +15,10 @@ from types import TracebackType
 from PySide6.QtCore import QEventLoop, QMessageLogContext, QtMsgType, qInstallMessageHandler
 from PySide6.QtWidgets import QApplication, QMessageBox
 
-from editor.core import FAPS
-from editor.core.errors import FapStudioError
-from editor.core.safeio import atomic_file
+from editor.engine.faps import FAPS
+from editor.errors import FapStudioError
 from editor.resources import SAMPLE_FACE
+from editor.safeio import atomic_file
 
 from .main_window import MainWindow
 from .qt_utils import APPLICATION, ORGANIZATION, settings

@@ -12,10 +12,11 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QFileDialog, QMessageBox, QWidget
 
-from editor.core import Face, save_image
+from editor.engine.face import Face
+from editor.engine.imageio import save_image
+from editor.formats.project import SUFFIX, load_project, save_project
 
 from .document_model import Document, DocumentModel
-from .project import SUFFIX, load_project, save_project
 from .qt_utils import run_guarded, settings
 
 PHOTO_FILTER = "Photos (*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp);;All files (*)"
@@ -95,7 +96,7 @@ class Documents(QObject):
             return False
 
         def load() -> None:
-            from editor.core import standard_mesh
+            from editor.engine.mesh import standard_mesh
 
             data = load_project(path, standard_mesh().names)
             face = Face.from_image(data.photo)

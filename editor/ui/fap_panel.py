@@ -22,7 +22,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core import FAPS
+from editor.engine.faps import FAPS
 
 from .document_model import Document, DocumentModel
 from .fap_group import FapGroup

@@ -21,7 +21,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core import Fap
+from editor.engine.faps import Fap
 
 from .qt_utils import signals_blocked
 

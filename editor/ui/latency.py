@@ -14,7 +14,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QEventLoop
 
-from editor.core import FAPS
+from editor.engine.faps import FAPS
 
 from .app import application
 from .main_window import MainWindow

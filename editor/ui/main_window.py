@@ -20,7 +20,7 @@ from PySide6.QtGui import (
 from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMenu, QMessageBox, QWidget
 
 from editor import __version__
-from editor.core import Face
+from editor.engine.face import Face
 
 from .canvas import Canvas
 from .document_model import Document, DocumentModel

@@ -14,7 +14,7 @@ from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QPainter
 from PySide6.QtWidgets import QStyleOptionGraphicsItem, QWidget
 
-from editor.core.mesh import StandardMesh
+from editor.engine.mesh import StandardMesh
 
 from .document_model import DocumentModel
 

@@ -96,8 +96,8 @@ class ModelPanel(QWidget):
     # ------------------------------------------------------------------ model
     def load_model(self, path: str | None = None) -> bool:
         """Load a dlib-68 model file (asks for one when ``path`` is None)."""
-        from editor.core.bilinear import load_model
-        from editor.core.bilinear_photo import check_model68
+        from editor.synthesis.bilinear import load_model
+        from editor.synthesis.bilinear_photo import check_model68
 
         if path is None:
             start = str(settings().value("model/last", "") or "")
@@ -142,7 +142,7 @@ class ModelPanel(QWidget):
 
     # ------------------------------------------------------------------ settings
     def target(self) -> Any:
-        from editor.core.bilinear_photo import parse_mix
+        from editor.synthesis.bilinear_photo import parse_mix
 
         text = self.mix.text().strip()
         return parse_mix(text) if text else self.expression.currentText()
@@ -154,7 +154,7 @@ class ModelPanel(QWidget):
 
     # ------------------------------------------------------------------ actions
     def _compute(self, render: bool) -> Any:
-        from editor.core.bilinear_photo import synthesize_on_face
+        from editor.synthesis.bilinear_photo import synthesize_on_face
 
         face = self.window.model.face
         lam = self.lam.value() or None
@@ -200,7 +200,7 @@ class ModelPanel(QWidget):
 
     def convert_to_faps(self) -> np.ndarray | None:
         """Estimate the FAPs of the synthesized shape and apply them (one undo entry)."""
-        from editor.core.bilinear_photo import faps_for_points
+        from editor.synthesis.bilinear_photo import faps_for_points
 
         if not self._ready("Convert to FAPs"):
             return None

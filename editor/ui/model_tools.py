@@ -1,6 +1,6 @@
 """Tools-menu actions of issue 10: "Clone from Photo…" and "Track Video…".
 
-Both measure FAPs from a performer (:mod:`editor.core.fap_estimate`, the FAP route of SPEC §6):
+Both measure FAPs from a performer (:mod:`editor.synthesis.fap_estimate`, the FAP route of SPEC §6):
 the neutral/expression pair or every video frame against the first, in the performer's own
 FAPU, so the vector applies unchanged to the current photo. Clone results land on the sliders as
 one undo entry; a tracked video is saved as a .fap sequence (frames without a face are filled by
@@ -47,10 +47,11 @@ def guarded(parent: QWidget | None, title: str, fn: Callable[[], Any]) -> Any:
 
 def estimate_clone_faps(neutral: str | Path, expression: str | Path) -> np.ndarray:
     """(68,) FAPs (performer FAPU) of the performer's expression photo against the neutral."""
-    from editor.core import Face, load_image
-    from editor.core.errors import NoFaceError
-    from editor.core.fap_estimate import FapEstimator
-    from editor.core.landmarks import detect_landmarks
+    from editor.engine.face import Face
+    from editor.engine.imageio import load_image
+    from editor.engine.landmarks import detect_landmarks
+    from editor.errors import NoFaceError
+    from editor.synthesis.fap_estimate import FapEstimator
 
     src = Face.from_image(neutral, own_expression=False)
     try:
@@ -107,8 +108,8 @@ class CloneTools:
     def track_video(self, video: str | None = None, output: str | None = None) -> Any:
         """Ask for a video and a .fap file (unless given), track with a cancellable progress
         dialog, save, and report the frames without a face. Returns the TrackReport."""
-        from editor.core.fap_estimate import track_video
-        from editor.core.fapfile import write_fap
+        from editor.formats.fapfile import write_fap
+        from editor.synthesis.fap_estimate import track_video
 
         w = self.window
         if video is None:

@@ -20,15 +20,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core.errors import StudyError
-from editor.study_cli import PAPER_EXPRESSIONS
+from editor.errors import StudyError
+from editor.study.stimuli import PAPER_EXPRESSIONS
 
 IMAGE_FILTER = "Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff)"
 
 
 def expression_presets() -> list[str]:
     """Names of the available expression presets (visemes left out), paper's five first."""
-    from editor.core.expressions import all_presets
+    from editor.formats.expressions import all_presets
 
     names = [n for n, p in all_presets([]).items() if not n.startswith("viseme")
              and getattr(p, "kind", "expression") != "viseme"]

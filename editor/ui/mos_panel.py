@@ -3,7 +3,7 @@
 ``install(window)`` adds the menu and returns the :class:`MosPanel` controller. The rating
 session (:mod:`editor.ui.mos_rating`) and the results (:mod:`editor.ui.mos_results`) open in
 their own top-level windows; the study data lives in one SQLite file per study
-(:mod:`editor.core.mos`), so nothing here needs saving.
+(:mod:`editor.study.mos`), so nothing here needs saving.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from PySide6.QtCore import QObject, Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QFileDialog, QMainWindow, QWidget
 
-from editor.core.mos import Study
+from editor.study.mos import Study
 
 from .mos_new import NewStudyDialog
 from .mos_rating import RatingWindow, ask_rater
@@ -91,7 +91,7 @@ class MosPanel(QObject):
 
     def create_study(self, dialog: NewStudyDialog) -> Path | None:
         def make() -> Path:
-            from editor.study_cli import create_from_renders, render_stimuli
+            from editor.study.stimuli import create_from_renders, render_stimuli
 
             faces, presets, ks, name, path, every, revise = dialog.values()
             renders = render_stimuli(faces, presets, ks)

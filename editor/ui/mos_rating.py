@@ -11,7 +11,7 @@ Keys (shown on the instructions page and under every image):
 * ``F11`` toggles full screen.
 
 The response time runs from the moment the image is shown to the confirming key. Every answer
-goes straight to the study database (:class:`editor.core.mos.RaterSession`), so closing the
+goes straight to the study database (:class:`editor.study.mos.RaterSession`), so closing the
 window (or killing the app) loses nothing; reopening with the same rater id resumes in the same
 order at the first unanswered image.
 """
@@ -33,8 +33,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core.errors import FapStudioError
-from editor.core.mos import CANNOT_TELL, RaterSession, Stimulus, Study
+from editor.errors import FapStudioError
+from editor.study.mos import CANNOT_TELL, RaterSession, Stimulus, Study
 
 from .qt_utils import run_guarded
 

@@ -24,11 +24,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core.errors import FapStudioError
-from editor.core.mos import CANNOT_TELL, Study
-from editor.core.mos_stats import StudyReport, Summary, analyse, format_report
-from editor.core.safeio import atomic_file
-from editor.study_cli import export_answers_csv
+from editor.errors import FapStudioError
+from editor.safeio import atomic_file
+from editor.study.mos import CANNOT_TELL, Study
+from editor.study.mos_stats import StudyReport, Summary, analyse, format_report
+from editor.study.stimuli import export_answers_csv
 
 from .plots import BarPlot, ConfusionPlot
 

@@ -1,6 +1,6 @@
 """Rendering a FAP sequence to MP4 or PNG frames on a worker thread, with a cancellable dialog.
 
-:class:`ExportJob` runs :func:`editor.core.video.export_sequence` in a ``QThread``; progress
+:class:`ExportJob` runs :func:`editor.formats.video.export_sequence` in a ``QThread``; progress
 comes back as a queued signal, so the GUI stays responsive. Cancelling (the dialog's button or
 :meth:`ExportJob.cancel`) makes the progress callback return False: the core stops and removes
 a partial MP4 (PNG frames already written are kept).
@@ -14,8 +14,8 @@ import traceback
 from PySide6.QtCore import QObject, Qt, QThread, Signal
 from PySide6.QtWidgets import QProgressDialog, QWidget
 
-from editor.core import FapStudioError
-from editor.core.video import ExportResult, export_sequence
+from editor.errors import FapStudioError
+from editor.formats.video import ExportResult, export_sequence
 
 
 class _Worker(QObject):

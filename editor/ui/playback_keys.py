@@ -3,8 +3,8 @@
 The widget keeps a list of keys, sorted by time; "Add key" stores the document's low-level FAPs
 at the time in the spin box (the playhead's time while a sequence is loaded), "Remove" drops the
 selected key, and :meth:`KeyframeEditor.build` interpolates them (linear or smoothstep) into a
-:class:`~editor.core.fapfile.FapSequence` with
-:func:`~editor.core.expressions.sequence_from_keyframes`.
+:class:`~editor.formats.fapfile.FapSequence` with
+:func:`~editor.formats.expressions.sequence_from_keyframes`.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core import FapStudioError
-from editor.core.expressions import sequence_from_keyframes
-from editor.core.fapfile import FapSequence
+from editor.errors import FapStudioError
+from editor.formats.expressions import sequence_from_keyframes
+from editor.formats.fapfile import FapSequence
 
 
 def low_level(vector: np.ndarray) -> np.ndarray:

@@ -29,9 +29,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core import FapStudioError
-from editor.core.fapfile import FapSequence, read_fap, write_fap
-from editor.core.video import ExportResult, sequence_vectors
+from editor.errors import FapStudioError
+from editor.formats.fapfile import FapSequence, read_fap, write_fap
+from editor.formats.video import ExportResult, sequence_vectors
 
 from .document_model import DocumentModel
 from .playback_clock import Clock, Playhead

@@ -9,7 +9,7 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import QWidget
 
-from editor.core.mos_stats import Confusion
+from editor.study.mos_stats import Confusion
 
 
 def _ticks(names: Sequence[str]) -> list[list[tuple[float, str]]]:

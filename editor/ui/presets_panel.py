@@ -30,8 +30,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.core import FapStudioError
-from editor.core.expressions import (
+from editor.errors import FapStudioError
+from editor.formats.expressions import (
     EXPRESSIONS,
     VISEMES,
     Preset,

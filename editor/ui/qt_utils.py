@@ -10,7 +10,7 @@ from typing import Any
 from PySide6.QtCore import QObject, QSettings, Qt
 from PySide6.QtWidgets import QApplication, QMessageBox, QWidget
 
-from editor.core.errors import FapStudioError
+from editor.errors import FapStudioError
 
 ORGANIZATION = "FAP Studio"
 APPLICATION = "FAP Studio"

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from PySide6.QtCore import QCoreApplication, QEventLoop, QObject, Qt, Signal
 
-from editor.core import Face
+from editor.engine.face import Face
 
 
 @dataclass(frozen=True, eq=False)

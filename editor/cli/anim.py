@@ -1,0 +1,112 @@
+"""CLI commands for presets, .fap files and animation: ``animate``, ``fap export``, ``fap info``.
+
+``render --preset`` lives in :mod:`editor.cli`; this module registers the rest.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from editor.errors import FapStudioError
+
+from .util import PHOTO_HELP, ProgressBar, photo_arg
+
+
+def parse_preset(spec: str) -> tuple[str, float]:
+    """``joy`` or ``joy:0.8`` -> (name, intensity)."""
+    name, _, inten = spec.partition(":")
+    if not name:
+        raise FapStudioError(f"--preset {spec!r}: expected NAME or NAME:INTENSITY")
+    try:
+        value = float(inten) if inten else 1.0
+    except ValueError as e:
+        raise FapStudioError(f"--preset {spec!r}: {inten!r} is not a number") from e
+    if not 0.0 <= value <= 1.5:
+        raise FapStudioError(f"--preset {spec!r}: intensity must be within 0 … 1.5")
+    return name, value
+
+
+def preset_vector(specs: list[str] | None) -> np.ndarray:
+    """Sum of presets ``NAME[:INTENSITY]`` as a (68,) vector (clamped)."""
+    from editor.engine.faps import FAPS
+    from editor.formats.expressions import apply_preset, get_preset
+
+    total = np.zeros(68, np.float32)
+    for spec in specs or []:
+        name, value = parse_preset(spec)
+        total += apply_preset(get_preset(name), value)
+    return FAPS.clamp(total)
+
+
+def cmd_animate(a: argparse.Namespace) -> int:
+    from editor.engine.face import Face
+    from editor.formats.fapfile import read_fap
+    from editor.formats.video import export_sequence
+
+    seq = read_fap(a.fap_file)
+    face = Face.from_image(a.photo)
+    with ProgressBar("render", quiet=a.quiet) as bar:
+        res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases)
+    print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
+    return 0
+
+
+def cmd_fap_export(a: argparse.Namespace) -> int:
+    from editor.formats.expressions import sequence_from_keyframes
+    from editor.formats.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
+    from editor.safeio import finite_in
+
+    fps = finite_in(a.fps, 0, MAX_FPS, "--fps", lo_open=True)
+    if a.keyframes:
+        finite_in(a.duration, 0, (MAX_FRAMES - 1) / fps, "--duration", lo_open=True)
+    elif not 1 <= a.frames <= MAX_FRAMES:
+        raise FapStudioError(f"--frames: expected 1-{MAX_FRAMES}, got {a.frames}")
+    vec = preset_vector(a.preset)
+    if a.keyframes:
+        # neutral -> expression -> neutral over the given duration
+        d = a.duration
+        seq = sequence_from_keyframes([(0.0, np.zeros(68, np.float32)), (d / 2, vec),
+                                       (d, np.zeros(68, np.float32))], fps=a.fps,
+                                      interpolation="smoothstep", name=a.name)
+    else:
+        seq = FapSequence.single(vec, fps=a.fps, frames=a.frames, name=a.name)
+    write_fap(seq, a.output)
+    print(f"{seq.n_frames} frames at {a.fps:g} fps -> {a.output}", file=sys.stderr)
+    return 0
+
+
+def cmd_fap_info(a: argparse.Namespace) -> int:
+    from editor.formats.expressions import fap_info
+    from editor.formats.fapfile import read_fap
+
+    print(fap_info(read_fap(a.fap_file)))
+    return 0
+
+
+def add_anim_parser(sub) -> None:
+    s = sub.add_parser("animate", help="render a .fap sequence on a photo to MP4 or PNG frames")
+    s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
+    s.add_argument("fap_file")
+    s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    s.add_argument("--no-creases", action="store_true", help="geometry only: no skin folds")
+    s.set_defaults(func=cmd_animate)
+
+    f = sub.add_parser("fap", help=".fap files: export presets, show information")
+    fs = f.add_subparsers(dest="fap_command", metavar="COMMAND")
+    e = fs.add_parser("export", help="write a preset (or a mix) as a .fap file")
+    e.add_argument("--preset", action="append", required=True, metavar="NAME[:INTENSITY]")
+    e.add_argument("--frames", type=int, default=1, help="frames holding the expression")
+    e.add_argument("--fps", type=float, default=25.0)
+    e.add_argument("--keyframes", action="store_true",
+                   help="neutral -> expression -> neutral over --duration seconds")
+    e.add_argument("--duration", type=float, default=2.0)
+    e.add_argument("--name", default="fap-studio")
+    e.add_argument("-o", "--output", required=True)
+    e.set_defaults(func=cmd_fap_export)
+    i = fs.add_parser("info", help="version, name, fps, frames and the FAPs a file uses")
+    i.add_argument("fap_file")
+    i.set_defaults(func=cmd_fap_info)

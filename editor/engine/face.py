@@ -1,0 +1,531 @@
+"""The ``Face``: a photo, its landmarks, the personalized mesh, FAPU, and rendering.
+
+Data flow: photo -> :func:`detect_landmarks` -> :func:`fit_vertices` (personalized mesh) ->
+:func:`measure_fapu` -> FAP vector -> :func:`deform_points` -> :func:`warp` -> image.
+
+The photo's own expression (issue 21): a photo that smiles is the neutral face plus a FAP vector
+f0 (:attr:`Face.expression`, estimated by :func:`~editor.engine.own_expression.estimate_own`).
+The mesh fitted to the photo (:attr:`Face.vertices`) is where the texture comes from; the
+neutral mesh N (:attr:`Face.neutral_vertices`) is that mesh with its landmarks moved to the
+neutral the estimate implies (Laplacian editing, see ``Face._neutralise``), and every FAP vector
+f is applied to it: ``deform(f) = N + D_N(f) + s(f) r`` where ``r = P - N - D_N(f0)`` is the part
+of the photo's expression the FAP motion does not render and ``s(f)`` in [0, 1] the share of f0
+that f holds (:meth:`Face.own_share`): f0 renders the photo unchanged, f = 0 the neutral face,
+and a preset that does not go the photo's way (sadness on a smile) gets none of the photo's
+smile back. FAPU are measured on the neutral mesh.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import InitVar, dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from editor.errors import NoFaceError
+
+from .creases import apply_creases
+from .deform import (
+    EXTRA_POINTS,
+    LIP_PAIRS,
+    DeformPlan,
+    build_plan,
+    deform_points,
+    eye_state,
+    guard,
+    linear_positions,
+)
+from .faps import FAPS
+from .fapu import measure_fapu
+from .fitting import FaceFrame, fit_vertices, snap_inner_lips
+from .imageio import as_rgb8, load_image
+from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
+from .layers import render_layers
+from .lidskin import apply_lid_skin
+from .mesh import StandardMesh, signed_areas, standard_mesh
+from .warp import WarpPlan, WarpResult, warp
+
+#: estimate_own rounds, each against the FAPU of the neutral the previous one implies
+OWN_ROUNDS = 3
+
+FapInput = Mapping[object, float] | np.ndarray | None
+
+
+def _extra_points(mesh: StandardMesh, verts: np.ndarray, lm: Landmarks,
+                  fapu: dict[str, float]) -> dict[str, np.ndarray]:
+    """Positions of the non-mesh feature points: irises and tongue (behind the lips)."""
+    f = {k: verts[i] for k, i in mesh.fdp.items()}
+    frame = FaceFrame.from_points(lm.points)
+    ex, ey = frame.rot[:, 0], frame.rot[:, 1]
+    mw = fapu["MW"] * 1024
+    tip = 0.5 * (f["2.2"] + f["2.3"])
+    body = tip + 0.12 * mw * ey
+    return {
+        "3.5": np.array([lm.iris_left.cx, lm.iris_left.cy]),
+        "3.6": np.array([lm.iris_right.cx, lm.iris_right.cy]),
+        "6.1": tip, "6.2": body, "6.3": body + 0.3 * mw * ex, "6.4": body - 0.3 * mw * ex,
+    }
+
+
+@dataclass(eq=False)
+class Face:
+    """A photo with its personalized MPEG-4 mesh.
+
+    Attributes
+    ----------
+    image : (H, W, 3) uint8 RGB photo (read-only)
+    landmarks : Landmarks
+    vertices : (V, 2) float32 neutral personalized mesh, image pixels (x, y), y down
+    fapu : dict name -> pixels per unit (MNS, MW, ENS, ES, IRISD; AU = 1e-5 rad)
+    """
+
+    image: np.ndarray
+    landmarks: Landmarks
+    vertices: np.ndarray
+    mesh: StandardMesh = field(default_factory=standard_mesh)
+    source: str | None = None
+    expression: np.ndarray | None = None
+    expression_words: str = "neutral"
+    #: (68, 2) landmarks of the neutral face the own-expression estimate implies (prior mean
+    #: shape + identity modes, :attr:`OwnExpression.neutral68`); None: the photo's landmarks
+    #: moved back by f0's motion
+    neutral_landmarks: np.ndarray | None = field(default=None, repr=False)
+    #: (FAPU, plan) of ``vertices`` if the caller has them (a copy of a face declared neutral):
+    #: the neutralisation starts from them instead of building them again
+    photo_plan: InitVar[tuple[dict[str, float], DeformPlan] | None] = None
+
+    def __post_init__(self, photo_plan: tuple[dict[str, float], DeformPlan] | None = None
+                      ) -> None:
+        self.image = np.ascontiguousarray(self.image)
+        self.image.setflags(write=False)
+        self.vertices = np.asarray(self.vertices, np.float32)
+        self.frame = FaceFrame.from_points(self.landmarks.points)
+        f0 = np.zeros(68, np.float32) if self.expression is None else \
+            FAPS.clamp(FAPS.vector(self.expression))
+        self.expression = f0
+        self.expression.setflags(write=False)
+        self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(
+            f0, photo_plan=photo_plan)
+
+    def _measure_fapu(self, vertices: np.ndarray) -> dict[str, float]:
+        lm = self.landmarks
+        irises = np.array([[lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r],
+                           [lm.iris_left.cx, lm.iris_left.cy, lm.iris_left.r]])
+        return measure_fapu(vertices.astype(np.float64), self.mesh, self.frame, irises)
+
+    def _build(self, vertices: np.ndarray) -> tuple[dict[str, float], DeformPlan]:
+        fapu = self._measure_fapu(vertices)
+        plan = build_plan(self.mesh, vertices, self.frame, fapu,
+                          _extra_points(self.mesh, vertices, self.landmarks, fapu))
+        return fapu, plan
+
+    def _neutralise(self, f0: np.ndarray, rounds: int = 3,
+                    photo_plan: tuple[dict[str, float], DeformPlan] | None = None
+                    ) -> tuple[np.ndarray, dict[str, float], DeformPlan, np.ndarray | None]:
+        """Neutral mesh N, its FAPU and plan, and the offset ``r = P - (N + D_N(f0))`` over all
+        points (None when f0 = 0).
+
+        N is the photo's mesh P with its landmarks moved back by the motion f0 gives them on N
+        (a fixed point: FAPU and influence are the neutral's), keeping P's local shape
+        (Laplacian editing, :class:`~editor.engine.laplacian.LaplacianDeformer`, what no FAP moves
+        fixed); the
+        inner lips of the neutral meet. Undoing f0 vertex by vertex (``N = P - D_N(f0)``)
+        folds where the FAP influence does not match the photo's expression: on an open smile
+        the upper lip next to the corners drops below them, and the fold guard then keeps the
+        corners up (the neutral still smiled).
+        """
+        from .laplacian import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
+
+        P = self.vertices
+        fapu, plan = self._build(P) if photo_plan is None else photo_plan
+        if not f0.any():
+            return P, fapu, plan, None
+        V = len(P)
+        target = plan.neutral.astype(np.float64)  # photo mesh + extra points at rest
+        plan_p = plan
+        A = landmark_map(P, self.mesh.triangles, self.mesh.names, self.landmarks.points)
+        # what no FAP moves stays where the photo has it (margin, border, hair, ears): the
+        # neutral differs from the photo only where expressions act, so a frame warps only
+        # that region (a free margin moved every vertex: each frame warped the whole image)
+        still = ~np.abs(plan.basis[:, :V]).any(axis=(0, 2)) | (self.mesh.regions == "border")
+        lap = LaplacianDeformer(P, self.mesh.triangles, A, still, MU, CONSTRAINT_WEIGHTS)
+        x = A @ target[:V]
+        ey = self.frame.rot[:, 1]
+        up, low = np.array([61, 62, 63]), np.array([67, 66, 65])
+        N = target.copy()
+        mouth_moves = bool(f0[2:13].any() or f0[50:60].any())  # jaw, inner and outer lips
+        for _ in range(rounds):
+            U = x - A @ (linear_positions(plan, f0)[:V] - N[:V])
+            if self.neutral_landmarks is not None and mouth_moves:  # the estimate's neutral
+                U[48:] = np.asarray(self.neutral_landmarks, np.float64)[48:]
+            # a neutral mouth is closed: the lower lip meets the upper one (the upper lip sits
+            # on the skull; the jaw and the lower lip close onto it)
+            U[low] -= ((U[low] - U[up]) @ ey)[:, None] * ey
+            N[:V] = lap.solve(U)
+            fapu, plan = self._build(N[:V].astype(np.float32))
+            N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
+        # lips and lids of the neutral meet but never cross, and the inner lips are closed
+        # (between the landmarks the Laplacian leaves them a little apart); the offset absorbs
+        # the difference
+        pairs = self.mesh.pairs
+        u, lo = pairs[:, 0], pairs[:, 1]
+        mouth = np.isin(u, self.mesh.holes["mouth"])
+        cross = ((N[lo] - N[u]) @ ey < 0) & ~mouth
+        if cross.any():
+            mean = 0.5 * (N[u[cross]] + N[lo[cross]])
+            N[u[cross]] = N[lo[cross]] = mean
+        N[lo[mouth]] = N[u[mouth]]
+        cross |= mouth
+        # no triangle of the neutral folds: the outer-lip vertices of folded triangles (never
+        # the inner lips, which meet, nor the landmark-held corners) relax towards their
+        # neighbours; what still folds goes through the fold guard (it scales an upper/lower
+        # pair together: no crossing returns)
+        N[:V] = _unfold_lips(self.mesh, N[:V], plan_p.neutral_sigma)
+        D = N[None, :V] - target[None, :V]
+        Dg = guard(plan_p, D)
+        if Dg is not D or cross.any():
+            N[:V] = target[:V] + Dg[0]
+            fapu, plan = self._build(N[:V].astype(np.float32))
+            N[V:] = plan.neutral[V:]
+        offset = target - linear_positions(plan, f0)
+        return plan.neutral[:V].copy(), fapu, plan, offset
+
+    def own_share(self, vec: np.ndarray) -> float:
+        """How much of the photo's own expression f0 a FAP vector holds, in [0, 1]: its
+        projection on f0 (FAP motion in pixels, FAPU x value). 1 at f0, 0 at the neutral and
+        for expressions that do not go the photo's way (a smiling photo's sadness)."""
+        f0 = self.expression.astype(np.float64)
+        u = self._fap_px ** 2
+        den = float((u * f0) @ f0)
+        if den <= 0:
+            return 0.0
+        return float(np.clip((u * np.asarray(vec, np.float64)) @ f0 / den, 0.0, 1.0))
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_image(cls, image: str | os.PathLike[str] | np.ndarray,
+                   detector: LandmarkDetector | None = None, *,
+                   own_expression: bool = True) -> Face:
+        """Detect the face in a photo (path or RGB array) and fit the personalized mesh.
+
+        With ``own_expression`` (default) the expression the photo already shows is estimated
+        (:attr:`expression`) and FAPs apply to the neutralised face; ``False`` declares the
+        photo neutral (a performer's neutral photo, a JAFFE neutral).
+        Raises ImageError for unreadable/corrupt/too-large files and NoFaceError when no face
+        is found.
+        """
+        if isinstance(image, np.ndarray):
+            rgb, source = as_rgb8(image), None
+        else:
+            rgb, source = load_image(image), str(Path(image))
+        try:
+            lm = detect_landmarks(rgb, detector)
+        except NoFaceError as e:
+            raise NoFaceError(f"{source}: {e}" if source else str(e)) from None
+        face = cls.from_landmarks(rgb, lm, source=source)
+        return face.with_own_expression() if own_expression else face
+
+    def with_own_expression(self) -> Face:
+        """A copy whose :attr:`expression` is the estimate of what the photo shows."""
+        from .own_expression import estimate_own
+
+        base = self if not self.expression.any() else self.with_expression(None)
+        own = estimate_own(base)
+        if not own.faps.any():
+            return base
+        face = base.with_expression(own.faps, own.words)
+        # FAPU are the neutral's (a smile widens the mouth and changes the mouth-nose
+        # distance): the estimate is redone with the motion per unit of the neutral it implies,
+        # else f0 renders a fraction of the photo's expression and neutralising leaves the rest
+        for _ in range(OWN_ROUNDS - 1):
+            own = estimate_own(face)
+            if not own.faps.any():
+                return base
+            face = base.with_expression(own.faps, own.words)
+        return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source,
+                    face.expression, face.expression_words, own.neutral68,
+                    photo_plan=base._photo_plan())
+
+    def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
+        """A copy with another own expression f0 (None or zeros: the photo is neutral)."""
+        vec = None if expression is None else self.fap_vector(expression)
+        if words is None:
+            words = "neutral" if vec is None or not vec.any() else "edited"
+        return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, vec,
+                    words, photo_plan=self._photo_plan())
+
+    def _photo_plan(self) -> tuple[dict[str, float], DeformPlan] | None:
+        """FAPU and plan of the photo's mesh if this face has them (declared neutral)."""
+        return None if self.expression.any() else (dict(self.fapu), self.plan)
+
+    @classmethod
+    def from_landmarks(cls, rgb: np.ndarray, lm: Landmarks, source: str | None = None) -> Face:
+        mesh = standard_mesh()
+        h, w = rgb.shape[:2]
+        named, _ = fit_vertices(lm.points, (w, h))
+        snap_inner_lips(named, rgb, lm.points)
+        verts = np.array([named[n] for n in mesh.names], np.float32)
+        sig = signed_areas(verts.astype(np.float64), mesh.triangles)
+        if lm.interocular < 6:
+            raise NoFaceError(f"the face is too small ({lm.interocular:.1f} px between the eyes)")
+        if (sig <= 0).any():
+            verts = _relax(mesh, verts)
+        return cls(rgb, lm, verts, mesh, source)
+
+    def with_vertices(self, vertices: np.ndarray) -> Face:
+        """A copy with an edited photo mesh (FAPU and rendering follow; same own expression)."""
+        return Face(self.image, self.landmarks, np.asarray(vertices, np.float32), self.mesh,
+                    self.source, self.expression, self.expression_words,
+                    self.neutral_landmarks)
+
+    # ------------------------------------------------------------------ API
+    @property
+    def triangles(self) -> np.ndarray:
+        return self.mesh.triangles
+
+    @property
+    def fdp(self) -> dict[str, int]:
+        """Feature point id -> vertex index (mesh vertices only)."""
+        return self.mesh.fdp
+
+    @property
+    def has_expression(self) -> bool:
+        """True when the photo is not neutral (its own expression is non-zero)."""
+        return bool(self.expression.any())
+
+    def _deform(self, vec: np.ndarray) -> np.ndarray:
+        # the offset enters before the crossing rule and the fold guard, so lips/lids never
+        # cross and no triangle folds for any vector (at f0 both leave the photo's mesh as is)
+        # the offset is the part of the photo's expression the FAP motion does not render: it
+        # comes with the share of f0 the vector holds (all of it at f0: the photo exactly)
+        # except the lips' opening: the photo's own gap between the inner lips comes with the
+        # share of the photo's opening the vector's FAPs make (a slit of a smile on a photo
+        # that opens wider is not closed by the photo's offset; f0 still gives the photo)
+        if self._offset is None:
+            return deform_points(self.plan, vec)
+        own = self.own_share(vec)
+        off = own * self._offset
+        lip = self._lip_gap
+        if lip is not None:
+            up, lo, G, Gc, g0, d = lip
+            s = np.clip(_fap_gap(G, Gc, vec) / g0, 0.0, 1.0)
+            corr = (own - s)[:, None] * d
+            off[up] += corr
+            off[lo] -= corr
+        return deform_points(self.plan, vec, off)
+
+    @cached_property
+    def _lip_gap(self) -> tuple[np.ndarray, ...] | None:
+        """Inner-lip pairs whose FAP model opens at the photo's own expression: upper and
+        lower vertex, the gap's FAP basis (P, 68) and its inner/outer lip pairs' shared part
+        (P, 10) (see :func:`_fap_gap`), the gap at f0 over the neutral's (pixels), and the
+        offset's half difference (P, 2) across each pair (along the face's vertical)."""
+        if self._offset is None:
+            return None
+        names = self.mesh.names
+        pairs = np.array([(u, lo) for u, lo in self.mesh.pairs if names[u].startswith("lip")])
+        up, lo = pairs[:, 0], pairs[:, 1]
+        ey = self.frame.rot[:, 1].astype(np.float64)
+        basis = self.plan.basis.astype(np.float64)
+        G = (basis[:, lo] - basis[:, up]) @ ey  # (68, P): gap opened per FAP unit
+        G = G.T
+        pb = self.plan.pair_basis.astype(np.float64).reshape(len(LIP_PAIRS), -1, 2)
+        Gc = ((pb[:, lo] - pb[:, up]) @ ey).T  # (P, 10)
+        g0 = _fap_gap(G, Gc, self.expression)
+        keep = g0 > 1e-3  # the model opens these pairs at f0
+        if not keep.any():
+            return None
+        half = 0.5 * ((self._offset[lo] - self._offset[up]) @ ey)
+        d = half[:, None] * ey[None, :]
+        k = keep
+        return up[k], lo[k], G[k], Gc[k], g0[k], d[k]
+
+    @cached_property
+    def _fap_px(self) -> np.ndarray:
+        """(68,) pixels per unit of each FAP (its FAPU on the neutral; 0 for FAPs 1-2)."""
+        return np.array([self.fapu.get(FAPS[i + 1].unit, 0.0) if i >= 2 else 0.0
+                         for i in range(68)])
+
+    @cached_property
+    def warp_plan(self) -> WarpPlan:
+        return WarpPlan(self.image, self.vertices, self.mesh.triangles, self.mesh.holes)
+
+    def fap_vector(self, faps: FapInput) -> np.ndarray:
+        """(68,) float32 FAP vector from a mapping (names or numbers) or array, clamped."""
+        return FAPS.clamp(FAPS.vector(faps))
+
+    def deform(self, faps: FapInput) -> np.ndarray:
+        """Deformed mesh vertices (V, 2) float32 for FAP values in FAPU.
+
+        Keys are FAP names or numbers; unknown keys and values that are not finite numbers
+        within ±1e9 (:data:`~editor.engine.faps.MAX_VALUE`; dict or array alike) raise
+        ValueError; other out-of-range values are clamped to the FAP table's range.
+        """
+        pts = self._deform(self.fap_vector(faps))
+        return pts[: self.plan.n_vertices]
+
+    def deform_all(self, faps: FapInput) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Deformed vertices (V, 2) and the extra feature points (irises 3.5/3.6, tongue 6.x)."""
+        pts = self._deform(self.fap_vector(faps))
+        V = self.plan.n_vertices
+        return pts[:V], {k: pts[V + i] for i, k in enumerate(EXTRA_POINTS)}
+
+    def feature_points(self, faps: FapInput = None) -> dict[str, list[float]]:
+        """Every feature point (mesh FDPs + irises + tongue) after deformation, id -> [x, y]."""
+        v, extra = self.deform_all(faps)
+        out = {k: [float(v[i, 0]), float(v[i, 1])] for k, i in self.fdp.items()}
+        out.update({k: [float(p[0]), float(p[1])] for k, p in extra.items()})
+        return out
+
+    def eye_state(self, faps: FapInput = None) -> np.ndarray:
+        """Iris and pupil radii ``[[r, pupil_r] for 3.5, 3.6]`` after FAPs 27-30."""
+        r = np.array([self.landmarks.iris_left.r, self.landmarks.iris_right.r])
+        return eye_state(self.plan, self.fap_vector(faps), r)
+
+    def render_full(self, faps: FapInput, creases: bool = True) -> WarpResult:
+        """Warp result with the opening masks, mouth interior and eyeballs composited."""
+        vec = self.fap_vector(faps)
+        pts = self._deform(vec)
+        V = self.plan.n_vertices
+        return self.render_mesh(pts[:V], pts[V:], vec, creases=creases)
+
+    def render_mesh(self, vertices: np.ndarray, extra: np.ndarray | None = None,
+                    faps: np.ndarray | None = None, creases: bool = True) -> WarpResult:
+        """Render the photo on any deformed mesh (e.g. from cloning), layers included.
+
+        ``vertices`` (V, 2) deformed mesh; ``extra`` (6, 2) irises/tongue points (default: where
+        ``faps`` puts them); ``faps`` the (68,) vector that drives the eyes and tongue (default:
+        zeros, the eyes and tongue at rest); ``creases``: darken the skin folds the deformation
+        compresses (:mod:`creases`).
+        """
+        v = np.asarray(vertices, np.float32)
+        vec = np.zeros(68, np.float32) if faps is None else np.asarray(faps, np.float32)
+        if extra is None:
+            extra = self._deform(vec)[self.plan.n_vertices:]
+        tf = self.layer_transforms(v)
+        w = apply_lid_skin(self, warp(self.warp_plan, v, tf, cavity=False), v)
+        res = render_layers(self, w, v, extra, vec, tf)
+        return apply_creases(self, res, v) if creases else res
+
+    def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
+        """2x3 source->destination maps of what lies behind the openings (see ``warp``).
+
+        Each eyeball follows its two eye corners (a similarity); the mouth interior (teeth)
+        follows the skull: a least-squares similarity of the inner eye corners and the nose.
+        """
+        return {name: _similarity(self.vertices[idx], v[idx])
+                for name, idx in self._layer_anchors.items()}
+
+    @cached_property
+    def _layer_anchors(self) -> dict[str, np.ndarray]:
+        """Vertex indices each opening's layer follows (computed once per face)."""
+        m = self.mesh
+        out = {f"eye_{s}": np.array([m.index(f"eye_{s}_c0"), m.index(f"eye_{s}_c1")])
+               for s in "lr"}
+        out["mouth"] = np.array([self.fdp[k] for k in ("3.8", "3.11", "9.3", "9.15", "9.1",
+                                                       "9.2")])
+        return out
+
+    def render(self, faps: FapInput, creases: bool = True) -> np.ndarray:
+        """The photo with the expression: (H, W, 3) uint8, same size as the photo."""
+        return self.render_full(faps, creases=creases).image
+
+    def crop_box(self, left: float, top: float, right: float, bottom: float
+                 ) -> tuple[int, int, int, int]:
+        """``(x0, y0, x1, y1)``: the detected face box grown by the given fractions of its width
+        (left, right) and height (top, bottom), clipped to the photo."""
+        b = self.landmarks.box
+        w, h = float(b[2] - b[0]), float(b[3] - b[1])
+        H, W = self.image.shape[:2]
+        return (int(max(0, b[0] - left * w)), int(max(0, b[1] - top * h)),
+                int(min(W, b[2] + right * w)), int(min(H, b[3] + bottom * h)))
+
+    @property
+    def interocular(self) -> float:
+        return self.landmarks.interocular
+
+
+def _fap_gap(G: np.ndarray, Gc: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    """Inner-lip gaps (P,) the FAP model opens for ``vec``, px: its linear basis ``G`` (P, 68)
+    less the inner/outer lip pairs' shared part ``Gc`` (P, 10) moved once, not twice (as
+    ``deform._linear`` renders it; without it a vector setting both, such as joy or a
+    smiling photo's f0, was credited with up to a quarter more opening than it makes)."""
+    f = np.asarray(vec, np.float64)
+    va, vb = f[LIP_PAIRS[:, 0]], f[LIP_PAIRS[:, 1]]
+    common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
+    return G @ f - Gc @ common
+
+
+def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Least-squares similarity (2x3) mapping the points ``src`` onto ``dst``."""
+    s = np.asarray(src, np.float64)
+    d = np.asarray(dst, np.float64)
+    ms, md = s.mean(0), d.mean(0)
+    a, b = s - ms, d - md
+    den = float((a * a).sum()) or 1.0
+    c = float((a * b).sum()) / den
+    sn = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()) / den
+    R = np.array([[c, -sn], [sn, c]])
+    return np.hstack([R, (md - R @ ms)[:, None]])
+
+
+def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
+                 iters: int = 100) -> np.ndarray:
+    """Move the lip vertices of folded triangles (signed area below 10 % of ``sigma0``, the
+    photo mesh's) towards the mean of their neighbours: outer lips, and the closed inner lips
+    together (the lower one on the upper one); the corners stay."""
+    names = np.array(mesh.names)
+    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
+               | np.char.startswith(names, "lipi_u")) & \
+        ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
+    pairs = mesh.pairs[np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])]
+    e = mesh.edges()
+    v = np.asarray(verts, np.float64).copy()
+    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
+    tri = mesh.triangles
+    for _ in range(iters):
+        bad = signed_areas(v, tri) * np.sign(sigma0) < 0.1 * np.abs(sigma0)
+        if not bad.any():
+            break
+        sel = np.zeros(len(v), bool)
+        sel[tri[bad].ravel()] = True
+        sel &= movable
+        if not sel.any():
+            break
+        avg = _neighbour_mean(e, v, deg)
+        v[sel] += 0.5 * (avg[sel] - v[sel])
+        v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
+    return v
+
+
+def _neighbour_mean(edges: np.ndarray, v: np.ndarray, deg: np.ndarray) -> np.ndarray:
+    """(V, 2) mean position of each vertex's mesh neighbours (``deg``: neighbour counts)."""
+    acc = np.zeros_like(v)
+    np.add.at(acc, edges[:, 0], v[edges[:, 1]])
+    np.add.at(acc, edges[:, 1], v[edges[:, 0]])
+    return acc / np.maximum(deg, 1)[:, None]
+
+
+def _relax(mesh: StandardMesh, verts: np.ndarray, iters: int = 200) -> np.ndarray:
+    """Untangle inverted triangles of a fitted mesh by moving only the free vertices.
+
+    Free vertices (cheeks, jaw, forehead interior, margin) move towards the mean of their
+    neighbours until every triangle has a positive area. Feature curves stay where fitted.
+    """
+    free_regions = ("cheek", "jaw", "forehead", "margin", "ear")
+    free = np.isin(mesh.regions, free_regions)
+    for n in ("hair_",):
+        free &= ~np.char.startswith(np.array(mesh.names), n)
+    e = mesh.edges()
+    v = verts.astype(np.float64).copy()
+    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
+    for _ in range(iters):
+        sig = signed_areas(v, mesh.triangles)
+        if (sig > 0).all():
+            break
+        avg = _neighbour_mean(e, v, deg)
+        v[free] += 0.5 * (avg[free] - v[free])
+    return v.astype(np.float32)

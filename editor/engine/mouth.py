@@ -1,0 +1,490 @@
+"""The mouth interior behind the inner lips (SPEC §3.1, eqs. 6-8). No Qt.
+
+Layers, back to front: dark cavity (softly shaded), tongue (depth 3), lower teeth (2), upper
+teeth (1); the warped face (0) is composited over them by :mod:`layers`.
+
+Sizes and placement (eqs. 6-8), on the deformed mesh, in the face frame turned with the skull:
+
+* ``D`` = the paper's mouth-nose distance, lip line minus y(9.3) on the neutral mesh. The FAPU
+  MNS0 of this project is measured from 9.15 (MPEG-4 convention, SPEC §1.4) and is ~0.62 D;
+  with it the lower teeth of eq. 8 would stay behind the lower lip for every jaw opening
+  (exposure 0 px on all ten JAFFE faces), so eqs. 6-8 use the paper's own quantity;
+* teeth height D/2, widths from the textures' aspect ratio; upper teeth: top edge at
+  y(9.3) + 0.25 D, centred on x(9.3) (fixed to the skull); lower teeth: bottom edge at
+  0.25 y(2.1) + 0.75 y(2.3), centred on x(2.1) (follow the jaw);
+* tongue: width MW0, aspect kept, centred on x(2.1), top edge level with the top of the lower
+  teeth; the tongue FAPs (43-47) bend it through the displacements of its points 6.1-6.4
+  (smooth partition-of-unity field, root fixed; tip and sides ride on the body 6.2).
+
+The photo's own mouth interior (when its mouth is open, e.g. smiling teeth) is kept: per column
+of the photo's opening, the bright teeth run from the top follows the skull, the rest (lower
+teeth, the lower lip's edge) follows the jaw anchor of eq. 8; the synthetic layers show only
+where neither covers (``layers._own_interior`` analyses the photo, :meth:`attach_own`).
+Textures (``editor/data/mouth``) are tinted to the photo: saturation and brightness from the
+cheeks' skin, teeth colour from the photo's own teeth when it shows some.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+
+import cv2
+import numpy as np
+
+from editor.resources import MOUTH_DIR
+
+from .deform import DeformPlan
+from .mesh import StandardMesh
+
+TEXTURES = MOUTH_DIR
+NAMES = ("upper_teeth", "lower_teeth", "tongue")
+#: upper incisors' edge below the neutral lip line, in units of D (mouth-nose distance)
+UPPER_TIP = 0.10
+#: lower incisors' edge above the neutral lip line (overbite), and the tongue's top above
+#: theirs, in units of D
+LOWER_OVERBITE, TONGUE_RISE = 0.05, 0.2
+#: the tongue's mean luminance relative to the lit skin: it lies deep behind the opening, lit
+#: at a grazing angle under the upper lip (the lower part of real wide-open JAFFE mouths,
+#: tongue and lower teeth: median 0.48 of the skin over 13 surprise photos; it was 0.8; at 0.5
+#: a pale lower lip met it with a hard dark edge)
+TONGUE_L = 0.55
+#: the lower teeth's light relative to the upper ones (below and behind them, under the upper
+#: lip's and teeth's shadow; at 0.8 a wide-open mouth ended in a white block of lower teeth)
+LOWER_SHADE = 0.68
+#: teeth luminance relative to the lit skin, and how much of the skin's colour cast they take
+TEETH_L, TEETH_CAST = 0.92, 0.35
+#: the photo's upper teeth continued above its opening: crown height (central incisor,
+#: units of D; the drawn teeth are D/2 tall with their gum band) before they turn into gum,
+#: over a fade of GUM_FADE D; and the upper lip's shadow on them at contact
+CROWN, GUM_FADE, EXT_LIP_SHADOW = 0.42, 0.12, 0.12
+#: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
+CAVITY_RGB = np.array([70, 26, 30], np.float32)
+_LUM = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+@lru_cache(maxsize=1)
+def load_textures() -> dict[str, np.ndarray]:
+    """The three textures as straight RGBA float32 (colour 0-255, alpha 0-1)."""
+    out = {}
+    for name in NAMES:
+        path = TEXTURES / f"{name}.png"
+        bgra = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if bgra is None or bgra.ndim != 3 or bgra.shape[2] != 4:
+            raise FileNotFoundError(f"missing or not RGBA: {path} "
+                                    "(run scripts/draw_mouth_textures.py)")
+        rgba = bgra[..., [2, 1, 0, 3]].astype(np.float32)
+        rgba[..., 3] /= 255.0
+        out[name] = rgba
+    return out
+
+
+def _lum(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(rgb, np.float32) @ _LUM
+
+
+def _sat(rgb: np.ndarray) -> float:
+    c = np.asarray(rgb, np.float64)
+    return float((c.max() - c.min()) / max(c.max(), 1e-6))
+
+
+def _tint(rgba: np.ndarray, sat: float, gain: np.ndarray) -> np.ndarray:
+    """Desaturate to ``sat`` and scale per channel; returns premultiplied RGBA."""
+    c = rgba[..., :3]
+    lum = _lum(c)[..., None]
+    c = (lum + sat * (c - lum)) * gain[None, None, :]
+    c = np.clip(c, 0, 255) * rgba[..., 3:4]
+    return np.dstack([c, rgba[..., 3:4]]).astype(np.float32)
+
+
+def _opaque_mean(rgba: np.ndarray, sat: float) -> np.ndarray:
+    a = rgba[..., 3] > 0.9
+    c = rgba[..., :3][a]
+    lum = _lum(c)[:, None]
+    return (lum + sat * (c - lum)).mean(0)
+
+
+def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | None
+                 ) -> np.ndarray:
+    """Colour (3,) of lit teeth in this photo.
+
+    The photo's own teeth when it shows some (their saturation limited to the skin's and their
+    hue pulled towards it: a cast from the lips or a compression artefact must not turn the
+    drawn teeth green or blue); otherwise a light grey at ``TEETH_L`` of the skin's luminance
+    with ``TEETH_CAST`` of the skin's chroma (the photo's white balance and light colour).
+    """
+    if skin is None:
+        skin = np.full(3, skin_l, np.float64)
+    skin = np.asarray(skin, np.float64)
+    chroma = skin - float(_lum(skin))
+    if teeth is not None:
+        t = np.asarray(teeth, np.float64)
+        lt = float(_lum(t))
+        tc = t - lt
+        # keep the teeth's brightness; chroma: half their own, half the skin's cast
+        c = 0.5 * tc + 0.5 * TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0))
+        lim = float(np.abs(chroma).max()) * TEETH_CAST * 1.5 + 1e-6
+        c = c * min(1.0, lim / max(float(np.abs(c).max()), 1e-6))
+        return np.clip(lt + c, 0.0, 255.0)
+    lt = TEETH_L * skin_l
+    return np.clip(lt + TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0)), 0.0, 255.0)
+
+
+def _poly_mask(shape: tuple[int, int], poly: np.ndarray, off: np.ndarray) -> np.ndarray:
+    m = np.zeros(shape, np.uint8)
+    cv2.fillPoly(m, [np.round((poly - off) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+    return m
+
+
+@dataclass(eq=False)
+class MouthPlan:
+    """Precomputed mouth interior of one face (see module docstring)."""
+
+    hole: np.ndarray
+    i93: int
+    i21: int
+    i23: int
+    upper_lip: np.ndarray  # vertex indices of the inner upper lip, corner to corner
+    ex: np.ndarray  # neutral face frame axes (image coords)
+    ey: np.ndarray
+    mouth_nose: float  # D, px
+    mw: float  # MW0, px
+    tex: dict[str, np.ndarray]  # premultiplied RGBA at the neutral pixel size
+    size: dict[str, tuple[float, float]]  # neutral (width, height) px of each layer
+    anchor0: np.ndarray  # neutral jaw anchor (eq. 8 point), image px
+    cavity: np.ndarray  # (3,) float32
+    tongue_basis: np.ndarray  # (4 FAPs, 4 points, 2) px per unit, image coords
+    tongue_roll: float  # px at full roll, see deform._nonlinear
+    lip_pairs: np.ndarray  # (7, 2) inner upper / lower lip vertices
+    gap0: np.ndarray  # (7,) their neutral gaps, px
+    gum: np.ndarray  # (3,) tinted gum colour
+    tip_up: float = 0.0  # neutral px below y(9.3) of the upper incisors' edge (frame y)
+    low_off: float = 0.0  # lower incisors' edge minus the eq. 8 anchor, neutral px
+    # the photo's own interior (attach_own)
+    own_off: np.ndarray | None = None  # (2,) image position of own[0, 0]
+    own: np.ndarray | None = None  # (h, w, 2) float32: photo interior following skull / jaw
+    own_rgb: np.ndarray | None = None  # (h, w, 6) float32: its colours
+    photo_upper: bool = False  # the photo shows its own upper teeth: they replace the texture
+    photo_lower: bool = False  # likewise for the lower teeth
+    sliver: np.ndarray | None = None  # (w,) columns where the opening is a closed lip line
+    ext: np.ndarray | None = None  # (h, w) where the photo's upper teeth were continued
+
+    def attach_own(self, off, own, own_rgb, has_up, has_low, sliver, ext) -> None:
+        """Add the photo's own interior (see ``layers._own_interior``)."""
+        self.own_off, self.own, self.own_rgb = off, own, own_rgb
+        self.photo_upper, self.photo_lower, self.sliver, self.ext = has_up, has_low, sliver, ext
+        self._own_a = [np.ascontiguousarray(own[..., k]) for k in (0, 1)]
+        self._own_c = [np.ascontiguousarray(own_rgb[..., 3 * k:3 * k + 3]) for k in (0, 1)]
+        self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
+
+    @classmethod
+    def build(cls, vertices: np.ndarray, mesh: StandardMesh, plan: DeformPlan, skin_l: float,
+              sat: float, teeth: np.ndarray | None, skin: np.ndarray | None = None,
+              neutral: np.ndarray | None = None) -> MouthPlan:
+        """Sizes, anchors and tinted textures; the photo's own interior is added by
+        :meth:`attach_own` (``layers.layer_plan`` analyses the photo).
+
+        ``skin_l``, ``sat``: luminance and relative saturation of the photo's skin; ``skin``
+        its colour (the teeth take its colour cast); ``teeth``: colour of the photo's own
+        visible teeth, or None. ``neutral``: the neutral mesh (default ``vertices``): sizes and
+        the upper teeth's height come from it, the jaw anchor from the photo's mesh.
+        """
+        v = vertices.astype(np.float64)
+        vn = v if neutral is None else np.asarray(neutral, np.float64)
+        ex, ey = plan.frame_rot[:, 0].copy(), plan.frame_rot[:, 1].copy()
+        fdp = mesh.fdp
+        i93, i21, i22, i23 = fdp["9.3"], fdp["2.1"], fdp["2.2"], fdp["2.3"]
+        yf = vn @ ey
+        D = max(0.5 * (yf[i22] + yf[i23]) - yf[i93], 4.0)
+        # the upper incisors' edge a little below the neutral lip line (the lower lip covers it
+        # at rest; a smile's raised upper lip uncovers it), not 0.25 D above it (eq. 7 put the
+        # teeth's top edge at 0.25 D, their tips then hid behind the upper lip in every smile)
+        tip_up = D + UPPER_TIP * D
+        low_off = D * (1.0 - LOWER_OVERBITE) - (0.25 * yf[i21] + 0.75 * yf[i23] - yf[i93])
+        mw = max(plan.fapu["MW"] * 1024.0, 4.0)
+        hole = np.asarray(mesh.holes["mouth"])
+        # ---- textures, tinted and scaled to the face
+        raw = load_textures()
+        H = 0.5 * D
+        size = {}
+        for name in ("upper_teeth", "lower_teeth"):
+            th, tw = raw[name].shape[:2]
+            size[name] = (H * tw / th, H)
+        th, tw = raw["tongue"].shape[:2]
+        size["tongue"] = (mw, mw * th / tw)
+        ivory = _opaque_mean(raw["upper_teeth"], sat)
+        target = teeth_colour(skin_l, skin, teeth)
+        gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
+        tongue_mean = _opaque_mean(raw["tongue"], sat)
+        gain_g = np.full(3, TONGUE_L * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
+        tex = {}
+        for name, gain, shade in (("upper_teeth", gain_t, 1.0),
+                                  ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
+            t = _tint(raw[name], sat, gain * shade)
+            wpx, hpx = size[name]
+            tw_, th_ = max(int(round(wpx)), 2), max(int(round(hpx)), 2)
+            tex[name] = cv2.resize(t, (tw_, th_), interpolation=cv2.INTER_AREA)
+        t = _tint(raw["upper_teeth"], sat, gain_t)
+        gum = t[: max(1, t.shape[0] // 8)].reshape(-1, 4)
+        gum = gum[gum[:, 3] > 0.5]
+        gum_rgb = (gum[:, :3] / gum[:, 3:4]).mean(0) if len(gum) else 0.6 * target
+        cav_l = float(_lum(CAVITY_RGB))
+        cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)
+        anchor0 = _jaw_anchor(v, i21, i23, ex, ey)
+        V = plan.n_vertices
+        tongue_basis = plan.basis[42:46, V + 2:V + 6].astype(np.float64)  # FAPs 43-46
+        lip_pairs = np.array([[mesh.index(f"lipi_u{k}"), mesh.index(f"lipi_d{k}")]
+                              for k in range(1, 8)])
+        gap0 = (v[lip_pairs[:, 1]] - v[lip_pairs[:, 0]]) @ ey
+        up_lip = np.concatenate([[mesh.index("lipi_c0")],
+                                 [mesh.index(f"lipi_u{k}") for k in range(1, 8)],
+                                 [mesh.index("lipi_c1")]])
+        return cls(hole=hole, i93=i93, i21=i21, i23=i23, upper_lip=up_lip, ex=ex, ey=ey,
+                   mouth_nose=float(D), mw=float(mw), tex=tex, size=size, anchor0=anchor0,
+                   cavity=cavity.astype(np.float32), tongue_basis=tongue_basis,
+                   tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs, gap0=gap0,
+                   gum=gum_rgb.astype(np.float32), tip_up=float(tip_up), low_off=float(low_off))
+
+    # ------------------------------------------------------------------ per frame
+    def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
+               skull: np.ndarray, rim: np.ndarray | None = None,
+               depth: np.ndarray | None = None, alpha: np.ndarray | None = None
+               ) -> np.ndarray:
+        """Colours (h, w, 3) float32 of the mouth interior over ``box`` of the output.
+
+        ``rim`` (h, w, 3): colour of the nearest lip pixel, ``depth`` (h, w): distance (px) to
+        the lips (``layers._mouth_rim``); with them the cavity is shaded from the lips' inner
+        surface (their colour, darkened) into a dark back over a depth of ~0.1 D. ``alpha``
+        (h, w): the opening's coverage; where it is a thin gap the interior stays in shadow.
+        """
+        x0, y0, x1, y1 = box
+        S = np.asarray(skull, np.float64)
+        L = S[:, :2]
+        sc = math.sqrt(abs(L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])) or 1.0
+        E = L @ self._exy  # the frame axes turned with the skull (columns), normalised
+        E /= np.sqrt((E * E).sum(0))
+        ex, ey = E[:, 0], E[:, 1]
+        xs = np.arange(x0, x1, dtype=np.float64)[None, :]
+        ys = np.arange(y0, y1, dtype=np.float64)[:, None]
+        O = v[self.i93].astype(np.float64)
+        Qx = (xs - O[0]) * ex[0] + (ys - O[1]) * ex[1]
+        Qy = (xs - O[0]) * ey[0] + (ys - O[1]) * ey[1]
+
+        # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
+        # upper lip, the opening's loop
+        fp = (v[self._frame_idx].astype(np.float64) - O) @ E
+        q21, q23 = fp[0], fp[1]
+        n_lip = len(self.upper_lip)
+        D = self.mouth_nose * sc
+        # shading of the synthetic layers: shadow under the upper lip, darker corners
+        lip = fp[2:2 + n_lip]
+        lip = lip[np.argsort(lip[:, 0])]
+        y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
+        hole = fp[2 + n_lip:]
+        (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)
+        cxm = 0.5 * (lo_h + hi_h)
+        hw = max(0.5 * float(hi_h - lo_h), 1.0)
+        hh = max(0.5 * float(hi_v - lo_v), 1.0)
+        cym = 0.5 * (lo_v + hi_v)
+        side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
+        shade = (1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)
+        shade = shade.astype(np.float32)[..., None]
+        if rim is None or depth is None:
+            rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
+            # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
+            cav = (0.3 + 0.7 * np.clip(rr, 0.0, 1.0) ** 1.5).astype(np.float32)[..., None]
+            out = cav * self.cavity[None, None, :]
+        else:
+            # the lips' inner surface turns away from the light (their colour, darkened), the
+            # cavity behind darkens with depth and towards the corners (cheeks' shadow)
+            g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))[..., None]
+            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)[..., None]
+            deep = back * self.cavity[None, None, :]
+            out = deep + (0.45 * rim - deep) * g
+            # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
+            # reads as a dark edge, not as a bright sliver
+            g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
+            shade = shade * (1.0 - 0.3 * g1)[..., None]
+        cav = out
+        # lower teeth and tongue (jaw), upper teeth (skull)
+        y_lb = 0.25 * q21[1] + 0.75 * q23[1]
+        wl, hl = (s * sc for s in self.size["lower_teeth"])
+        wu, hu = (s * sc for s in self.size["upper_teeth"])
+        wt, ht = (s * sc for s in self.size["tongue"])
+        # eq. 8's anchor moves the lower teeth with the jaw; at rest their tips sit just above
+        # the lip line behind the upper teeth (eq. 8's own rest height varies with the chin:
+        # 0.2 D above the lip line on JAFFE faces, below the lower lip on the sample)
+        top_l = y_lb + self.low_off * sc
+        # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
+        top_t = top_l - TONGUE_RISE * D
+        tq_x, tq_y = Qx, Qy
+        dlt = self._tongue_shift(faps, ex, ey)
+        if dlt is not None:
+            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
+        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
+        if not self.photo_lower:
+            out = self._over(out, "lower_teeth", Qx, Qy, q21[0] - 0.5 * wl, top_l, wl, hl,
+                             shade)
+        # the photo's own interior: jaw part, then upper teeth, then the skull part
+        Si = cv2.invertAffineTransform(S)
+        # where each pixel samples the photo's own interior (its patch's pixels): skull part
+        ofx, ofy = self.own_off
+        sx = Si[0, 0] * xs + Si[0, 1] * ys + (Si[0, 2] - ofx)
+        sy = Si[1, 0] * xs + Si[1, 1] * ys + (Si[1, 2] - ofy)
+        mx, my = sx.astype(np.float32), sy.astype(np.float32)
+        anchor = O + q21[0] * ex + y_lb * ey
+        tj = anchor - (L @ self.anchor0 + S[:, 2])
+        tjs = Si[:, :2] @ tj
+        if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
+            out = self._over(out, "upper_teeth", Qx, Qy, -0.5 * wu, self.tip_up * sc - hu, wu,
+                             hu, shade, gum=True)
+        # the two photo parts share each pixel (skull part in front where they overlap); a
+        # closed mouth's lip line fades out over the first two pixels the lips part
+        lp_u, lp_d = self._lip_idx
+        gap = (v[lp_d] - v[lp_u]).astype(np.float64) @ ey
+        fade = 1.0 - _smoothstep1(float((gap - self.gap0).max()) / 2.0)
+        a_up, p_up = self._own(mx, my, 0, fade)
+        a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
+                               (sy - tjs[1]).astype(np.float32), 1, fade)
+        if a_up is not None and self.photo_upper:
+            # the continued teeth: a light shadow right under the lip (the photo's own top
+            # row, which they repeat, already carries the photo's lip shadow) and the drawn
+            # layers' darker corners
+            e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            k = (1.0 - EXT_LIP_SHADOW * lip_sh) * (1.0 - 0.35 * side * side)
+            p_up = p_up * (1.0 - e * (1.0 - k.astype(np.float32)))[..., None]
+        if a_up is not None or a_lo is not None:
+            rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
+            if a_up is not None:
+                out = out * (1.0 - a_up) + p_up * a_up
+                rest = 1.0 - a_up
+            if a_lo is not None:
+                if rest is not None:
+                    a_lo = np.minimum(a_lo, rest)
+                    a_lo /= np.maximum(rest, 1e-6)
+                out = out + (p_lo - out) * a_lo
+        if alpha is not None:
+            out = _thin_gap(out, cav, alpha, D)
+        return out
+
+    @cached_property
+    def _exy(self) -> np.ndarray:
+        """(2, 2) the neutral frame axes ex, ey as columns."""
+        return np.stack([self.ex, self.ey], 1).astype(np.float64)
+
+    @cached_property
+    def _lip_idx(self) -> tuple[np.ndarray, np.ndarray]:
+        """The inner upper and lower lip vertices of :attr:`lip_pairs` (contiguous)."""
+        return (np.ascontiguousarray(self.lip_pairs[:, 0]),
+                np.ascontiguousarray(self.lip_pairs[:, 1]))
+
+    @cached_property
+    def _frame_idx(self) -> np.ndarray:
+        """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
+        return np.concatenate([[self.i21, self.i23], self.upper_lip, self.hole]).astype(np.intp)
+
+    def _over(self, out, name, qx, qy, left, top, ww, hh, shade, gum=False):
+        t = self.tex[name]
+        th, tw = t.shape[:2]
+        mx = ((qx - left) * (tw / ww) - 0.5).astype(np.float32)
+        my = ((qy - top) * (th / hh) - 0.5).astype(np.float32)
+        if gum:
+            my = np.maximum(my, np.float32(0.0))
+        s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=(0, 0, 0, 0))
+        res = s[..., :3] * shade
+        res += (1.0 - s[..., 3:4]) * out
+        return res
+
+    def _own(self, mx, my, k, fade):
+        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part;
+        ``mx``, ``my`` (h, w) float32: positions in the own interior's patch."""
+        src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
+            self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
+        a = cv2.remap(src, mx, my, cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        if not np.count_nonzero(a):
+            return None, None
+        px = cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_REPLICATE)
+        return a[..., None], px
+
+    def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
+        """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
+        f = np.asarray(faps, np.float64)
+        if not f[42:47].any():  # FAPs 43-47
+            return None
+        d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
+        lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)
+        d[2:] -= lift * self.ey
+        # the tip and the sides ride on the body (6.2): raise_tongue lifts the whole dorsum
+        d[[0, 2, 3]] += d[1]
+        return np.stack([d @ ex, d @ ey], -1)
+
+    @staticmethod
+    def _tongue_field(Qx, Qy, dlt, left, top, ww, hh):
+        """Sampling positions for the tongue bent by the displacements of its points."""
+        # 6.1 tip, 6.2 body, 6.3 image-right side, 6.4 image-left side; root fixed
+        uv = np.array([[0.5, 0.06], [0.5, 0.45], [0.8, 0.3], [0.2, 0.3], [0.5, 1.3],
+                       [0.0, 1.1], [1.0, 1.1]])
+        pts = np.stack([left + uv[:, 0] * ww, top + uv[:, 1] * hh], 1)
+        dd = np.vstack([dlt, np.zeros((3, 2))])
+        s2 = 2.0 * (0.28 * ww) ** 2
+        num_x = np.zeros_like(Qx)
+        num_y = np.zeros_like(Qx)
+        den = np.zeros_like(Qx)
+        for (px, py), (dx, dy) in zip(pts, dd, strict=True):
+            phi = np.exp(-((Qx - px) ** 2 + (Qy - py) ** 2) / s2)
+            num_x += phi * dx
+            num_y += phi * dy
+            den += phi
+        den = np.maximum(den, 1e-12)
+        return Qx - num_x / den, Qy - num_y / den
+
+
+def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> np.ndarray:
+    """Teeth and tongue fade into the lips' shadow where the opening is a thin gap.
+
+    Light barely enters a slit of a pixel or two: whatever lies behind it (the photo's teeth,
+    the drawn ones) reads as a dark line, not as a run of bright teeth. The local height of
+    the opening is its coverage summed over a short vertical window (3 columns averaged):
+    up to ``lo`` = max(1 px, 0.05 D) nothing but the shadow shows, from ``lo`` + max(1.5
+    px, 0.08 D) everything.
+    """
+    lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
+    k = 2 * math.ceil(lo + ramp) + 3
+    h = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
+                      borderType=cv2.BORDER_CONSTANT)
+    h /= np.float32(3.0)
+    h -= lo
+    h /= ramp
+    vis = _smoothstep(h).astype(np.float32, copy=False)[..., None]
+    return cav + vis * (out - cav)
+
+
+def _clamp(x, lo, hi):
+    """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
+    (several microseconds a call, as much as the arithmetic on a small layer box)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
+def _smoothstep1(t: float) -> np.float64:
+    """:func:`_smoothstep` of one number in Python arithmetic (the same value and type)."""
+    t = min(max(t, 0.0), 1.0)
+    return np.float64(t * t * (3.0 - 2.0 * t))
+
+
+def _smoothstep(t: np.ndarray | float) -> np.ndarray:
+    t = _clamp(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def _jaw_anchor(v: np.ndarray, i21: int, i23: int, ex: np.ndarray, ey: np.ndarray) -> np.ndarray:
+    """Eq. 8 point: x(2.1), 0.25 y(2.1) + 0.75 y(2.3), in the frame given by ex, ey."""
+    p21, p23 = v[i21], v[i23]
+    x = p21 @ ex
+    y = 0.25 * (p21 @ ey) + 0.75 * (p23 @ ey)
+    return x * ex + y * ey

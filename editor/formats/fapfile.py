@@ -1,0 +1,396 @@
+"""MPEG-4 ASCII FAP files (``.fap`` 2.1, MPEG4_FAP.md §5.1): reader and writer.
+
+Reader, tolerant where producers differ: CRLF/CR, tabs, extra spaces, BOM, blank and ``#`` lines
+anywhere; header version = first token, fps and count = the last two, name = the rest (Greta:
+spaces); 2.0 read as 2.1; 69-flag masks (Greta, 69th ignored); decimal values rounded half away
+from zero (Xface); frames numbered from 1 (VREng). Never clamps; unmasked FAPs are 0. One mask
+line then one data line per frame. FAP 1/2: by token count per data line, the Xface form (FAP 1:
+select1 select2 blend def; FAP 2: select1 intensity1 select2 intensity2 init_face def) goes to
+``visemes``/``expressions``; the plain one-token form (Greta/VREng) stays in ``frames[:, 0/1]``
+with no defined meaning. Tolerances used are listed in ``notes``. Bad counts, numbers or flags,
+truncation, extra data, counts > :data:`MAX_FRAMES`, NUL bytes, non-UTF-8: :class:`FapFileError`
+``"<file> line <k>: expected ..., got ..."``, never a partial load.
+
+Writer: ``2.1 <name_without_spaces> <fps> <n>``, per frame a 68-flag mask line and a data line
+numbered 0..n-1, integer values, single spaces, no comments. FAP 1/2 are expanded into low-level
+FAPs by default (``high_level="xface"`` writes the 4/6-token fields); plain FAP 1/2 tokens are
+dropped. ``sequence_from_keyframes`` and ``fap_info`` live in :mod:`.expressions` (re-exported).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from editor.engine.faps import FAPS
+from editor.errors import FapFileError
+from editor.safeio import atomic_write_text, read_bounded
+
+__all__ = ["MAX_FRAMES", "ExpressionField", "FapSequence", "VisemeField", "fap_info",
+           "format_fap", "read_fap", "round_half_away", "sequence_from_keyframes", "write_fap",
+           "fps_text"]
+
+N_FAPS = 68
+MAX_FRAMES = 1_000_000
+MAX_FILE_BYTES = 256 * 1024 * 1024
+MAX_FPS = 1000.0
+MAX_ABS_VALUE = 2**24  # float32 holds every integer up to 2**24 exactly (exact round trip)
+
+_INT = re.compile(r"[+-]?\d+\Z")
+_NUM = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_HEADER = "'2.1 <name> <fps> <frame count>'"
+
+
+def round_half_away(a: np.ndarray | float | list) -> np.ndarray:
+    """Round to integers, halves away from zero (12.5 -> 13, -12.5 -> -13)."""
+    a = np.asarray(a, np.float64)
+    return np.sign(a) * np.floor(np.abs(a) + 0.5)
+
+
+class _Fields:
+    """Integer fields, each in 0..``_limits[i]``; ValueError naming the field otherwise."""
+
+    _limits: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        for f, hi in zip(fields(self), self._limits, strict=True):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= hi:
+                raise ValueError(f"{f.name} must be an integer 0-{hi}, got {v!r}")
+
+    def tokens(self) -> list[str]:
+        return [str(int(getattr(self, f.name))) for f in fields(self)]
+
+
+@dataclass(frozen=True)
+class VisemeField(_Fields):
+    """FAP 1: mouth = viseme select1 · blend/63 + select2 · (1 - blend/63) (def: a flag)."""
+
+    select1: int
+    select2: int
+    blend: int
+    definition: int = 0
+    _limits = (14, 14, 63, 1)
+
+
+@dataclass(frozen=True)
+class ExpressionField(_Fields):
+    """FAP 2: face = expression select1 · intensity1/63 + select2 · intensity2/63."""
+
+    select1: int
+    intensity1: int
+    select2: int
+    intensity2: int
+    init_face: int = 0
+    definition: int = 0
+    _limits = (6, 63, 6, 63, 1, 1)
+
+
+@dataclass(eq=False)
+class FapSequence:
+    """A FAP animation: N frames of 68 FAP values in FAPU, with per-frame masks.
+
+    Attributes
+    ----------
+    frames : (N, 68) float32      value of FAP i+1 in column i; 0 where not masked
+    masks : (N, 68) bool          FAP sent in that frame (default: the non-zero entries)
+    fps : float                   frame k is shown at t = k / fps
+    name, version : str           header fields (the writer always writes 2.1)
+    frame_numbers : (N,) int64    as read (default 0..N-1); the writer renumbers from 0
+    visemes, expressions : list   per frame a VisemeField / ExpressionField (Xface form) or None
+    notes : list of str           what the reader tolerated (floats rounded, Greta masks, ...)
+    """
+
+    frames: np.ndarray
+    masks: np.ndarray | None = None
+    fps: float = 25.0
+    name: str = "fap-studio"
+    version: str = "2.1"
+    frame_numbers: np.ndarray | None = None
+    visemes: list[VisemeField | None] | None = None
+    expressions: list[ExpressionField | None] | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        f = np.array(self.frames, dtype=np.float32, ndmin=2)
+        if f.ndim != 2 or f.shape[1] != N_FAPS or f.shape[0] < 1 or not np.isfinite(f).all():
+            raise ValueError(f"frames must be finite with shape (N>=1, 68), got {f.shape}")
+        n = f.shape[0]
+        m = (f != 0) if self.masks is None else np.array(self.masks, bool).reshape(f.shape)
+        if self.masks is None:
+            m[:, :2] = False
+        self.fps = float(self.fps)
+        if not 0 < self.fps <= MAX_FPS:
+            raise ValueError(f"fps must be in (0, {MAX_FPS:g}], got {self.fps!r}")
+        for attr in ("visemes", "expressions"):
+            lst = [None] * n if getattr(self, attr) is None else list(getattr(self, attr))
+            if len(lst) != n:
+                raise ValueError(f"{attr} must have one entry per frame ({n}), got {len(lst)}")
+            setattr(self, attr, lst)
+        m[:, 0] |= np.array([v is not None for v in self.visemes])
+        m[:, 1] |= np.array([e is not None for e in self.expressions])
+        f[~m] = 0.0
+        self.frames, self.masks = f, m
+        nums = np.arange(n) if self.frame_numbers is None else self.frame_numbers
+        self.frame_numbers = np.asarray(nums, dtype=np.int64).reshape(n)
+        self.name, self.notes = str(self.name), list(self.notes)
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames N."""
+        return int(self.frames.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Playing time in seconds, N / fps (the last frame lasts 1/fps)."""
+        return self.n_frames / self.fps
+
+    @property
+    def has_high_level(self) -> bool:
+        """FAP 1 or FAP 2 masked in some frame (either form)."""
+        return bool(self.masks[:, :2].any())
+
+    def used_faps(self) -> list[int]:
+        """FAP numbers masked in at least one frame."""
+        return [int(i) + 1 for i in np.flatnonzero(self.masks.any(axis=0))]
+
+    @classmethod
+    def single(cls, vector: np.ndarray, fps: float = 25.0, frames: int = 1,
+               name: str = "fap-studio", mask: np.ndarray | None = None) -> FapSequence:
+        """``frames`` copies of one low-level (68,) vector, values rounded to integers.
+
+        Default mask: every non-zero FAP plus its left/right partner, so that a decoder that
+        fills in unsent partners (visage ``interpolateLR``) receives explicit zeros.
+        """
+        v = round_half_away(check_vector(vector)).astype(np.float32)
+        if not 1 <= int(frames) <= MAX_FRAMES:
+            raise ValueError(f"frames must be 1-{MAX_FRAMES}, got {frames}")
+        m = partner_mask(v != 0) if mask is None else np.asarray(mask, bool).reshape(N_FAPS)
+        return cls(np.repeat(v[None], int(frames), 0), np.repeat(m[None], int(frames), 0),
+                   fps=fps, name=name)
+
+
+def check_vector(vector: np.ndarray) -> np.ndarray:
+    """A (68,) float64 copy of a finite low-level FAP vector (FAP 1/2 zero); else ValueError."""
+    v = np.array(vector, np.float64).reshape(-1)
+    if v.shape != (N_FAPS,) or not np.isfinite(v).all() or v[0] or v[1]:
+        raise ValueError(f"expected 68 finite low-level FAP values (FAP 1/2 zero), got {v}")
+    return v
+
+
+def partner_mask(m: np.ndarray) -> np.ndarray:
+    """The (68,) mask ``m`` plus the left/right partner of each masked FAP, FAP 1/2 off."""
+    out = np.array(m, bool)
+    for i in np.flatnonzero(out):
+        if FAPS[int(i) + 1].mirror:
+            out[FAPS[int(i) + 1].mirror - 1] = True
+    out[:2] = False
+    return out
+
+
+def read_fap(source: str | os.PathLike | bytes, *, label: str | None = None) -> FapSequence:
+    """Read a ``.fap`` path, bytes or text (a ``str`` with a line break or NUL, or empty).
+
+    ``label`` names the source in messages. Raises :class:`FapFileError` (see module doc).
+    """
+    if isinstance(source, (bytes, bytearray)):
+        data, label = bytes(source), label or "<bytes>"
+    elif isinstance(source, str) and (not source or any(c in source for c in "\n\r\0")):
+        data, label = source.encode("utf-8", "surrogatepass"), label or "<text>"
+    else:
+        path = Path(source)
+        label = label or path.name
+        data = read_bounded(path, MAX_FILE_BYTES, error=FapFileError, label=label,
+                            what="a .fap file")
+    return _Parser(_decode(data, label), label).parse()
+
+
+def _decode(data: bytes, label: str) -> str:
+    nul, nl = data.find(b"\x00"), b"\n"
+    if nul >= 0:
+        raise FapFileError(f"{label} line {data.count(nl, 0, nul) + 1}: binary data "
+                           "(NUL byte), expected a text .fap file")
+    data = data.removeprefix(b"\xef\xbb\xbf")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise FapFileError(f"{label} line {data.count(nl, 0, e.start) + 1}: byte "
+                           f"0x{data[e.start]:02x} is not UTF-8, expected a text .fap file"
+                           ) from None
+
+
+def _short(tok: str) -> str:
+    """repr of a token, cut to 24 characters (a 5000-digit token is not echoed whole)."""
+    return repr(tok) if len(tok) <= 24 else repr(tok[:20]) + f"... ({len(tok)} characters)"
+
+
+def _number(tok: str) -> tuple[float, bool] | None:
+    """(value, was_decimal) of a plain decimal number token, else None (no nan/inf/1_0)."""
+    if len(tok) > 40:  # never convert a huge token (int limit, OverflowError): out of range
+        return (float("inf") if tok.lstrip("+-")[:1].isdigit() else None), False
+    if _INT.match(tok):
+        return float(int(tok)), False
+    return (float(tok), True) if _NUM.match(tok) else None
+
+
+class _Parser:
+    def __init__(self, text: str, label: str) -> None:
+        self.label = label
+        self.lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+        stripped = [s.strip() for s in self.lines]
+        self.content = [i for i, s in enumerate(stripped) if s and not s.startswith("#")]
+        comments = sum(s.startswith("#") for s in stripped)
+        self.notes = [f"{comments} '#' comment line(s) skipped"] if comments else []
+        self.decimals = 0
+
+    def fail(self, idx: int, msg: str) -> FapFileError:  # idx: 0-based line index
+        return FapFileError(f"{self.label} line {idx + 1}: {msg}")
+
+    def header(self) -> tuple[str, str, float, int]:
+        if not self.content:
+            raise self.fail(0, f"empty file, expected the header {_HEADER}")
+        h = self.content[0]
+        toks = self.lines[h].split()
+        if len(toks) < 3 or toks[0] not in ("2.1", "2.0"):
+            got = " ".join(toks[:5]) + (" ..." if len(toks) > 5 else "")
+            raise self.fail(h, f"expected the header {_HEADER} (2.1 or 2.0), got {got!r}")
+        fps = _number(toks[-2])
+        if fps is None or not 0 < fps[0] <= MAX_FPS:
+            raise self.fail(h, f"expected a frame rate in (0, {MAX_FPS:g}] as the "
+                               f"second-to-last header token, got {_short(toks[-2])}")
+        if (len(toks[-1]) > 12 or not _INT.match(toks[-1])
+                or not 1 <= int(toks[-1]) <= MAX_FRAMES):
+            raise self.fail(h, f"expected a frame count 1-{MAX_FRAMES} as the last header "
+                               f"token, got {_short(toks[-1])}")
+        self.notes += [t for c, t in ((toks[0] == "2.0", "version 2.0 read as 2.1 (no rescaling)"),
+                                      (len(toks) > 4, "header name with spaces (Greta style)"))
+                       if c]
+        return toks[0], " ".join(toks[1:-2]), fps[0], int(toks[-1])
+
+    def mask(self, idx: int) -> tuple[np.ndarray, bool]:
+        toks = self.lines[idx].split()
+        if len(toks) not in (68, 69):
+            hint = " (a data line? every frame needs its own mask line)" if len(toks) < 68 else ""
+            raise self.fail(idx, f"expected a mask line of 68 flags (0 or 1), "
+                                 f"got {len(toks)} tokens{hint}")
+        for j, t in enumerate(toks):
+            if t != "0" and t != "1":
+                raise self.fail(idx, f"mask flag {j + 1} is {_short(t)}, expected 0 or 1")
+        return np.array([t == "1" for t in toks[:68]]), len(toks) == 69
+
+    def data(self, idx: int, mask: np.ndarray, expected_frame: int | None, row: np.ndarray
+             ) -> tuple[int, VisemeField | None, ExpressionField | None, bool]:
+        toks = self.lines[idx].split()
+        low = [int(i) + 3 for i in np.flatnonzero(mask[2:])]
+        m1, m2 = int(mask[0]), int(mask[1])
+        plain, xface, got = len(low) + m1 + m2, len(low) + 4 * m1 + 6 * m2, len(toks) - 1
+        if got not in (plain, xface):
+            want = f"{plain} values"
+            if xface != plain:
+                want += f" (one per masked FAP) or {xface} (Xface 4/6-token FAP 1/2 fields)"
+            raise self.fail(idx, f"expected {want} for {plain} masked FAPs, got {got}")
+        num = _number(toks[0])
+        if num is None or abs(num[0]) > 2**53 or num[0] != int(num[0]):
+            raise self.fail(idx, f"expected a frame number, got {_short(toks[0])}")
+        frame = int(num[0])
+        if frame != expected_frame and (expected_frame is not None or frame not in (0, 1)):
+            raise self.fail(idx, f"frame number {frame} out of order, expected "
+                                 f"{0 if expected_frame is None else expected_frame}")
+        is_x = got == xface != plain
+        n1, n2 = (4 * m1, 6 * m2) if is_x else (m1, m2)
+        values = []
+        for k, (tok, fap) in enumerate(zip(toks[1:], [1] * n1 + [2] * n2 + low, strict=True), 1):
+            num = _number(tok)
+            if num is None or abs(num[0]) > MAX_ABS_VALUE:
+                what = "a number" if num is None else f"a number with |value| <= {MAX_ABS_VALUE}"
+                raise self.fail(idx, f"value {k} (FAP {fap} {FAPS[fap].name}) is {_short(tok)}, "
+                                     f"expected {what}")
+            self.decimals += num[1]
+            values.append(num[0])
+        vis = expr = None
+        if is_x:
+            ints = [int(v) if v == int(v) else v for v in values[:n1 + n2]]
+            try:
+                vis = VisemeField(*ints[:4]) if m1 else None
+                expr = ExpressionField(*ints[n1:]) if m2 else None
+            except (ValueError, TypeError) as e:
+                raise self.fail(idx, f"FAP 1/2 fields: {e}") from None
+        else:
+            row[:2][mask[:2]] = round_half_away(values[:n1 + n2])
+        row[np.array(low, dtype=np.int64) - 1] = round_half_away(values[n1 + n2:])
+        return frame, vis, expr, is_x
+
+    def parse(self) -> FapSequence:
+        version, name, fps, count = self.header()
+        h = self.content[0]
+        available = (len(self.content) - 1) // 2
+        n = min(count, available)  # never allocate from the header's count alone
+        frames, masks = np.zeros((n, N_FAPS), np.float32), np.zeros((n, N_FAPS), bool)
+        numbers, visemes, exprs = np.zeros(n, np.int64), [None] * n, [None] * n
+        greta = xface = plain = 0
+        for k in range(n):
+            masks[k], extra = self.mask(self.content[1 + 2 * k])
+            expect = None if k == 0 else int(numbers[k - 1]) + 1
+            numbers[k], visemes[k], exprs[k], is_x = self.data(
+                self.content[2 + 2 * k], masks[k], expect, frames[k])
+            greta, xface = greta + extra, xface + is_x
+            plain += (not is_x) and bool(masks[k, :2].any())
+        if count > available:
+            raise self.fail(self.content[-1] + 1,
+                            f"unexpected end of file: the header (line {h + 1}) declares "
+                            f"{count} frames, expected a mask line and a data line per frame, "
+                            f"got {available} complete frame(s)")
+        if len(self.content) > 1 + 2 * count:
+            raise self.fail(self.content[1 + 2 * count],
+                            f"expected the end of the file after the {count} frame(s) the "
+                            f"header (line {h + 1}) declares, got more data")
+        notes = self.notes + [text for cond, text in (
+            (numbers[0] == 1, "frame numbers start at 1 (VREng style); written from 0"),
+            (greta, f"{greta} mask line(s) with 69 flags (Greta style); 69th ignored"),
+            (self.decimals, f"values were floats and were rounded ({self.decimals} token(s))"),
+            (xface, f"Xface 4/6-token FAP 1/2 fields in {xface} frame(s)"),
+            (plain, f"FAP 1/2 masked with one plain token in {plain} frame(s): no defined "
+                    "meaning, kept in frames[:, 0/1], not expanded")) if cond]
+        return FapSequence(frames, masks, fps=fps, name=name, version=version,
+                           frame_numbers=numbers, visemes=visemes, expressions=exprs,
+                           notes=notes)
+
+
+def fps_text(fps: float) -> str:
+    """``25`` for 25.0, ``12.5`` for 12.5 (shortest exact form)."""
+    return str(int(fps)) if float(fps).is_integer() else repr(float(fps))
+
+
+def format_fap(seq: FapSequence, *, high_level: str = "expand") -> str:
+    """The file text of ``seq``. ``high_level="expand"``: FAP 1/2 fields become low-level FAPs
+    (shipped presets); ``"xface"``: written as Xface 4/6-token fields (Greta/VREng can't read).
+    """
+    if high_level not in ("expand", "xface"):
+        raise ValueError(f"high_level must be 'expand' or 'xface', got {high_level!r}")
+    if high_level == "expand" and seq.has_high_level:
+        seq = expand_high_level(seq)
+    name = "_".join(seq.name.split()) or "fap-studio"
+    out = [f"2.1 {name} {fps_text(seq.fps)} {seq.n_frames}"]
+    values = round_half_away(seq.frames).astype(np.int64)
+    for k in range(seq.n_frames):
+        m = seq.masks[k].copy()
+        vis, expr = seq.visemes[k], seq.expressions[k]
+        m[0], m[1] = vis is not None, expr is not None
+        out.append(" ".join("1" if f else "0" for f in m))
+        toks = [str(k)] + (vis.tokens() if vis else []) + (expr.tokens() if expr else [])
+        out.append(" ".join(toks + [str(v) for v in values[k, 2:][m[2:]]]))
+    return "\n".join(out) + "\n"
+
+
+def write_fap(seq: FapSequence, path: str | os.PathLike, *, high_level: str = "expand") -> Path:
+    """Write ``seq`` to ``path`` atomically (see :func:`format_fap`); returns the path."""
+    path, text = Path(path), format_fap(seq, high_level=high_level)
+    return atomic_write_text(path, text, error=FapFileError, label=path.name)
+
+
+# Imported last: expressions imports this module lazily (inside its functions).
+from .expressions import expand_high_level, fap_info, sequence_from_keyframes  # noqa: E402

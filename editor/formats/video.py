@@ -1,0 +1,182 @@
+"""Rendering a FAP sequence to a video file or a folder of PNG frames (no Qt).
+
+``export_sequence(face, seq, out, progress=cb)`` renders every frame of a
+:class:`~editor.formats.fapfile.FapSequence` (FAP 1/2 fields expanded into low-level FAPs, values
+clamped to the FAP table's ranges) and writes a video through PyAV (FFmpeg's libraries in
+process) when ``out`` ends in ``.mp4``/``.mov`` (H.264, yuv420p, ``+faststart`` so that the index
+comes first and browsers and players start at once) or ``.avi`` (Motion JPEG), otherwise PNG
+files ``frame_00000.png`` ... into the folder ``out``. yuv420p needs even sizes: an odd width or
+height is padded by one replicated pixel column/row. ``progress(done, total)`` is called after
+each frame; returning ``False`` cancels. Output is staged next to the target (a temporary file
+or folder) and moved there only when complete and, for a video, read back with the right frame
+count: on cancel, error, Ctrl-C or a full disk nothing partial is left (``frames`` counts those
+rendered).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from editor.engine.faps import FAPS
+from editor.engine.imageio import save_image
+from editor.errors import FapStudioError
+from editor.safeio import atomic_dir, atomic_file, quiet_stderr
+
+#: suffix -> (FFmpeg encoder, pixel format, container options)
+VIDEO_SUFFIXES: dict[str, tuple[str, str, dict[str, str]]] = {
+    ".mp4": ("libx264", "yuv420p", {"movflags": "+faststart"}),
+    ".mov": ("libx264", "yuv420p", {"movflags": "+faststart"}),
+    ".avi": ("mjpeg", "yuvj420p", {}),
+}
+#: x264 settings: constant quality (CRF 18, visually lossless), the usual speed/size trade-off
+X264_OPTIONS = {"crf": "18", "preset": "medium"}
+
+
+class VideoWriter:
+    """Frames (RGB uint8, all of one size) into a video file through PyAV; a context manager.
+
+    Odd sizes are padded to even ones (yuv420p halves the chroma resolution)."""
+
+    def __init__(self, path: Path, size: tuple[int, int], fps: float) -> None:
+        try:
+            import av
+        except ImportError as e:  # pragma: no cover - a dependency of the package
+            raise FapStudioError(f"video export needs PyAV (pip install av): {e}") from e
+        encoder, self.pix_fmt, options = VIDEO_SUFFIXES[path.suffix.lower()]
+        w, h = size
+        self.pad = (w % 2, h % 2)
+        self.path = path
+        try:
+            self.container = av.open(str(path), "w", options=options)
+        except (OSError, av.FFmpegError) as e:
+            raise FapStudioError(f"{path}: cannot write the video ({e})") from e
+        rate = Fraction(fps).limit_denominator(1001)
+        self.stream = self.container.add_stream(
+            encoder, rate=rate, options=X264_OPTIONS if encoder == "libx264" else {})
+        self.stream.width, self.stream.height = w + self.pad[0], h + self.pad[1]
+        self.stream.pix_fmt = self.pix_fmt
+        self._av = av
+
+    def write(self, rgb: np.ndarray) -> None:
+        if any(self.pad):
+            rgb = cv2.copyMakeBorder(rgb, 0, self.pad[1], 0, self.pad[0], cv2.BORDER_REPLICATE)
+        frame = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb), format="rgb24")
+        for packet in self.stream.encode(frame):
+            self.container.mux(packet)
+
+    def close(self) -> None:
+        try:
+            for packet in self.stream.encode():  # flush the encoder's delayed frames
+                self.container.mux(packet)
+        finally:
+            self.container.close()
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    path: Path
+    frames: int
+    cancelled: bool
+
+
+def sequence_vectors(seq) -> np.ndarray:
+    """(N, 68) low-level FAP vectors of a sequence (FAP 1/2 expanded), clamped."""
+    from .expressions import expand_high_level
+
+    s = expand_high_level(seq) if getattr(seq, "has_high_level", False) else seq
+    v = np.asarray(s.frames, np.float32).copy()
+    v[:, :2] = 0
+    return FAPS.clamp(v)
+
+
+def export_sequence(face, seq, out: str | os.PathLike[str],
+                    progress: Callable[[int, int], bool | None] | None = None,
+                    creases: bool = True) -> ExportResult:
+    """Render ``seq`` on ``face`` into an MP4 file or a folder of PNG frames."""
+    vecs = sequence_vectors(seq)
+    n = len(vecs)
+    if n == 0:
+        raise FapStudioError("the sequence has no frames")
+    p = Path(out)
+    codec = VIDEO_SUFFIXES.get(p.suffix.lower())
+    try:
+        # staged next to the target, moved there only when complete (issue 16)
+        with (atomic_file if codec else atomic_dir)(p) as tmp:
+            done = _write_frames(face, vecs, tmp, codec, seq.fps, progress, creases)
+            if done < n:
+                raise _Cancelled(done)
+            if codec:
+                check_video(tmp, done, p)
+    except _Cancelled as c:  # nothing partial is kept
+        return ExportResult(p, c.args[0], True)
+    except FapStudioError as e:  # name the target, not the staging folder
+        msg = re.sub(r"\.[^/\\]*\.\d+\.[0-9a-f]{8}\.part[^/\\]*", p.name, str(e))
+        raise type(e)(msg) from None
+    return ExportResult(p, n, False)
+
+
+def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
+                  progress: Callable[[int, int], bool | None] | None, creases: bool) -> int:
+    """Render into the video file or folder ``out``; the number of frames written (fewer
+    when ``progress`` cancelled). The video is finalised (released) before returning."""
+    n = len(vecs)
+    h, w = face.image.shape[:2]
+    writer = None
+    if codec:
+        fps = float(fps) if fps and fps > 0 else 25.0
+        with quiet_stderr():
+            writer = VideoWriter(out, (w, h), fps)
+    done = 0
+    try:
+        for i, vec in enumerate(vecs):
+            img = face.render(vec, creases=creases)
+            if writer is not None:
+                with quiet_stderr():  # a full disk is checked after (check_video)
+                    writer.write(img)
+            else:
+                save_image(out / f"frame_{i:05d}.png", img)
+            done += 1
+            if progress is not None and progress(done, n) is False:
+                break
+    finally:
+        if writer is not None:
+            with quiet_stderr():
+                writer.close()
+    return done
+
+
+class _Cancelled(Exception):
+    pass
+
+
+def check_video(path: Path, frames: int, label: Path) -> None:
+    """Raise FapStudioError unless ``path`` is a finished video of ``frames`` frames (a full
+    disk leaves a truncated file the encoder does not report)."""
+    try:
+        size = path.stat().st_size
+    except OSError as e:
+        raise FapStudioError(f"{label}: cannot write the video ({e.strerror or e})") from None
+    with quiet_stderr():
+        cap = cv2.VideoCapture(str(path))
+        try:
+            got = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+        finally:
+            cap.release()
+    if size == 0 or got != frames:
+        raise FapStudioError(f"{label}: the video could not be written completely "
+                             f"({got if got >= 0 else 0} of {frames} frames readable; "
+                             "is the disk full?)")

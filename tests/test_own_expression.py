@@ -324,7 +324,7 @@ def test_sample_own_expression_opens_the_lips_as_the_photo(sample_face):
     dlib's inner-lip points, 6-7 px apart where the mesh's lips, snapped to the lip/teeth edge,
     are 3.6-4.8: f0 opened the side pairs to 6.5-8.1 px and the offset scaled every vector's
     side opening by 0.45-0.55; joy showed teeth only across the middle third)."""
-    from editor.core.deform import deform_points
+    from editor.engine.deform import deform_points
 
     f = sample_face
     ey = f.frame.rot[:, 1]

@@ -262,7 +262,7 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
                             np.hstack([fap_prior, np.zeros((len(fap_prior), K))])])
     # lip contact: the gaps between the inner lips (along the face's vertical) are the surest
     # cue; no identity mode opens them, so they are fitted tightly. They are the mesh's inner
-    # lips' gaps (snapped to the photo's lip/teeth edges, :func:`~editor.core.fitting.
+    # lips' gaps (snapped to the photo's lip/teeth edges, :func:`~editor.engine.fitting.
     # snap_inner_lips`), which the renderer opens, not dlib's inner-lip points' (on the sample's
     # open smile 6-7 px where the lips show 3.6-4.8: f0 opened the side pairs to 6.5-8.1 px)
     ey = face.frame.rot[:, 1]

@@ -938,10 +938,19 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     s2 = np.repeat(2 * dd[:, 0] * dd[:, 1] / np.maximum(L, 1e-9), K)
     # (only over the written box; around it, where the closing finds the shoulders, an
     # isotropic blur does)
-    qb = pts - o
-    fc, fs = _splat2((y1 - y0 + 1, x1 - x0 + 1), qb, c2 / K, qb, s2 / K)
-    fc = cv2.GaussianBlur(fc[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * c2.sum())
-    fs = cv2.GaussianBlur(fs[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * s2.sum())
+    # (a smooth field: splatted and blurred at 1/f resolution, then resized)
+    f = max(1, int(sb / 1.5))
+    hb, wb = y1 - y0, x1 - x0
+    hc, wc = -(-hb // f), -(-wb // f)
+    qb = (pts - o + 0.5) / f - 0.5
+    fc, fs = _splat2((hc + 1, wc + 1), qb, c2 / K, qb, s2 / K)
+    fc = cv2.GaussianBlur(fc[:-1, :-1], (0, 0), 2.0 * sb / f)
+    fs = cv2.GaussianBlur(fs[:-1, :-1], (0, 0), 2.0 * sb / f)
+    if f > 1:
+        fc = cv2.resize(fc, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
+        fs = cv2.resize(fs, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
+    fc = fc * np.float32(f * f) + np.float32(1e-6 * c2.sum())
+    fs = fs * np.float32(f * f) + np.float32(1e-6 * s2.sum())
     k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
     iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
     # (every pixel of the box is filtered along the fold below; the isotropic blur feeds C)

@@ -954,10 +954,10 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
     iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
     # (every pixel of the box is filtered along the fold below; the isotropic blur feeds C)
-    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5)) if closing else big.copy()
+    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5)) if closing else None
     sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
     cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
-    Si = S[iy, ix]
+    Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
     for j in np.unique(k):
         m = k == j
         # filtered only over the rows/columns where this direction is used (+ the kernel)
@@ -969,13 +969,14 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR,
                                                    round(max(1.5 * sig, 1.0), 2), 0.35),
                             borderType=cv2.BORDER_REPLICATE)
-        mm = m[r0:r1, c0:c1]
-        Si[r0:r1, c0:c1][mm] = filt[oy:oy + r1 - r0, ox:ox + c1 - c0][mm]
+        np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
+                  where=m[r0:r1, c0:c1, None])
     # the skin level either side of the valley; blurred so that between shoulders of
     # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps.
     # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
     if not closing:
         return Si, None
+    S[iy, ix] = Si
     q = max(1, r // 6)
     if q > 1:
         rq = max(r // q, 1)

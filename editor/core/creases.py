@@ -958,16 +958,16 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
     cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
     Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
-    for j in np.unique(k):
+    along = round(max(1.5 * sig, 1.0), 2)
+    for j in np.flatnonzero(np.bincount(k.ravel(), minlength=_N_DIR)):
         m = k == j
         # filtered only over the rows/columns where this direction is used (+ the kernel)
         rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
-        r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+        r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
         sy0, sx0 = cy + r0, cx + c0
         part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
         oy, ox = min(sy0, h), min(sx0, h)
-        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR,
-                                                   round(max(1.5 * sig, 1.0), 2), 0.35),
+        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR, along, 0.35),
                             borderType=cv2.BORDER_REPLICATE)
         np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
                   where=m[r0:r1, c0:c1, None])

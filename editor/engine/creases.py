@@ -624,7 +624,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     H, W = out.shape[:2]
     bbox = res.bbox
     if np.count_nonzero(un > _MIN_UNFOLD):
-        bbox = _unfold(face, out, V, un, bbox)
+        bbox = _unfold(face, out, V, un, bbox, res.maps)
     live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
     tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
@@ -773,7 +773,9 @@ def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
 
 
 def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
-            bbox: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+            bbox: tuple[int, int, int, int],
+            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
+            ) -> tuple[int, int, int, int]:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -783,6 +785,11 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
     inside the band) raised to the strength. It is >= 1 (nothing is darkened) and ~1 off the
     valley; the finer texture and the colour of the skin around the valley stay. Weighted by how
     skin-like that lifted level is (hair, brows, eyes are not).
+
+    The gain and the skin weight depend on the photo only: with the warp's backward ``maps``
+    (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_lift`)
+    and carried to the frame by the warp's own map; per frame only the band is drawn. Without
+    ``maps`` they are computed on ``out``.
     """
     fa = _fast(face)
     tri, bary = _own_valleys(face)
@@ -795,88 +802,201 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             continue
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
-        r = int(math.ceil(_VALLEY_WIDTH * sig * 1.25))  # the target may widen the valley
-        a, d = pos[ia], pos[ia + 1] - pos[ia]
-        L = np.sqrt((d * d).sum(1))
-        K = int(min(max(np.ceil(L.max() / 0.5), 1), 64))
-        u = (np.arange(K) + 0.5) / K
-        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        ua, ub = un[ia], un[ia + 1]
-        w = ((ua[:, None] + (ub - ua)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        # the box that is written (the band) and the larger one the closing reads
+        pts, w, d, L, K = _band_samples(pos, ia, un)
+        # the box that is written (the band)
         lo, hi = pts.min(0) - 3.0 * sb, pts.max(0) + 3.0 * sb
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        pad = 2 * r + 2
-        X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
-        X1, Y1 = min(x1 + pad, W), min(y1 + pad, H)
         o = np.array([x0, y0], np.float64)
         band, _ = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, pts[:0], w[:0])
         band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb)
         # flat across the valley, falling off over the band's edge
         band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
-        big = out[Y0:Y1, X0:X1].astype(np.float32)
-        # smoothed along the fold only: the valley keeps its profile across the line (its
-        # sharp core is lifted too) while the skin's grain along it stays in ``patch / S``
-        # (per pixel, the direction of the nearest part of the fold, in _N_DIR steps: a
-        # nasolabial fold curves around the mouth)
-        dd = d * (w.reshape(len(ia), K).sum(1) / np.maximum(L, 1e-9))[:, None]
-        c2 = np.repeat((dd[:, 0] ** 2 - dd[:, 1] ** 2) / np.maximum(L, 1e-9), K)
-        s2 = np.repeat(2 * dd[:, 0] * dd[:, 1] / np.maximum(L, 1e-9), K)
-        # (only over the written box; around it, where the closing finds the shoulders, an
-        # isotropic blur does)
-        qb = pts - o
-        fc, fs = _splat2((y1 - y0 + 1, x1 - x0 + 1), qb, c2 / K, qb, s2 / K)
-        fc = cv2.GaussianBlur(fc[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * c2.sum())
-        fs = cv2.GaussianBlur(fs[:-1, :-1], (0, 0), 2.0 * sb) + np.float32(1e-6 * s2.sum())
-        k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
-        iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
-        S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
-        h = int(math.ceil(4.5 * max(1.5 * sig, 1.0)))
-        sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
-        cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
-        Si = S[iy, ix]
-        for j in np.unique(k):
-            m = k == j
-            # filtered only over the rows/columns where this direction is used (+ the kernel)
-            rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
-            r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-            sy0, sx0 = cy + r0, cx + c0
-            part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
-            oy, ox = min(sy0, h), min(sx0, h)
-            filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR,
-                                                       round(max(1.5 * sig, 1.0), 2), 0.35),
-                                borderType=cv2.BORDER_REPLICATE)
-            mm = m[r0:r1, c0:c1]
-            Si[r0:r1, c0:c1][mm] = filt[oy:oy + r1 - r0, ox:ox + c1 - c0][mm]
-        # the skin level either side of the valley; blurred so that between shoulders of
-        # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps.
-        # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
-        q = max(1, r // 6)
-        if q > 1:
-            rq = max(r // q, 1)
-            small = cv2.resize(S, (max(S.shape[1] // q, 1), max(S.shape[0] // q, 1)),
-                               interpolation=cv2.INTER_AREA)
-            ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rq + 1, 2 * rq + 1))
-            C = cv2.GaussianBlur(cv2.morphologyEx(small, cv2.MORPH_CLOSE, ker), (0, 0),
-                                 0.6 * r / q)
-            C = cv2.resize(C, (S.shape[1], S.shape[0]), interpolation=cv2.INTER_LINEAR)
+        got = None if maps is None else _photo_lift(face, g)
+        if got is None:
+            S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
         else:
-            ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-            C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
-        S, C = Si, C[iy, ix]
-        gain = np.clip(C / np.maximum(S, 1.0), 1.0, 4.0)
-        # the lifted level is skin unless it is much darker than the skin or off its colour
-        # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
-        ref = fa.skin[g]
-        wt = band * _skin_weight(np.minimum(C, ref + 0.3 * (C - ref)), ref, 0.6)
+            # the skin level C either side of the valley and how skin-like it is are smooth:
+            # taken on the photo once and carried by the warp's own map; S, sharp across the
+            # valley, is taken in the frame
+            S, _ = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
+                                closing=False)
+            (_, c4), (px0, py0) = got
+            mx, my = _box_maps(maps, (x0, y0, x1, y1))
+            mx -= np.float32(px0)
+            my -= np.float32(py0)
+            c4 = cv2.remap(c4, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        band *= c4[..., 3]
+        gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
+        gain -= 1.0
+        gain *= band[..., None]
+        gain += 1.0
         patch = out[y0:y1, x0:x1].astype(np.float32)
-        out[y0:y1, x0:x1] = np.clip(patch * (1.0 + (gain - 1.0) * wt[..., None]) + 0.5, 0,
-                                    255).astype(np.uint8)
+        gain *= patch
+        gain += 0.5
+        out[y0:y1, x0:x1] = np.clip(gain, 0, 255).astype(np.uint8)
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
+
+
+def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Sub-samples ``pts`` (n, 2) of the segments ``ia`` -> ``ia + 1`` of the valley ``pos``,
+    their weights ``w`` (strength ``un`` x length), the segments ``d`` (M, 2), their lengths
+    ``L`` and the sub-samples per segment ``K``."""
+    a, d = pos[ia], pos[ia + 1] - pos[ia]
+    L = np.sqrt((d * d).sum(1))
+    K = int(min(max(np.ceil(L.max() / 0.5), 1), 64))
+    u = (np.arange(K) + 0.5) / K
+    pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
+    ua, ub = un[ia], un[ia + 1]
+    w = ((ua[:, None] + (ub - ua)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+    return pts, w, d, L, K
+
+
+def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
+              box: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """The warp's backward map over ``box`` (identity where the warp did not write)."""
+    x0, y0, x1, y1 = box
+    map_x, map_y, (a0, b0, a1, b1) = maps
+    if a0 <= x0 and b0 <= y0 and x1 <= a1 and y1 <= b1:
+        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0].copy(),
+                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0].copy())
+    mx = np.empty((y1 - y0, x1 - x0), np.float32)
+    my = np.empty_like(mx)
+    mx[:] = np.arange(x0, x1, dtype=np.float32)[None]
+    my[:] = np.arange(y0, y1, dtype=np.float32)[:, None]
+    c0, r0, c1, r1 = max(x0, a0), max(y0, b0), min(x1, a1), min(y1, b1)
+    if c1 > c0 and r1 > r0:
+        mx[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_x[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
+        my[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_y[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
+    return mx, my
+
+
+_LIFT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _photo_lift(face: Face, g: int
+                ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[int, int]] | None:
+    """``((S, C), (x0, y0))``: :func:`_lift_fields` of group ``g`` on the photo, around its own
+    valley on the photo's mesh (cached per face; None if the group has no own fold)."""
+    cache = _LIFT.setdefault(face, {})
+    if g in cache:
+        return cache[g]
+    p = crease_plan(face)
+    fa = _fast(face)
+    tri, bary = _own_valleys(face)
+    V = face.vertices.astype(np.float64)
+    pos = (V[face.mesh.triangles[tri]] * bary[..., None]).sum(1)
+    ia = fa.seg_a[slice(*fa.seg_rng[g])]
+    un = p.utaper.astype(np.float64)  # the strength's shape along the line (its scale cancels)
+    got = None
+    if len(ia) and (np.maximum(un[ia], un[ia + 1]) > 0).any():
+        img = face.image
+        H, W = img.shape[:2]
+        sb = max(2.5 * float(fa.sig[g]), 1.0)
+        pts, w, d, L, K = _band_samples(pos, ia, un)
+        # wider than the band: the frame's band, mapped back to the photo, lies inside it
+        lo, hi = pts.min(0) - 4.0 * sb - 2.0, pts.max(0) + 4.0 * sb + 2.0
+        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        if x1 - x0 >= 4 and y1 - y0 >= 4:
+            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1)),
+                   (x0, y0))
+    cache[g] = got
+    return got
+
+
+def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
+                 d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
+                 closing: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """``S`` (h, w, 3) and ``C`` with the skin-likeness of that lifted level (h, w, 4), float32
+    over ``box`` of ``img`` (see :func:`_unfold`; the gain is ``C / S``), for the valley
+    sub-sampled at ``pts`` (weights ``w``; ``M`` segments ``d`` of lengths ``L``, ``K``
+    sub-samples each). ``closing=False``: ``S`` only (the second is None).
+    """
+    H, W = img.shape[:2]
+    sig = float(fa.sig[g])
+    sb = max(2.5 * sig, 1.0)
+    r = int(math.ceil(_VALLEY_WIDTH * sig * 1.25))  # the target may widen the valley
+    x0, y0, x1, y1 = box
+    # the larger box the closing reads
+    h = int(math.ceil(4.5 * max(1.5 * sig, 1.0)))
+    pad = 2 * r + 2 if closing else h
+    X0, Y0 = max(x0 - pad, 0), max(y0 - pad, 0)
+    X1, Y1 = min(x1 + pad, W), min(y1 + pad, H)
+    o = np.array([x0, y0], np.float64)
+    big = img[Y0:Y1, X0:X1].astype(np.float32)
+    # smoothed along the fold only: the valley keeps its profile across the line (its
+    # sharp core is lifted too) while the skin's grain along it stays in ``patch / S``
+    # (per pixel, the direction of the nearest part of the fold, in _N_DIR steps: a
+    # nasolabial fold curves around the mouth)
+    dd = d * (w.reshape(M, K).sum(1) / np.maximum(L, 1e-9))[:, None]
+    c2 = np.repeat((dd[:, 0] ** 2 - dd[:, 1] ** 2) / np.maximum(L, 1e-9), K)
+    s2 = np.repeat(2 * dd[:, 0] * dd[:, 1] / np.maximum(L, 1e-9), K)
+    # (only over the written box; around it, where the closing finds the shoulders, an
+    # isotropic blur does)
+    # (a smooth field: splatted and blurred at 1/f resolution, then resized)
+    f = max(1, int(sb / 1.5))
+    hb, wb = y1 - y0, x1 - x0
+    hc, wc = -(-hb // f), -(-wb // f)
+    qb = (pts - o + 0.5) / f - 0.5
+    fc, fs = _splat2((hc + 1, wc + 1), qb, c2 / K, qb, s2 / K)
+    fc = cv2.GaussianBlur(fc[:-1, :-1], (0, 0), 2.0 * sb / f)
+    fs = cv2.GaussianBlur(fs[:-1, :-1], (0, 0), 2.0 * sb / f)
+    if f > 1:
+        fc = cv2.resize(fc, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
+        fs = cv2.resize(fs, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
+    fc = fc * np.float32(f * f) + np.float32(1e-6 * c2.sum())
+    fs = fs * np.float32(f * f) + np.float32(1e-6 * s2.sum())
+    k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
+    iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
+    # (every pixel of the box is filtered along the fold below; the isotropic blur feeds C)
+    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5)) if closing else None
+    sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
+    cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
+    Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
+    along = round(max(1.5 * sig, 1.0), 2)
+    for j in np.flatnonzero(np.bincount(k.ravel(), minlength=_N_DIR)):
+        m = k == j
+        # filtered only over the rows/columns where this direction is used (+ the kernel)
+        rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
+        r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+        sy0, sx0 = cy + r0, cx + c0
+        part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
+        oy, ox = min(sy0, h), min(sx0, h)
+        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR, along, 0.35),
+                            borderType=cv2.BORDER_REPLICATE)
+        np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
+                  where=m[r0:r1, c0:c1, None])
+    # the skin level either side of the valley; blurred so that between shoulders of
+    # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps.
+    # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
+    if not closing:
+        return Si, None
+    S[iy, ix] = Si
+    q = max(1, r // 6)
+    if q > 1:
+        rq = max(r // q, 1)
+        small = cv2.resize(S, (max(S.shape[1] // q, 1), max(S.shape[0] // q, 1)),
+                           interpolation=cv2.INTER_AREA)
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rq + 1, 2 * rq + 1))
+        C = cv2.GaussianBlur(cv2.morphologyEx(small, cv2.MORPH_CLOSE, ker), (0, 0),
+                             0.6 * r / q)
+        C = cv2.resize(C, (S.shape[1], S.shape[0]), interpolation=cv2.INTER_LINEAR)
+    else:
+        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
+    # the lifted level is skin unless it is much darker than the skin or off its colour
+    # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
+    C = C[iy, ix]
+    ref = fa.skin[g]
+    c4 = np.empty(C.shape[:2] + (4,), np.float32)
+    c4[..., :3] = C
+    c4[..., 3] = _skin_weight(np.minimum(C, ref + 0.3 * (C - ref)), ref, 0.6)
+    return Si, c4
 
 
 def creases_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:

@@ -98,9 +98,13 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         x0, y0, x1, y1 = max(int(x0), 0), max(int(y0), 0), min(int(x1), W), min(int(y1), H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
-        q = fr.to_frame(np.stack([xx.ravel(), yy.ravel()], 1))
-        X, Y = q[:, 0], q[:, 1]
+        # the box's pixels in the frame (``fr.to_frame``, without building the pixel grid)
+        shape = (y1 - y0, x1 - x0)
+        R, org = fr.rot, fr.origin
+        gx = np.arange(x0, x1, dtype=np.float64) - org[0]
+        gy = (np.arange(y0, y1, dtype=np.float64) - org[1])[:, None]
+        X = (gx * R[0, 0] + gy * R[1, 0]).ravel()
+        Y = (gx * R[0, 1] + gy * R[1, 1]).ravel()
         lid_y = np.interp(X, L[:, 0], L[:, 1])
         Hd = lid_y - np.interp(X, B[:, 0], B[:, 1])
         Hs = np.interp(X, L[:, 0], st.lid_s[:, 1]) - np.interp(X, B[:, 0], st.brow_s[:, 1])
@@ -116,17 +120,18 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         # source height f, then where the warp put that height: e = f * Hd / Hs
         f = t * Hs + m * ex * t * (1.0 - t)
         e = np.where(live, f * Hd / np.maximum(Hs, 1e-6), d)
-        src = fr.to_image(np.stack([X, lid_y - e], 1)).astype(np.float32)
-        mx = src[:, 0].reshape(xx.shape)
-        my = src[:, 1].reshape(xx.shape)
+        Ye = lid_y - e  # back to the image (``fr.to_image``)
+        mx = (X * R[0, 0] + Ye * R[0, 1] + org[0]).astype(np.float32).reshape(shape)
+        my = (X * R[1, 0] + Ye * R[1, 1] + org[1]).astype(np.float32).reshape(shape)
         patch = img[y0:y1, x0:x1]
         # sample the warped frame around the box (the remap reads up to a pixel outside it)
         X0, Y0 = max(x0 - 2, 0), max(y0 - 2, 0)
         X1, Y1 = min(x1 + 2, W), min(y1 + 2, H)
-        new = cv2.remap(img[Y0:Y1, X0:X1], (mx - np.float32(X0)).astype(np.float32),
-                        (my - np.float32(Y0)).astype(np.float32), cv2.INTER_LINEAR,
+        mx -= np.float32(X0)
+        my -= np.float32(Y0)
+        new = cv2.remap(img[Y0:Y1, X0:X1], mx, my, cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_REPLICATE)
-        keep = ~live.reshape(xx.shape)
+        keep = ~live.reshape(shape)
         new[keep] = patch[keep]
         img[y0:y1, x0:x1] = new
         bbox = _union(bbox, (x0, y0, x1, y1))

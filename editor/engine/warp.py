@@ -78,12 +78,15 @@ class WarpResult:
     image : (H, W, 3) uint8 warped photo
     bbox : (x0, y0, x1, y1) region that was recomputed, or None when nothing moved
     mouth_local, eyes_local : bool masks of the openings inside ``bbox`` (None if unchanged)
+    maps : ``(map_x, map_y, box)``: the warp's backward map (destination pixel -> photo
+        position, float32) over ``box`` (x0, y0, x1, y1; identity outside it), or None
     """
 
     image: np.ndarray
     bbox: tuple[int, int, int, int] | None
     mouth_local: np.ndarray | None = None
     eyes_local: np.ndarray | None = None
+    maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
 
     def _full(self, local: np.ndarray | None) -> np.ndarray | None:
         if local is None or self.bbox is None:
@@ -212,7 +215,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         if dark.any():
             yy, xx = yy[dark], xx[dark]
             out[y0 + yy, x0 + xx] = _cavity(dst, plan.holes["mouth"], x0 + xx, y0 + yy)
-    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes)
+    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes, (map_x, map_y, (x0, y0, x1, y1)))
 
 
 def _cavity(dst: np.ndarray, loop: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:

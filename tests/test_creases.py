@@ -391,7 +391,7 @@ def test_own_fold_lift_carried_from_the_photo_matches_the_frame(sample_face):
     map, lifts the valley as taking it on the frame does (within a few grey levels)."""
     import dataclasses
 
-    from editor.core.creases import apply_creases
+    from editor.engine.creases import apply_creases
 
     f = sample_face
     for faps in (None, f.fap_vector({"open_jaw": 600})):

@@ -84,3 +84,27 @@ def model(qtbot, sample_neutral):
     m = DocumentModel()
     m.load(sample_neutral)
     return m
+
+
+@pytest.fixture
+def cli(capfd):
+    """Run ``fap-studio ARGS...`` in this process: ``cli("render", photo, "-o", out)`` returns a
+    :class:`subprocess.CompletedProcess` (``returncode``, ``stdout``, ``stderr``) as a subprocess
+    run would, with C-level output (file descriptors 1 and 2) caught too. argparse's usage
+    errors (``SystemExit``) become their exit code. The real entry point keeps its own tests
+    (``test_cli_gui.py``, the Ctrl-C and broken-pipe cases of ``test_robustness.py``)."""
+    import subprocess
+
+    from editor.cli import main
+
+    def run(*args) -> subprocess.CompletedProcess:
+        argv = [str(a) for a in args]
+        capfd.readouterr()
+        try:
+            code = main(argv)
+        except SystemExit as e:
+            code = e.code if isinstance(e.code, int) else 1
+        out, err = capfd.readouterr()
+        return subprocess.CompletedProcess(["fap-studio", *argv], code, out, err)
+
+    return run

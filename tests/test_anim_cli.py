@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import cv2
 import numpy as np
 import pytest
@@ -16,29 +13,24 @@ from editor.formats.fapfile import FapSequence, read_fap
 from editor.formats.video import export_sequence
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "editor", *args], capture_output=True,
-                          text=True, timeout=120)
-
-
-def test_render_preset_equals_api(tmp_path, sample_face):
-    r = _cli("render", str(SAMPLE), "--preset", "joy:0.8", "-o", str(tmp_path / "j.png"))
+def test_render_preset_equals_api(cli, tmp_path, sample_face):
+    r = cli("render", str(SAMPLE), "--preset", "joy:0.8", "-o", str(tmp_path / "j.png"))
     assert r.returncode == 0, r.stderr
     expected = sample_face.render(apply_preset(get_preset("joy"), 0.8))
     assert np.array_equal(load_image(tmp_path / "j.png"), expected)
     assert not np.array_equal(expected, sample_face.image)
 
 
-def test_bad_preset_is_one_line_error(tmp_path):
+def test_bad_preset_is_one_line_error(cli, tmp_path):
     for spec in ("nope", "joy:2", "joy:x"):
-        r = _cli("render", str(SAMPLE), "--preset", spec, "-o", str(tmp_path / "x.png"))
+        r = cli("render", str(SAMPLE), "--preset", spec, "-o", str(tmp_path / "x.png"))
         assert r.returncode == 2 and r.stderr.startswith("fap-studio: error:"), spec
         assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
 
 
-def test_fap_export_info_and_animate(tmp_path):
+def test_fap_export_info_and_animate(cli, tmp_path):
     fap = tmp_path / "joy.fap"
-    r = _cli("fap", "export", "--preset", "joy", "--keyframes", "--duration", "0.4", "--fps",
+    r = cli("fap", "export", "--preset", "joy", "--keyframes", "--duration", "0.4", "--fps",
              "25", "-o", str(fap))
     assert r.returncode == 0, r.stderr
     seq = read_fap(fap)
@@ -46,9 +38,9 @@ def test_fap_export_info_and_animate(tmp_path):
     peak = seq.frames[5]
     assert np.allclose(peak, np.round(apply_preset(get_preset("joy"), 1.0)), atol=1)
     assert not seq.frames[0].any() and not seq.frames[-1].any()
-    r = _cli("fap", "info", str(fap))
+    r = cli("fap", "info", str(fap))
     assert r.returncode == 0 and "frames:   11" in r.stdout and "open_jaw" in r.stdout
-    r = _cli("animate", str(SAMPLE), str(fap), "-o", str(tmp_path / "a.mp4"))
+    r = cli("animate", str(SAMPLE), str(fap), "-o", str(tmp_path / "a.mp4"))
     assert r.returncode == 0, r.stderr
     cap = cv2.VideoCapture(str(tmp_path / "a.mp4"))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 11
@@ -69,3 +61,29 @@ def test_export_png_frames_and_cancel(tmp_path, sample_face):
     assert res.cancelled and res.frames == 2 and not (tmp_path / "c.mp4").exists()
     with pytest.raises(FapStudioError):
         export_sequence(sample_face, seq, "/proc/forbidden/out")
+
+
+def test_entry_point_in_a_real_process(tmp_path, sample_face):
+    """The other CLI tests call :func:`editor.cli.main` in process; this one runs the real
+    entry points (``python -m editor`` and the installed ``fap-studio`` script) once."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "j.png"
+    r = subprocess.run([sys.executable, "-m", "editor", "render", str(SAMPLE), "--preset",
+                        "joy:0.8", "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert np.array_equal(load_image(out), sample_face.render(apply_preset(get_preset("joy"),
+                                                                           0.8)))
+    r = subprocess.run([sys.executable, "-m", "editor", "render", str(SAMPLE), "--preset",
+                        "nope", "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.startswith("fap-studio: error:"), r.stderr
+    assert r.stderr.count("\n") == 1, r.stderr
+    script = Path(sys.executable).with_name("fap-studio")
+    script = str(script) if script.exists() else shutil.which("fap-studio")
+    if script is None:
+        pytest.skip("the fap-studio script is not installed (pip install -e .)")
+    r = subprocess.run([script, "--version"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith("fap-studio "), (r.stdout, r.stderr)

@@ -156,31 +156,28 @@ def test_bad_inputs(tmp_path):
         Face.from_image(tmp_path / "flat.png")
 
 
-def test_cli_errors_are_one_line(tmp_path):
+def test_cli_errors_are_one_line(cli, tmp_path):
     (tmp_path / "bad.png").write_bytes(b"\x00garbage")
     for args in (["mesh", str(tmp_path / "bad.png"), "-o", str(tmp_path / "o.png")],
                  ["landmarks", str(tmp_path / "nope.png")],
                  ["render", str(SAMPLE), "--fap", "nonsense=3", "-o", str(tmp_path / "o.png")]):
-        r = subprocess.run([sys.executable, "-m", "editor", *args], capture_output=True,
-                           text=True, timeout=60)
+        r = cli(*args)
         assert r.returncode == 2, args
         assert r.stderr.strip().count("\n") == 0 and r.stderr.startswith("fap-studio: error:")
         assert "Traceback" not in r.stderr
 
 
-def test_cli_mesh_and_landmarks_outputs(tmp_path):
+def test_cli_mesh_and_landmarks_outputs(cli, tmp_path):
     import json
 
-    r = subprocess.run([sys.executable, "-m", "editor", "mesh", str(SAMPLE), "-o",
-                        str(tmp_path / "m.png"), "--json", str(tmp_path / "m.json")],
-                       capture_output=True, text=True, timeout=60)
+    r = cli("mesh", str(SAMPLE), "-o", str(tmp_path / "m.png"), "--json",
+            str(tmp_path / "m.json"))
     assert r.returncode == 0, r.stderr
     d = json.loads((tmp_path / "m.json").read_text())
     assert {"vertices", "triangles", "fdp", "fapu"} <= d.keys()
     assert len(d["vertices"]) == standard_mesh().n_vertices
     assert load_image(tmp_path / "m.png").shape == (512, 512, 3)
-    r = subprocess.run([sys.executable, "-m", "editor", "landmarks", str(SAMPLE), "--json",
-                        str(tmp_path / "l.json")], capture_output=True, text=True, timeout=60)
+    r = cli("landmarks", str(SAMPLE), "--json", str(tmp_path / "l.json"))
     assert r.returncode == 0, r.stderr
     d = json.loads((tmp_path / "l.json").read_text())
     assert len(d["points"]) == 68 and "3.5" in d["iris"] and "2.1" in d["fdp"]

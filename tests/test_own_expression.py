@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from conftest import JAFFE, SAMPLE, jaffe_images
@@ -108,23 +104,20 @@ def test_jaffe_closed_loop_reproduces_real_expressions():
     assert not wrong, wrong
 
 
-def test_cli_render_neutralises_unless_kept(tmp_path):
+def test_cli_render_neutralises_unless_kept(cli, tmp_path):
     from editor.core import load_image
 
-    run = [sys.executable, "-m", "editor.cli", "render", str(SAMPLE)]
+    run = ["render", str(SAMPLE)]
     kept = tmp_path / "kept.png"
-    r = subprocess.run(run + ["--keep-expression", "-o", str(kept)], capture_output=True,
-                       text=True, cwd=Path(__file__).resolve().parents[1])
+    r = cli(*run, "--keep-expression", "-o", str(kept))
     assert r.returncode == 0 and "the photo shows: smile" in r.stderr
     assert np.array_equal(load_image(kept), load_image(SAMPLE))
     neutral = tmp_path / "neutral.png"
-    r = subprocess.run(run + ["-o", str(neutral)], capture_output=True, text=True,
-                       cwd=Path(__file__).resolve().parents[1])
+    r = cli(*run, "-o", str(neutral))
     assert r.returncode == 0
     assert np.abs(load_image(neutral).astype(int) - load_image(SAMPLE)).max() > 40
     plain = tmp_path / "plain.png"
-    r = subprocess.run(run + ["--photo-is-neutral", "-o", str(plain)], capture_output=True,
-                       text=True, cwd=Path(__file__).resolve().parents[1])
+    r = cli(*run, "--photo-is-neutral", "-o", str(plain))
     assert r.returncode == 0 and "photo shows" not in r.stderr
     assert np.array_equal(load_image(plain), load_image(SAMPLE))
 

@@ -352,15 +352,15 @@ def test_case07_devices_and_fifos_are_refused(capfd, tmp_path):
     one_line_error(code, err, what="regular file")
 
 
-def test_case07_project_photo_is_dev_zero(tmp_path):
-    proj = tmp_path / "z.fapproj"
+def test_case07_project_photo_is_dev_zero(qapp, isolated_settings, capfd, tmp_path):
+    work = tmp_path / "work"
+    work.mkdir()
+    proj = work / "z.fapproj"
     proj.write_text(json.dumps({"format": "fap-studio-project", "version": 1,
                                 "photo": "/dev/zero"}))
-    r = subprocess.run([sys.executable, "-m", "editor", "gui", "--project", str(proj),
-                        "--screenshot", str(tmp_path / "s.png")], env=ENV, capture_output=True,
-                       text=True, timeout=120)
-    one_line_error(r.returncode, r.stderr, what="/dev/zero")
-    only(tmp_path, "z.fapproj")
+    code, _, err = cli(capfd, "gui", "--project", proj, "--screenshot", work / "s.png")
+    one_line_error(code, err, what="/dev/zero")
+    only(work, "z.fapproj")
 
 
 # ------------------------------------------------------------------------------ case 8
@@ -519,17 +519,15 @@ def test_case11_one_stderr_line(capfd, tmp_path):
         assert err.startswith("fap-studio: error: ") and "usage" not in err, err
 
 
-def test_case11_gui_screenshot_and_rejected_project(tmp_path):
+def test_case11_gui_screenshot_and_rejected_project(qapp, isolated_settings, capfd, tmp_path):
     shot = tmp_path / "s.png"
-    r = subprocess.run([sys.executable, "-m", "editor", "gui", "--screenshot", str(shot)],
-                       env=ENV, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0 and r.stderr == "", r.stderr
+    code, _, err = cli(capfd, "gui", "--screenshot", shot)
+    assert code == 0 and err == "", err
     assert shot.stat().st_size > 1000
     (tmp_path / "bad.fapproj").write_text("{oops")
-    r = subprocess.run([sys.executable, "-m", "editor", "gui", "--project",
-                        str(tmp_path / "bad.fapproj"), "--screenshot", str(tmp_path / "t.png")],
-                       env=ENV, capture_output=True, text=True, timeout=120)
-    one_line_error(r.returncode, r.stderr, what="bad.fapproj")
+    code, _, err = cli(capfd, "gui", "--project", tmp_path / "bad.fapproj", "--screenshot",
+                       tmp_path / "t.png")
+    one_line_error(code, err, what="bad.fapproj")
     assert not (tmp_path / "t.png").exists()
 
 

@@ -76,6 +76,7 @@ def test_sample_mesh_fold_free(sample_face):
     assert (sig > 0).all()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not jaffe_images(), reason="../shared/data/jaffe is not available")
 def test_every_jaffe_image_fits_and_agrees_with_stasm():
     names = (JAFFE / "landmarks_stasm77" / "all_names.txt").read_text().split()

@@ -759,6 +759,7 @@ def test_fuzz_model_reader(tmp_path, model_arrays):
     assert not bad and not bad2, (bad + bad2)[:5]
 
 
+@pytest.mark.slow
 def test_fuzz_image_header(tmp_path):
     import cv2
 
@@ -849,6 +850,7 @@ def _portraits() -> list[tuple[str, np.ndarray]]:
     return out
 
 
+@pytest.mark.slow
 def test_case13_fold_guard_floor_on_many_faces():
     from editor.core import Face
     from editor.engine.deform import EPS_CHECK

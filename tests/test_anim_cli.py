@@ -63,7 +63,6 @@ def test_export_png_frames_and_cancel(tmp_path, sample_face):
         export_sequence(sample_face, seq, "/proc/forbidden/out")
 
 
-@pytest.mark.slow
 def test_entry_point_in_a_real_process(tmp_path, sample_face):
     """The other CLI tests call :func:`editor.cli.main` in process; this one runs the real
     entry points (``python -m editor`` and the installed ``fap-studio`` script) once."""

@@ -50,7 +50,7 @@ from .layers import _rebox, _to_uint8, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
-    from .face import Face
+    from .face import Face, FapInput
 
 #: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
 _MIN_STRENGTH = 0.008
@@ -999,7 +999,7 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     return Si, c4
 
 
-def creases_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:
+def creases_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:
     """Median time (ms) of ``face.render(faps)`` with and without creases (for the bench)."""
     vec = face.fap_vector(faps)
     crease_plan(face)

@@ -51,7 +51,7 @@ from .mouth import (
 from .warp import WarpResult
 
 if TYPE_CHECKING:
-    from .face import Face
+    from .face import Face, FapInput
 
 _SHIFT = 4
 _TOL = 1e-3
@@ -535,7 +535,7 @@ def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
     return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"], res.maps)
 
 
-def layers_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:
+def layers_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:
     """Median time (ms) of ``face.render(faps)`` with and without the layers.
 
     ``without`` = deform + warp with its flat cavity (what ``render`` did before the layers),

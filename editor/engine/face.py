@@ -17,12 +17,12 @@ smile back. FAPU are measured on the neutral mesh.
 
 from __future__ import annotations
 
-from typing import Any
 import os
 from collections.abc import Mapping
 from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 

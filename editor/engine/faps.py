@@ -33,8 +33,8 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-
 from typing import Any
+
 import numpy as np
 
 GROUP_NAMES = {1: "visemes & expressions", 2: "jaw, chin, inner lips", 3: "eyes",

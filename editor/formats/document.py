@@ -8,10 +8,10 @@ lock. :class:`editor.ui.document_model.DocumentModel` holds the current one and 
 
 from __future__ import annotations
 
-from typing import Any
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 

@@ -52,6 +52,11 @@ def round_half_away(a: np.ndarray | float | list) -> np.ndarray:
     return np.sign(a) * np.floor(np.abs(a) + 0.5)
 
 
+def _filled_in() -> Any:
+    """Default of a dataclass field that ``__post_init__`` computes when it is None."""
+    return None
+
+
 @dataclass(frozen=True)
 class _Fields:
     """Integer fields, each in 0..``_limits[i]``; ValueError naming the field otherwise."""
@@ -107,14 +112,16 @@ class FapSequence:
     notes : list of str           what the reader tolerated (floats rounded, Greta masks, ...)
     """
 
+    # masks, frame_numbers, visemes, expressions: None (the default) is filled in by
+    # __post_init__, so the attributes are never None
     frames: np.ndarray
-    masks: np.ndarray | None = None
+    masks: np.ndarray = field(default_factory=_filled_in)
     fps: float = 25.0
     name: str = "fap-studio"
     version: str = "2.1"
-    frame_numbers: np.ndarray | None = None
-    visemes: list[VisemeField | None] | None = None
-    expressions: list[ExpressionField | None] | None = None
+    frame_numbers: np.ndarray = field(default_factory=_filled_in)
+    visemes: list[VisemeField | None] = field(default_factory=_filled_in)
+    expressions: list[ExpressionField | None] = field(default_factory=_filled_in)
     notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:

@@ -713,7 +713,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     tri, bary = p.tri.copy(), p.bary.copy()
     img = face.image
     H, W = img.shape[:2]
-    lum = img.astype(np.float32) @ np.float32([0.299, 0.587, 0.114])
+    lum = img.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)

@@ -457,8 +457,8 @@ class EyePlan:
             corner = self.corner_l if du > 0 else self.corner_r
             bound = _line_u(p, q, W) + du
             moved = (U >= bound) if du > 0 else (U <= bound)
-            dst = np.float32([corner, p + (du, 0.0), q + (du, 0.0)])
-            src = np.float32([corner, p, q])
+            dst = np.array([corner, p + (du, 0.0), q + (du, 0.0)], np.float32)
+            src = np.array([corner, p, q], np.float32)
             A = cv2.getAffineTransform(dst, src).astype(np.float64)
             Ua = A[0, 0] * U + A[0, 1] * W + A[0, 2]
             Wa = A[1, 0] * U + A[1, 1] * W + A[1, 2]

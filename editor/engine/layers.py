@@ -122,7 +122,7 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
     x0, y0, x1, y1 = box
     m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.rint((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
+    q = np.rint((np.asarray(poly, np.float32) - np.array([x0, y0], np.float32)) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
     return m.view(bool)  # 0 / 1 bytes
 

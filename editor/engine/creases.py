@@ -40,8 +40,8 @@ import functools
 import math
 import time
 import weakref
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal, overload
 
 import cv2
 import numpy as np
@@ -50,7 +50,7 @@ from .layers import _rebox, _to_uint8, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
-    from .face import Face
+    from .face import Face, FapInput
 
 #: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
 _MIN_STRENGTH = 0.008
@@ -114,7 +114,7 @@ class CreasePlan:
     iod: float
     tint: np.ndarray  # (3,) per-channel darkening weights (1, 1, 1 on grey photos)
     skin: np.ndarray  # (F, 3) skin colour around each fold in the photo
-    utaper: np.ndarray | None = None  # (N,) fade along each line of the photo's own fold
+    utaper: np.ndarray  # (N,) fade along each line of the photo's own fold
 
     @property
     def n_folds(self) -> int:
@@ -415,16 +415,16 @@ class _Fast:
     own_gap: np.ndarray | None = None  # (F,) photo's own compression per fold (None: neutral)
     own_w: np.ndarray | None = None  # (N,) log-spacing of the neutral mesh per sample (>= 0)
     own_sum: np.ndarray | None = None  # (F,) sum of own_w ** 2 per fold
-    # per-face constants of the per-frame path (gathered once, not every frame)
-    used_tri: np.ndarray | None = None  # (U, 3) vertex indices of the ``used`` triangles
+    # per-face constants of the per-frame path (gathered once, not every frame; set by _fast)
+    used_tri: np.ndarray = field(init=False)  # (U, 3) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
-    tx: np.ndarray | None = None  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
-    ty: np.ndarray | None = None
+    tx: np.ndarray = field(init=False)  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
+    ty: np.ndarray = field(init=False)
     sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
-    keep: np.ndarray | None = None  # (N,) 1 - spread
-    seg_b: np.ndarray | None = None  # (M,) seg_a + 1: the last sample of each segment
-    ref_l: np.ndarray | None = None  # (G,) luminance of ``skin`` (at least 20)
+    keep: np.ndarray = field(init=False)  # (N,) 1 - spread
+    seg_b: np.ndarray = field(init=False)  # (M,) seg_a + 1: the last sample of each segment
+    ref_l: np.ndarray = field(init=False)  # (G,) luminance of ``skin`` (at least 20)
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -542,7 +542,7 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
     """
     fa = _fast(face)
     n = len(fa.depth)
-    if fa.own_gap is None:
+    if fa.own_gap is None or fa.own_w is None or fa.own_sum is None:  # set together by _fast
         return np.zeros(n)
     p = crease_plan(face)
     e = np.log(np.maximum(_spacing(face, vertices) if spacing is None else spacing, 1e-6))
@@ -670,7 +670,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         dl *= patch  # patch * (1 + dl * wskin)
         _to_uint8(dl, out[y0:y1, x0:x1])
         bbox = _union(bbox, (x0, y0, x1, y1))
-    if bbox == res.bbox:
+    if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, {})
 
@@ -713,7 +713,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     tri, bary = p.tri.copy(), p.bary.copy()
     img = face.image
     H, W = img.shape[:2]
-    lum = img.astype(np.float32) @ np.float32([0.299, 0.587, 0.114])
+    lum = img.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)
@@ -773,9 +773,9 @@ def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
 
 
 def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
-            bbox: tuple[int, int, int, int],
+            bbox: tuple[int, int, int, int] | None,
             maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
-            ) -> tuple[int, int, int, int]:
+            ) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -815,7 +815,7 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         # flat across the valley, falling off over the band's edge
         band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
         got = None if maps is None else _photo_lift(face, g)
-        if got is None:
+        if got is None or maps is None:
             S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
         else:
             # the skin level C either side of the valley and how skin-like it is are smooth:
@@ -909,6 +909,14 @@ def _photo_lift(face: Face, g: int
     return got
 
 
+@overload
+def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
+                 d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
+                 closing: Literal[True] = True) -> tuple[np.ndarray, np.ndarray]: ...
+@overload
+def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
+                 d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
+                 closing: Literal[False]) -> tuple[np.ndarray, None]: ...
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
                  closing: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
@@ -953,8 +961,6 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     fs = fs * np.float32(f * f) + np.float32(1e-6 * s2.sum())
     k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
     iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
-    # (every pixel of the box is filtered along the fold below; the isotropic blur feeds C)
-    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5)) if closing else None
     sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
     cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
     Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
@@ -976,6 +982,8 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
     if not closing:
         return Si, None
+    # (every pixel of the box was filtered along the fold; the isotropic blur feeds C)
+    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
     S[iy, ix] = Si
     q = max(1, r // 6)
     if q > 1:
@@ -999,7 +1007,7 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     return Si, c4
 
 
-def creases_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:
+def creases_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:
     """Median time (ms) of ``face.render(faps)`` with and without creases (for the bench)."""
     vec = face.fap_vector(faps)
     crease_plan(face)

@@ -13,7 +13,7 @@ Points: the V mesh vertices followed by extra feature points that are not mesh v
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -79,6 +79,10 @@ class DeformPlan:
     movable: np.ndarray  # (V,) bool: can move for some FAP vector (not border)
     brow_gap: float = np.inf  # frame distance between the inner brow ends 4.1 and 4.2, pixels
     extra_names: tuple[str, ...] = EXTRA_POINTS
+    # float64 copies set by __post_init__
+    neutral64: np.ndarray = field(init=False, repr=False)  # (N, 2)
+    basis_flat: np.ndarray = field(init=False, repr=False)  # (68, N*2)
+    tri_neutral: np.ndarray = field(init=False, repr=False)  # (T, 3, 2)
 
     def __post_init__(self) -> None:
         # float64 copies used on every call (the hot path avoids per-call conversions)
@@ -160,7 +164,11 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     for f in FAPS.values():
         if f.number < 3 or f.number in _NONLINEAR:
             continue
-        comps = _DEPTH.get(f.number) or [(f.fdp, *_DIRS[f.direction])]
+        comps = _DEPTH.get(f.number)
+        if not comps:
+            if f.fdp is None:  # only FAP 1/2 (skipped above) have no feature point
+                raise ValueError(f"FAP {f.number} has no feature point")
+            comps = [(f.fdp, *_DIRS[f.direction])]
         unit = fapu[f.unit]
         for fdp, dx, dy in comps:
             if fdp.startswith("6."):
@@ -169,10 +177,11 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
             elif fdp in brows:
                 w = brows[fdp] * movable_lin
             else:
-                w = point_w.get(fdp)
-                if w is None:
-                    w = point_w[fdp] = weights(rects[fdp], fdp_pos[fdp], P, sides,
-                                               movable_lin)
+                cached = point_w.get(fdp)
+                if cached is None:
+                    cached = point_w[fdp] = weights(rects[fdp], fdp_pos[fdp], P, sides,
+                                                    movable_lin)
+                w = cached
             if fdp not in OUTLINE_FDPS:
                 w = w * on_face  # the motion stays inside the contour and the hairline
             basis[f.number - 1] += unit * w[:, None] * np.array([dx, dy])[None, :]
@@ -183,10 +192,10 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     basis[13, tongue] += basis[13, mesh.fdp["2.1"]]
     basis[14, tongue] = basis[14, mesh.fdp["2.1"]]
     pair_basis = np.zeros((len(LIP_PAIRS), N, 2))
-    for k, (a, b) in enumerate(LIP_PAIRS):
+    for j, (a, b) in enumerate(LIP_PAIRS):
         fa = FAPS[int(a) + 1]
         shared = np.minimum(single_w[int(a)], single_w[int(b)])
-        pair_basis[k] = fapu[fa.unit] * shared[:, None] * np.array(_DIRS[fa.direction])[None, :]
+        pair_basis[j] = fapu[fa.unit] * shared[:, None] * np.array(_DIRS[fa.direction])[None, :]
     # frame -> image directions
     basis = basis @ frame.rot.T
     pair_basis = pair_basis @ frame.rot.T
@@ -237,10 +246,10 @@ def _nonlinear(plan: DeformPlan, faps: np.ndarray, pos: np.ndarray) -> np.ndarra
     ex, ey = R[:, 0], R[:, 1]  # frame axes in image coordinates
     au = 1e-5
     # gaze: iris centre moves by R sin(theta); yaw + = face's left = frame +x; pitch + = down
-    for k, (yaw, pitch) in enumerate(((22, 24), (23, 25))):  # 3.5 uses 23/25, 3.6 uses 24/26
+    for k, (iyaw, ipitch) in enumerate(((22, 24), (23, 25))):  # 3.5 uses 23/25, 3.6 uses 24/26
         i = V + k
-        dx = plan.eye_radius * np.sin(faps[:, yaw] * au)
-        dy = plan.eye_radius * np.sin(faps[:, pitch] * au)
+        dx = plan.eye_radius * np.sin(faps[:, iyaw] * au)
+        dy = plan.eye_radius * np.sin(faps[:, ipitch] * au)
         pos[:, i] += dx[:, None] * ex + dy[:, None] * ey
     # tongue roll raises the tongue borders 6.3 / 6.4
     lift = plan.tongue_roll_scale * np.sin(faps[:, 46] * au * 100.0)

@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,7 @@ from .warp import WarpPlan, WarpResult, warp
 #: estimate_own rounds, each against the FAPU of the neutral the previous one implies
 OWN_ROUNDS = 3
 
-FapInput = Mapping[object, float] | np.ndarray | None
+FapInput = Mapping[Any, float] | np.ndarray | None  # keys: FAP names or numbers
 
 
 def _extra_points(mesh: StandardMesh, verts: np.ndarray, lm: Landmarks,
@@ -87,7 +88,8 @@ class Face:
     vertices: np.ndarray
     mesh: StandardMesh = field(default_factory=standard_mesh)
     source: str | None = None
-    expression: np.ndarray | None = None
+    #: (68,) float32 FAP vector of the photo's own expression f0 (zeros: the photo is neutral)
+    expression: np.ndarray = field(default_factory=lambda: np.zeros(68, np.float32))
     expression_words: str = "neutral"
     #: (68, 2) landmarks of the neutral face the own-expression estimate implies (prior mean
     #: shape + identity modes, :attr:`OwnExpression.neutral68`); None: the photo's landmarks
@@ -103,8 +105,7 @@ class Face:
         self.image.setflags(write=False)
         self.vertices = np.asarray(self.vertices, np.float32)
         self.frame = FaceFrame.from_points(self.landmarks.points)
-        f0 = np.zeros(68, np.float32) if self.expression is None else \
-            FAPS.clamp(FAPS.vector(self.expression))
+        f0 = FAPS.clamp(FAPS.vector(self.expression))
         self.expression = f0
         self.expression.setflags(write=False)
         self.neutral_vertices, self.fapu, self.plan, self._offset = self._neutralise(
@@ -254,7 +255,8 @@ class Face:
         vec = None if expression is None else self.fap_vector(expression)
         if words is None:
             words = "neutral" if vec is None or not vec.any() else "edited"
-        return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, vec,
+        f0 = np.zeros(68, np.float32) if vec is None else vec
+        return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source, f0,
                     words, photo_plan=self._photo_plan())
 
     def _photo_plan(self) -> tuple[dict[str, float], DeformPlan] | None:

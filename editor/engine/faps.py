@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -233,7 +234,7 @@ class FapTable(Mapping[object, Fap]):
                 return int(k)
         raise ValueError(f"unknown FAP {key!r} (expected a number 1-68 or an MPEG-4 FAP name)")
 
-    def vector(self, faps: Mapping[object, float] | np.ndarray | None) -> np.ndarray:
+    def vector(self, faps: Mapping[Any, float] | np.ndarray | None) -> np.ndarray:
         """A (68,) float32 vector (index i = FAP i+1) from a mapping name/number -> value.
 
         Non-finite values raise ValueError naming the key. Values are *not* clamped here.

@@ -360,7 +360,8 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
 
     fr = FaceFrame.from_points(np.asarray(points68, np.float64))
     ey = fr.rot[:, 1]
-    lum = np.ascontiguousarray(np.asarray(rgb, np.float32) @ np.float32([0.299, 0.587, 0.114]))
+    luma = np.array([0.299, 0.587, 0.114], np.float32)
+    lum = np.ascontiguousarray(np.asarray(rgb, np.float32) @ luma)
     up = np.array([V[f"lipi_u{k}"] for k in range(1, 8)], np.float64)
     lo = np.array([V[f"lipi_d{k}"] for k in range(1, 8)], np.float64)
     mw = float(np.linalg.norm(V["lipo_c1"] - V["lipo_c0"]))

@@ -140,8 +140,8 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     empty = ~opening.any(0)
     if empty.any() and (~empty).any():
         full = np.flatnonzero(~empty)
-        for j in np.flatnonzero(empty):
-            out[:, j] = out[:, full[np.argmin(np.abs(full - j))]]
+        for e in np.flatnonzero(empty):
+            out[:, e] = out[:, full[np.argmin(np.abs(full - e))]]
     return out
 
 #: How much darker the white gets far above / below the lids' bands (a lit ball's top)
@@ -457,8 +457,8 @@ class EyePlan:
             corner = self.corner_l if du > 0 else self.corner_r
             bound = _line_u(p, q, W) + du
             moved = (U >= bound) if du > 0 else (U <= bound)
-            dst = np.float32([corner, p + (du, 0.0), q + (du, 0.0)])
-            src = np.float32([corner, p, q])
+            dst = np.array([corner, p + (du, 0.0), q + (du, 0.0)], np.float32)
+            src = np.array([corner, p, q], np.float32)
             A = cv2.getAffineTransform(dst, src).astype(np.float64)
             Ua = A[0, 0] * U + A[0, 1] * W + A[0, 2]
             Wa = A[1, 0] * U + A[1, 1] * W + A[1, 2]
@@ -494,6 +494,7 @@ class EyePlan:
                 if low_moved:
                     k_lo = 1.0 - s_lo * (1.0 - _clamp(w_lo0 - W - self.band_low + 0.5, 0, 1))
                     keep = k_lo if keep is None else keep * k_lo
+                assert keep is not None  # up_moved or low_moved
                 keep = keep.astype(np.float32)[..., None]
                 ball = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
                                  borderMode=cv2.BORDER_REPLICATE)

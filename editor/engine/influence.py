@@ -193,9 +193,10 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         # ears: the ear moves whole
         top, back = ("10.1", "10.3") if s == "l" else ("10.2", "10.4")
         ct = "contour_32" if s == "l" else "contour_0"
+        xm, xb = sorted((X(f"ear_{s}_mid"), X(f"ear_{s}_back")))
         ear = Rect(X(ct, -sign * 0.02), Y(f"ear_{s}_top", -0.4), X(f"ear_{s}_back", sign * 0.3),
                    Y(f"ear_{s}_lobe", 0.15),
-                   px=tuple(sorted((X(f"ear_{s}_mid"), X(f"ear_{s}_back")))),
+                   px=(xm, xb),
                    py=(Y(f"ear_{s}_top"), Y(f"ear_{s}_lobe")))
         R[top] = ear
         R[back] = ear

@@ -19,7 +19,7 @@ import importlib.util
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -124,7 +124,7 @@ def _models_dir() -> Path:
 
 
 @lru_cache(maxsize=1)
-def _dlib_models() -> tuple[object, object]:
+def _dlib_models() -> tuple[Any, Any]:  # dlib has no type information
     import dlib
 
     path = _models_dir() / "shape_predictor_68_face_landmarks.dat"
@@ -207,7 +207,7 @@ def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int) -> Iris:
     x0, y0 = int(max(0, poly[:, 0].min() - pad)), int(max(0, poly[:, 1].min() - pad))
     x1 = int(min(rgb.shape[1], poly[:, 0].max() + pad))
     y1 = int(min(rgb.shape[0], poly[:, 1].max() + pad))
-    roi = cv2.cvtColor(rgb[y0:y1, x0:x1], cv2.COLOR_RGB2GRAY).astype(np.float32)
+    roi: np.ndarray = cv2.cvtColor(rgb[y0:y1, x0:x1], cv2.COLOR_RGB2GRAY).astype(np.float32)
     if s != 1.0:
         roi = cv2.resize(roi, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
     mask = np.zeros(roi.shape, np.uint8)

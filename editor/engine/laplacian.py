@@ -48,7 +48,7 @@ def _closest_on_triangles(p: np.ndarray, tri_pts: np.ndarray) -> tuple[np.ndarra
     v = (d11 * d20 - d01 * d21) / den
     w = (d00 * d21 - d01 * d20) / den
     bary = np.stack([1.0 - v - w, v, w], -1)
-    inside = (bary >= -1e-9).all(-1)
+    inside = np.asarray((bary >= -1e-9).all(-1))
     best = np.where(inside, 0.0, np.inf)
     out = np.where(inside[..., None], bary, 0.0)
     for i, j in ((0, 1), (1, 2), (2, 0)):

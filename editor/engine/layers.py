@@ -30,10 +30,11 @@ import time
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from .deform import eye_state
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
@@ -51,7 +52,7 @@ from .mouth import (
 from .warp import WarpResult
 
 if TYPE_CHECKING:
-    from .face import Face
+    from .face import Face, FapInput
 
 _SHIFT = 4
 _TOL = 1e-3
@@ -88,7 +89,7 @@ def layer_plan(face: Face) -> LayerPlan:
                                cv2.LINE_8, 4)
         skin = (np.median(img[skin_mask > 0], axis=0).astype(np.float32)
                 if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
-        skin_l = float(max(_lum(skin), 20.0))
+        skin_l = max(float(_lum(skin)), 20.0)
         sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
         poly = v[mesh.holes["mouth"]]
         mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l),
@@ -122,7 +123,7 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
     x0, y0, x1, y1 = box
     m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.rint((np.asarray(poly, np.float32) - np.float32([x0, y0])) * (1 << _SHIFT))
+    q = np.rint((np.asarray(poly, np.float32) - np.array([x0, y0], np.float32)) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
     return m.view(bool)  # 0 / 1 bytes
 
@@ -156,9 +157,10 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     inside = hole.astype(np.uint8)
     depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
+    labels = cast("npt.NDArray[np.int32]", labels)  # the stubs say int or float: int32 labels
     lips = face[~hole]  # labels number the zero pixels row by row
-    rim = np.take(lips, labels - 1, axis=0, mode="clip").astype(np.float32) if len(lips) \
-        else np.zeros(face.shape, np.float32)
+    rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip").astype(np.float32) \
+        if len(lips) else np.zeros(face.shape, np.float32)
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
@@ -208,7 +210,7 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
         face *= shade[..., None]
     if np.count_nonzero(hole):
         keep = (~hole).astype(np.float32)
-        num = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
+        num: np.ndarray = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
                             borderType=cv2.BORDER_REPLICATE)
         den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
         num /= np.maximum(den, 1e-6)[..., None]
@@ -288,6 +290,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
             if active:
+                assert state is not None  # computed when the first active eye job was queued
                 r_new, p_new = (float(x) for x in state[k])
                 shift = ep.gaze_shift(extra[k], tf)
             else:
@@ -311,7 +314,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 _to_uint8(o + la * (col - o), out[y0:y1, x0:x1])
         drawn[name] = (box, hole)
         bbox = _union(bbox, box)
-    if bbox == res.bbox:
+    if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, drawn)
 
@@ -500,7 +503,7 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     h, w = y1 - y0, x1 - x0
     if h <= 0 or w <= 0:
         return np.zeros((max(h, 0), max(w, 0)), np.float32)
-    big = np.zeros((h * ss, w * ss), np.uint8)
+    big: np.ndarray = np.zeros((h * ss, w * ss), np.uint8)
     # sample grid, 4 fractional bits: ((p - box origin) + 0.5) * ss - 0.5, times 16, in one
     # product and one sum (exact in float64 for power-of-two ss, as the step-by-step form)
     k = 16.0 * ss
@@ -535,7 +538,7 @@ def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
     return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"], res.maps)
 
 
-def layers_cost_ms(face: Face, faps: object, n: int = 30, warm: int = 3) -> dict[str, float]:
+def layers_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:
     """Median time (ms) of ``face.render(faps)`` with and without the layers.
 
     ``without`` = deform + warp with its flat cavity (what ``render`` did before the layers),

@@ -135,6 +135,6 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         new[keep] = patch[keep]
         img[y0:y1, x0:x1] = new
         bbox = _union(bbox, (x0, y0, x1, y1))
-    if bbox == res.bbox:
+    if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, {})

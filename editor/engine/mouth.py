@@ -217,7 +217,7 @@ class MouthPlan:
         target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
         tongue_mean = _opaque_mean(raw["tongue"], sat)
-        gain_g = np.full(3, TONGUE_L * skin_l / float(max(_lum(tongue_mean), 1.0)), np.float32)
+        gain_g = np.full(3, TONGUE_L * skin_l / max(float(_lum(tongue_mean)), 1.0), np.float32)
         tex = {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0),
                                   ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
@@ -330,6 +330,8 @@ class MouthPlan:
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
         # where each pixel samples the photo's own interior (its patch's pixels): skull part
+        if self.own_off is None or self.ext is None:
+            raise RuntimeError("MouthPlan.render needs the photo's interior (attach_own)")
         ofx, ofy = self.own_off
         sx = Si[0, 0] * xs + Si[0, 1] * ys + (Si[0, 2] - ofx)
         sy = Si[1, 0] * xs + Si[1, 1] * ys + (Si[1, 2] - ofy)
@@ -456,7 +458,7 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     """
     lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
     k = 2 * math.ceil(lo + ramp) + 3
-    h = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
+    h: np.ndarray = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
                       borderType=cv2.BORDER_CONSTANT)
     h /= np.float32(3.0)
     h -= lo
@@ -478,8 +480,8 @@ def _smoothstep1(t: float) -> np.float64:
 
 
 def _smoothstep(t: np.ndarray | float) -> np.ndarray:
-    t = _clamp(t, 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
+    c: np.ndarray = _clamp(t, 0.0, 1.0)
+    return c * c * (3.0 - 2.0 * c)
 
 
 def _jaw_anchor(v: np.ndarray, i21: int, i23: int, ex: np.ndarray, ey: np.ndarray) -> np.ndarray:

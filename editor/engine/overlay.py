@@ -10,7 +10,7 @@ from .landmarks import Landmarks
 _SHIFT = 4
 
 
-def _pt(p: np.ndarray, s: float = 1.0) -> tuple[int, int]:
+def _pt(p: np.ndarray | tuple[float, float], s: float = 1.0) -> tuple[int, int]:
     return int(round(p[0] * s * 16)), int(round(p[1] * s * 16))
 
 

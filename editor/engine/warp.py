@@ -46,7 +46,8 @@ class WarpPlan:
     triangles: np.ndarray
     holes: dict[str, np.ndarray]
     tri_of_vertex: list[np.ndarray] = field(default_factory=list)
-    neutral_mouth: np.ndarray | None = None  # (H, W) bool, photo's own mouth opening
+    #: (H, W) bool, photo's own mouth opening (computed by __post_init__)
+    neutral_mouth: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self.image = np.ascontiguousarray(self.image)

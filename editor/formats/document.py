@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -69,7 +70,7 @@ class Document:
             return cls(face.source, face.vertices, np.zeros(68, np.float32), True)
         return cls(face.source, face.vertices, face.expression)
 
-    def replace(self, **changes: object) -> Document:
+    def replace(self, **changes: Any) -> Document:
         return dataclasses.replace(self, **changes)
 
     def equals(self, other: Document | None) -> bool:
@@ -85,7 +86,7 @@ class Document:
         """Value of one FAP (name or number) in FAPU."""
         return float(self.faps[FAPS.number(key) - 1])
 
-    def with_faps(self, values: Mapping[object, float]) -> Document:
+    def with_faps(self, values: Mapping[Any, float]) -> Document:
         """A copy with some FAPs set (names or numbers), clamped; ``self`` if nothing changes."""
         v = self.faps.copy()
         for key, val in values.items():

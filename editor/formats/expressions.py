@@ -284,7 +284,8 @@ def _vector(sel: int | Preset | np.ndarray, table: Mapping[int, object] | None,
 
 
 def _number_in(x: object, lo: float, hi: float) -> bool:
-    return isinstance(x, (int, float, np.number)) and not isinstance(x, bool) and lo <= x <= hi
+    return (isinstance(x, (int, float, np.number)) and not isinstance(x, bool)
+            and bool(lo <= x <= hi))
 
 
 def _weight(x: float, what: str) -> float:

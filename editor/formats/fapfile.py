@@ -23,6 +23,7 @@ import os
 import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -51,10 +52,16 @@ def round_half_away(a: np.ndarray | float | list) -> np.ndarray:
     return np.sign(a) * np.floor(np.abs(a) + 0.5)
 
 
+def _filled_in() -> Any:
+    """Default of a dataclass field that ``__post_init__`` computes when it is None."""
+    return None
+
+
+@dataclass(frozen=True)
 class _Fields:
     """Integer fields, each in 0..``_limits[i]``; ValueError naming the field otherwise."""
 
-    _limits: tuple[int, ...] = ()
+    _limits: ClassVar[tuple[int, ...]] = ()
 
     def __post_init__(self) -> None:
         for f, hi in zip(fields(self), self._limits, strict=True):
@@ -105,14 +112,16 @@ class FapSequence:
     notes : list of str           what the reader tolerated (floats rounded, Greta masks, ...)
     """
 
+    # masks, frame_numbers, visemes, expressions: None (the default) is filled in by
+    # __post_init__, so the attributes are never None
     frames: np.ndarray
-    masks: np.ndarray | None = None
+    masks: np.ndarray = field(default_factory=_filled_in)
     fps: float = 25.0
     name: str = "fap-studio"
     version: str = "2.1"
-    frame_numbers: np.ndarray | None = None
-    visemes: list[VisemeField | None] | None = None
-    expressions: list[ExpressionField | None] | None = None
+    frame_numbers: np.ndarray = field(default_factory=_filled_in)
+    visemes: list[VisemeField | None] = field(default_factory=_filled_in)
+    expressions: list[ExpressionField | None] = field(default_factory=_filled_in)
     notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -186,8 +195,9 @@ def partner_mask(m: np.ndarray) -> np.ndarray:
     """The (68,) mask ``m`` plus the left/right partner of each masked FAP, FAP 1/2 off."""
     out = np.array(m, bool)
     for i in np.flatnonzero(out):
-        if FAPS[int(i) + 1].mirror:
-            out[FAPS[int(i) + 1].mirror - 1] = True
+        mirror = FAPS[int(i) + 1].mirror
+        if mirror:
+            out[mirror - 1] = True
     out[:2] = False
     return out
 
@@ -231,7 +241,7 @@ def _short(tok: str) -> str:
 def _number(tok: str) -> tuple[float, bool] | None:
     """(value, was_decimal) of a plain decimal number token, else None (no nan/inf/1_0)."""
     if len(tok) > 40:  # never convert a huge token (int limit, OverflowError): out of range
-        return (float("inf") if tok.lstrip("+-")[:1].isdigit() else None), False
+        return (float("inf"), False) if tok.lstrip("+-")[:1].isdigit() else None
     if _INT.match(tok):
         return float(int(tok)), False
     return (float(tok), True) if _NUM.match(tok) else None
@@ -311,9 +321,11 @@ class _Parser:
                                      f"expected {what}")
             self.decimals += num[1]
             values.append(num[0])
-        vis = expr = None
+        vis: VisemeField | None = None
+        expr: ExpressionField | None = None
         if is_x:
-            ints = [int(v) if v == int(v) else v for v in values[:n1 + n2]]
+            # a non-integer value is passed on: the field's own check names it (ValueError)
+            ints: list[Any] = [int(v) if v == int(v) else v for v in values[:n1 + n2]]
             try:
                 vis = VisemeField(*ints[:4]) if m1 else None
                 expr = ExpressionField(*ints[n1:]) if m2 else None
@@ -330,7 +342,9 @@ class _Parser:
         available = (len(self.content) - 1) // 2
         n = min(count, available)  # never allocate from the header's count alone
         frames, masks = np.zeros((n, N_FAPS), np.float32), np.zeros((n, N_FAPS), bool)
-        numbers, visemes, exprs = np.zeros(n, np.int64), [None] * n, [None] * n
+        numbers = np.zeros(n, np.int64)
+        visemes: list[VisemeField | None] = [None] * n
+        exprs: list[ExpressionField | None] = [None] * n
         greta = xface = plain = 0
         for k in range(n):
             masks[k], extra = self.mask(self.content[1 + 2 * k])

@@ -59,8 +59,12 @@ class VideoWriter:
         except (OSError, av.FFmpegError) as e:
             raise FapStudioError(f"{path}: cannot write the video ({e})") from e
         rate = Fraction(fps).limit_denominator(1001)
-        self.stream = self.container.add_stream(
+        stream = self.container.add_stream(
             encoder, rate=rate, options=X264_OPTIONS if encoder == "libx264" else {})
+        if not isinstance(stream, av.VideoStream):  # the stubs' union: an encoder of another kind
+            self.container.close()
+            raise FapStudioError(f"{path}: {encoder} is not a video encoder")
+        self.stream = stream
         self.stream.width, self.stream.height = w + self.pad[0], h + self.pad[1]
         self.stream.pix_fmt = self.pix_fmt
         self._av = av

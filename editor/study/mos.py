@@ -310,7 +310,8 @@ class Study:
     def stimuli(self) -> list[Stimulus]:
         """All stimuli in id order (without image bytes; see :meth:`image_bytes`)."""
         sql = "SELECT id, face, label, intensity, source FROM stimuli ORDER BY id"
-        return [Stimulus(*row, study_uid=self.uid) for row in self._rows(sql)]
+        return [Stimulus(i, face, label, intensity, source, study_uid=self.uid)
+                for i, face, label, intensity, source in self._rows(sql)]
 
     def image_bytes(self, stimulus_id: int) -> bytes:
         """The encoded image stored for a stimulus (PNG, JPEG or BMP bytes)."""
@@ -348,20 +349,21 @@ class Study:
         with self._tx() as con:
             row = con.execute("SELECT seed FROM raters WHERE id=?", (rater_id,)).fetchone()
             if row is None:
-                seed = secrets.randbits(63) if seed is None else int(seed)
-                if not 0 <= seed < 2**63:
-                    raise StudyError(f"seed must be in [0, 2**63), got {seed}")
+                used = secrets.randbits(63) if seed is None else int(seed)
+                if not 0 <= used < 2**63:
+                    raise StudyError(f"seed must be in [0, 2**63), got {used}")
                 ids = [i for (i,) in con.execute("SELECT id FROM stimuli ORDER BY id")]
-                order = np.random.default_rng(seed).permutation(ids).tolist()
-                con.execute("INSERT INTO raters VALUES (?, ?, ?)", (rater_id, seed, _now()))
+                order = np.random.default_rng(used).permutation(ids).tolist()
+                con.execute("INSERT INTO raters VALUES (?, ?, ?)", (rater_id, used, _now()))
                 con.executemany("INSERT INTO rater_order VALUES (?, ?, ?)",
                                 [(rater_id, pos, sid) for pos, sid in enumerate(order)])
             elif seed is not None and int(seed) != row[0]:
                 raise StudyError(f"rater {rater_id!r} already started with seed {row[0]}")
-            seed = int(seed) if row is None else row[0]
+            else:
+                used = row[0]
             order = [s for (s,) in con.execute(
                 "SELECT stimulus FROM rater_order WHERE rater=? ORDER BY position", (rater_id,))]
-        return RaterSession(self, rater_id, int(seed), tuple(order))
+        return RaterSession(self, rater_id, int(used), tuple(order))
 
 
 class RaterSession:

@@ -20,6 +20,7 @@ synthesis error is reported on the test people, beside two baselines that use no
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -256,7 +257,8 @@ def _baselines(base: dict[str, np.ndarray], model: BilinearModel, neutral: np.nd
                                                    t).mean(axis=0)
 
 
-def _row(label: str, values: np.ndarray | list[float], width: int = 7, fmt: str = "{:.2f}") -> str:
+def _row(label: str, values: np.ndarray | Sequence[float | str], width: int = 7,
+         fmt: str = "{:.2f}") -> str:
     return label + "".join(fmt.format(v).rjust(width) for v in values)
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -127,7 +128,7 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
     make = estimator_factory or FapEstimator
     out = ClosedLoop()
     jobs = [(p, c, f) for p in who for c in JAFFE_EMOTIONS for f in files[p].get(c, [])]
-    faces: dict[str, tuple[Face, object]] = {}
+    faces: dict[str, tuple[Face, Any]] = {}  # Any: whatever estimator_factory makes
     for k, (p, code, path) in enumerate(jobs):
         if p not in faces:
             face = Face.from_image(files[p]["NE"][0], own_expression=False)

@@ -407,7 +407,7 @@ def track_video(path: str | os.PathLike[str], fps: float | None = None,
                     neutral_idx = i
                 except NoFaceError:
                     lm = None
-            if lm is None:
+            if lm is None or est is None:  # est is set once a face is found
                 rows.append(None)
                 resid.append(np.nan)
                 angle.append(np.nan)

@@ -83,7 +83,7 @@ def _detect_all(paths: list[Path]) -> dict[str, np.ndarray]:
                                        lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r]]
                                      ).astype(np.float32)
     tmp = cache.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, **out)
+    np.savez_compressed(tmp, allow_pickle=False, **out)
     tmp.replace(cache)
     return out
 

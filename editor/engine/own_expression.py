@@ -8,12 +8,12 @@ photo's 68 landmarks with a *neutral-shape prior* (SPEC §7.1):
 
 * ``mu`` (68, 2): the mean neutral shape, in a canonical frame (eye centres at (-0.5, 0) and
   (0.5, 0), y down), aligned to the photo by the weighted similarity ``M`` on the stable points
-  (eye corners, nose bridge, nose tip; :data:`~editor.synthesis.fap_estimate.STABLE_POINTS`);
+  (eye corners, nose bridge, nose tip; :data:`~editor.engine.fap_model.STABLE_POINTS`);
 * ``B`` (136, K): identity modes, rigid variations of face parts between people (mouth height,
   mouth width, lip thickness, brow height/arch/spacing, eye opening, nose and jaw length, face
   width, corner height), each with a prior standard deviation ``sigma`` measured on real neutral
   faces; no mode opens the lips, so lips apart always reads as expression;
-* ``J f``: the FAP model of :class:`~editor.synthesis.fap_estimate.FapEstimator` on this
+* ``J f``: the FAP model of :class:`~editor.engine.fap_model.FapEstimator` on this
   photo's mesh.
 
 Identity and expression are solved together (bounded least squares); the identity modes absorb
@@ -38,6 +38,7 @@ from scipy.stats import chi2
 from editor.resources import NEUTRAL_PRIOR
 
 from .deform import LIP_PAIRS
+from .fap_model import STABLE_POINTS, STABLE_WEIGHTS, FapEstimator, apply_affine, similarity
 from .faps import FAPS
 
 PRIOR_PATH = NEUTRAL_PRIOR
@@ -229,14 +230,6 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     :data:`FAP_SPREAD`, the prior standard deviation of each FAP's motion of its feature point
     (expressions compete with the identity modes on the same footing).
     """
-    from editor.synthesis.fap_estimate import (
-        STABLE_POINTS,
-        STABLE_WEIGHTS,
-        FapEstimator,
-        apply_affine,
-        similarity,
-    )
-
     pr = prior or default_prior()
     x = np.array(face.landmarks.points, np.float64)  # a copy: the inner lips are moved below
     M = similarity(pr.mean[STABLE_POINTS], x[STABLE_POINTS], STABLE_WEIGHTS)

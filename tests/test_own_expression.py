@@ -246,11 +246,9 @@ def test_photo_lip_offset_follows_the_opening(sample_face):
     makes f0 the photo must not close a smaller opening: half of f0 opens half the photo's
     gaps, joy opens every middle pair, p/b/m closes them, f0 is the photo."""
     f = sample_face
-    ey = f.frame.rot[:, 1]
-    pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]
 
     def gaps(v):
-        return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
+        return _inner_lip_gaps(f, v)
 
     photo = gaps(f.vertices)
     assert np.abs(gaps(f.deform(f.expression)) - photo).max() < 1e-3
@@ -278,11 +276,9 @@ def test_photo_lip_offset_scales_with_the_rendered_opening(sample_face):
     from editor.engine.deform import deform_points
 
     f = sample_face
-    ey = f.frame.rot[:, 1]
-    pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]
 
     def gaps(v):
-        return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
+        return _inner_lip_gaps(f, v)
 
     photo, model0 = gaps(f.vertices), gaps(deform_points(f.plan, f.expression))
     assert (model0 > 1e-3).all()  # the model opens every pair at f0 (as the photo)
@@ -320,14 +316,19 @@ def test_sample_own_expression_opens_the_lips_as_the_photo(sample_face):
     from editor.engine.deform import deform_points
 
     f = sample_face
-    ey = f.frame.rot[:, 1]
-    pairs = [(u, lo) for u, lo in f.mesh.pairs if f.mesh.names[u].startswith("lipi")]
 
     def gaps(v):
-        return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
+        return _inner_lip_gaps(f, v)
 
     photo = gaps(f.vertices)
     assert np.abs(gaps(deform_points(f.plan, f.expression)) - photo).max() < 1.0
     for name, side in (("joy", 0.55), ("surprise", 0.65), ("viseme_aa", 0.65)):
         g = gaps(f.deform(apply_preset(name)))[1:-1]  # the corner pairs close by design
         assert g.min() > side * g.max(), (name, g.round(2))
+
+
+def _inner_lip_gaps(face, v: np.ndarray) -> np.ndarray:
+    """Gap (px, along the face's vertical) of each inner-lip vertex pair of the mesh ``v``."""
+    ey = face.frame.rot[:, 1]
+    pairs = [(u, lo) for u, lo in face.mesh.pairs if face.mesh.names[u].startswith("lipi")]
+    return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])

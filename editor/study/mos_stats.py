@@ -343,7 +343,8 @@ def _nat(x: float) -> str:
     return "-" if np.isnan(x) else f"{round(x, 3):g}"
 
 
-def _ci(ci: tuple[float, float], scale: float = 1.0, digits: int = 1) -> str:
+def format_ci(ci: tuple[float, float], scale: float = 1.0, digits: int = 1) -> str:
+    """A confidence interval as ``[lo, hi]`` (times ``scale``, ``digits`` decimals); - if NaN."""
     return "-" if np.isnan(ci[0]) else f"[{ci[0] * scale:.{digits}f}, {ci[1] * scale:.{digits}f}]"
 
 
@@ -357,8 +358,9 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[str]], left: int = 1) 
 
 
 def _summary_row(key: str, s: Summary) -> list[str]:
-    return [key, str(s.n), _pct(s.recognition), _ci(s.recognition_ci, 100), _nat(s.naturalness),
-            _ci(s.naturalness_ci, 1, 2), _pct(s.share_ge3), _pct(s.share_eq5)]
+    return [key, str(s.n), _pct(s.recognition), format_ci(s.recognition_ci, 100),
+            _nat(s.naturalness), format_ci(s.naturalness_ci, 1, 2), _pct(s.share_ge3),
+            _pct(s.share_eq5)]
 
 
 def format_report(report: StudyReport, title: str = "") -> str:

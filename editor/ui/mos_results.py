@@ -28,6 +28,7 @@ from editor.errors import FapStudioError
 from editor.safeio import atomic_file
 from editor.study.mos import CANNOT_TELL, Study
 from editor.study.mos_stats import StudyReport, Summary, analyse, format_report
+from editor.study.mos_stats import format_ci as ci
 from editor.study.stimuli import export_answers_csv
 
 from .plots import BarPlot, ConfusionPlot
@@ -41,10 +42,6 @@ def pct(x: float) -> str:
 
 def nat(x: float) -> str:
     return "-" if math.isnan(x) else f"{x:.2f}"
-
-
-def ci(c: tuple[float, float], scale: float = 1.0, digits: int = 1) -> str:
-    return "-" if math.isnan(c[0]) else f"[{c[0] * scale:.{digits}f}, {c[1] * scale:.{digits}f}]"
 
 
 def summary_cells(s: Summary) -> list[str]:

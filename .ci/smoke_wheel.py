@@ -47,6 +47,12 @@ def main() -> None:
     check(set(load_textures()) == set(resources.MOUTH_TEXTURES), "mouth textures load")
     check(len(default_prior().names) > 0, "neutral prior loads")
     sample = load_image(resources.SAMPLE_FACE)
+    from editor.engine.landmarks import detect_landmarks
+
+    lm = detect_landmarks(sample)  # the default detector's models are package data
+    check(lm.detector == "mediapipe-468" and lm.mesh is not None and lm.mesh.shape == (468, 2)
+          and 35 < lm.interocular < 50,
+          f"MediaPipe landmarks on the sample face ({lm.detector}, IOD {lm.interocular:.1f} px)")
 
     exe = Path(sys.executable).parent / "fap-studio"
     out = Path("smoke.png").resolve()

@@ -12,6 +12,8 @@ refuses an installed copy.
                       (``scripts/draw_mouth_textures.py``)
 ``PRESETS_DIR``       the shipped emotion and viseme presets (``scripts/derive_presets.py``)
 ``SAMPLE_FACE``       the bundled sample photo (NASA, public domain)
+``MODELS_DIR``        MediaPipe's face detector, face mesh and iris models (Apache-2.0,
+                      ``LICENSE`` and ``NOTICE`` beside them; :data:`MODEL_CREDITS`)
 ``DATA_README``       origins and licences of the files above
 ====================  ======================================================================
 """
@@ -60,7 +62,22 @@ NEUTRAL_PRIOR = data_path("neutral_prior.json")
 MOUTH_DIR = data_path("mouth")
 PRESETS_DIR = data_path("presets")
 SAMPLE_FACE = data_path("sample_face.png")
+MODELS_DIR = data_path("models")
 DATA_README = data_path("README.md")
+
+#: The landmark models FAP Studio can use, as (model, source, licence) for an About box. The
+#: first three ship inside the package (the default detector); dlib's is an optional extra.
+MODEL_CREDITS: tuple[tuple[str, str, str], ...] = (
+    ("BlazeFace short-range face detector (face_detection_short_range.tflite)",
+     "Google MediaPipe 0.10.18, https://github.com/google-ai-edge/mediapipe", "Apache-2.0"),
+    ("Face mesh, 468 points (face_landmark.tflite)",
+     "Google MediaPipe 0.10.18, https://github.com/google-ai-edge/mediapipe", "Apache-2.0"),
+    ("Iris landmarks (iris_landmark.tflite)",
+     "Google MediaPipe 0.10.18, https://github.com/google-ai-edge/mediapipe", "Apache-2.0"),
+    ("dlib 68-point shape predictor (optional extra: pip install fap-studio[dlib])",
+     "dlib (Davis King) via face-recognition-models, trained on iBUG 300-W",
+     "model: iBUG 300-W terms, non-commercial use only; dlib code: Boost Software License"),
+)
 
 # ------------------------------------------------------------------ per-user folders
 APP_NAME = "fap-studio"

@@ -18,6 +18,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from editor.core import detect_landmarks, load_image  # noqa: E402
+from editor.engine.landmarks import default_detector  # noqa: E402
 from editor.engine.own_expression import NeutralPrior, canonical  # noqa: E402
 from editor.errors import NoFaceError  # noqa: E402
 from editor.resources import NEUTRAL_PRIOR, source_path  # noqa: E402
@@ -40,7 +41,7 @@ def main() -> None:
     shapes = [np.array(v) for v in people.values()]
     n = sum(len(v) for v in shapes)
     prior = NeutralPrior.from_shapes(
-        shapes, f"dlib-68 landmarks of {n} neutral photos of {len(shapes)} people "
+        shapes, f"{default_detector().name} landmarks of {n} neutral photos of {len(shapes)} people "
         f"({Path(a.images).resolve().parent.name} '*.NE*' images; summary statistics only: "
         "mean shape made left/right symmetric, spread of each identity mode over the people "
         "x 1.5, at least 0.04 IOD, the mouth corners' height 0.015 IOD, per-point residual); "

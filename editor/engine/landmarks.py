@@ -1,4 +1,11 @@
-"""Offline facial landmarks: a small detector interface, dlib's 68 points, and the irises.
+"""Offline facial landmarks: the detector interface, the detectors, and the irises.
+
+Two detectors: the default :class:`~editor.engine.facemesh.MediaPipeDetector` (MediaPipe's
+Apache-2.0 face detector, 468-point mesh and iris models, shipped in the package) and the
+optional :class:`DlibDetector` (dlib's 68-point model, non-commercial terms; ``pip install
+fap-studio[dlib]``). :func:`set_default_detector` picks the process-wide default by name
+(``mediapipe`` or ``dlib``; the CLI's ``--detector`` and the GUI's setting call it); the
+``FAP_STUDIO_DETECTOR`` environment variable sets the initial choice.
 
 Coordinates are image pixels, ``(x, y)`` with x to the right and y down, float32.
 
@@ -8,14 +15,17 @@ left, image right), 27-30 nose bridge down to the tip, 31-35 nose base, 36-41 an
 48-59 the outer lip contour, 60-67 the inner lip contour. The image's left is the subject's
 right: point 36 is the subject's right eye's outer corner (MPEG-4 FDP 3.12).
 
-The iris (FDP 3.5 / 3.6) is not given by the detector: :func:`locate_iris` finds the dark disc
-inside each eye opening (a vectorised circular template search, in the spirit of the paper's
-Canny-edge approach).
+Every detector gives these 68 points (the mesh through the documented table
+:data:`editor.engine.facemesh.MESH_TO_68`). The MediaPipe detector adds the dense 468-point mesh
+(``Landmarks.mesh``) and the iris model's circles. dlib gives no iris (FDP 3.5 / 3.6):
+:func:`locate_iris` finds the dark disc inside each eye opening (a vectorised circular template
+search, in the spirit of the paper's Canny-edge approach).
 """
 
 from __future__ import annotations
 
 import importlib.util
+import os
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -25,6 +35,8 @@ import cv2
 import numpy as np
 
 from editor.errors import FapStudioError, NoFaceError
+
+from .facemesh import MediaPipeDetector, points68_from_mesh
 
 #: Detection runs on a copy whose longer side is at most this many pixels.
 DETECT_MAX_SIDE = 800
@@ -80,6 +92,10 @@ class Landmarks:
         The subject's left (image right, FDP 3.5) and right (FDP 3.6) iris.
     detector : str
         Name of the detector that produced them.
+    mesh : (468, 2) float32 or None
+        The MediaPipe face mesh (its canonical vertex order), None from dlib.
+    confidence : float
+        The detector's face-presence probability (1.0 when it gives none).
     """
 
     points: np.ndarray
@@ -87,6 +103,8 @@ class Landmarks:
     iris_left: Iris
     iris_right: Iris
     detector: str = "dlib-68"
+    mesh: np.ndarray | None = None
+    confidence: float = 1.0
 
     def fdp_points(self) -> dict[str, tuple[float, float]]:
         """MPEG-4 feature points derived directly from the detection (incl. 3.5, 3.6)."""
@@ -171,15 +189,53 @@ class DlibDetector:
         return pts, box.astype(np.float32)
 
 
-_DEFAULT_DETECTOR: LandmarkDetector | None = None
+#: Detector names accepted by :func:`get_detector` (``--detector``, the GUI setting).
+DETECTOR_NAMES = ("mediapipe", "dlib")
+#: Environment variable naming the initial default detector.
+DETECTOR_ENV = "FAP_STUDIO_DETECTOR"
+
+_DETECTORS: dict[str, LandmarkDetector] = {}
+_DEFAULT_NAME: str | None = None
+
+
+def dlib_available() -> bool:
+    """True when the optional dlib extra (dlib and face-recognition-models) is installed."""
+    return all(importlib.util.find_spec(m) is not None
+               for m in ("dlib", "face_recognition_models"))
+
+
+def get_detector(name: str) -> LandmarkDetector:
+    """The (shared) detector called ``name`` (:data:`DETECTOR_NAMES`); FapStudioError for an
+    unknown name or dlib when its extra is not installed."""
+    key = name.strip().lower()
+    if key not in DETECTOR_NAMES:
+        raise FapStudioError(f"unknown landmark detector {name!r} (choose from "
+                             f"{', '.join(DETECTOR_NAMES)})")
+    if key == "dlib" and not dlib_available():
+        raise FapStudioError("the dlib detector is not installed (pip install "
+                             "'fap-studio[dlib]'); the default mediapipe detector needs nothing")
+    if key not in _DETECTORS:
+        _DETECTORS[key] = MediaPipeDetector() if key == "mediapipe" else DlibDetector()
+    return _DETECTORS[key]
+
+
+def set_default_detector(name: str) -> None:
+    """Make ``name`` the detector used when none is given (checked like :func:`get_detector`)."""
+    global _DEFAULT_NAME
+    get_detector(name)
+    _DEFAULT_NAME = name.strip().lower()
+
+
+def default_detector_name() -> str:
+    """The name of the current default detector (``$FAP_STUDIO_DETECTOR`` or mediapipe)."""
+    if _DEFAULT_NAME is not None:
+        return _DEFAULT_NAME
+    return os.environ.get(DETECTOR_ENV, "").strip().lower() or "mediapipe"
 
 
 def default_detector() -> LandmarkDetector:
-    """The detector used when none is given (dlib 68 points)."""
-    global _DEFAULT_DETECTOR
-    if _DEFAULT_DETECTOR is None:
-        _DEFAULT_DETECTOR = DlibDetector()
-    return _DEFAULT_DETECTOR
+    """The detector used when none is given (MediaPipe's face mesh unless changed)."""
+    return get_detector(default_detector_name())
 
 
 def _eye_polygon(points: np.ndarray, eye: int) -> np.ndarray:
@@ -245,11 +301,44 @@ def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int) -> Iris:
     return Iris(x0 + xi / s, y0 + yi / s, r / s)
 
 
+def _from_mesh(det: MediaPipeDetector, found: Any) -> Landmarks:
+    right = Iris(*found.iris_image_left)  # image left = subject's right eye (FDP 3.6)
+    left = Iris(*found.iris_image_right)
+    return Landmarks(points68_from_mesh(found.mesh), found.box, left, right, det.name,
+                     found.mesh, float(found.confidence))
+
+
 def detect_landmarks(rgb: np.ndarray, detector: LandmarkDetector | None = None) -> Landmarks:
-    """Detect the 68 landmarks and both irises of the largest face in an RGB uint8 image."""
+    """Detect the 68 landmarks and both irises of the largest face in an RGB uint8 image
+    (and the 468-point mesh with the MediaPipe detector)."""
     det = detector or default_detector()
+    if isinstance(det, MediaPipeDetector):
+        return _from_mesh(det, det.run(rgb))
     pts, box = det.detect(rgb)
     pts = np.asarray(pts, np.float32).reshape(68, 2)
     right = locate_iris(rgb, pts, 0)  # image left = subject's right eye (FDP 3.6)
     left = locate_iris(rgb, pts, 1)
     return Landmarks(pts, np.asarray(box, np.float32), left, right, det.name)
+
+
+class LandmarkTracker:
+    """Landmarks frame after frame of a video: with the MediaPipe detector each frame is cropped
+    from the previous frame's mesh (no detection while the face stays found); other detectors
+    detect every frame. A frame without a face raises :class:`NoFaceError` and the next frame
+    detects afresh."""
+
+    def __init__(self, detector: LandmarkDetector | None = None) -> None:
+        self.detector = detector or default_detector()
+        self._previous: np.ndarray | None = None
+
+    def __call__(self, rgb: np.ndarray) -> Landmarks:
+        det = self.detector
+        if not isinstance(det, MediaPipeDetector):
+            return detect_landmarks(rgb, det)
+        try:
+            lm = _from_mesh(det, det.track(rgb, self._previous))
+        except NoFaceError:
+            self._previous = None
+            raise
+        self._previous = lm.mesh
+        return lm

@@ -145,9 +145,10 @@ def track_video(path: str | os.PathLike[str], fps: float | None = None,
     import cv2
 
     from editor.engine.face import Face
-    from editor.engine.landmarks import detect_landmarks
+    from editor.engine.landmarks import LandmarkTracker
 
     t0 = time.perf_counter()
+    tracker = LandmarkTracker(detector)
     cap = cv2.VideoCapture(str(path))
     if not os.path.exists(str(path)) or not cap.isOpened():
         raise FapStudioError(f"{path}: cannot open the video")
@@ -170,7 +171,7 @@ def track_video(path: str | os.PathLike[str], fps: float | None = None,
             rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
             i = len(rows)
             try:
-                lm = detect_landmarks(rgb, detector)
+                lm = tracker(rgb)
             except NoFaceError:
                 lm = None
             if lm is not None and est is None:

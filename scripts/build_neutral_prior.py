@@ -41,7 +41,8 @@ def main() -> None:
     shapes = [np.array(v) for v in people.values()]
     n = sum(len(v) for v in shapes)
     prior = NeutralPrior.from_shapes(
-        shapes, f"{default_detector().name} landmarks of {n} neutral photos of {len(shapes)} people "
+        shapes, f"{default_detector().name} landmarks of {n} neutral photos of {len(shapes)} "
+        "people "
         f"({Path(a.images).resolve().parent.name} '*.NE*' images; summary statistics only: "
         "mean shape made left/right symmetric, spread of each identity mode over the people "
         "x 1.5, at least 0.04 IOD, the mouth corners' height 0.015 IOD, per-point residual); "

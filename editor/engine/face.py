@@ -41,7 +41,7 @@ from .deform import (
 )
 from .faps import FAPS
 from .fapu import measure_fapu
-from .fitting import FaceFrame, fit_vertices, snap_inner_lips
+from .fitting import CLOSED_LIPS_MW, FaceFrame, fit_vertices, snap_inner_lips
 from .imageio import as_rgb8, load_image
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
@@ -268,7 +268,7 @@ class Face:
         mesh = standard_mesh()
         h, w = rgb.shape[:2]
         named, _ = fit_vertices(lm.points, (w, h))
-        snap_inner_lips(named, rgb, lm.points)
+        snap_inner_lips(named, rgb, lm.points, CLOSED_LIPS_MW.get(lm.detector, 0.05))
         verts = np.array([named[n] for n in mesh.names], np.float32)
         sig = signed_areas(verts.astype(np.float64), mesh.triangles)
         if lm.interocular < 6:

@@ -236,17 +236,22 @@ def _run(net: Any, blob: np.ndarray, outputs: list[str]) -> list[np.ndarray]:
 
 def _crop_matrix(centre: np.ndarray, size: float, angle: float, out: int) -> np.ndarray:
     """Affine 2x3 matrix mapping image pixels to an ``out`` x ``out`` crop of the square of side
-    ``size`` centred at ``centre`` whose x axis runs along ``angle`` (radians, image coords)."""
+    ``size`` centred at ``centre`` whose x axis runs along ``angle`` (radians, image coords).
+
+    Pixel centres are at integer coordinates (OpenCV's convention): the square's corners map to
+    the crop's outer pixel edges (-0.5), as MediaPipe's image-to-tensor step does; the models'
+    outputs are in edge coordinates (0 = the crop's left edge), see :func:`_invert`."""
     ex = np.array([np.cos(angle), np.sin(angle)]) * size / 2
     ey = np.array([-np.sin(angle), np.cos(angle)]) * size / 2
     src = np.float32([centre - ex - ey, centre + ex - ey, centre - ex + ey])
-    dst = np.float32([[0, 0], [out, 0], [0, out]])
+    dst = np.float32([[-0.5, -0.5], [out - 0.5, -0.5], [-0.5, out - 0.5]])
     return cv2.getAffineTransform(src, dst)
 
 
 def _invert(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Model outputs (crop pixels, edge coordinates) -> image pixels (centre coordinates)."""
     inv = cv2.invertAffineTransform(m)
-    return pts @ inv[:, :2].T + inv[:, 2]
+    return (pts - 0.5) @ inv[:, :2].T + inv[:, 2]
 
 
 def _sigmoid(x: float) -> float:

@@ -339,7 +339,14 @@ def _ray_exit(c: np.ndarray, d: np.ndarray, quad: np.ndarray) -> float:
 
 
 
-def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndarray) -> None:
+#: Inner lips at most this fraction of the mouth width apart count as closed (dlib's closed-lip
+#: points coincide; MediaPipe's mesh keeps each lip's own inner edge, 0.03-0.08 MW apart on JAFFE's
+#: closed neutral mouths, against 0.13 and more on its parted ones).
+CLOSED_LIPS_MW = {"dlib-68": 0.05, "mediapipe-468": 0.09}
+
+
+def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndarray,
+                    closed_mw: float = 0.05) -> None:
     """Move the inner-lip vertices (in place) onto the photo's own lip edges.
 
     dlib's eight inner-lip points are often a pixel or two off the real edge; the mesh's
@@ -350,8 +357,8 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
     * a mouth that shows teeth (bright pixels between dlib's inner lips): the upper inner lip
       goes to the strongest dark-to-bright step (lip above teeth), the lower one to the
       strongest bright-to-dark step (teeth above lip), each on its own side of the opening;
-    * a closed mouth (inner lips at most 0.05 MW apart): both go to the darkest row, the lip
-      line.
+    * a closed mouth (inner lips at most ``closed_mw`` mouth widths apart, see
+      :data:`CLOSED_LIPS_MW`): both go to the darkest row, the lip line.
 
     The snapped points are refitted with the corner parabolas in the face frame (smooth); a
     weak edge keeps the dlib point; the lips never cross. Vectorised (``cv2.remap``).
@@ -392,7 +399,7 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
         best = score.argmax(1)
         ok = score[np.arange(14), best] > 0.08 * lip_l  # a real edge (luminance per px)
         cand = np.vstack([up, lo]) + ts[best][:, None] * ey
-    elif float(np.median(gap)) <= 0.05 * mw:
+    elif float(np.median(gap)) <= closed_mw * mw:
         prof = profiles(mid)
         best = prof.argmin(1)
         ok = np.tile(lip_l - prof[np.arange(7), best] > 0.08 * lip_l, 2)

@@ -12,6 +12,11 @@ photo is aligned the same way; the motion of the feature point of FAP ``n`` alon
 axis (face frame: up/down = y, left/right = x, the face's own left = +x) divided by her FAPU of
 the FAP's unit is the FAP value a renderer would need to reproduce it ("FAP-equivalent motion").
 The noise floor is each neutral photo against the mean of her other neutral photos.
+
+The landmarks come from :data:`DETECTOR` (dlib's 68 points, the optional extra), the instrument
+the shipped emotion presets were derived with (issue 14): MediaPipe's mesh, the default
+detector, follows the brows' and lids' expression motion less (JAFFE squeeze_eyebrow p10..p90
+-3..12 FAPU against dlib's -6..20 and more), so the bands are only comparable with dlib's.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ from editor.resources import checkout_jaffe_dir
 from .closed_loop import JAFFE_EMOTIONS
 
 CODES = JAFFE_EMOTIONS  # JAFFE expression code -> emotion
+#: The detector the statistics are measured with (see the module docstring).
+DETECTOR = "dlib"
 #: Feature point -> iBUG-68 indices: :data:`.landmarks.FDP_FROM_68` plus the lip mid-points
 #: (the landmarks nearest to the mesh's FDP vertices; face's own left = image right).
 FDP_68 = {**FDP_FROM_68, "2.6": (63,), "2.7": (61,), "2.8": (65,), "2.9": (67,),
@@ -61,21 +68,22 @@ def fap_motion(d_frame: dict[str, np.ndarray], fapu: dict[str, float],
     return np.array(out)
 
 
-def _detect_all(paths: list[Path]) -> dict[str, np.ndarray]:
+def _detect_all(paths: list[Path], detector: str = DETECTOR) -> dict[str, np.ndarray]:
     """name -> (73,) float32: 68 points, box 4 (unused), irises (x, y, r) x 2; cached."""
-    key = hashlib.sha1("".join(f"{p.name}{p.stat().st_size}{p.stat().st_mtime_ns}"
-                               for p in paths).encode()).hexdigest()[:16]
+    key = hashlib.sha1((detector + "".join(f"{p.name}{p.stat().st_size}{p.stat().st_mtime_ns}"
+                                           for p in paths)).encode()).hexdigest()[:16]
     cache = Path(tempfile.gettempdir()) / f"fap-studio-jaffe-landmarks-{key}.npz"
     if cache.exists():
         with np.load(cache) as z:
             return {k: z[k] for k in z.files}
     from editor.engine.imageio import load_image
-    from editor.engine.landmarks import detect_landmarks
+    from editor.engine.landmarks import detect_landmarks, get_detector
 
+    det = get_detector(detector)
     out = {}
     for p in paths:
         try:
-            lm = detect_landmarks(load_image(p))
+            lm = detect_landmarks(load_image(p), det)
         except Exception:  # noqa: BLE001 - a missed face is simply not measured
             continue
         out[p.name] = np.concatenate([lm.points.ravel(), lm.box,
@@ -92,7 +100,7 @@ def _landmarks(row: np.ndarray) -> Landmarks:
     pts = row[:136].reshape(68, 2)
     il, ir = row[140:143], row[143:146]
     return Landmarks(pts.copy(), row[136:140].copy(), Iris(*map(float, il)),
-                     Iris(*map(float, ir)))
+                     Iris(*map(float, ir)), "dlib-68" if DETECTOR == "dlib" else "mediapipe-468")
 
 
 @dataclass

@@ -12,7 +12,7 @@ import numpy as np
 
 from editor.errors import FapStudioError
 
-from .util import PHOTO_HELP, ProgressBar, photo_arg
+from .util import PHOTO_HELP, ProgressBar, detector_option, photo_arg
 
 
 def parse_preset(spec: str) -> tuple[str, float]:
@@ -93,6 +93,7 @@ def add_anim_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.add_argument("--no-creases", action="store_true", help="geometry only: no skin folds")
+    detector_option(s)
     s.set_defaults(func=cmd_animate)
 
     f = sub.add_parser("fap", help=".fap files: export presets, show information")

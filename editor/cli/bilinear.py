@@ -17,7 +17,7 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from editor.cli.util import PHOTO_HELP, guarded, photo_arg
+from editor.cli.util import PHOTO_HELP, detector_option, guarded, photo_arg
 from editor.errors import ModelError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -89,6 +89,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
     t.add_argument("--no-cv", action="store_true",
                    help="skip choosing λ (the model then stores none)")
     _model_options(t)
+    detector_option(t)
     t.set_defaults(func=guarded(run_train))
 
     e = sub.add_parser(
@@ -125,6 +126,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
     y.add_argument("--faps-json", default=None, metavar="FILE.json",
                    help="also write the FAP vector that best reproduces the shape (a preset)")
     y.add_argument("-o", "--output", required=True, metavar="OUT.png")
+    detector_option(y)
     y.set_defaults(func=guarded(run_synth))
 
 

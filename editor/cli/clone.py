@@ -24,7 +24,7 @@ import numpy as np
 from editor.errors import FapStudioError
 from editor.resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
-from .util import ProgressBar, guarded
+from .util import ProgressBar, detector_option, guarded
 
 SAMPLE = SAMPLE_FACE
 JAFFE_CODES = {"HA": "joy", "SU": "surprise", "AN": "anger", "SA": "sadness", "FE": "fear",
@@ -346,6 +346,7 @@ def add_clone_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--faps-json", metavar="OUT.json",
                    help="write the estimated FAPs as a preset file")
+    detector_option(s)
     s.set_defaults(func=guarded(cmd_clone))
 
     t = sub.add_parser("track", help="FAP sequence (.fap) from a performer video")
@@ -356,6 +357,7 @@ def add_clone_parser(sub) -> None:
                    "default savgol:5) | ema:A (forward-backward exponential, 0 < A <= 1)")
     t.add_argument("--fps", type=float, help="frame rate (default: the video's)")
     t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    detector_option(t)
     t.set_defaults(func=guarded(cmd_track))
 
     e = sub.add_parser("clone-eval", help="evaluate FAP recovery and cloning (JAFFE)")
@@ -370,4 +372,5 @@ def add_clone_parser(sub) -> None:
     e.add_argument("--skip-roundtrip", action="store_true")
     e.add_argument("--skip-jaffe", action="store_true")
     e.add_argument("-q", "--quiet", action="store_true")
+    detector_option(e)
     e.set_defaults(func=guarded(cmd_clone_eval))

@@ -19,7 +19,7 @@ from .anim import add_anim_parser
 from .bilinear import add_bilinear_parser
 from .clone import add_clone_parser
 from .study import add_study_parser
-from .util import PHOTO_HELP, photo_arg
+from .util import PHOTO_HELP, detector_option, photo_arg
 
 
 class _Parser(argparse.ArgumentParser):
@@ -73,7 +73,10 @@ def cmd_landmarks(a: argparse.Namespace) -> int:
             "points": {str(i): [float(x), float(y)] for i, (x, y) in enumerate(lm.points)},
             "fdp": {k: [round(x, 2), round(y, 2)] for k, (x, y) in lm.fdp_points().items()},
             "iris": {"3.5": lm.iris_left.as_list(), "3.6": lm.iris_right.as_list()},
+            "confidence": round(float(lm.confidence), 4),
         }
+        if lm.mesh is not None:  # MediaPipe's 468 points (its canonical vertex order)
+            data["mesh"] = [[round(float(x), 2), round(float(y), 2)] for x, y in lm.mesh]
         _write_json(a.json, data)
     if not a.output and not a.json:
         print(json.dumps({k: [round(x, 1), round(y, 1)] for k, (x, y) in lm.fdp_points().items()}))
@@ -202,6 +205,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="PNG with the points drawn over the photo")
     s.add_argument("--json", help="points by detector index and FDP id, iris circles")
     s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
+    detector_option(s)
     s.set_defaults(func=cmd_landmarks)
 
     s = sub.add_parser("mesh", help="fit the personalized MPEG-4 mesh and draw it")
@@ -209,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="PNG with the mesh drawn over the photo")
     s.add_argument("--json", help="vertices, triangles, fdp, fapu")
     s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
+    detector_option(s)
     s.set_defaults(func=cmd_mesh)
 
     s = sub.add_parser("render", help="render the photo with FAP values")
@@ -222,6 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-creases", action="store_true",
                    help="geometry only: no skin folds (nasolabial, forehead, ...)")
     _expression_options(s)
+    detector_option(s)
     s.set_defaults(func=cmd_render)
 
     s = sub.add_parser("gui", help="open the editor window")
@@ -231,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--project", help="open a project file")
     s.add_argument("--screenshot", help="save a screenshot of the window and exit")
     _expression_options(s)
+    detector_option(s)
     s.set_defaults(func=cmd_gui)
 
     for add in (add_anim_parser, add_clone_parser, add_study_parser, add_bilinear_parser):
@@ -248,6 +255,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        if getattr(a, "detector", None):
+            from editor.engine.landmarks import set_default_detector
+
+            set_default_detector(a.detector)
         code = int(a.func(a) or 0)
         sys.stdout.flush()
         return code

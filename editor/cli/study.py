@@ -19,7 +19,7 @@ from editor.study.stimuli import (
     render_stimuli,
 )
 
-from .util import guarded, photo_arg
+from .util import detector_option, guarded, photo_arg
 
 
 @guarded
@@ -112,6 +112,7 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="let raters change a committed answer")
     create.add_argument("--break-every", type=int, default=0, metavar="N",
                         help="offer a break after every N answers (0: never)")
+    detector_option(create)
     create.set_defaults(func=_cmd_create)
     report = sub.add_parser("report", help="print the result tables of a study")
     report.add_argument("study", type=Path)

@@ -19,6 +19,15 @@ SAMPLE_KEYWORD = "sample"
 PHOTO_HELP = f"photo (PNG/JPEG/...); '{SAMPLE_KEYWORD}' = the bundled sample face"
 
 
+def detector_option(parser: argparse.ArgumentParser) -> None:
+    """``--detector mediapipe|dlib``: the landmark detector of the command (default mediapipe,
+    or ``$FAP_STUDIO_DETECTOR``); :func:`editor.cli.main.main` applies it before running."""
+    parser.add_argument("--detector", choices=("mediapipe", "dlib"), default=None,
+                        help="landmark detector: mediapipe (default; MediaPipe face mesh, "
+                        "Apache-2.0 models shipped inside) or dlib (optional extra: pip install "
+                        "'fap-studio[dlib]'; its model's terms exclude commercial use)")
+
+
 def photo_arg(text: str) -> str:
     """argparse ``type`` of photo arguments: ``sample`` -> the bundled sample's path."""
     if text == SAMPLE_KEYWORD and not Path(text).exists():

@@ -254,6 +254,14 @@ def _invert(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return (pts - 0.5) @ inv[:, :2].T + inv[:, 2]
 
 
+def nose_position(mesh: np.ndarray) -> float:
+    """Where the nose tip (1) projects on the line from the image-left outer eye corner (33,
+    0) to the other (263, 1): about 0.5 for a frontal face, towards 0 or 1 as it turns."""
+    m = np.asarray(mesh, np.float64)
+    u = m[263] - m[33]
+    return float((m[1] - m[33]) @ u / (u @ u))
+
+
 def _sigmoid(x: float) -> float:
     return float(1.0 / (1.0 + np.exp(-np.clip(x, -80.0, 80.0))))
 
@@ -411,9 +419,7 @@ class MediaPipeDetector:
             raise NoFaceError(
                 f"the face is too small for landmarks ({iod:.0f} px between the eyes, at least "
                 f"{MIN_INTEROCULAR_PX:.0f} needed): use a larger photo of the face")
-        u = mesh[263] - mesh[33]
-        t = float((mesh[1] - mesh[33]) @ u / (u @ u))
-        if not PROFILE_NOSE_BAND[0] <= t <= PROFILE_NOSE_BAND[1]:
+        if not PROFILE_NOSE_BAND[0] <= nose_position(mesh) <= PROFILE_NOSE_BAND[1]:
             raise NoFaceError("the face is turned too far to the side (a profile): FAP Studio "
                               "needs a frontal face")
         mesh = mesh.copy()

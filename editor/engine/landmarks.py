@@ -196,6 +196,7 @@ DETECTOR_ENV = "FAP_STUDIO_DETECTOR"
 
 _DETECTORS: dict[str, LandmarkDetector] = {}
 _DEFAULT_NAME: str | None = None
+_EXPLICIT = False
 
 
 def dlib_available() -> bool:
@@ -219,11 +220,19 @@ def get_detector(name: str) -> LandmarkDetector:
     return _DETECTORS[key]
 
 
-def set_default_detector(name: str) -> None:
-    """Make ``name`` the detector used when none is given (checked like :func:`get_detector`)."""
-    global _DEFAULT_NAME
+def set_default_detector(name: str, explicit: bool = True) -> None:
+    """Make ``name`` the detector used when none is given (checked like :func:`get_detector`).
+    ``explicit``: chosen for this session (the CLI's ``--detector``), which a stored GUI
+    preference does not override."""
+    global _DEFAULT_NAME, _EXPLICIT
     get_detector(name)
     _DEFAULT_NAME = name.strip().lower()
+    _EXPLICIT = _EXPLICIT or explicit
+
+
+def default_detector_is_explicit() -> bool:
+    """True when the session's detector was chosen by ``--detector`` or the environment."""
+    return _EXPLICIT or bool(os.environ.get(DETECTOR_ENV, "").strip())
 
 
 def default_detector_name() -> str:

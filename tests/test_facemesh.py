@@ -1,0 +1,194 @@
+"""The default landmark detector: MediaPipe's face detector, mesh and iris models (issue 14)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from conftest import JAFFE, ROOT, SAMPLE, jaffe_images
+
+from editor.engine.facemesh import (
+    CONTOURS,
+    MESH_TO_68,
+    MediaPipeDetector,
+    nose_position,
+    points68_from_mesh,
+)
+from editor.engine.imageio import load_image
+from editor.engine.landmarks import (
+    MIRROR_68,
+    LandmarkTracker,
+    default_detector,
+    detect_landmarks,
+    dlib_available,
+    get_detector,
+)
+from editor.errors import FapStudioError, NoFaceError
+from editor.resources import MODEL_CREDITS, MODELS_DIR
+
+
+@pytest.fixture(scope="module")
+def sample_rgb() -> np.ndarray:
+    return load_image(SAMPLE)
+
+
+@pytest.fixture(scope="module")
+def sample_lm(sample_rgb):
+    return detect_landmarks(sample_rgb)
+
+
+def test_default_is_the_shipped_mediapipe_models(sample_lm):
+    assert isinstance(default_detector(), MediaPipeDetector)
+    assert sample_lm.detector == "mediapipe-468" and sample_lm.mesh.shape == (468, 2)
+    assert sample_lm.points.shape == (68, 2) and sample_lm.confidence > 0.9
+    for name in ("face_detection_short_range.tflite", "face_landmark.tflite",
+                 "iris_landmark.tflite", "LICENSE", "NOTICE"):
+        assert (MODELS_DIR / name).is_file(), name
+    assert "Apache License" in (MODELS_DIR / "LICENSE").read_text()
+    assert all(lic == "Apache-2.0" for _, _, lic in MODEL_CREDITS[:3])
+
+
+def test_sample_face_geometry(sample_lm):
+    """The bundled sample (inter-ocular ~43 px): eyes level, irises inside the lid contours,
+    the 68 points are the table's blend of the mesh, the lips ordered top to bottom."""
+    lm = sample_lm
+    assert 40 < lm.interocular < 47
+    np.testing.assert_allclose(points68_from_mesh(lm.mesh), lm.points)
+    for iris, up, lo in ((lm.iris_right, "eye_r_upper", "eye_r_lower"),
+                         (lm.iris_left, "eye_l_upper", "eye_l_lower")):
+        poly = lm.mesh[list(CONTOURS[up]) + list(CONTOURS[lo])[::-1]].astype(np.float32)
+        assert cv2.pointPolygonTest(poly, (iris.cx, iris.cy), False) > 0
+        width = np.linalg.norm(poly[0] - poly[len(CONTOURS[up]) - 1])
+        assert 0.15 * width < iris.r < 0.35 * width  # an iris is ~0.4 of the eye's width across
+    m = lm.mesh
+    assert m[0, 1] < m[13, 1] <= m[14, 1] < m[17, 1]  # upper lip, inner lips, lower lip
+    assert m[152, 1] > m[17, 1] and m[10, 1] < m[168, 1]  # chin below, forehead above
+
+
+def test_table_rows_are_convex_blends_and_mirror_symmetric():
+    assert len(MESH_TO_68) == 68
+    w = np.zeros((68, 468))
+    for k, row in enumerate(MESH_TO_68):
+        for v, wt in row:
+            w[k, v] = wt
+    assert np.allclose(w.sum(1), 1.0) and (w >= 0).all()
+    # the inner-lip points come from the mesh's inner lip contour only
+    inner = set(CONTOURS["lips_inner_upper"]) | set(CONTOURS["lips_inner_lower"])
+    assert all(v in inner for k in range(60, 68) for v, _ in MESH_TO_68[k])
+    # a row and its mirror partner use as many vertices
+    assert all(len(MESH_TO_68[k]) == len(MESH_TO_68[MIRROR_68[k]]) for k in range(68))
+
+
+@pytest.mark.skipif(not dlib_available(), reason="dlib (optional extra) is not installed")
+def test_sample_points_agree_with_dlib(sample_rgb, sample_lm):
+    """Issue 14: on the sample the mesh's 68 points lie within ~2 px of dlib's."""
+    dl = detect_landmarks(sample_rgb, get_detector("dlib"))
+    d = np.linalg.norm(sample_lm.points - dl.points, axis=1)
+    assert d.mean() < 2.0 and np.median(d) < 2.0, d.round(1)
+    inner = [36, 39, 42, 45, 48, 54]  # eye and mouth corners
+    assert d[inner].max() < 1.5, d[inner].round(1)
+
+
+def test_mirrored_photo_gives_mirrored_points(sample_rgb, sample_lm):
+    """Pixel conventions: the crops map pixel centres correctly, so a mirrored photo gives the
+    mirrored points (a half-pixel slip in the crop mapping showed as 1.3 px here)."""
+    w = sample_rgb.shape[1]
+    b = detect_landmarks(np.ascontiguousarray(sample_rgb[:, ::-1]))
+    back = b.points[MIRROR_68].copy()
+    back[:, 0] = w - 1 - back[:, 0]
+    d = (sample_lm.points - back)[17:]  # inner points (the jaw line slides along the cheeks)
+    assert abs(d[:, 0].mean()) < 0.5 and np.linalg.norm(d, axis=1).mean() < 1.0, d.round(1)
+    assert abs(sample_lm.iris_left.cx - (w - 1 - b.iris_right.cx)) < 0.5
+
+
+def test_rolled_and_enlarged_photos(sample_rgb, sample_lm):
+    """Roll is taken out before the mesh: the photo rotated by 25 degrees gives the rotated
+    points; 3x enlarged gives 3x the points (pixel centres: 3x + 1)."""
+    h, w = sample_rgb.shape[:2]
+    rot = cv2.getRotationMatrix2D((w / 2, h / 2), 25, 1.0)
+    rolled = cv2.warpAffine(sample_rgb, rot, (w, h), flags=cv2.INTER_CUBIC,
+                            borderMode=cv2.BORDER_REPLICATE)
+    got = detect_landmarks(rolled).points
+    want = sample_lm.points @ rot[:, :2].T + rot[:, 2]
+    err = np.linalg.norm(got - want, axis=1)
+    assert np.median(err[17:]) < 1.5, err.round(1)  # inner points (the jaw line slides)
+    big = cv2.resize(sample_rgb, (3 * w, 3 * h), interpolation=cv2.INTER_CUBIC)
+    got = detect_landmarks(big).points
+    err = np.linalg.norm(got - (3 * sample_lm.points + 1), axis=1) / 3
+    assert np.median(err[17:]) < 1.0, err.round(1)
+
+
+def test_tracking_follows_a_moving_face(sample_rgb, sample_lm):
+    """The tracker crops each frame from the previous points: a face moving 6 px a frame is
+    followed as detection would find it; a frame without a face raises and the next detects."""
+    tracker = LandmarkTracker()
+    for k in range(5):
+        frame = np.roll(sample_rgb, 6 * k, axis=1)
+        lm = tracker(frame)
+        err = np.linalg.norm(lm.points - (sample_lm.points + (6 * k, 0)), axis=1)
+        assert np.median(err[17:]) < 1.0, (k, err.round(1))
+        assert lm.mesh is not None
+    with pytest.raises(NoFaceError):
+        tracker(np.full_like(sample_rgb, 128))
+    assert np.median(np.linalg.norm(tracker(sample_rgb).points - sample_lm.points, axis=1)) < 1
+
+
+def test_no_face_too_small_and_profile(sample_rgb, sample_lm):
+    with pytest.raises(NoFaceError, match="no face"):
+        detect_landmarks(np.full((300, 400, 3), 200, np.uint8))
+    rng = np.random.default_rng(1)
+    with pytest.raises(NoFaceError):
+        detect_landmarks(rng.integers(0, 256, (256, 256, 3), dtype=np.uint8))
+    # the sample at a third of its size: ~14 px between the eyes
+    small = cv2.resize(sample_rgb, (170, 170), interpolation=cv2.INTER_AREA)
+    with pytest.raises(NoFaceError, match="too small"):
+        detect_landmarks(small)
+    # the profile rule on the sample's mesh: frontal ~0.5, the nose tip moved out past an eye
+    assert 0.4 < nose_position(sample_lm.mesh) < 0.6
+    turned = sample_lm.mesh.copy()
+    turned[1] = turned[33] + 0.1 * (turned[263] - turned[33])
+    assert nose_position(turned) < 0.22
+
+
+def test_cli_landmarks_json_and_detector_option(tmp_path):
+    out = tmp_path / "p.json"
+    r = subprocess.run([sys.executable, "-m", "editor", "landmarks", "sample", "--json",
+                        str(out), "--detector", "mediapipe"], capture_output=True, text=True,
+                       cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(out.read_text())
+    assert {"fdp", "iris", "mesh"} <= set(data) and len(data["mesh"]) == 468
+    assert set(data["iris"]) == {"3.5", "3.6"} and {"3.12", "8.4", "2.2"} <= set(data["fdp"])
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((200, 200, 3), 90, np.uint8))
+    r = subprocess.run([sys.executable, "-m", "editor", "landmarks", str(blank)],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no face" in r.stderr, r.stderr
+    if not dlib_available():
+        r = subprocess.run([sys.executable, "-m", "editor", "landmarks", "sample",
+                            "--detector", "dlib"], capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 2 and "fap-studio[dlib]" in r.stderr, r.stderr
+    with pytest.raises(FapStudioError, match="unknown landmark detector"):
+        get_detector("hog")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (JAFFE / "landmarks_stasm77").is_dir() or not jaffe_images(),
+                    reason="../shared/data/jaffe is not available")
+def test_jaffe_accuracy_against_stasm():
+    """Issue 14's bars on JAFFE (Stasm points, % of the inter-ocular distance): eye corners
+    <= 2.8 and mouth corners <= 4.0 (dlib's figures); measured 2.39 / 3.24; lids and inner lips
+    stay near their measured 1.4 / 2.0 / 2.0 (upper lids, lower lids, inner lips)."""
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "landmark_accuracy.py"),
+                        str(JAFFE), "--detector", "mediapipe", "--json"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout)["mediapipe"]
+    assert got["images"] == 213
+    assert got["eye corners"] <= 2.8 and got["mouth corners"] <= 4.0, got
+    assert got["upper lids"] < 1.8 and got["lower lids"] < 2.3 and got["inner lips"] < 2.3, got
+    assert got["pupils"] < 2.5, got  # issue 14's bar for pupils on real portraits

@@ -38,10 +38,11 @@ import numpy as np
 from editor.errors import FapStudioError, NoFaceError
 from editor.resources import MODELS_DIR
 
-#: Faces whose eye centres are closer than this (pixels) are refused: the mesh model sees the face
-#: at 192 px whatever its size, but below this the lid and lip contours are mostly interpolation.
-#: Chosen by measurement: the bundled sample face has 43 px, JAFFE's 256 px photos 39-51 px.
-MIN_INTEROCULAR_PX = 30.0
+#: Faces whose eye centres (midpoints of the eye corners) are closer than this many pixels are
+#: refused: an eye is then under 8 px wide and the iris model's crop under 20 px. Chosen by
+#: measurement, not the issue's suggested 60 px: the bundled sample face has 43 px, JAFFE's
+#: 256 px photos 55-64 px, and the half-size sample (22 px) must still work (robustness case 13).
+MIN_INTEROCULAR_PX = 16.0
 #: A face is refused as a profile when the nose tip lies outside this fraction band of the line
 #: between the outer eye corners (0.5 = frontal; a quarter turn puts it near 0 or 1).
 PROFILE_NOSE_BAND = (0.22, 0.78)
@@ -280,29 +281,62 @@ class MediaPipeDetector:
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ stages
-    def _detect_face(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Box (x0, y0, x1, y1) and keypoints (6, 2) of the largest face, image pixels."""
+    def _candidates(self, rgb: np.ndarray, x0: int, y0: int,
+                    side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Detections in the square window (x0, y0, side) of the image (zero-padded where it
+        leaves the image): boxes (n, 4), keypoints (n, 6, 2) in image pixels, scores (n,)."""
         h, w = rgb.shape[:2]
-        side = max(h, w)
+        win = rgb[max(0, y0):min(h, y0 + side), max(0, x0):min(w, x0 + side)]
         scale = _DET_SIZE / side
-        nw, nh = max(1, round(w * scale)), max(1, round(h * scale))
-        small = cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_AREA)
+        nw, nh = max(1, round(win.shape[1] * scale)), max(1, round(win.shape[0] * scale))
+        small = cv2.resize(win, (nw, nh), interpolation=cv2.INTER_AREA)
         canvas = np.zeros((_DET_SIZE, _DET_SIZE, 3), np.float32)
-        ox, oy = (_DET_SIZE - nw) // 2, (_DET_SIZE - nh) // 2
+        ox = round((max(0, x0) - x0) * scale)
+        oy = round((max(0, y0) - y0) * scale)
         canvas[oy:oy + nh, ox:ox + nw] = small.astype(np.float32) / 127.5 - 1.0
         reg, cls = _run(_nets()[0], canvas.transpose(2, 0, 1)[None].copy(),
                         ["regressors", "classificators"])
         reg, logit = reg.reshape(-1, 16), cls.reshape(-1)
         keep = np.flatnonzero(logit > 0.0)
-        if keep.size == 0:
-            raise NoFaceError("no face found in the image")
         raw = reg[keep] / _DET_SIZE
         anc = _ANCHORS[keep]
         cx, cy = raw[:, 0] + anc[:, 0], raw[:, 1] + anc[:, 1]
         bw, bh = raw[:, 2], raw[:, 3]
         boxes = np.stack([cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2], 1)
         kps = raw[:, 4:16].reshape(-1, 6, 2) + anc[:, None, :]
+        # normalised window coordinates -> image pixels (edge coordinates -> pixel centres)
+        origin = np.array([x0, y0], np.float64) - 0.5
+        boxes = boxes * side + np.tile(origin, 2)
+        kps = kps * side + origin
         score = 1.0 / (1.0 + np.exp(-np.clip(logit[keep], -80, 80)))
+        return boxes.astype(np.float64), kps.astype(np.float64), score.astype(np.float64)
+
+    def _detect_face(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Box (x0, y0, x1, y1) and keypoints (6, 2) of the largest face, image pixels.
+
+        The short-range model wants faces of at least ~1/8 of its input: the whole image
+        (letterboxed) comes first; when it finds nothing, overlapping square windows of half and
+        then a quarter of the image's longer side (half a window apart) are searched."""
+        h, w = rgb.shape[:2]
+        side = max(h, w)
+        found = [self._candidates(rgb, (w - side) // 2, (h - side) // 2, side)]
+        for frac in (2, 4):
+            if found[-1][2].size or min(h, w) < 2 * _DET_SIZE // frac:
+                break
+            win = max(h, w) // frac
+            step = max(1, win // 2)
+            xs = list(range(0, max(1, w - win + 1), step)) or [0]
+            ys = list(range(0, max(1, h - win + 1), step)) or [0]
+            if xs[-1] + win < w:
+                xs.append(w - win)
+            if ys[-1] + win < h:
+                ys.append(h - win)
+            parts = [self._candidates(rgb, x, y, win) for y in ys for x in xs]
+            found.append(tuple(np.concatenate(a) for a in zip(*parts, strict=True)))
+        boxes, kps, score = found[-1]
+        if score.size == 0:
+            raise NoFaceError("no face found in the image")
+        bw, bh = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
         # the largest face, its overlapping detections averaged by score (MediaPipe's blending)
         best = int(np.argmax(bw * bh * (score > 0.5 * score.max())))
         ix0 = np.maximum(boxes[:, 0], boxes[best, 0])
@@ -314,10 +348,7 @@ class MediaPipeDetector:
         wgt = score * (iou > 0.3)
         box = (boxes * wgt[:, None]).sum(0) / wgt.sum()
         kp = (kps * wgt[:, None, None]).sum(0) / wgt.sum()
-        to_img = np.array([ox, oy], np.float32) / _DET_SIZE
-        box = (box.reshape(2, 2) - to_img).reshape(4) * _DET_SIZE / scale
-        kp = (kp - to_img) * _DET_SIZE / scale
-        return box.astype(np.float64), kp.astype(np.float64)
+        return box, kp
 
     def _mesh(self, rgb: np.ndarray, centre: np.ndarray, size: float,
               angle: float) -> tuple[np.ndarray, np.ndarray, float]:

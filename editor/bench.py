@@ -12,6 +12,9 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
   same loop so that machine load affects both alike; ``ratio`` = render / engine in thread CPU
   time (robust when other processes share the cores; ``ratio_wall`` in wall-clock time);
   target: at most 2 (issue 21);
+* ``photo_to_landmarks``: landmark detection alone (photo -> 68 points, mesh, irises) at the
+  sample's 512 x 512 and at 1920 x 1080, per detector (dlib only when its extra is installed);
+  target: at most 30 ms at 1080p for the default (issue 14);
 * ``face_from_image``: detection + fitting on the sample and on a 1920-px photo;
 * ``fap_reject_huge_header``: a ``.fap`` whose header declares the maximum frame count but
   holds one frame is refused (target: well under 500 ms; nothing is preallocated);
@@ -100,6 +103,27 @@ def _face_at(size: tuple[int, int]):
     return face
 
 
+def landmarks_bench() -> None:
+    from editor.engine.imageio import load_image
+    from editor.engine.landmarks import DETECTOR_NAMES, detect_landmarks, get_detector
+    from editor.errors import FapStudioError
+
+    for name in DETECTOR_NAMES:
+        try:
+            det = get_detector(name)
+        except FapStudioError:
+            _emit({"bench": "photo_to_landmarks", "detector": name, "skipped": "not installed"})
+            continue
+        for label, img in (("512x512", load_image(SAMPLE)), ("1920x1080", _canvas((1920, 1080)))):
+            lm = detect_landmarks(img, det)
+            t = _time(lambda i=img, d=det: detect_landmarks(i, d), 20 if name == "mediapipe" else 5)
+            row = {"bench": "photo_to_landmarks", "detector": lm.detector, "size": label,
+                   "interocular_px": round(lm.interocular, 1), **t}
+            if name == "mediapipe" and label == "1920x1080":
+                row["target_median_ms"] = 30.0
+            _emit(row)
+
+
 def fap_header_bench() -> None:
     from editor.errors import FapFileError
     from editor.formats.fapfile import MAX_FRAMES, read_fap
@@ -179,6 +203,7 @@ def main() -> None:
 
     _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
     fap_header_bench()
+    landmarks_bench()
     img = load_image(SAMPLE)
     t = _time(lambda: Face.from_image(img), 5, warm=1)
     _emit({"bench": "face_from_image", "size": "512x512", **t})

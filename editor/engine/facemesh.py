@@ -337,8 +337,10 @@ class MediaPipeDetector:
         if score.size == 0:
             raise NoFaceError("no face found in the image")
         bw, bh = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
-        # the largest face, its overlapping detections averaged by score (MediaPipe's blending)
-        best = int(np.argmax(bw * bh * (score > 0.5 * score.max())))
+        # the largest face (within 25 % of the largest area: the surest), its overlapping
+        # detections averaged by score (MediaPipe's blending)
+        area = bw * bh * (score > 0.5 * score.max())
+        best = int(np.argmax(np.where(area >= 0.75 * area.max(), score, -1.0)))
         ix0 = np.maximum(boxes[:, 0], boxes[best, 0])
         iy0 = np.maximum(boxes[:, 1], boxes[best, 1])
         ix1 = np.minimum(boxes[:, 2], boxes[best, 2])

@@ -13,6 +13,7 @@ from conftest import JAFFE, ROOT, SAMPLE, jaffe_images
 
 from editor.engine.facemesh import (
     CONTOURS,
+    FDP_FROM_MESH,
     MESH_TO_68,
     MediaPipeDetector,
     nose_position,
@@ -20,6 +21,7 @@ from editor.engine.facemesh import (
 )
 from editor.engine.imageio import load_image
 from editor.engine.landmarks import (
+    FDP_FROM_68,
     MIRROR_68,
     LandmarkTracker,
     default_detector,
@@ -164,6 +166,11 @@ def test_cli_landmarks_json_and_detector_option(tmp_path):
     data = json.loads(out.read_text())
     assert {"fdp", "iris", "mesh"} <= set(data) and len(data["mesh"]) == 468
     assert set(data["iris"]) == {"3.5", "3.6"} and {"3.12", "8.4", "2.2"} <= set(data["fdp"])
+    # every feature point the 68 points give, plus the mesh's inner-lip mid-points
+    assert set(FDP_FROM_68) | {"2.6", "2.7", "2.8", "2.9", "3.5", "3.6"} == set(data["fdp"])
+    mesh = np.array(data["mesh"])
+    for k, idx in FDP_FROM_MESH.items():
+        np.testing.assert_allclose(data["fdp"][k], mesh[list(idx)].mean(0), atol=0.02)
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((200, 200, 3), 90, np.uint8))
     r = subprocess.run([sys.executable, "-m", "editor", "landmarks", str(blank)],

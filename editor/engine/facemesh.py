@@ -157,6 +157,24 @@ MESH_TO_68: tuple[tuple[tuple[int, float], ...], ...] = (
 )
 
 
+#: MPEG-4 feature points taken straight from mesh vertices (mean of the listed indices), where
+#: the mesh has the point itself rather than a blend of neighbours. Conventions as
+#: :data:`editor.engine.landmarks.FDP_FROM_68` (face's own left = image right; 3.7/3.8/3.11/3.12
+#: the left/right corners of the left/right eye). The iris centres 3.5/3.6 come from the iris
+#: model; every other feature point of FDP_FROM_68 (jaw 2.11-2.14, nostrils 9.1/9.2/9.4/9.5,
+#: bridge 9.12) comes from the 68 points. 2.6-2.9 (inner-lip mid-points) are new with the mesh.
+FDP_FROM_MESH: dict[str, tuple[int, ...]] = {
+    "2.1": (152,), "2.10": (17, 152, 152),  # chin bottom; chin boss a third of the way up
+    "2.2": (13,), "2.3": (14,), "2.4": (308,), "2.5": (78,),  # inner lip middles and corners
+    "2.6": (311,), "2.7": (81,), "2.8": (402,), "2.9": (178,),  # inner lip mid-points
+    "3.1": (386,), "3.2": (159,), "3.3": (374,), "3.4": (145,),  # lid middles (top, bottom)
+    "3.7": (263,), "3.8": (133,), "3.11": (362,), "3.12": (33,),  # eye corners
+    "4.1": (336,), "4.2": (107,), "4.3": (334,), "4.4": (105,), "4.5": (300,), "4.6": (70,),
+    "8.1": (0,), "8.2": (17,), "8.3": (291,), "8.4": (61,), "8.9": (37,), "8.10": (267,),
+    "9.3": (1,), "9.15": (2,),  # nose tip, nose base middle
+}
+
+
 def _weights_68() -> np.ndarray:
     w = np.zeros((68, 468), np.float32)
     for k, row in enumerate(MESH_TO_68):

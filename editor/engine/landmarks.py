@@ -36,7 +36,7 @@ import numpy as np
 
 from editor.errors import FapStudioError, NoFaceError
 
-from .facemesh import MediaPipeDetector, points68_from_mesh
+from .facemesh import FDP_FROM_MESH, MediaPipeDetector, points68_from_mesh
 
 #: Detection runs on a copy whose longer side is at most this many pixels.
 DETECT_MAX_SIDE = 800
@@ -107,8 +107,13 @@ class Landmarks:
     confidence: float = 1.0
 
     def fdp_points(self) -> dict[str, tuple[float, float]]:
-        """MPEG-4 feature points derived directly from the detection (incl. 3.5, 3.6)."""
+        """MPEG-4 feature points derived directly from the detection (incl. 3.5, 3.6): from the
+        68 points (:data:`FDP_FROM_68`), and with a mesh from its vertices
+        (:data:`~editor.engine.facemesh.FDP_FROM_MESH`)."""
         out = {k: tuple(map(float, self.points[list(v)].mean(0))) for k, v in FDP_FROM_68.items()}
+        if self.mesh is not None:  # the mesh's own vertices where it has the point
+            out.update({k: tuple(map(float, self.mesh[list(v)].mean(0)))
+                        for k, v in FDP_FROM_MESH.items()})
         out["3.5"] = (self.iris_left.cx, self.iris_left.cy)
         out["3.6"] = (self.iris_right.cx, self.iris_right.cy)
         return out  # type: ignore[return-value]

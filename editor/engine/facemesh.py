@@ -262,9 +262,9 @@ def _crop_matrix(centre: np.ndarray, size: float, angle: float, out: int) -> np.
     outputs are in edge coordinates (0 = the crop's left edge), see :func:`_invert`."""
     ex = np.array([np.cos(angle), np.sin(angle)]) * size / 2
     ey = np.array([-np.sin(angle), np.cos(angle)]) * size / 2
-    src = np.float32([centre - ex - ey, centre + ex - ey, centre - ex + ey])
-    dst = np.float32([[-0.5, -0.5], [out - 0.5, -0.5], [-0.5, out - 0.5]])
-    return cv2.getAffineTransform(src, dst)
+    src = np.array([centre - ex - ey, centre + ex - ey, centre - ex + ey], np.float32)
+    dst = np.array([[-0.5, -0.5], [out - 0.5, -0.5], [-0.5, out - 0.5]], np.float32)
+    return np.asarray(cv2.getAffineTransform(src, dst), np.float64)
 
 
 def _invert(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -350,7 +350,9 @@ class MediaPipeDetector:
             if ys[-1] + win < h:
                 ys.append(h - win)
             parts = [self._candidates(rgb, x, y, win) for y in ys for x in xs]
-            found.append(tuple(np.concatenate(a) for a in zip(*parts, strict=True)))
+            found.append((np.concatenate([p[0] for p in parts]),
+                          np.concatenate([p[1] for p in parts]),
+                          np.concatenate([p[2] for p in parts])))
         boxes, kps, score = found[-1]
         if score.size == 0:
             raise NoFaceError("no face found in the image")

@@ -343,10 +343,15 @@ def _ray_exit(c: np.ndarray, d: np.ndarray, quad: np.ndarray) -> float:
 #: points coincide; MediaPipe's mesh keeps each lip's own inner edge, 0.03-0.08 MW apart on JAFFE's
 #: closed neutral mouths, against 0.13 and more on its parted ones).
 CLOSED_LIPS_MW = {"dlib-68": 0.05, "mediapipe-468": 0.09}
+#: Teeth show when the opening's brightest pixels exceed the lips' luminance (``r`` beyond the
+#: inner-lip points) by this factor. dlib puts the upper inner lip on the teeth's top edge, so
+#: ``r`` above it is the lip's shadowed edge; MediaPipe puts it on the lip's own edge, so ``r``
+#: above it is the lip's body, which on pale lips (the sample's) is within 1.25 of the teeth.
+TEETH_RATIO = {"dlib-68": 1.25, "mediapipe-468": 1.1}
 
 
 def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndarray,
-                    closed_mw: float = 0.05) -> None:
+                    closed_mw: float = 0.05, teeth_ratio: float = 1.25) -> None:
     """Move the inner-lip vertices (in place) onto the photo's own lip edges.
 
     dlib's eight inner-lip points are often a pixel or two off the real edge; the mesh's
@@ -354,7 +359,8 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
     sliver) or a strip of lip into the opening. Along each vertex's face-frame vertical,
     within ``r = 0.07 MW`` (at least 2 px), the photo's luminance profile is searched:
 
-    * a mouth that shows teeth (bright pixels between dlib's inner lips): the upper inner lip
+    * a mouth that shows teeth (pixels between the inner lips brighter than ``teeth_ratio``
+      times the lips, see :data:`TEETH_RATIO`): the upper inner lip
       goes to the strongest dark-to-bright step (lip above teeth), the lower one to the
       strongest bright-to-dark step (teeth above lip), each on its own side of the opening;
     * a closed mouth (inner lips at most ``closed_mw`` mouth widths apart, see
@@ -389,7 +395,7 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     ring = profiles(np.vstack([up, lo]))
     lip_l = float(np.median(np.concatenate([ring[:7, 0], ring[7:, -1]])))
-    if gap[1:6].min() > 2.0 and np.median(between.max(1)) > 1.25 * lip_l:
+    if gap[1:6].min() > 2.0 and np.median(between.max(1)) > teeth_ratio * lip_l:
         d = np.gradient(ring, step, axis=1)
         # the own side of the opening's middle: above it for the upper lip, below for the lower
         off = ts[None, :] + np.concatenate([-gap, gap])[:, None] * 0.5
@@ -426,3 +432,24 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
     for k in (2, 4, 6):
         V[f"lipb_u{k}"] = 0.5 * (V[f"lipo_u{k}"] + new_up[k - 1])
         V[f"lipb_d{k}"] = 0.5 * (V[f"lipo_d{k}"] + new_lo[k - 1])
+
+
+def inner_lips_on_opening(points68: np.ndarray, V: dict[str, np.ndarray]) -> np.ndarray:
+    """The 68 points with the inner-lip middles (61-63 upper, 65-67 lower) moved along the face
+    frame's vertical onto the mesh's snapped inner-lip curves (:func:`snap_inner_lips`).
+
+    With MediaPipe's mesh the upper inner lip is the lip's own edge; on a mouth showing teeth
+    the snapped opening starts at the teeth's top edge instead (as dlib's points do). Fitting
+    and the expression estimate then see one opening, the one the renderer opens and closes.
+    """
+    pts = np.asarray(points68, np.float64).copy()
+    fr = FaceFrame.from_points(pts)
+    ex, ey = fr.rot[:, 0], fr.rot[:, 1]
+    for pre, ids in (("lipi_u", (61, 62, 63)), ("lipi_d", (67, 66, 65))):
+        cur = np.array([V["lipi_c0"], *(V[f"{pre}{k}"] for k in range(1, 8)), V["lipi_c1"]],
+                       np.float64)
+        t = cur @ ex
+        o = np.argsort(t)
+        on = np.interp(pts[list(ids)] @ ex, t[o], (cur @ ey)[o])
+        pts[list(ids)] += (on - pts[list(ids)] @ ey)[:, None] * ey
+    return pts.astype(np.float32)

@@ -12,13 +12,14 @@ used. The pipeline follows MediaPipe's own graphs:
    eye keypoints are level, gives 468 points (x, y in crop pixels) and a face-presence logit.
 3. **Iris** (64x64 input in [0, 1]): per eye, a square 2.3 times the eye-corner distance, rotated
    along the corners; the model was trained on the image-left eye, so the other eye is mirrored.
-   It gives 71 eye-region points (the first 16 are the lid contour, which replace the mesh's
-   coarser lid points as MediaPipe's refinement does) and 5 iris points (centre, then 4 on the
-   rim: the radius is their mean distance to the centre).
+   It gives 71 eye-region points (the first 16 are the lid contour; its two eye corners replace
+   the mesh's, which are measurably less accurate, while the mesh keeps its own lids, which are
+   more accurate than the iris model's on JAFFE) and 5 iris points (centre, then 4 on the rim:
+   the radius is their mean distance to the centre).
 
 :class:`MediaPipeDetector` returns a :class:`MeshDetection`; ``track`` takes the previous frame's
 mesh to crop the next frame without running the detector (video). Everything is vectorised
-numpy; one face costs about 25 ms on one core.
+numpy; one face costs about 12 ms on one core (the sample, 512 x 512).
 
 Mesh index conventions are MediaPipe's canonical face model: 33/133 the image-left eye's outer
 and inner corners (the subject's right eye), 263/362 the image-right eye's, 61/291 the mouth
@@ -478,7 +479,9 @@ class MediaPipeDetector:
         mesh = mesh.copy()
         lid_r, iris_r = self._iris(rgb, eye_r[0], eye_r[1], mirror=False)
         lid_l, iris_l = self._iris(rgb, eye_l[0], eye_l[1], mirror=True)
-        mesh[EYE_CONTOUR_IMAGE_LEFT] = lid_r
-        mesh[EYE_CONTOUR_IMAGE_RIGHT] = lid_l
+        # the iris model's eye corners replace the mesh's; its lids do not (JAFFE against Stasm,
+        # % IOD: its corners 2.4 against the mesh's 3.3, its lids 1.4 / 2.0 against 1.3 / 1.3)
+        mesh[EYE_CONTOUR_IMAGE_LEFT[[0, 8]]] = lid_r[[0, 8]]
+        mesh[EYE_CONTOUR_IMAGE_RIGHT[[0, 8]]] = lid_l[[0, 8]]
         return MeshDetection(mesh.astype(np.float32), z.astype(np.float32),
                              np.asarray(box, np.float32), iris_r, iris_l, presence)

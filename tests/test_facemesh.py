@@ -59,7 +59,14 @@ def test_sample_face_geometry(sample_lm):
     the 68 points are the table's blend of the mesh, the lips ordered top to bottom."""
     lm = sample_lm
     assert 40 < lm.interocular < 47
-    np.testing.assert_allclose(points68_from_mesh(lm.mesh), lm.points)
+    raw = points68_from_mesh(lm.mesh)
+    moved = [61, 62, 63, 65, 66, 67]  # the inner-lip middles go onto the visible opening
+    keep = np.setdiff1d(np.arange(68), moved)
+    np.testing.assert_allclose(raw[keep], lm.points[keep])
+    # the sample's smile shows teeth: the upper inner lip moves down from the lip's own edge
+    # (mesh) to the teeth's top edge, about 2 px, as dlib and iBUG's annotation place it
+    down = (lm.points[[61, 62, 63]] - raw[[61, 62, 63]])[:, 1]
+    assert (down > 0.5).all() and (down < 4).all(), down
     for iris, up, lo in ((lm.iris_right, "eye_r_upper", "eye_r_lower"),
                          (lm.iris_left, "eye_l_upper", "eye_l_lower")):
         poly = lm.mesh[list(CONTOURS[up]) + list(CONTOURS[lo])[::-1]].astype(np.float32)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import InitVar, dataclass, field, replace
+from dataclasses import InitVar, dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -41,14 +41,7 @@ from .deform import (
 )
 from .faps import FAPS
 from .fapu import measure_fapu
-from .fitting import (
-    CLOSED_LIPS_MW,
-    TEETH_RATIO,
-    FaceFrame,
-    fit_vertices,
-    inner_lips_on_opening,
-    snap_inner_lips,
-)
+from .fitting import CLOSED_LIPS_MW, TEETH_RATIO, FaceFrame, fit_vertices, snap_inner_lips
 from .imageio import as_rgb8, load_image
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
@@ -277,12 +270,6 @@ class Face:
         closed, teeth = CLOSED_LIPS_MW.get(lm.detector, 0.05), TEETH_RATIO.get(lm.detector, 1.25)
         named, _ = fit_vertices(lm.points, (w, h))
         snap_inner_lips(named, rgb, lm.points, closed, teeth)
-        if lm.mesh is not None:
-            # the mesh's inner lips are each lip's own edge: the 68 inner-lip points follow the
-            # snapped opening (teeth edges or lip line), and the mesh is refitted to them
-            lm = replace(lm, points=inner_lips_on_opening(lm.points, named))
-            named, _ = fit_vertices(lm.points, (w, h))
-            snap_inner_lips(named, rgb, lm.points, closed, teeth)
         verts = np.array([named[n] for n in mesh.names], np.float32)
         sig = signed_areas(verts.astype(np.float64), mesh.triangles)
         if lm.interocular < 6:

@@ -16,7 +16,8 @@ left, image right), 27-30 nose bridge down to the tip, 31-35 nose base, 36-41 an
 right: point 36 is the subject's right eye's outer corner (MPEG-4 FDP 3.12).
 
 Every detector gives these 68 points (the mesh through the documented table
-:data:`editor.engine.facemesh.MESH_TO_68`). The MediaPipe detector adds the dense 468-point mesh
+:data:`editor.engine.facemesh.MESH_TO_68`, its inner-lip middles then moved onto the visible
+opening: :func:`inner_lips_on_opening_68`). The MediaPipe detector adds the dense 468-point mesh
 (``Landmarks.mesh``) and the iris model's circles. dlib gives no iris (FDP 3.5 / 3.6):
 :func:`locate_iris` finds the dark disc inside each eye opening (a vectorised circular template
 search, in the spirit of the paper's Canny-edge approach).
@@ -315,11 +316,34 @@ def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int) -> Iris:
     return Iris(x0 + xi / s, y0 + yi / s, r / s)
 
 
-def _from_mesh(det: MediaPipeDetector, found: Any) -> Landmarks:
+def inner_lips_on_opening_68(rgb: np.ndarray, points: np.ndarray, detector: str) -> np.ndarray:
+    """The 68 points with the inner-lip middles (61-63, 65-67) on the photo's visible mouth
+    opening, as iBUG's annotation (and dlib) place them: on a mouth showing teeth the teeth's
+    edges, on a closed one the lip line. The mesh's inner-lip contour is each lip's own edge
+    instead (the upper one above the shadow over the teeth), so the points are moved along the
+    face's vertical onto the inner lips of a mesh fitted and snapped to the image
+    (:func:`~editor.engine.fitting.snap_inner_lips`)."""
+    from .fitting import (
+        CLOSED_LIPS_MW,
+        TEETH_RATIO,
+        fit_vertices,
+        inner_lips_on_opening,
+        snap_inner_lips,
+    )
+
+    h, w = rgb.shape[:2]
+    named, _ = fit_vertices(points, (w, h))
+    snap_inner_lips(named, rgb, points, CLOSED_LIPS_MW.get(detector, 0.05),
+                    TEETH_RATIO.get(detector, 1.25))
+    return inner_lips_on_opening(points, named)
+
+
+def _from_mesh(det: MediaPipeDetector, found: Any, rgb: np.ndarray) -> Landmarks:
     right = Iris(*found.iris_image_left)  # image left = subject's right eye (FDP 3.6)
     left = Iris(*found.iris_image_right)
-    return Landmarks(points68_from_mesh(found.mesh), found.box, left, right, det.name,
-                     found.mesh, float(found.confidence))
+    pts = inner_lips_on_opening_68(rgb, points68_from_mesh(found.mesh), det.name)
+    return Landmarks(pts, found.box, left, right, det.name, found.mesh,
+                     float(found.confidence))
 
 
 def detect_landmarks(rgb: np.ndarray, detector: LandmarkDetector | None = None) -> Landmarks:
@@ -327,7 +351,7 @@ def detect_landmarks(rgb: np.ndarray, detector: LandmarkDetector | None = None) 
     (and the 468-point mesh with the MediaPipe detector)."""
     det = detector or default_detector()
     if isinstance(det, MediaPipeDetector):
-        return _from_mesh(det, det.run(rgb))
+        return _from_mesh(det, det.run(rgb), rgb)
     pts, box = det.detect(rgb)
     pts = np.asarray(pts, np.float32).reshape(68, 2)
     right = locate_iris(rgb, pts, 0)  # image left = subject's right eye (FDP 3.6)
@@ -350,7 +374,7 @@ class LandmarkTracker:
         if not isinstance(det, MediaPipeDetector):
             return detect_landmarks(rgb, det)
         try:
-            lm = _from_mesh(det, det.track(rgb, self._previous))
+            lm = _from_mesh(det, det.track(rgb, self._previous), rgb)
         except NoFaceError:
             self._previous = None
             raise

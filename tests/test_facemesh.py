@@ -196,8 +196,9 @@ def test_cli_landmarks_json_and_detector_option(tmp_path):
                     reason="../shared/data/jaffe is not available")
 def test_jaffe_accuracy_against_stasm():
     """Issue 14's bars on JAFFE (Stasm points, % of the inter-ocular distance): eye corners
-    <= 2.8 and mouth corners <= 4.0 (dlib's figures); measured 2.39 / 3.24; lids and inner lips
-    stay near their measured 1.4 / 2.0 / 2.0 (upper lids, lower lids, inner lips)."""
+    <= 2.8 and mouth corners <= 4.0 (dlib's figures); measured 2.50 / 3.24. Lids closer than
+    dlib's 1.76 / 1.79 (measured 1.30 / 1.30); inner lips and pupils near their measured 2.03
+    and 2.16 (dlib: 2.01 and 1.87)."""
     r = subprocess.run([sys.executable, str(ROOT / "scripts" / "landmark_accuracy.py"),
                         str(JAFFE), "--detector", "mediapipe", "--json"],
                        capture_output=True, text=True, timeout=600)
@@ -205,5 +206,5 @@ def test_jaffe_accuracy_against_stasm():
     got = json.loads(r.stdout)["mediapipe"]
     assert got["images"] == 213
     assert got["eye corners"] <= 2.8 and got["mouth corners"] <= 4.0, got
-    assert got["upper lids"] < 1.8 and got["lower lids"] < 2.3 and got["inner lips"] < 2.3, got
+    assert got["upper lids"] < 1.7 and got["lower lids"] < 1.7 and got["inner lips"] < 2.3, got
     assert got["pupils"] < 2.5, got  # issue 14's bar for pupils on real portraits

@@ -15,11 +15,12 @@ channels) differ by more than ``PIXEL_TOL`` = 8. Why these numbers:
   ±1 per value between SIMD paths: ±1 on a third of the values (mean 0.33, nothing above 8)
   passes.
 * The bound on large differences is what catches real changes, which are local: measured on
-  ``joy_100`` (117 x 135 px then, with dlib's landmarks), switching the creases off makes 0.45 % of the values differ by
-  more than 8 (mean only 0.13), joy at 95 % instead of 100 % 0.22 %, joy at 99 % 0.04 % (within
-  tolerance: a 1 % change of intensity is below what a golden should pin). The 0.1 % bound
-  rejects the first two with a margin of 2-4x; the looser 0.5 % first considered would have let
-  the creases disappear unnoticed. Moving the render by one pixel fails both bounds.
+  ``joy_100`` (117 x 135 px then, with dlib's landmarks), switching the creases off makes
+  0.45 % of the values differ by more than 8 (mean only 0.13), joy at 95 % instead of 100 %
+  0.22 %, joy at 99 % 0.04 % (within tolerance: a 1 % change of intensity is below what a
+  golden should pin). The 0.1 % bound rejects the first two with a margin of 2-4x; the looser
+  0.5 % first considered would have let the creases disappear unnoticed. Moving the render by
+  one pixel fails both bounds.
 
 Regenerate on purpose, after checking the new renders by eye::
 

@@ -8,6 +8,8 @@ that layout). Errors are in % of the inter-ocular distance (Stasm's two pupils, 
 
 * eye corners, mouth corners, pupils: point to point (a pupil is the iris centre: the iris model
   for MediaPipe, :func:`editor.engine.landmarks.locate_iris` for dlib);
+* chin: point to point (iBUG 8 against Stasm 6), on all photos and on open mouths only (inner
+  lips more than 0.1 IOD apart in Stasm's points);
 * lids and inner lips: each Stasm contour point's distance to the detector's contour, a polyline
   through its points (MediaPipe: the mesh's dense lid and inner-lip contours, 9 and 11 points a
   side; dlib: its 4 points per lid and 5 per inner lip, corners included).
@@ -35,7 +37,7 @@ from editor.errors import FapStudioError  # noqa: E402
 from editor.resources import checkout_jaffe_dir  # noqa: E402
 
 MEASURES = ("eye corners", "mouth corners", "pupils", "upper lids", "lower lids",
-            "inner lips")
+            "inner lips", "chin", "chin (open mouths)")
 
 # Stasm-77 indices (image-left = the subject's right eye)
 _S_EYE_CORNERS = [34, 30, 40, 44]  # image-left outer, inner; image-right inner, outer
@@ -86,7 +88,11 @@ def errors(lm: Landmarks, stasm: np.ndarray) -> dict[str, float]:
                                     _seg_dist(s[idx[3:]], cont[name][1])])
     lips = np.vstack(cont["inner lips"])  # one closed contour: the points fall on either lip
     out["inner lips"] = _seg_dist(s[_S_INNER_LIPS], lips)
-    return {k: 100.0 * float(v.mean()) / iod for k, v in out.items()}
+    out["chin"] = np.linalg.norm(p[[8]] - s[[6]], axis=1)
+    res = {k: 100.0 * float(v.mean()) / iod for k, v in out.items()}
+    opened = float(np.linalg.norm(s[70] - s[67])) > 0.1 * iod  # inner lip middles apart
+    res["chin (open mouths)"] = res["chin"] if opened else float("nan")
+    return res
 
 
 def measure(jaffe: Path, detector: str) -> dict[str, float]:
@@ -102,7 +108,7 @@ def measure(jaffe: Path, detector: str) -> dict[str, float]:
         stasm = np.array(line.replace(",", " ").split(), float).reshape(77, 2)
         path = by_key[(name.split(".")[0], name.split(".")[2])]
         rows.append(errors(detect_landmarks(load_image(path), det), stasm))
-    return {k: float(np.mean([r[k] for r in rows])) for k in MEASURES} | {"images": len(rows)}
+    return {k: float(np.nanmean([r[k] for r in rows])) for k in MEASURES} | {"images": len(rows)}
 
 
 def main() -> None:

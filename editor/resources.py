@@ -12,6 +12,7 @@ refuses an installed copy.
                       (``scripts/draw_mouth_textures.py``)
 ``PRESETS_DIR``       the shipped emotion and viseme presets (``scripts/derive_presets.py``)
 ``SAMPLE_FACE``       the bundled sample photo (NASA, public domain)
+``WEB_DIR``           the remote rating page (``index.html``, ``app.js``, ``app.css``)
 ``DATA_README``       origins and licences of the files above
 ====================  ======================================================================
 """
@@ -60,6 +61,7 @@ NEUTRAL_PRIOR = data_path("neutral_prior.json")
 MOUTH_DIR = data_path("mouth")
 PRESETS_DIR = data_path("presets")
 SAMPLE_FACE = data_path("sample_face.png")
+WEB_DIR = data_path("web")
 DATA_README = data_path("README.md")
 
 # ------------------------------------------------------------------ per-user folders

@@ -97,7 +97,7 @@ class RatingServer:
                     return _error(500, str(e))
             return endpoint
 
-        async def forbidden(request: Request) -> Response:
+        async def forbidden(request: Request, exc: Exception) -> Response:
             return _error(403, "a rating link with a valid token is needed")
 
         routes = [
@@ -107,9 +107,10 @@ class RatingServer:
             Route("/r/{token}/api/state", guarded(self._state)),
             Route("/r/{token}/api/answer", guarded(self._answer), methods=["POST"]),
             Route("/r/{token}/img/{position:int}", guarded(self._image)),
-            Route("/{rest:path}", forbidden, methods=["GET", "HEAD", "POST", "PUT", "DELETE"]),
         ]
-        return Starlette(routes=routes, lifespan=self.lifespan)
+        # any URL that is not one of these (so without a token): 403
+        return Starlette(routes=routes, lifespan=self.lifespan,
+                         exception_handlers={404: forbidden})
 
     # ------------------------------------------------------------------ endpoints
     async def _slash(self, request: Request, rater: WebRater) -> Response:

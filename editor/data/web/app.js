@@ -118,7 +118,7 @@ function showTrial() {
   $("progress").value = done / state.total;
   $("phase").textContent = t.training ? "practice" : "";
   const img = $("stimulus");
-  img.onload = () => { shownAt = performance.now(); };
+  img.onload = () => { shownAt = performance.now(); img.dataset.shown = String(t.position); };
   img.src = t.image;
   show("rating");
   refresh();

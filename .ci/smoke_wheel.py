@@ -47,6 +47,8 @@ def main() -> None:
     check(set(load_textures()) == set(resources.MOUTH_TEXTURES), "mouth textures load")
     check(len(default_prior().names) > 0, "neutral prior loads")
     sample = load_image(resources.SAMPLE_FACE)
+    check(all((resources.WEB_DIR / n).is_file() for n in ("index.html", "app.js", "app.css")),
+          "the web rating page (index.html, app.js, app.css)")
 
     exe = Path(sys.executable).parent / "fap-studio"
     out = Path("smoke.png").resolve()

@@ -18,7 +18,12 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
 * ``gui_slider_latency`` (with ``--gui``): slider change -> frame in the preview, in the real
   window (offscreen unless QT_QPA_PLATFORM is set), on the sample face;
 * ``scheduler_submit_while_busy`` (with ``--gui``): one ``RenderScheduler.submit`` while the
-  worker is busy (target: under 1 ms; the GUI thread never waits for a render).
+  worker is busy (target: under 1 ms; the GUI thread never waits for a render);
+* ``study_serve_load`` (also alone with ``--serve``): ``fap-studio study serve`` in its own
+  process on localhost, 50 concurrent web raters (asyncio + httpx2 in this process) for 5 s,
+  each loading the page, then fetching an image, "thinking" 0.2-0.6 s (about ten times faster
+  than a person) and posting an answer; target: median answer round trip <= 50 ms with no
+  error (issue 20). Skipped without httpx2 (the ``test`` or ``bench`` extra).
 
 Speed targets live here, not in the tests (which check behaviour only).
 """
@@ -163,6 +168,108 @@ def gui_bench() -> None:
     sys.stdout.flush()
 
 
+def serve_load_bench(raters: int = 50, seconds: float = 5.0, think: tuple[float, float] = (
+        0.2, 0.6)) -> None:
+    """The ``study_serve_load`` row: a real server subprocess, ``raters`` concurrent clients."""
+    import asyncio
+    import os
+    import re
+    import subprocess
+    import sys
+    import tempfile
+
+    try:
+        import httpx2
+    except ImportError:
+        _emit({"bench": "study_serve_load", "skipped": "no httpx2 (pip install httpx2)"})
+        return
+    from editor.engine.imageio import load_image
+    from editor.study.mos import StimulusSpec, Study
+    from editor.study.qc import add_qc_items, trap_specs
+    from editor.study.remote import invite
+    from editor.study.stimuli import encode_png
+
+    img = load_image(SAMPLE)[60:460, 96:416]  # a face-sized crop (320 x 400), as stimuli are
+    png = encode_png(np.ascontiguousarray(img))
+    labels = ["joy", "sadness", "anger", "fear", "surprise"]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "load.db"
+        specs = [StimulusSpec(f"f{i % 4}", labels[i % 5], png, 1.0) for i in range(60)]
+        with Study.create(path, "load", labels, specs, break_every=20) as study:
+            add_qc_items(study, trap_specs(study, 2))
+            tokens = [i.token for i in invite(study, raters)]
+        proc = subprocess.Popen([sys.executable, "-m", "editor.cli", "study", "serve", str(path),
+                                 "--port", "0"], stdout=subprocess.PIPE, text=True,
+                                env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[1])})
+        try:
+            line = proc.stdout.readline() if proc.stdout else ""
+            m = re.search(r"http://[\d.]+:\d+", line)
+            if not m:
+                _emit({"bench": "study_serve_load", "error": f"server did not start: {line!r}"})
+                return
+            rtt, img_ms, errors = asyncio.run(_load(m.group(0), tokens, seconds, think, httpx2))
+        finally:
+            proc.kill()
+            proc.wait()
+        with Study.open(path) as study:
+            stored = len(study.answers())
+    a = np.array(rtt) if rtt else np.array([np.nan])
+    med = float(np.median(a))
+    _emit({"bench": "study_serve_load", "raters": raters, "seconds": seconds,
+           "answers": len(rtt), "answers_per_s": round(len(rtt) / seconds, 1),
+           "stored_main_answers": stored, "errors": errors,
+           "answer_median_ms": round(med, 2),
+           "answer_p95_ms": round(float(np.percentile(a, 95)), 2),
+           "answer_max_ms": round(float(a.max()), 2),
+           "image_median_ms": round(float(np.median(img_ms)), 2) if img_ms else None,
+           "image_kb": round(len(png) / 1024), "target_median_ms": 50,
+           "ok": bool(med <= 50 and errors == 0)})
+
+
+async def _load(base: str, tokens: list[str], seconds: float, think: tuple[float, float],
+                httpx2) -> tuple[list[float], list[float], int]:
+    """Every token a rater: page, script, state, then image / think / answer until time's up."""
+    import asyncio
+
+    rtt: list[float] = []
+    img_ms: list[float] = []
+    errors = 0
+    rng = np.random.default_rng(20)
+    import socket
+
+    limits = httpx2.Limits(max_connections=len(tokens) + 10)
+    # TCP_NODELAY as browsers set it (a POST's body must not wait for the ACK of its headers)
+    transport = httpx2.AsyncHTTPTransport(
+        limits=limits, socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
+    async with httpx2.AsyncClient(base_url=base, transport=transport, timeout=30) as client:
+        deadline = time.perf_counter() + seconds
+
+        async def rater(token: str, seed: int) -> None:
+            nonlocal errors
+            r_rng = np.random.default_rng(seed)
+            for part in ("", "app.js", "app.css"):
+                errors += (await client.get(f"/r/{token}/{part}")).status_code != 200
+            state = (await client.get(f"/r/{token}/api/state")).json()
+            while state["trial"] and time.perf_counter() < deadline:
+                t0 = time.perf_counter()
+                im = await client.get(f"/r/{token}/{state['trial']['image']}")
+                img_ms.append((time.perf_counter() - t0) * 1000)
+                errors += im.status_code != 200
+                await asyncio.sleep(float(r_rng.uniform(*think)))
+                answer = {"position": state["trial"]["position"], "label": "joy",
+                          "naturalness": int(r_rng.integers(1, 6)), "response_ms": 700.0}
+                t0 = time.perf_counter()
+                r = await client.post(f"/r/{token}/api/answer", json=answer)
+                rtt.append((time.perf_counter() - t0) * 1000)
+                if r.status_code != 200:
+                    errors += 1
+                    break
+                state = r.json()
+
+        await asyncio.gather(*(rater(t, int(rng.integers(1 << 31))) for t in tokens))
+    return rtt, img_ms, errors
+
+
 def main() -> None:
     import sys
 
@@ -171,6 +278,9 @@ def main() -> None:
 
     if "--gui" in sys.argv[1:]:
         gui_bench()
+        return
+    if "--serve" in sys.argv[1:]:
+        serve_load_bench()
         return
     cv2.setNumThreads(1)
     from editor.engine.face import Face
@@ -249,6 +359,7 @@ def main() -> None:
 
     t = _time(lambda: deform_points(face.plan, batch), 5)
     _emit({"bench": "deform_batch100", **t, "per_vector_ms": round(t["median_ms"] / 100, 4)})
+    serve_load_bench()
 
 
 if __name__ == "__main__":

@@ -24,6 +24,8 @@ def test_every_named_data_file_exists_inside_the_package():
     for t in resources.MOUTH_TEXTURES:
         assert (resources.MOUTH_DIR / f"{t}.png").is_file()
     assert len(list(resources.PRESETS_DIR.glob("*.json"))) == 21
+    assert sorted(p.name for p in resources.WEB_DIR.iterdir()) == ["app.css", "app.js",
+                                                                   "index.html"]
     for old in ("resources", "presets"):  # the pre-wheel layout, outside the package
         assert not any(p.is_file() for p in (ROOT / old).rglob("*")), old
 

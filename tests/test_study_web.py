@@ -89,6 +89,8 @@ def test_every_request_needs_a_valid_token(web, cli) -> None:
         for url in (f"/r/{b.token}/", f"/r/{b.token}/api/state", f"/r/{b.token}/img/0"):
             assert c.get(url).status_code == 403, url
         assert _snapshot(path) == before
+        slash = c.get(f"/r/{a.token}", follow_redirects=False)
+        assert slash.status_code == 308 and slash.headers["location"] == f"{a.token}/"
         page = c.get(f"/r/{a.token}/")  # a valid token still works, from a running server
         assert page.status_code == 200 and "app.js" in page.text
         assert page.headers["referrer-policy"] == "no-referrer"

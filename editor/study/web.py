@@ -136,8 +136,8 @@ class RatingServer:
 
     # ------------------------------------------------------------------ endpoints
     def _slash(self, request: Request, rater: WebRater, body: bytes) -> Response:
-        return RedirectResponse(str(request.url.replace(path=request.url.path + "/")), 308,
-                                headers=_HEADERS)
+        # relative, so that it stays right behind a reverse proxy (https, another host name)
+        return RedirectResponse(f"{request.path_params['token']}/", 308, headers=_HEADERS)
 
     def _page(self, request: Request, rater: WebRater, body: bytes) -> Response:
         return Response(self.static["index.html"], headers=_HEADERS,

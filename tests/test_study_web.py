@@ -18,7 +18,7 @@ import pytest
 from starlette.testclient import TestClient
 
 from editor.study.mos import CANNOT_TELL, Study
-from editor.study.qc import QcItemSpec, add_qc_items, qc_items, rater_qc, trap_specs
+from editor.study.qc import QcItemSpec, add_qc_items, qc_image, qc_items, rater_qc, trap_specs
 from editor.study.remote import invite
 from editor.study.stimuli import create_from_renders
 from editor.study.web import create_app
@@ -373,3 +373,27 @@ def test_browser_rater_rates_reloads_resumes_finishes(server) -> None:
         answers = st.answers(a.rater)
         assert len(answers) == 6 and all(x.response_ms > 0 for x in answers)
     assert _n_answered(path, a.rater) == 9  # + training, gold and trapping trial
+
+
+@pytest.mark.slow
+def test_render_qc_gold_and_training_from_a_photo(tmp_path: Path, cli) -> None:
+    """The sample smiles: its neutral gold is the neutralised face; the extreme gold is a preset
+    at 150 %; training renders the sample; all go into the study by ``study qc --faces``."""
+    import cv2
+    import numpy as np
+
+    path = tmp_path / "s.db"
+    create_from_renders(path, "pilot", LABELS, _renders()).close()
+    res = cli("study", "qc", path, "--faces", "sample", "--training", "2", "--traps", "1")
+    assert res.returncode == 0, res.stderr
+    assert "2 training, 2 gold, 1 trapping" in res.stdout
+    with Study.open(path) as st:
+        items = qc_items(st)
+        images = {i.id: cv2.imdecode(np.frombuffer(qc_image(st, i.id)[0], np.uint8), 1)
+                  for i in items}
+    gold = [i for i in items if i.kind == "gold"]
+    assert [g.accept for g in gold] == [(CANNOT_TELL,), ("joy",)]
+    assert gold[0].note.startswith("the photo neutralised") and gold[0].nat_min == 3
+    assert [i.accept for i in items if i.kind == "training"] == [("joy",), ("sadness",)]
+    neutral, joy = images[gold[0].id].astype(int), images[gold[1].id].astype(int)
+    assert neutral.shape == joy.shape and np.abs(neutral - joy).mean() > 1.0

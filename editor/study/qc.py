@@ -7,8 +7,9 @@ which answer to give); raters who fail them are removed before the MOS is comput
 * **training** trials come first; the page shows the intended emotion after each answer. They
   are the qualification: a rater may get at most a third of their labels wrong.
 * **gold** trials are mixed into the rating part: the unchanged photo (accepted answers: "cannot
-  tell", or "neutral" if that is a study label; naturalness 3-5) and an extreme (150 %) preset
-  (its emotion; any naturalness).
+  tell", or "neutral" if that is a study label; naturalness 3-5; a photo that shows an
+  expression of its own is neutralised first, as for every stimulus) and an extreme (150 %)
+  preset (its emotion; any naturalness).
 * **trap** trials are mixed in too: a stimulus image with a printed instruction ("choose the
   emotion X and naturalness N"); only exactly that answer passes.
 
@@ -190,8 +191,9 @@ def trap_specs(study: Study, n: int = 2, seed: int = 0) -> list[QcItemSpec]:
 
 def render_qc(faces: Sequence[str | Path], labels: Sequence[str], crop: bool = True,
               n_training: int = 3) -> list[QcItemSpec]:
-    """Gold items from neutral face photos (per face: the unchanged photo and one label's preset
-    at 150 %) and ``n_training`` training items (the bundled sample face, presets at 100 %).
+    """Gold items from face photos (per face: the unchanged photo, neutralised if it shows an
+    expression, and one label's preset at 150 %) and ``n_training`` training items (the bundled
+    sample face, presets at 100 %).
 
     Only labels that name a preset are rendered; :class:`StudyError` if none does.
     """
@@ -219,8 +221,12 @@ def render_qc(faces: Sequence[str | Path], labels: Sequence[str], crop: bool = T
 
     for i, path in enumerate(faces):
         face, name = Face.from_image(path), Path(path).stem
-        out.append(QcItemSpec("gold", name, neutral, 3, 5, "the unchanged photo",
-                              cut(face, np.asarray(face.image))))
+        if face.has_expression:  # a smiling photo is no neutral gold: its neutralised face
+            photo = face.render({})
+            note = f"the photo neutralised (it shows: {face.expression_words})"
+        else:
+            photo, note = np.asarray(face.image), "the unchanged photo"
+        out.append(QcItemSpec("gold", name, neutral, 3, 5, note, cut(face, photo)))
         lab, preset = presets[i % len(presets)]
         out.append(QcItemSpec("gold", name, (lab,), 1, 5, f"{lab} at 150 %",
                               cut(face, face.render(apply_preset(preset, 1.5)))))

@@ -99,6 +99,15 @@ def test_every_request_needs_a_valid_token(web, cli) -> None:
     assert cli("study", "revoke", path, "web-999").returncode == 2
 
 
+def test_a_study_without_invites_refuses_everyone(tmp_path: Path) -> None:
+    path = tmp_path / "s.db"
+    create_from_renders(path, "pilot", LABELS, _renders()).close()
+    with TestClient(create_app(path)) as c:
+        assert c.get("/r/AAAAAAAAAAAAAAAAAAAAAA/api/state").status_code == 403
+    with Study.open(path) as st:
+        assert st.raters() == []
+
+
 def test_tokens_are_random_and_stored_hashed(web, cli) -> None:
     path, invites = web
     res = cli("study", "invite", path, "--raters", "3", "--base-url", "https://rate.example.org/")

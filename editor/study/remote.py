@@ -95,7 +95,7 @@ def revoke(study: Study, who: str) -> str:
 
 def rater_for_token(study: Study, token: str) -> str | None:
     """The web rater a token belongs to, or None (unknown, malformed or revoked)."""
-    if not token or len(token) > 64:
+    if not token or len(token) > 64 or not has_table(study, "web_tokens"):
         return None
     rows = study._rows("SELECT rater FROM web_tokens WHERE token_sha256=? AND revoked_at IS NULL",
                        (token_hash(token),))

@@ -21,7 +21,7 @@ from editor.study.qc import (
     render_qc,
     trap_specs,
 )
-from editor.study.remote import invite, revoke
+from editor.study.remote import count_tokens, invite, revoke
 from editor.study.stimuli import (
     PAPER_EXPRESSIONS,
     create_from_renders,
@@ -115,9 +115,12 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise StudyError(f"--port must be 0 … 65535, got {args.port}")
 
+    with Study.open(args.study) as study:
+        valid, revoked = count_tokens(study)
+
     def ready(url: str) -> None:
-        print(f"serving study {args.study} at {url}/r/TOKEN/ (links: fap-studio study invite); "
-              "Ctrl-C stops", flush=True)
+        print(f"serving study {args.study} at {url}/r/TOKEN/ to {valid} invited raters "
+              f"({revoked} revoked; more: fap-studio study invite); Ctrl-C stops", flush=True)
         sys.stdout.flush()
 
     serve(args.study, args.host, args.port, args.rate_limit, ready)

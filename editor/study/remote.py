@@ -93,6 +93,15 @@ def revoke(study: Study, who: str) -> str:
     return str(row[0])
 
 
+def count_tokens(study: Study) -> tuple[int, int]:
+    """(valid, revoked) web rater tokens of a study (without writing anything)."""
+    if not has_table(study, "web_tokens"):
+        return 0, 0
+    rows = study._rows("SELECT revoked_at IS NULL, COUNT(*) FROM web_tokens GROUP BY 1")
+    n = dict(rows)
+    return int(n.get(1, 0)), int(n.get(0, 0))
+
+
 def rater_for_token(study: Study, token: str) -> str | None:
     """The web rater a token belongs to, or None (unknown, malformed or revoked)."""
     if not token or len(token) > 64 or not has_table(study, "web_tokens"):

@@ -338,6 +338,12 @@ def test_serve_bad_input_is_one_line(tmp_path: Path, cli) -> None:
     create_from_renders(path, "pilot", LABELS, _renders()).close()
     res = cli("study", "serve", path, "--rate-limit", "lots")
     assert res.returncode == 2 and "rate limit" in res.stderr
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as busy:
+        res = cli("study", "serve", path, "--port", busy.getsockname()[1])
+    assert res.returncode == 2 and "cannot listen on 127.0.0.1" in res.stderr
+    assert res.stderr.count("\n") == 1
 
 
 # ---------------------------------------------------------------- a real browser

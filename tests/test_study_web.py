@@ -406,7 +406,15 @@ def test_browser_rater_rates_reloads_resumes_finishes(server) -> None:
         browser.refresh()
         wait.until(lambda d: visible("intro"))
         assert "5 of 9 images are already rated" in browser.find_element(By.ID, "welcome").text
-        press(Keys.ENTER)
+        browser.find_element(By.ID, "start").click()  # then one trial by taps, as on a phone
+        wait.until(lambda d: d.find_element(By.ID, "stimulus").get_attribute("data-shown")
+                   == "5")
+        browser.find_element(By.CSS_SELECTOR, "#labels button[data-label='fear']").click()
+        browser.find_element(By.CSS_SELECTOR, "#scores button[data-score='2']").click()
+        browser.find_element(By.ID, "confirm").click()
+        wait.until(lambda d: d.execute_script("return state.done") == 6)
+        if visible("message") and visible("continue"):
+            browser.find_element(By.ID, "continue").click()
         while not (visible("message") and not visible("continue")):
             wait.until(lambda d: visible("rating") or visible("message"))
             if visible("rating"):
@@ -414,6 +422,14 @@ def test_browser_rater_rates_reloads_resumes_finishes(server) -> None:
         assert "Thank you" in browser.find_element(By.ID, "message-text").text
     finally:
         browser.quit()
+    con = sqlite3.connect(path)
+    tapped = con.execute("SELECT label, naturalness FROM answers WHERE rater=? AND stimulus="
+                         "(SELECT stimulus FROM web_plan WHERE rater=? AND position=5) UNION "
+                         "SELECT label, naturalness FROM qc_answers WHERE rater=? AND item="
+                         "(SELECT item FROM web_plan WHERE rater=? AND position=5)",
+                         (a.rater,) * 4).fetchall()
+    con.close()
+    assert tapped == [("fear", 2)]
     with Study.open(path) as st:
         answers = st.answers(a.rater)
         assert len(answers) == 6 and all(x.response_ms > 0 for x in answers)

@@ -12,6 +12,8 @@ refuses an installed copy.
                       (``scripts/draw_mouth_textures.py``)
 ``PRESETS_DIR``       the shipped emotion and viseme presets (``scripts/derive_presets.py``)
 ``SAMPLE_FACE``       the bundled sample photo (NASA, public domain)
+``MAPPINGS_DIR``      FACS AU -> FAP and ARKit blendshape -> FAP tables (``au_faps.json``,
+                      ``arkit.json``; :mod:`editor.formats.facs`, :mod:`editor.formats.arkit`)
 ``DATA_README``       origins and licences of the files above
 ====================  ======================================================================
 """
@@ -60,6 +62,7 @@ NEUTRAL_PRIOR = data_path("neutral_prior.json")
 MOUTH_DIR = data_path("mouth")
 PRESETS_DIR = data_path("presets")
 SAMPLE_FACE = data_path("sample_face.png")
+MAPPINGS_DIR = data_path("mappings")
 DATA_README = data_path("README.md")
 
 # ------------------------------------------------------------------ per-user folders

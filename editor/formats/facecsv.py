@@ -114,14 +114,15 @@ def _rows(lines: list[str]) -> list[tuple[int, list[str]]]:
 
 
 def _float(tok: str, label: str, line: int, col: str, lo: float, hi: float,
-           what: str) -> float:
+           what: str, shown: str | None = None) -> float:
+    """``tok`` as a number in [lo, hi] (``shown``: the range as the message says it)."""
     if len(tok) > 40 or not _NUM.match(tok):
         raise CsvFormatError(f"{label} line {line}, column {col}: expected {what}, "
                              f"got {_short(tok)}")
     v = float(tok)
     if not lo <= v <= hi:
         raise CsvFormatError(f"{label} line {line}, column {col}: expected {what} "
-                             f"({lo:g} to {hi:g}), got {_short(tok)}")
+                             f"({shown or f'{lo:g} to {hi:g}'}), got {_short(tok)}")
     return v
 
 
@@ -204,12 +205,11 @@ def read_live_link(path: str | os.PathLike, fps: float | None = None, *,
                                  f"{width - 2} (the columns after it), got {_short(count)}")
         for i, j in enumerate(shape_cols):
             weights[k, i] = _float(fields[j], label, line, header[j], -1e-3, 1 + 1e-3,
-                                   "a blendshape weight")
-        if has_rot:
-            for i, j in enumerate(rot_cols):
-                assert j is not None
-                rotations[k, i] = _float(fields[j], label, line, header[j], -math.pi,
-                                         math.pi, "an angle in radians")
+                                   "a blendshape weight", "0 to 1")
+        for i, c in enumerate(rot_cols if has_rot else []):
+            assert c is not None
+            rotations[k, i] = _float(fields[c], label, line, header[c], -math.pi, math.pi,
+                                     "an angle in radians")
     notes: list[str] = []
     if fps is None:
         top = stamps[:, 1].max()
@@ -294,7 +294,7 @@ def read_au_csv(path: str | os.PathLike, fps: float | None = None, *,
     for j, name in enumerate(header):
         m = _AU_COL.match(name)
         if not m:
-            ignored += lower[j] not in ("frame", "timestamp")
+            ignored += lower[j] not in ("frame", "timestamp", "face_id", "confidence", "success")
             continue
         number = table.aliases.get(int(m.group(1)), int(m.group(1)))
         if number not in table.numbers:
@@ -341,7 +341,7 @@ def read_au_csv(path: str | os.PathLike, fps: float | None = None, *,
     if skipped:
         notes.append(f"AU column(s) without a 2-D mapping skipped: {', '.join(skipped)}")
     if ignored:
-        notes.append(f"{ignored} other column(s) ignored (confidence, AUxx_c, gaze, pose, ...)")
+        notes.append(f"{ignored} other column(s) ignored (AUxx_c, gaze, pose, landmarks, ...)")
     if fps is None:
         if n > 1:
             raw = 1.0 / float(np.median(np.diff(times)))
@@ -377,7 +377,8 @@ def write_au_csv(seq: FapSequence, path: str | os.PathLike) -> Path:
 # ------------------------------------------------------------------ any animation file
 def resample(times: np.ndarray, faps: np.ndarray, fps: float, name: str) -> FapSequence:
     """Rows at ``times`` (s, from 0) -> a FapSequence of uniform frames at ``fps`` (linear)."""
-    n = int(math.floor(times[-1] * fps + 1e-6)) + 1
+    # + 0.05 frame: timestamps rounded to milliseconds (OpenFace) must not lose the last frame
+    n = int(math.floor(times[-1] * fps + 0.05)) + 1
     if n > MAX_FRAMES:
         raise CsvFormatError(f"{name}: {n} frames at {fps_text(fps)} fps, expected at most "
                              f"{MAX_FRAMES}")
@@ -392,14 +393,11 @@ def resample(times: np.ndarray, faps: np.ndarray, fps: float, name: str) -> FapS
 
 
 def detect_kind(path: str | os.PathLike) -> str:
-    """``"fap"``, ``"arkit"`` or ``"au"`` from the extension and (for .csv) the header."""
+    """``"arkit"`` or ``"au"`` for a ``.csv`` (from its header), else ``"fap"`` (the .fap
+    reader then judges the file)."""
     p = Path(path)
-    ext = p.suffix.lower()
-    if ext == ".fap":
+    if p.suffix.lower() != ".csv":
         return "fap"
-    if ext != ".csv":
-        raise CsvFormatError(f"{p.name}: expected a .fap or .csv file (Live Link Face or AU "
-                             "CSV)")
     lines = _text(p, p.name)
     first = next((s for s in lines if s.strip()), "")
     cols = [c.strip() for c in first.split(",")]

@@ -41,6 +41,7 @@ from .document_model import Document, DocumentModel
 from .qt_utils import run_guarded, signals_blocked
 
 STEPS = 100  # slider resolution: intensity in hundredths
+NAME_WIDTH = 150  # pixels for "AU12 Lip Corner Puller" (longer names are elided)
 CSV_FILTER = ("Live Link Face CSV (*.csv);;AU CSV, OpenFace style (*.csv);;"
               "MPEG-4 FAP files (*.fap)")
 _KIND_OF_FILTER = {"Live Link": "arkit", "AU CSV": "au", "MPEG-4": "fap"}
@@ -110,9 +111,15 @@ class AuPanel(QWidget):
             grid.setContentsMargins(4, 2, 4, 2)
             grid.setVerticalSpacing(1)
             r = 0
+            for col, stretch in ((2, 1), (5, 1)):  # the sliders take the spare width
+                grid.setColumnStretch(col, stretch)
             for a in (a for a in self.table.aus if a.region == region):
-                name = QLabel(f"AU{a.number} {a.name}")
-                name.setToolTip(a.source)
+                name = QLabel()
+                fm = name.fontMetrics()
+                name.setText(fm.elidedText(f"AU{a.number} {a.name}",
+                                           Qt.TextElideMode.ElideRight, NAME_WIDTH))
+                name.setFixedWidth(NAME_WIDTH + 4)
+                name.setToolTip(f"AU{a.number} {a.name}: {a.source}")
                 grid.addWidget(name, r, 0)
                 sides = ("L", "R") if a.sided else ("",)
                 for j, side in enumerate(sides):
@@ -122,7 +129,7 @@ class AuPanel(QWidget):
                                  "(A 0.2 ... E 1.0)" + ("; left = the subject's left"
                                                         if side == "L" else ""))
                     v = QLabel("")
-                    v.setMinimumWidth(52)
+                    v.setFixedWidth(v.fontMetrics().horizontalAdvance("0.00 E") + 4)
                     self.sliders[col], self.values[col] = s, v
                     if side:
                         grid.addWidget(QLabel(side), r, 1 + 3 * j)

@@ -66,7 +66,7 @@ def test_au_drag_sets_the_faps_in_one_undo_entry(window, qtbot):
     want = aus_to_faps({"12": x})
     assert model.doc.faps[CORNER_L] == pytest.approx(want[CORNER_L], abs=1)
     assert window.fap_panel.rows[CORNER_L + 1].value() == pytest.approx(want[CORNER_L], abs=1)
-    assert model.undo_stack.count() == 1 and model.undo_stack.undoText() == "Set AU12L"
+    assert model.undo_stack.count() == 1 and model.undo_stack.undoText() == "Set AU12"
     model.undo_stack.undo()
     assert model.doc.faps[CORNER_L] == 0 and s.value() == 0 and p.sliders["12R"].value() == 0
 
@@ -79,7 +79,7 @@ def test_unlinked_side_moves_one_corner_and_keeps_other_faps(window):
     assert model.doc.faps[CORNER_L] == pytest.approx(0.6 * 420, abs=1)
     assert model.doc.faps[CORNER_R] == 0 and p.sliders["12R"].value() == 0
     assert model.doc.fap("yaw_l_eyeball") == 20000  # no AU touches gaze: kept
-    assert p.values["12L"].text() == "0.60 C"
+    assert p.values["12L"].text() == "0.60 C" and model.undo_stack.undoText() == "Set AU12L"
 
 
 def test_fap_edits_and_presets_show_as_aus(window):

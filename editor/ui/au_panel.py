@@ -176,7 +176,12 @@ class AuPanel(QWidget):
         self.model.begin_gesture()
 
     def _finish(self, column: str) -> None:
-        self.model.commit_gesture(f"Set AU{column}")
+        self.model.commit_gesture(f"Set {self._label(column)}")
+
+    def _label(self, column: str) -> str:
+        """``AU12`` for a linked pair, ``AU12L`` for one side, ``AU26`` for a midline AU."""
+        cols = self.columns_for(column)
+        return f"AU{column[:-1]}" if len(cols) == 2 else f"AU{column}"
 
     def _on_slider(self, column: str, v: int) -> None:
         doc = self.model.doc
@@ -192,7 +197,8 @@ class AuPanel(QWidget):
         if slider.isSliderDown():
             self.model.preview(new)
         else:  # keyboard, wheel, a click on the track: one entry per slider
-            self.model.push(new, f"Set AU{column}", key=f"au{column}")
+            self.model.push(new, f"Set {self._label(column)}",
+                            key=f"au{column}{'+m' if len(self.columns_for(column)) > 1 else ''}")
 
     def _show(self, column: str) -> None:
         x = float(self.weights[self.table.column_index(column)])

@@ -194,3 +194,16 @@ def test_cli_render_au_moves_the_mouth_corners_and_lids(cli, tmp_path, sample_fa
     assert (diff[y - 12:y - 4, x - 6:x + 7] > 30).sum() == 0  # above the brow: untouched
     r = cli("render", "sample", "--au", "12=F", "-o", tmp_path / "x.png")
     assert r.returncode == 2 and "A-E" in r.stderr and not (tmp_path / "x.png").exists()
+
+
+def test_cli_convert_resamples_a_fap_file(cli, tmp_path):
+    from editor.formats.fapfile import read_fap, write_fap
+
+    frames = np.zeros((26, 68), np.float32)
+    frames[:, 2] = np.linspace(0, 500, 26)  # open_jaw ramps over one second at 25 fps
+    write_fap(FapSequence(frames, fps=25), tmp_path / "a.fap")
+    r = cli("convert", tmp_path / "a.fap", tmp_path / "b.fap", "--fps", "50")
+    assert r.returncode == 0, r.stderr
+    b = read_fap(tmp_path / "b.fap")
+    assert b.fps == 50 and b.n_frames == 51
+    assert b.frames[1, 2] == 10 and b.frames[50, 2] == 500  # halfway between 0 and 20

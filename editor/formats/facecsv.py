@@ -8,7 +8,10 @@ frame. ``Timecode`` is SMPTE ``HH:MM:SS:FF.sss`` (``FF`` the frame within the se
 the fraction of a frame; ``;`` for drop-frame is read the same); time = seconds + (FF +
 .sss) / fps. The file does not store its frame rate: ``fps`` is given, else it is inferred
 from the largest ``FF`` (the smallest usual rate above it: 24, 25, 30, 50, 60, 120) and said
-in ``notes``. ``BlendShapeCount`` must equal the number of columns after it.
+in ``notes``. ``BlendShapeCount`` must be a whole number; exporters disagree on it (61, 51),
+so a count other than the number of columns is only noted. Rotations are radians; a file with
+an angle above pi is read as degrees (noted). The writer uses Live Link Face's own column
+order (``JawRight,JawLeft`` and ``MouthRight,MouthLeft`` as the app writes them).
 
 **OpenFace-style AU CSV** (OpenFace 2 ``FeatureExtraction``, py-feat/FACSvatar exports):
 ``frame,timestamp`` and ``AUxx_r`` intensity columns (0..5, FACS A..E = 1..5); spaces after
@@ -187,6 +190,7 @@ def read_live_link(path: str | os.PathLike, fps: float | None = None, *,
     weights = np.zeros((n, len(t.names)))
     rotations = np.zeros((n, len(t.rotations)))
     shape_cols = [where[("shape", i)] for i in range(len(t.names))]
+    other_count: str | None = None
     for k, (line, fields) in enumerate(data):
         _check_width(label, line, fields, width)
         m = _TIMECODE.match(fields[0])
@@ -200,17 +204,24 @@ def read_live_link(path: str | os.PathLike, fps: float | None = None, *,
         stamps[k] = (int(h) * 3600 + int(mi) * 60 + int(s), int(ff),
                      float("0." + sub) if sub else 0.0)
         count = fields[1]
-        if count != str(width - 2):
-            raise CsvFormatError(f"{label} line {line}, column BlendShapeCount: expected "
-                                 f"{width - 2} (the columns after it), got {_short(count)}")
+        if not count.isdigit() or len(count) > 4:
+            raise CsvFormatError(f"{label} line {line}, column BlendShapeCount: expected a "
+                                 f"whole number, got {_short(count)}")
+        other_count = other_count or (count if count != str(width - 2) else None)
         for i, j in enumerate(shape_cols):
             weights[k, i] = _float(fields[j], label, line, header[j], -1e-3, 1 + 1e-3,
                                    "a blendshape weight", "0 to 1")
         for i, c in enumerate(rot_cols if has_rot else []):
             assert c is not None
-            rotations[k, i] = _float(fields[c], label, line, header[c], -math.pi, math.pi,
-                                     "an angle in radians")
+            rotations[k, i] = _float(fields[c], label, line, header[c], -360.0, 360.0,
+                                     "an angle (radians, or degrees)")
     notes: list[str] = []
+    if other_count:
+        notes.append(f"BlendShapeCount {other_count} differs from the {width - 2} columns "
+                     "after it (ignored: the header names the columns)")
+    if has_rot and np.abs(rotations).max() > math.pi:
+        rotations = np.radians(rotations)
+        notes.append("rotations above pi: read as degrees")
     if fps is None:
         top = stamps[:, 1].max()
         fps = next((r for r in STANDARD_RATES if r > top), float(top + 1))
@@ -229,6 +240,16 @@ def read_live_link(path: str | os.PathLike, fps: float | None = None, *,
                              "increasing timecodes")
     return LiveLinkCapture(times - times[0], np.clip(weights, 0.0, 1.0), rotations, fps,
                            has_rot, notes)
+
+
+def live_link_order() -> list[int]:
+    """ARKit indices in Live Link Face's CSV column order: ARKit's, except that the app writes
+    JawRight before JawLeft and MouthRight before MouthLeft."""
+    names = list(arkit_table().names)
+    for a, b in (("jawLeft", "jawRight"), ("mouthLeft", "mouthRight")):
+        i, j = names.index(a), names.index(b)
+        names[i], names[j] = names[j], names[i]
+    return [arkit_table().names.index(n) for n in names]
 
 
 def _timecode(frame: int, fps: int) -> str:
@@ -253,7 +274,9 @@ def format_live_link(seq: FapSequence) -> str:
     """The Live Link Face CSV text of ``seq`` (blendshapes fitted, rotations read off)."""
     t = arkit_table()
     weights, rot = faps_to_arkit(_low_level(seq).frames)
-    header = ["Timecode", "BlendShapeCount", *t.csv_names, *t.rotations]
+    order = live_link_order()
+    weights = weights[:, order]
+    header = ["Timecode", "BlendShapeCount", *(t.csv_names[i] for i in order), *t.rotations]
     out = [",".join(header)]
     count = str(len(header) - 2)
     if not float(seq.fps).is_integer():

@@ -15,6 +15,9 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
 * ``face_from_image``: detection + fitting on the sample and on a 1920-px photo;
 * ``fap_reject_huge_header``: a ``.fap`` whose header declares the maximum frame count but
   holds one frame is refused (target: well under 500 ms; nothing is preallocated);
+* ``facs_fit``: one frame's FAPs -> AU intensities and -> ARKit weights (the bounded
+  least-squares fit of ``convert`` and the Action Units dock), on the six emotion presets;
+  target: under 2 ms a frame (a 60 fps Live Link capture converts 8 x faster than real time);
 * ``gui_slider_latency`` (with ``--gui``): slider change -> frame in the preview, in the real
   window (offscreen unless QT_QPA_PLATFORM is set), on the sample face;
 * ``scheduler_submit_while_busy`` (with ``--gui``): one ``RenderScheduler.submit`` while the
@@ -120,6 +123,19 @@ def fap_header_bench() -> None:
         raise AssertionError("a truncated .fap file was accepted")
 
     _emit({"bench": "fap_reject_huge_header", **_time(run, 20), "target_ms": 500})
+
+
+def facs_bench() -> None:
+    from editor.formats.arkit import faps_to_arkit
+    from editor.formats.expressions import apply_preset
+    from editor.formats.facs import faps_to_aus
+
+    vecs = [apply_preset(e, 1.0) for e in ("joy", "sadness", "anger", "fear", "disgust",
+                                           "surprise")]
+    it = iter(range(10**9))
+    for name, fit in (("au", faps_to_aus), ("arkit", faps_to_arkit)):
+        _emit({"bench": "facs_fit", "to": name,
+               **_time(lambda f=fit: f(vecs[next(it) % 6]), 60), "target_ms": 2})
 
 
 def scheduler_bench() -> None:
@@ -289,6 +305,7 @@ def main() -> None:
 
     _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
     fap_header_bench()
+    facs_bench()
     img = load_image(SAMPLE)
     t = _time(lambda: Face.from_image(img), 5, warm=1)
     _emit({"bench": "face_from_image", "size": "512x512", **t})

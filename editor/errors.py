@@ -38,3 +38,7 @@ class StudyError(FapStudioError):
 
 class ModelError(FapStudioError):
     """A bilinear model file or its training data is invalid."""
+
+
+class CsvFormatError(FapFileError):
+    """A Live Link Face or Action Unit CSV file is malformed (row and column named)."""

@@ -13,6 +13,8 @@ refuses an installed copy.
 ``PRESETS_DIR``       the shipped emotion and viseme presets (``scripts/derive_presets.py``)
 ``SAMPLE_FACE``       the bundled sample photo (NASA, public domain)
 ``WEB_DIR``           the remote rating page (``index.html``, ``app.js``, ``app.css``)
+``MAPPINGS_DIR``      FACS AU -> FAP and ARKit blendshape -> FAP tables (``au_faps.json``,
+                      ``arkit.json``; :mod:`editor.formats.facs`, :mod:`editor.formats.arkit`)
 ``DATA_README``       origins and licences of the files above
 ====================  ======================================================================
 """
@@ -62,6 +64,7 @@ MOUTH_DIR = data_path("mouth")
 PRESETS_DIR = data_path("presets")
 SAMPLE_FACE = data_path("sample_face.png")
 WEB_DIR = data_path("web")
+MAPPINGS_DIR = data_path("mappings")
 DATA_README = data_path("README.md")
 
 # ------------------------------------------------------------------ per-user folders

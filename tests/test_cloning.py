@@ -245,7 +245,7 @@ def _run(argv):
 
 
 def test_cli_clone_and_errors(tmp_path, sample_face, sample_neutral, capsys):
-    from editor.formats.expressions import load_preset
+    from editor.formats.presets import load_preset
 
     expr = tmp_path / "expr.png"
     # the performer's expression photo is surprise on the photo the clone opens as the

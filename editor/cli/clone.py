@@ -40,8 +40,8 @@ def _write_text(path: str | Path, text: str) -> None:
 def faps_document(faps: np.ndarray, name: str, source: str, extra: dict | None = None) -> dict:
     """A preset document (``fap-studio-preset``, kind custom) of a FAP vector, rounded."""
     from editor.engine.faps import FAPS
-    from editor.formats.expressions import PRESET_FORMAT, PRESET_VERSION, preset_from_dict
     from editor.formats.fapfile import round_half_away
+    from editor.formats.presets import PRESET_FORMAT, PRESET_VERSION, preset_from_dict
 
     clean = re.sub(r"[^A-Za-z0-9_-]", "_", name)[:64] or "cloned"
     v = round_half_away(FAPS.clamp(np.asarray(faps, np.float32)))
@@ -121,7 +121,7 @@ def roundtrip_vectors(n_random: int = 4, seed: int = 0) -> tuple[list[str], np.n
     """The six emotion presets restricted to the observable FAPs, plus random vectors
     (each observable FAP uniform in +-25 % of its larger range end, left/right independent)."""
     from editor.engine.faps import FAPS
-    from editor.formats.expressions import apply_preset
+    from editor.formats.presets import apply_preset
     from editor.synthesis.fap_estimate import OBSERVABLE
 
     obs = np.array(OBSERVABLE) - 1

@@ -34,8 +34,8 @@ from editor.errors import (
     ProjectError,
     StudyError,
 )
-from editor.formats.expressions import Preset, all_presets, apply_preset, get_preset
 from editor.formats.fapfile import FapSequence, read_fap, write_fap
+from editor.formats.presets import Preset, all_presets, apply_preset, get_preset
 
 __all__ = [
     "FAPS", "MAX_PIXELS", "Face", "Fap", "FapFileError", "FapSequence", "FapStudioError",

@@ -281,3 +281,83 @@ class FapTable(Mapping[object, Fap]):
 
 
 FAPS = FapTable(_ROWS)
+
+#: Left/right partner index of each FAP (0-based, -1 for none): vectorised ``Fap.mirror``.
+_MIRROR_INDEX = np.array([(FAPS[n].mirror or 0) - 1 for n in range(1, 69)], np.int64)
+
+
+def round_half_away(a: np.ndarray | float | list) -> np.ndarray:
+    """Round to integers, halves away from zero (as .fap files and presets store values).
+
+    Parameters
+    ----------
+    a : array_like
+        Values in FAPU.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 array of the same shape, integer-valued.
+
+    Examples
+    --------
+    >>> round_half_away([12.5, -12.5, 0.4]).tolist()
+    [13.0, -13.0, 0.0]
+    """
+    a = np.asarray(a, np.float64)
+    return np.sign(a) * np.floor(np.abs(a) + 0.5)
+
+
+def check_vector(vector: np.ndarray) -> np.ndarray:
+    """A (68,) float64 copy of a finite low-level FAP vector (FAP 1/2 zero).
+
+    Parameters
+    ----------
+    vector : array_like
+        68 values, index i = FAP i+1.
+
+    Returns
+    -------
+    numpy.ndarray
+        (68,) float64 copy.
+
+    Raises
+    ------
+    ValueError
+        Wrong size, a non-finite value, or a non-zero FAP 1/2.
+
+    Examples
+    --------
+    >>> check_vector(FAPS.vector({"open_jaw": 300}))[2]
+    300.0
+    """
+    v = np.array(vector, np.float64).reshape(-1)
+    if v.shape != (68,) or not np.isfinite(v).all() or v[0] or v[1]:
+        raise ValueError(f"expected 68 finite low-level FAP values (FAP 1/2 zero), got {v}")
+    return v
+
+
+def partner_mask(m: np.ndarray) -> np.ndarray:
+    """The (68,) mask ``m`` plus the left/right partner of each masked FAP, FAP 1/2 off.
+
+    Parameters
+    ----------
+    m : array_like of bool
+        (68,) mask, index i = FAP i+1.
+
+    Returns
+    -------
+    numpy.ndarray
+        (68,) bool.
+
+    Examples
+    --------
+    >>> m = partner_mask(FAPS.vector({"raise_l_cornerlip": 100}) != 0)
+    >>> [FAPS[int(i) + 1].name for i in m.nonzero()[0]]
+    ['raise_l_cornerlip', 'raise_r_cornerlip']
+    """
+    out = np.array(m, bool).reshape(68)
+    partners = _MIRROR_INDEX[out]
+    out[partners[partners >= 0]] = True
+    out[:2] = False
+    return out

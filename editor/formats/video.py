@@ -99,7 +99,7 @@ class ExportResult:
 
 def sequence_vectors(seq) -> np.ndarray:
     """(N, 68) low-level FAP vectors of a sequence (FAP 1/2 expanded), clamped."""
-    from .expressions import expand_high_level
+    from .fapfile import expand_high_level
 
     s = expand_high_level(seq) if getattr(seq, "has_high_level", False) else seq
     v = np.asarray(s.frames, np.float32).copy()

@@ -140,7 +140,7 @@ def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
     that raters judge the face, not the photo around it.
     """
     from editor.engine.face import Face
-    from editor.formats.expressions import apply_preset, get_preset
+    from editor.formats.presets import apply_preset, get_preset
 
     out = []
     names: set[str] = set()

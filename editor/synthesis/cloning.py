@@ -128,7 +128,7 @@ def key_models(source_face, key_points: dict[str, np.ndarray], target_face,
     ``target="transfer"``: each target key is the Laplacian clone of the source key;
     ``"presets"``: the target's key is its emotion preset (names must be preset names).
     """
-    from editor.formats.expressions import apply_preset
+    from editor.formats.presets import apply_preset
 
     names = tuple(key_points)
     neutral = np.asarray(source_face.landmarks.points, np.float64)

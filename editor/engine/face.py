@@ -47,6 +47,7 @@ from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
 from .mesh import StandardMesh, signed_areas, standard_mesh
+from .transform import similarity
 from .warp import WarpPlan, WarpResult, warp
 
 #: estimate_own rounds, each against the FAPU of the neutral the previous one implies
@@ -138,6 +139,8 @@ class Face:
         the upper lip next to the corners drops below them, and the fold guard then keeps the
         corners up (the neutral still smiled).
         """
+        # imported on first use (not a cycle): scipy.sparse and scipy.stats add ~0.4 s to
+        # `import editor.core`
         from .laplacian import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
 
         P = self.vertices
@@ -231,7 +234,7 @@ class Face:
 
     def with_own_expression(self) -> Face:
         """A copy whose :attr:`expression` is the estimate of what the photo shows."""
-        from .own_expression import estimate_own
+        from .own_expression import estimate_own  # on first use, as above
 
         base = self if not self.expression.any() else self.with_expression(None)
         own = estimate_own(base)
@@ -418,7 +421,7 @@ class Face:
         Each eyeball follows its two eye corners (a similarity); the mouth interior (teeth)
         follows the skull: a least-squares similarity of the inner eye corners and the nose.
         """
-        return {name: _similarity(self.vertices[idx], v[idx])
+        return {name: similarity(self.vertices[idx], v[idx])
                 for name, idx in self._layer_anchors.items()}
 
     @cached_property
@@ -459,19 +462,6 @@ def _fap_gap(G: np.ndarray, Gc: np.ndarray, vec: np.ndarray) -> np.ndarray:
     va, vb = f[LIP_PAIRS[:, 0]], f[LIP_PAIRS[:, 1]]
     common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
     return G @ f - Gc @ common
-
-
-def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Least-squares similarity (2x3) mapping the points ``src`` onto ``dst``."""
-    s = np.asarray(src, np.float64)
-    d = np.asarray(dst, np.float64)
-    ms, md = s.mean(0), d.mean(0)
-    a, b = s - ms, d - md
-    den = float((a * a).sum()) or 1.0
-    c = float((a * b).sum()) / den
-    sn = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()) / den
-    R = np.array([[c, -sn], [sn, c]])
-    return np.hstack([R, (md - R @ ms)[:, None]])
 
 
 def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,

@@ -37,6 +37,10 @@ from typing import Any
 
 import numpy as np
 
+from editor.engine.fitting import fit_vertices
+from editor.engine.imageio import load_image
+from editor.engine.landmarks import default_detector
+from editor.engine.laplacian import landmark_map
 from editor.errors import ModelError, NoFaceError
 from editor.resources import user_cache_dir
 
@@ -50,6 +54,8 @@ from .bilinear_data import (
     region_vectors,
     training_matrix,
 )
+from .cloning import finish
+from .fap_estimate import FapEstimator
 
 LAYOUT = "dlib68"
 N68 = 68
@@ -102,9 +108,6 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
     (person, expression). Detections are cached (one ``.npz`` per image list) in ``cache_dir``
     (default :func:`default_cache_dir`; ``""`` disables). Images without a face are skipped.
     """
-    from editor.engine.imageio import load_image
-    from editor.engine.landmarks import default_detector
-
     root = Path(images_dir)
     if not root.is_dir():
         raise ModelError(f"{root}: not a directory of training images")
@@ -335,7 +338,6 @@ def neutral_points68(face: Any) -> np.ndarray:
     pts = np.asarray(face.landmarks.points, np.float64)
     if not face.has_expression:
         return pts
-    from editor.engine.laplacian import landmark_map
 
     A = landmark_map(face.vertices, face.triangles, face.mesh.names, pts)
     return np.asarray(A @ face.deform(None).astype(np.float64))
@@ -346,10 +348,6 @@ def mesh_for_points(face: Any, points68: np.ndarray, base68: np.ndarray | None =
     """The face's neutral mesh moved so that it follows ``points68`` (fold-free), (V, 2)
     float32. ``base68`` are the landmarks of that neutral mesh (default
     :func:`neutral_points68`): the mesh moves by the fitted displacement base68 -> points68."""
-    from editor.engine.fitting import fit_vertices
-
-    from .cloning import finish
-
     base = neutral_points68(face) if base68 is None else np.asarray(base68, np.float64)
     h, w = face.image.shape[:2]
     names = face.mesh.names
@@ -380,8 +378,6 @@ def synthesize_on_face(face: Any, model: BilinearModel,
 def faps_for_points(face: Any, points68: np.ndarray) -> np.ndarray:
     """(68,) FAP vector (the face's FAPU) that best reproduces the landmark motion from the
     neutralised face (:func:`neutral_points68`) to ``points68``: the document's FAPs."""
-    from .fap_estimate import FapEstimator
-
     return FapEstimator(face).estimate(np.asarray(points68, np.float64),
                                        neutral68=neutral_points68(face)).faps
 

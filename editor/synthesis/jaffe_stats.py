@@ -23,11 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
+from editor.engine.face import Face
 from editor.engine.faps import FAPS
-from editor.engine.landmarks import FDP_FROM_68, Iris, Landmarks
+from editor.engine.imageio import load_image
+from editor.engine.landmarks import FDP_FROM_68, Iris, Landmarks, detect_landmarks
 from editor.resources import checkout_jaffe_dir
 
 from .closed_loop import JAFFE_EMOTIONS
+from .fap_estimate import remove_head_motion
 
 CODES = JAFFE_EMOTIONS  # JAFFE expression code -> emotion
 #: Feature point -> iBUG-68 indices: :data:`.landmarks.FDP_FROM_68` plus the lip mid-points
@@ -69,8 +72,6 @@ def _detect_all(paths: list[Path]) -> dict[str, np.ndarray]:
     if cache.exists():
         with np.load(cache) as z:
             return {k: z[k] for k in z.files}
-    from editor.engine.imageio import load_image
-    from editor.engine.landmarks import detect_landmarks
 
     out = {}
     for p in paths:
@@ -123,11 +124,6 @@ class JaffeMotion:
 
 def measure(root: str | Path | None = None) -> JaffeMotion:
     """Measure every JAFFE expression photo against its woman's neutral (see the module)."""
-    from editor.engine.face import Face
-    from editor.engine.imageio import load_image
-
-    from .fap_estimate import remove_head_motion
-
     images = Path(root or default_root()) / "images"
     paths = sorted(images.glob("*.tiff"))
     if not paths:

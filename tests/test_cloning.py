@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from conftest import SAMPLE, jaffe_images
 
-from editor.cli.clone import add_clone_parser, roundtrip_vectors, upscaled_face
+from editor.cli.clone import add_clone_parser
 from editor.core import FAPS, Face, FapStudioError, load_image, save_image, signed_areas
 from editor.engine.laplacian import mean_value_weights
 from editor.formats.fapfile import read_fap, write_fap
+from editor.synthesis.clone_eval import roundtrip_vectors, upscaled_face
 from editor.synthesis.cloning import (
     KeyModels,
     clone,

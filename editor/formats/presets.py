@@ -15,6 +15,7 @@ import difflib
 import json
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from datetime import date
 from functools import lru_cache
@@ -223,11 +224,8 @@ def save_user_preset(name: str, vector: np.ndarray, *, kind: str = "custom",
     existing = [p for p in d.glob("*.json") if p.stem.lower() == name.lower()] if d.is_dir() else []
     if existing and not overwrite:
         raise PresetError(f"a user preset {existing[0].stem!r} already exists")
-    faps = {FAPS[i + 1].name: int(x) for i, x in enumerate(round_half_away(v)) if x != 0}
-    doc = {"format": PRESET_FORMAT, "version": PRESET_VERSION, "kind": kind, "name": name,
-           "mpeg4_index": None, "description": description,
-           "source": source or f"saved by the user on {date.today().isoformat()}", "faps": faps}
-    preset_from_dict(doc, name)  # validate (ranges) before touching the disk
+    doc = preset_document(v, name, source or f"saved by the user on {date.today().isoformat()}",
+                          kind=kind, extra={"description": description})
     atomic_write_text(path, json.dumps(doc, indent=2, ensure_ascii=False) + "\n",
                       error=PresetError, label=f"user preset {name!r}")
     try:
@@ -237,6 +235,39 @@ def save_user_preset(name: str, vector: np.ndarray, *, kind: str = "custom",
     except OSError as e:
         raise PresetError(f"user preset {name!r}: cannot remove {old.name} ({e})") from e
     return load_preset(path)
+
+
+def preset_name(text: str, default: str = "preset") -> str:
+    """``text`` made a valid preset name: other characters become ``_``, at most 64.
+
+    Examples
+    --------
+    >>> preset_name("joy (take 2)")
+    'joy__take_2_'
+    """
+    return re.sub(r"[^A-Za-z0-9_-]", "_", text)[:64] or default
+
+
+def preset_document(vector: np.ndarray, name: str, source: str, *, kind: str = "custom",
+                    extra: dict | None = None) -> dict:
+    """The preset document of a (68,) low-level vector, values rounded half away from zero.
+
+    FAP 1/2 and zero values are left out; ``extra`` keys are added (e.g. ``description``).
+    :class:`PresetError` if the result is not a valid preset (a name, kind or value out of
+    range: clamp first with ``FAPS.clamp`` where that is wanted).
+
+    Examples
+    --------
+    >>> preset_document(FAPS.vector({"open_jaw": 99.5}), "mine", "a doctest")["faps"]
+    {'open_jaw': 100}
+    """
+    v = round_half_away(np.asarray(vector, np.float64).reshape(68))
+    doc = {"format": PRESET_FORMAT, "version": PRESET_VERSION, "kind": kind, "name": name,
+           "mpeg4_index": None, "source": source,
+           "faps": {FAPS[i + 1].name: int(x) for i, x in enumerate(v) if i >= 2 and x != 0}}
+    doc.update(extra or {})
+    preset_from_dict(doc, name)  # validate (names, ranges) before anything is written
+    return doc
 
 
 def apply_preset(preset: Preset | str, intensity: float = 1.0) -> np.ndarray:

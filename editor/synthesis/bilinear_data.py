@@ -50,6 +50,7 @@ from editor.synthesis.bilinear import (
     train_bilinear,
     translate,
 )
+from editor.synthesis.jaffe import JAFFE_CODES
 
 N_LANDMARKS = 77
 NOSE_TIP = 52
@@ -62,7 +63,6 @@ REGIONS: dict[str, tuple[int, ...]] = {
     "mouth": tuple(range(59, 77)),
 }
 EXPRESSIONS = ("neutral", "happy", "sad", "surprise", "angry", "disgust", "fear")
-JAFFE_CODES = ("NE", "HA", "SA", "SU", "AN", "DI", "FE")  # label k <-> JAFFE_CODES[k]
 NORMALISATION = {
     "layout": "stasm77",
     "origin": f"nose tip (landmark {NOSE_TIP}) of the same image",

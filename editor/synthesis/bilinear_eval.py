@@ -37,6 +37,7 @@ from editor.synthesis.bilinear_data import (
     region_vectors,
     train_from_means,
 )
+from editor.synthesis.jaffe import JAFFE_CODES
 
 DEFAULT_GRID = tuple(float(x) for x in np.logspace(-4, 3, 15))
 PAPER_MOUTH_EXPRESSIONS = ("neutral", "happy", "fear", "sad", "surprise")
@@ -264,7 +265,7 @@ def _row(label: str, values: np.ndarray | Sequence[float | str], width: int = 7,
 
 def format_report(res: EvalResult) -> str:
     """The evaluation as a plain-text table beside the paper's values."""
-    codes = ("NE", "HA", "SA", "SU", "AN", "DI", "FE")
+    codes = JAFFE_CODES
     out: list[str] = []
     add = out.append
     n_train = "the other"

@@ -43,11 +43,11 @@ from editor.engine.landmarks import default_detector
 from editor.engine.laplacian import landmark_map
 from editor.errors import ModelError, NoFaceError
 from editor.resources import user_cache_dir
+from editor.safeio import atomic_file
 
 from .bilinear import BilinearModel, RegionModel, fix_gauge, synthesize_region, train_bilinear
 from .bilinear import translate as translate_region
 from .bilinear_data import (
-    JAFFE_CODES,
     LandmarkSet,
     denormalise,
     normalise,
@@ -56,6 +56,7 @@ from .bilinear_data import (
 )
 from .cloning import finish
 from .fap_estimate import FapEstimator
+from .jaffe import JAFFE_CODES
 
 LAYOUT = "dlib68"
 N68 = 68
@@ -152,9 +153,9 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
     pts = np.array(pts_l)
     if cache is not None:
         try:
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            np.savez(cache, points=pts, names=np.array(names_l))
-        except OSError:
+            with atomic_file(cache, error=ModelError) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, points=pts, names=np.array(names_l))
+        except ModelError:  # a cache that cannot be written is only slower next time
             pass
     return _landmark_set(pts, names_l)
 

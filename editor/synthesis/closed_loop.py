@@ -33,24 +33,10 @@ from editor.errors import NoFaceError
 from editor.resources import checkout_jaffe_dir
 
 from .fap_estimate import FapEstimator, remove_head_motion
+from .jaffe import JAFFE_EMOTIONS, jaffe_files
 
-JAFFE_EMOTIONS = {"HA": "joy", "SA": "sadness", "SU": "surprise", "AN": "anger",
-                  "DI": "disgust", "FE": "fear"}
 REGIONS = {"brows": np.arange(17, 27), "lids": np.arange(36, 48), "lips": np.arange(48, 68),
            "jaw": np.arange(5, 12), "inner": np.arange(17, 68)}
-
-
-def jaffe_files(images: Path) -> dict[str, dict[str, list[Path]]]:
-    """``{person: {code: [paths sorted by instance]}}`` of a JAFFE ``images`` folder."""
-    out: dict[str, dict[str, list[Path]]] = {}
-    for p in sorted(Path(images).glob("*.tiff")):
-        parts = p.name.split(".")
-        if len(parts) >= 3 and len(parts[1]) >= 3:
-            out.setdefault(parts[0], {}).setdefault(parts[1][:2], []).append(p)
-    for d in out.values():
-        for k in d:
-            d[k].sort(key=lambda q: (q.name.split(".")[1], q.name))
-    return out
 
 
 @dataclass

@@ -26,18 +26,15 @@ from editor.synthesis.bilinear import (
     vector_transpose,
 )
 from editor.synthesis.bilinear_data import (
-    CONTOUR,
     EXPRESSIONS,
-    INNER_EYE_CORNERS,
-    JAFFE_CODES,
-    NOSE_TIP,
-    REGIONS,
     LandmarkSet,
     load_stasm77,
     synthesize_shape,
     train_model,
 )
 from editor.synthesis.bilinear_eval import er_fp, evaluate, format_report, make_folds, s_within
+from editor.synthesis.jaffe import JAFFE_CODES
+from editor.synthesis.landmark_scheme import STASM77
 
 JAFFE = checkout_jaffe_dir()
 JAFFE_LM = JAFFE / "landmarks_stasm77"
@@ -207,8 +204,8 @@ def synthetic_set(n_people: int = 4, images: int = 1, seed: int = 6) -> Landmark
     """Faces = base + person deformation + expression deformation (+ a little noise), pixels."""
     rng = np.random.default_rng(seed)
     base = rng.uniform(60, 200, size=(77, 2))
-    base[INNER_EYE_CORNERS[0]], base[INNER_EYE_CORNERS[1]] = (110, 120), (150, 120)
-    base[NOSE_TIP] = (130, 160)
+    base[STASM77.inner_eye_corners[0]], base[STASM77.inner_eye_corners[1]] = (110, 120), (150, 120)
+    base[STASM77.nose_tip] = (130, 160)
     person = rng.normal(0, 4, size=(n_people, 77, 2))
     expr = rng.normal(0, 2, size=(7, 77, 2))
     pts, persons, labels, names = [], [], [], []
@@ -238,13 +235,13 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     save_model(model, path)
     back = load_model(path)
     assert back.expressions == EXPRESSIONS and back.identities == model.identities
-    assert back.region_indices == model.region_indices == REGIONS
+    assert back.region_indices == model.region_indices == STASM77.regions
     assert back.meta == model.meta
     for name, reg in model.regions.items():
         for x in "WAB":
             np.testing.assert_array_equal(getattr(back.regions[name], x), getattr(reg, x))
-        assert back.regions[name].K == reg.K == 2 * len(REGIONS[name])
-    assert set(errors) == set(REGIONS)
+        assert back.regions[name].K == reg.K == 2 * len(STASM77.regions[name])
+    assert set(errors) == set(STASM77.regions)
 
 
 def _npz(path: Path, **arrays: np.ndarray) -> Path:
@@ -295,7 +292,7 @@ def test_synthesize_shape_api() -> None:
     face = data.points[0]  # P0 neutral
     out = synthesize_shape(model, face, "neutral", "plain", tol=1e-10, max_iter=300)
     assert out.shape == (77, 2)
-    np.testing.assert_array_equal(out[list(CONTOUR)], face[list(CONTOUR)])
+    np.testing.assert_array_equal(out[list(STASM77.contour)], face[list(STASM77.contour)])
     np.testing.assert_allclose(out, face, atol=0.05)  # reconstruction of a trained face
     mix = synthesize_shape(model, face, {"happy": 0.5, "surprise": 0.5}, "ridge", lam=0.1)
     same = synthesize_shape(model, face, np.eye(7)[1] * 0.5 + np.eye(7)[3] * 0.5, "ridge", 0.1)
@@ -348,8 +345,8 @@ def test_jaffe_layout_and_training() -> None:
     data = load_stasm77(JAFFE_LM)
     assert data.points.shape == (213, 77, 2) and len(data.people) == 10
     p = data.points.mean(axis=0)
-    left, right = p[INNER_EYE_CORNERS[0]], p[INNER_EYE_CORNERS[1]]
-    assert left[0] < p[NOSE_TIP, 0] < right[0] and p[NOSE_TIP, 1] > left[1]
+    left, right = p[STASM77.inner_eye_corners[0]], p[STASM77.inner_eye_corners[1]]
+    assert left[0] < p[STASM77.nose_tip, 0] < right[0] and p[STASM77.nose_tip, 1] > left[1]
     assert p[34, 0] < left[0] and p[44, 0] > right[0]  # outer eye corners lie outside
     assert p[16:28, 1].max() < p[30:48, 1].min()  # brows above eyes
     assert p[59:77, 1].min() > p[48:59, 1].max()  # mouth below nose

@@ -59,6 +59,15 @@ class Fap:
     fdp : str | None       the feature point it drives (rotation pivot for eye/head rotations)
     range : (float, float) slider range in FAPU
     mirror : int | None    the left/right partner FAP
+
+    Examples
+    --------
+    >>> from editor.core import FAPS
+    >>> fap = FAPS["raise_l_cornerlip_o"]
+    >>> fap.number, fap.unit, fap.direction, fap.fdp, FAPS[fap.mirror].name
+    (59, 'MNS', 'up', '8.3', 'raise_r_cornerlip_o')
+    >>> fap.group_name
+    'outer lips'
     """
 
     number: int
@@ -196,7 +205,40 @@ MAX_VALUE = 1e9
 
 
 class FapTable(Mapping[object, Fap]):
-    """The 68 FAPs, indexable by number (1..68) or name (``FAPS["open_jaw"]``)."""
+    """The 68 FAPs, indexable by number (1..68) or name (``FAPS["open_jaw"]``).
+
+    :data:`FAPS` is the one table; iterating yields the numbers 1..68. A FAP vector is a
+    (68,) float32 array, index i = FAP i+1, values in FAPU.
+
+    Parameters
+    ----------
+    rows : list of tuple
+        ``(number, name, description, unit, bidirectional, direction, group, fdp, range)``
+        per FAP (the MPEG-4 table); the left/right partners are found from the names.
+
+    Attributes
+    ----------
+    lo, hi : (68,) float32
+        The lower and upper ends of each FAP's range.
+
+    Raises
+    ------
+    ValueError
+        Looking up an unknown name or number, or a vector value that is not finite.
+
+    Examples
+    --------
+    >>> from editor.core import FAPS
+    >>> len(FAPS), FAPS[3].name, FAPS["open_jaw"].number, FAPS[3].range
+    (68, 'open_jaw', 3, (0.0, 1080.0))
+    >>> v = FAPS.vector({"open_jaw": 2000, 53: -50})  # names or numbers, not clamped
+    >>> float(v[2]), float(v[52]), float(FAPS.clamp(v)[2])
+    (2000.0, -50.0, 1080.0)
+    >>> FAPS["smile"]
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown FAP 'smile' (expected a number 1-68 or an MPEG-4 FAP name)
+    """
 
     def __init__(self, rows: list[tuple]) -> None:
         by_name = {r[1]: r[0] for r in rows}
@@ -328,7 +370,7 @@ def check_vector(vector: np.ndarray) -> np.ndarray:
 
     Examples
     --------
-    >>> check_vector(FAPS.vector({"open_jaw": 300}))[2]
+    >>> float(check_vector(FAPS.vector({"open_jaw": 300}))[2])
     300.0
     """
     v = np.array(vector, np.float64).reshape(-1)

@@ -110,6 +110,30 @@ class FapSequence:
     frame_numbers : (N,) int64    as read (default 0..N-1); the writer renumbers from 0
     visemes, expressions : list   per frame a VisemeField / ExpressionField (Xface form) or None
     notes : list of str           what the reader tolerated (floats rounded, Greta masks, ...)
+
+    Parameters
+    ----------
+    frames : array_like
+        (N, 68) or (68,) values, finite; N >= 1.
+    masks, fps, name, version, frame_numbers, visemes, expressions, notes
+        As the attributes; left out, masks are the non-zero values (FAP 1/2 off).
+
+    Raises
+    ------
+    ValueError
+        Frames of the wrong shape or not finite, fps outside (0, 1000], per-frame lists of
+        the wrong length.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from editor.core import FAPS, FapSequence, apply_preset
+    >>> seq = FapSequence.single(apply_preset("joy"), fps=25, frames=50, name="joy")
+    >>> seq.n_frames, seq.duration, seq.used_faps()[:3]
+    (50, 2.0, [3, 4, 5])
+    >>> ramp = np.outer(np.linspace(0, 1, 5), FAPS.vector({"open_jaw": 400}))
+    >>> FapSequence(ramp, fps=10).frames[:, 2].tolist()
+    [0.0, 100.0, 200.0, 300.0, 400.0]
     """
 
     # masks, frame_numbers, visemes, expressions: None (the default) is filled in by
@@ -184,9 +208,33 @@ class FapSequence:
 
 
 def read_fap(source: str | os.PathLike | bytes, *, label: str | None = None) -> FapSequence:
-    """Read a ``.fap`` path, bytes or text (a ``str`` with a line break or NUL, or empty).
+    """Read an MPEG-4 ``.fap`` file (2.1; 2.0 and common producers' variants tolerated).
 
-    ``label`` names the source in messages. Raises :class:`FapFileError` (see module doc).
+    Parameters
+    ----------
+    source : str, os.PathLike or bytes
+        A path, the file's bytes, or its text (a ``str`` with a line break or NUL, or empty).
+    label : str, optional
+        Names the source in messages (default the file name, ``<bytes>`` or ``<text>``).
+
+    Returns
+    -------
+    FapSequence
+        What the file holds (never clamped); ``notes`` lists what was tolerated.
+
+    Raises
+    ------
+    FapFileError
+        ``"<file> line <k>: expected ..., got ..."``: a bad header, count, number or flag,
+        a truncated file or extra data (see the module docstring); never a partial load.
+
+    Examples
+    --------
+    >>> from editor.core import read_fap
+    >>> text = "2.1 jaw 25 1\\n" + "0 0 1" + " 0" * 65 + "\\n0 300\\n"
+    >>> seq = read_fap(text)
+    >>> seq.name, seq.fps, seq.n_frames, float(seq.frames[0, 2])
+    ('jaw', 25.0, 1, 300.0)
     """
     if isinstance(source, (bytes, bytearray)):
         data, label = bytes(source), label or "<bytes>"
@@ -382,7 +430,41 @@ def format_fap(seq: FapSequence, *, high_level: str = "expand") -> str:
 
 
 def write_fap(seq: FapSequence, path: str | os.PathLike, *, high_level: str = "expand") -> Path:
-    """Write ``seq`` to ``path`` atomically (see :func:`format_fap`); returns the path."""
+    """Write ``seq`` as a ``.fap`` 2.1 file, atomically (nothing partial on an error).
+
+    Parameters
+    ----------
+    seq : FapSequence
+        The animation; values are written rounded to integers.
+    path : str or os.PathLike
+        The output file.
+    high_level : {"expand", "xface"}, default "expand"
+        FAP 1/2 fields expanded into low-level FAPs (readable by every player), or written
+        as Xface 4/6-token fields (see :func:`format_fap`).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    FapFileError
+        The file cannot be written (the message says why).
+    ValueError
+        An unknown ``high_level``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from editor.core import FapSequence, apply_preset, read_fap, write_fap
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "joy.fap"
+    >>> _ = write_fap(FapSequence.single(apply_preset("joy"), frames=3, name="joy"), out)
+    >>> out.read_text().splitlines()[0]
+    '2.1 joy 25 3'
+    >>> read_fap(out).n_frames
+    3
+    """
     path, text = Path(path), format_fap(seq, high_level=high_level)
     return atomic_write_text(path, text, error=FapFileError, label=path.name)
 

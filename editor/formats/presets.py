@@ -39,7 +39,45 @@ _NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ012345678
 
 @dataclass(frozen=True, eq=False)
 class Preset:
-    """A named set of low-level FAP values (FAPU), keyed by FAP name."""
+    """A named set of low-level FAP values (FAPU), keyed by FAP name.
+
+    Loaded by :func:`get_preset` / :func:`all_presets` (or :func:`load_preset`), validated on
+    creation from a file; :func:`apply_preset` scales one to an intensity.
+
+    Parameters
+    ----------
+    name : str
+        1-64 letters, digits, ``_`` or ``-``.
+    kind : str
+        ``"emotion"``, ``"viseme"`` or ``"custom"``.
+    faps : dict
+        Low-level FAP name (3-68) -> value in FAPU.
+    mpeg4_index : int, optional
+        The MPEG-4 expression (1-6) or viseme (0-14) number, for FAP 2 / FAP 1 blends.
+    source, description : str
+        Where the values come from; what the preset shows.
+    phonemes : tuple of str
+        A viseme's phonemes.
+    path : pathlib.Path, optional
+        The file it was loaded from.
+    shipped : bool
+        Shipped with FAP Studio (not a user preset).
+
+    Attributes
+    ----------
+    vector : (68,) float32
+        The values as a read-only FAP vector.
+
+    Examples
+    --------
+    >>> from editor.core import FAPS, get_preset
+    >>> joy = get_preset("joy")
+    >>> joy.kind, joy.mpeg4_index, joy.shipped
+    ('emotion', 1, True)
+    >>> i = FAPS.number("raise_l_cornerlip_o") - 1  # FAP 59 is column 58 of a FAP vector
+    >>> joy.faps["raise_l_cornerlip_o"] == float(joy.vector[i])
+    True
+    """
 
     name: str
     kind: str
@@ -187,12 +225,65 @@ def user_presets(problems: list[str] | None = None) -> dict[str, Preset]:
 
 
 def all_presets(problems: list[str] | None = None) -> dict[str, Preset]:
-    """Shipped presets followed by user presets (see :func:`user_presets`)."""
+    """Shipped presets followed by user presets, by name.
+
+    Parameters
+    ----------
+    problems : list of str, optional
+        If given, a malformed user preset file is skipped and its one-line message appended
+        here; otherwise it raises.
+
+    Returns
+    -------
+    dict
+        name -> :class:`Preset`: the emotions and visemes in MPEG-4 order, then the user's.
+
+    Raises
+    ------
+    PresetError
+        A malformed user preset file (or one shadowing a shipped name), unless ``problems``
+        collects it.
+
+    Examples
+    --------
+    >>> from editor.core import all_presets
+    >>> presets = all_presets(problems=[])
+    >>> list(presets)[:6]
+    ['joy', 'sadness', 'anger', 'fear', 'disgust', 'surprise']
+    >>> presets["viseme_aa"].kind, presets["viseme_aa"].mpeg4_index
+    ('viseme', 10)
+    """
     return {**shipped_presets(), **user_presets(problems)}
 
 
 def get_preset(name: str) -> Preset:
-    """A shipped or user preset by name (case-insensitive); :class:`PresetError` if unknown."""
+    """A shipped or user preset by name (case-insensitive).
+
+    Parameters
+    ----------
+    name : str
+        e.g. ``"joy"``, ``"Viseme_AA"``.
+
+    Returns
+    -------
+    Preset
+
+    Raises
+    ------
+    PresetError
+        No preset has that name (the message lists them), or the user preset file of that
+        name is malformed (the message says why).
+
+    Examples
+    --------
+    >>> from editor.core import get_preset
+    >>> get_preset("SURPRISE").name
+    'surprise'
+    >>> get_preset("grin")
+    Traceback (most recent call last):
+    ...
+    editor.errors.PresetError: unknown preset 'grin'; expected one of joy, sadness, ...
+    """
     problems: list[str] = []
     found = {k.lower(): p for k, p in all_presets(problems).items()}
     if name.lower() not in found:
@@ -271,7 +362,35 @@ def preset_document(vector: np.ndarray, name: str, source: str, *, kind: str = "
 
 
 def apply_preset(preset: Preset | str, intensity: float = 1.0) -> np.ndarray:
-    """(68,) float32: the preset's values × ``intensity`` (0-1.5), clamped to the FAP ranges."""
+    """The preset's values × ``intensity``, clamped to the FAP ranges: a FAP vector.
+
+    Parameters
+    ----------
+    preset : Preset or str
+        A preset or its name (see :func:`get_preset`).
+    intensity : float, default 1.0
+        0-1.5 (0-150 %).
+
+    Returns
+    -------
+    numpy.ndarray
+        (68,) float32 FAP vector, FAPU.
+
+    Raises
+    ------
+    PresetError
+        An unknown preset name, or an intensity outside 0-1.5.
+
+    Examples
+    --------
+    >>> from editor.core import FAPS, apply_preset, get_preset
+    >>> full = get_preset("joy").faps["raise_l_cornerlip_o"]
+    >>> half = apply_preset("joy", 0.5)[FAPS.number("raise_l_cornerlip_o") - 1]
+    >>> bool(half == full / 2)
+    True
+    >>> apply_preset("joy").shape
+    (68,)
+    """
     p = get_preset(preset) if isinstance(preset, str) else preset
     if not number_in(intensity, 0, MAX_INTENSITY):
         raise PresetError(f"intensity must be 0-{MAX_INTENSITY:g} (0-150 %), got {intensity!r}")

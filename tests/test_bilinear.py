@@ -20,9 +20,6 @@ from editor.synthesis.bilinear import (
     synthesize_region,
     train_bilinear,
     translate,
-    translate_mals,
-    translate_plain,
-    translate_ridge,
     vector_transpose,
 )
 from editor.synthesis.bilinear_data import (
@@ -107,13 +104,13 @@ def test_translation_recovers_a_and_b_up_to_the_gauge() -> None:
     m = trained_synthetic(rng)
     a_true, b_true = rng.normal(size=m.I), rng.normal(size=m.J)
     z = m.reconstruct(a_true, b_true)
-    a, b, costs, converged = translate_plain(m, z, tol=1e-14, max_iter=500)
+    a, b, costs, converged = translate(m, z, "plain", 0.0, tol=1e-14, max_iter=500)
     assert converged and costs[-1] < 1e-20 * (z @ z) and costs[-1] <= costs[0]
     np.testing.assert_allclose(np.outer(a, b), np.outer(a_true, b_true), atol=1e-8)
     # with I = S, a mix of trained expressions (Σ α = 1) is recovered exactly by the gauge
     full = trained_synthetic(rng, I=6, J=4)  # I = S; I·J = 24 ≤ K = 30: identifiable
     a_mix = full.A @ np.array([0.1, 0.5, -0.1, 0.2, 0.1, 0.2])
-    t = translate_plain(full, full.reconstruct(a_mix, b_true), tol=1e-14, max_iter=500)
+    t = translate(full, full.reconstruct(a_mix, b_true), "plain", 0.0, tol=1e-14, max_iter=500)
     a_fixed, b_fixed = fix_gauge(full, t.a, t.b)
     np.testing.assert_allclose(a_fixed, a_mix, atol=1e-7)
     np.testing.assert_allclose(b_fixed, b_true, atol=1e-7)
@@ -125,7 +122,7 @@ def test_translation_recovers_a_and_b_up_to_the_gauge() -> None:
     batch = translate(m, Z, "ridge", 0.1)
     assert batch.a.shape == (3, m.I) and batch.costs.shape[0] == 3
     for n in range(3):
-        one = translate_ridge(m, Z[n], 0.1)
+        one = translate(m, Z[n], "ridge", 0.1)
         np.testing.assert_allclose(batch.a[n], one.a, rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(batch.b[n], one.b, rtol=1e-10, atol=1e-12)
         assert bool(batch.converged[n]) == one.converged
@@ -139,8 +136,8 @@ def test_mals_with_tiny_lambda_equals_plain_als() -> None:
     rng = np.random.default_rng(3)
     m = trained_synthetic(rng)
     z = m.reconstruct(m.A[:, 1], rng.normal(size=m.J)) + 0.05 * rng.normal(size=m.K)
-    plain = translate_plain(m, z, tol=1e-6, max_iter=40)
-    mals = translate_mals(m, z, 1e-12, tol=1e-6, max_iter=40)
+    plain = translate(m, z, "plain", 0.0, tol=1e-6, max_iter=40)
+    mals = translate(m, z, "mals", 1e-12, tol=1e-6, max_iter=40)
     np.testing.assert_allclose(m.reconstruct(mals.a, mals.b), m.reconstruct(plain.a, plain.b),
                                rtol=1e-7, atol=1e-9)
     np.testing.assert_allclose(mals.costs, plain.costs, rtol=1e-7)
@@ -151,9 +148,9 @@ def test_mals_fixed_point_has_no_ridge_bias() -> None:
     m = trained_synthetic(rng)
     z = m.reconstruct(m.A[:, 3], rng.normal(size=m.J)) + 0.05 * rng.normal(size=m.K)
     lam = 20.0
-    ridge = translate_ridge(m, z, lam, tol=1e-14, max_iter=5000)
-    mals = translate_mals(m, z, lam, tol=1e-14, max_iter=5000)
-    plain = translate_plain(m, z, tol=1e-14, max_iter=5000)
+    ridge = translate(m, z, "ridge", lam, tol=1e-14, max_iter=5000)
+    mals = translate(m, z, "mals", lam, tol=1e-14, max_iter=5000)
+    plain = translate(m, z, "plain", 0.0, tol=1e-14, max_iter=5000)
     assert mals.converged and ridge.converged
     assert np.all(np.diff(mals.costs) <= 1e-9 * mals.costs[0])  # proximal steps never go up
 

@@ -281,23 +281,6 @@ def translate(
     return Translation(a, b, costs[:, :n_used], converged)
 
 
-def translate_plain(model: RegionModel, z: np.ndarray, **kw: Any) -> Translation:
-    """Plain ALS translation (eq. 5), see :func:`translate`."""
-    return translate(model, z, "plain", 0.0, **kw)
-
-
-def translate_ridge(model: RegionModel, z: np.ndarray, lam1: float, lam2: float | None = None,
-                    **kw: Any) -> Translation:
-    """Ridge translation (eq. 8), λ2 = λ1 unless given, see :func:`translate`."""
-    return translate(model, z, "ridge", (lam1, lam1 if lam2 is None else lam2), **kw)
-
-
-def translate_mals(model: RegionModel, z: np.ndarray, lam1: float, lam2: float | None = None,
-                   **kw: Any) -> Translation:
-    """MALS translation (corrected eq. 16), λ2 = λ1 unless given, see :func:`translate`."""
-    return translate(model, z, "mals", (lam1, lam1 if lam2 is None else lam2), **kw)
-
-
 def fix_gauge(model: RegionModel, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pin the gauge ``(a, b) -> (c·a, b/c)`` to the scale and sign of the trained expressions.
 

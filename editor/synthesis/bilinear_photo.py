@@ -100,7 +100,9 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
         chosen.append(p)
     if not chosen:
         raise ModelError(f"{root}: no JAFFE-style training images found")
-    key = hashlib.sha1("\n".join(f"{p.name}:{p.stat().st_size}" for p in chosen).encode())
+    det = detector or default_detector()  # its name is part of the key
+    key = hashlib.sha1("\n".join([det.name] + [f"{p.name}:{p.stat().st_size}" for p in chosen])
+                       .encode())
     cache = None
     if cache_dir != "":
         cache = Path(cache_dir or default_cache_dir()) / f"dlib68_{key.hexdigest()[:16]}.npz"
@@ -111,7 +113,6 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
                 return _landmark_set(pts, names)
             except (OSError, ValueError, KeyError):
                 pass
-    det = detector or default_detector()
     pts_l, names_l = [], []
     for i, p in enumerate(chosen):
         try:

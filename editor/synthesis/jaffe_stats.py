@@ -26,7 +26,13 @@ import numpy as np
 from editor.engine.face import Face
 from editor.engine.faps import FAPS
 from editor.engine.imageio import load_image
-from editor.engine.landmarks import FDP_FROM_68, Iris, Landmarks, detect_landmarks
+from editor.engine.landmarks import (
+    FDP_FROM_68,
+    Iris,
+    Landmarks,
+    default_detector,
+    detect_landmarks,
+)
 from editor.errors import FapStudioError
 from editor.resources import checkout_jaffe_dir
 from editor.safeio import atomic_file
@@ -67,8 +73,10 @@ def fap_motion(d_frame: dict[str, np.ndarray], fapu: dict[str, float],
 
 def _detect_all(paths: list[Path]) -> dict[str, np.ndarray]:
     """name -> (73,) float32: 68 points, box 4 (unused), irises (x, y, r) x 2; cached."""
-    key = hashlib.sha1("".join(f"{p.name}{p.stat().st_size}{p.stat().st_mtime_ns}"
-                               for p in paths).encode()).hexdigest()[:16]
+    # the detector's name is part of the key: another detector's points are not these
+    key = hashlib.sha1((default_detector().name + "".join(
+        f"{p.name}{p.stat().st_size}{p.stat().st_mtime_ns}" for p in paths)).encode()
+    ).hexdigest()[:16]
     cache = Path(tempfile.gettempdir()) / f"fap-studio-jaffe-landmarks-{key}.npz"
     if cache.exists():
         with np.load(cache) as z:

@@ -345,7 +345,7 @@ def main() -> None:
                "note": "fap_to_image minus deform_warp_no_layers"})
         # skin creases (editor/engine/creases.py): render with minus without, timed alternately
         from editor.engine.creases import creases_cost_ms
-        from editor.formats.expressions import apply_preset
+        from editor.formats.presets import apply_preset
 
         for emo in ("joy", "fear"):
             _emit({"bench": "creases_cost", **res, "preset": emo,

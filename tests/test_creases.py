@@ -119,7 +119,7 @@ def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
     """The nasal-root lines follow the inner brows pushed down (AU4 procerus, AU9): the shipped
     disgust and anger presets (inner brows -65 / -115 ENS; this file's old disgust lowers them by
     only 30) wrinkle the nose, a smile does not."""
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     f = sample_neutral
 
@@ -172,7 +172,7 @@ def test_width_follows_the_face_not_the_resolution():
 def test_cli_no_creases_flag(tmp_path, sample_face):
     # the CLI opens the photo as the product does (own expression estimated)
     from editor.cli import main
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     a, b = tmp_path / "on.png", tmp_path / "off.png"
     assert main(["render", str(SAMPLE), "--preset", "surprise", "-o", str(a)]) == 0
@@ -299,7 +299,7 @@ def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
 def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
     """AU10 (disgust's raised upper lip) pushes the skin below the nose wing up: the upper part
     of the nasolabial furrow darkens even without a smile; sadness and surprise do not."""
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     f = sample_neutral
 
@@ -316,7 +316,7 @@ def test_no_own_folds_faded_on_nearly_neutral_photos():
     sample's real smile (0.15-0.27) is faded fully (test above)."""
     from editor.core import Face
     from editor.engine.creases import unfold_strength
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     paths = [p for who in ("KA", "NA", "KR") for p in jaffe_images(f"{who}.NE*.tiff")[:1]]
     if len(paths) < 3:

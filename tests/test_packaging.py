@@ -44,7 +44,7 @@ def test_package_data_globs_cover_every_data_file():
 
 def test_shipped_presets_and_mesh_load_from_the_package():
     from editor.engine.mesh import standard_mesh
-    from editor.formats.expressions import shipped_preset_dir, shipped_presets
+    from editor.formats.presets import shipped_preset_dir, shipped_presets
 
     assert shipped_preset_dir() == resources.PRESETS_DIR
     presets = shipped_presets()

@@ -32,7 +32,7 @@ def parse_preset(spec: str) -> tuple[str, float]:
 def preset_vector(specs: list[str] | None) -> np.ndarray:
     """Sum of presets ``NAME[:INTENSITY]`` as a (68,) vector (clamped)."""
     from editor.engine.faps import FAPS
-    from editor.formats.expressions import apply_preset, get_preset
+    from editor.formats.presets import apply_preset, get_preset
 
     total = np.zeros(68, np.float32)
     for spec in specs or []:
@@ -59,8 +59,8 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_export(a: argparse.Namespace) -> int:
-    from editor.formats.expressions import sequence_from_keyframes
     from editor.formats.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
+    from editor.formats.keyframes import sequence_from_keyframes
     from editor.safeio import finite_in
 
     fps = finite_in(a.fps, 0, MAX_FPS, "--fps", lo_open=True)
@@ -83,8 +83,7 @@ def cmd_fap_export(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_info(a: argparse.Namespace) -> int:
-    from editor.formats.expressions import fap_info
-    from editor.formats.fapfile import read_fap
+    from editor.formats.fapfile import fap_info, read_fap
 
     print(fap_info(read_fap(a.fap_file)))
     return 0

@@ -78,7 +78,6 @@ class DeformPlan:
     neutral_sigma: np.ndarray  # (T,)
     movable: np.ndarray  # (V,) bool: can move for some FAP vector (not border)
     brow_gap: float = np.inf  # frame distance between the inner brow ends 4.1 and 4.2, pixels
-    extra_names: tuple[str, ...] = EXTRA_POINTS
     # float64 copies set by __post_init__
     neutral64: np.ndarray = field(init=False, repr=False)  # (N, 2)
     basis_flat: np.ndarray = field(init=False, repr=False)  # (68, N*2)

@@ -26,7 +26,6 @@ them (skin lighting, its own teeth, what its mouth opening shows: :func:`_own_in
 from __future__ import annotations
 
 import math
-import time
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
@@ -52,7 +51,7 @@ from .mouth import (
 from .warp import WarpResult
 
 if TYPE_CHECKING:
-    from .face import Face, FapInput
+    from .face import Face
 
 _SHIFT = 4
 _TOL = 1e-3
@@ -536,40 +535,3 @@ def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
         a0, b0, a1, b1 = box
         masks[key][b0 - y0:b1 - y0, a0 - x0:a1 - x0] |= hole
     return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"], res.maps)
-
-
-def layers_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:
-    """Median time (ms) of ``face.render(faps)`` with and without the layers.
-
-    ``without`` = deform + warp with its flat cavity (what ``render`` did before the layers),
-    ``with`` = ``face.render``; the two are timed alternately so that machine load affects
-    both alike; ``layers`` is the difference of the medians. For ``python -m editor.bench``.
-    """
-    from .deform import deform_points
-    from .warp import warp
-
-    vec = face.fap_vector(faps)
-
-    def bare() -> None:
-        pts = deform_points(face.plan, vec)
-        vv = pts[: face.plan.n_vertices]
-        warp(face.warp_plan, vv, face.layer_transforms(vv))
-
-    def full() -> None:
-        face.render(vec)
-
-    layer_plan(face)
-    for _ in range(warm):
-        bare()
-        full()
-    ta, tb = [], []
-    for _ in range(n):
-        t0 = time.perf_counter()
-        bare()
-        t1 = time.perf_counter()
-        full()
-        t2 = time.perf_counter()
-        ta.append(t1 - t0)
-        tb.append(t2 - t1)
-    a, b = float(np.median(ta) * 1000.0), float(np.median(tb) * 1000.0)
-    return {"without_ms": round(a, 3), "with_ms": round(b, 3), "layers_ms": round(b - a, 3)}

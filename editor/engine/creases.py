@@ -757,8 +757,11 @@ _VALLEY_REACH = 0.08
 _VALLEY_WIDTH = 4.0
 
 
-#: directions of the along-fold smoothing (every 180 / _N_DIR degrees)
+#: directions of the along-fold smoothing (every 180 / _N_DIR degrees) in a frame, and on the
+#: photo (done once per face, so finer: the lift carried from the photo follows the valley
+#: within 4 degrees)
 _N_DIR = 6
+_N_DIR_PHOTO = 24
 
 
 @functools.lru_cache(maxsize=64)
@@ -787,9 +790,10 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
     skin-like that lifted level is (hair, brows, eyes are not).
 
     The gain and the skin weight depend on the photo only: with the warp's backward ``maps``
-    (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_lift`)
-    and carried to the frame by the warp's own map; per frame only the band is drawn. Without
-    ``maps`` they are computed on ``out``.
+    (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_gain`)
+    and carried to the frame by the warp's own map (one ``cv2.remap`` of the band's box, so
+    the gain lies on the valley exactly where the warp puts it); per frame only the band is
+    drawn. Without ``maps`` they are computed on ``out``.
     """
     fa = _fast(face)
     tri, bary = _own_valleys(face)
@@ -814,23 +818,23 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb)
         # flat across the valley, falling off over the band's edge
         band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
-        got = None if maps is None else _photo_lift(face, g)
+        got = None if maps is None else _photo_gain(face, g)
         if got is None or maps is None:
             S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
+            band *= c4[..., 3]
+            gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
+            gain -= 1.0
         else:
-            # the skin level C either side of the valley and how skin-like it is are smooth:
-            # taken on the photo once and carried by the warp's own map; S, sharp across the
-            # valley, is taken in the frame
-            S, _ = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
-                                closing=False)
-            (_, c4), (px0, py0) = got
+            # S, C and the skin weight taken on the photo once and carried by the warp's own
+            # map (one remap): S lands on the valley exactly where the warp puts it
+            F, (px0, py0) = got
             mx, my = _box_maps(maps, (x0, y0, x1, y1))
             mx -= np.float32(px0)
             my -= np.float32(py0)
-            c4 = cv2.remap(c4, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        band *= c4[..., 3]
-        gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
-        gain -= 1.0
+            F = cv2.remap(F, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            band *= F[..., 6]
+            gain = np.clip(F[..., 3:6] / np.maximum(F[..., :3], 1.0), 1.0, 4.0)
+            gain -= 1.0
         gain *= band[..., None]
         gain += 1.0
         patch = out[y0:y1, x0:x1].astype(np.float32)
@@ -876,6 +880,22 @@ def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
 
 
 _LIFT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _photo_gain(face: Face, g: int) -> tuple[np.ndarray, tuple[int, int]] | None:
+    """``(F, (x0, y0))``: the fields of group ``g``'s own fold on the photo in one array,
+    ``F`` (h, w, 7) float32 = ``S``, ``C`` and the skin weight (:func:`_lift_fields`) over the
+    box at ``(x0, y0)`` (cached per face; None if the group has no own fold)."""
+    cache = _GAIN.setdefault(face, {})
+    if g not in cache:
+        got = _photo_lift(face, g)
+        if got is None:
+            cache[g] = None
+        else:
+            (S, c4), org = got
+            cache[g] = (np.ascontiguousarray(np.dstack([S, c4]), np.float32), org)
+    return cache[g]
 
 
 def _photo_lift(face: Face, g: int
@@ -903,8 +923,8 @@ def _photo_lift(face: Face, g: int
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
         if x1 - x0 >= 4 and y1 - y0 >= 4:
-            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1)),
-                   (x0, y0))
+            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
+                                n_dir=_N_DIR_PHOTO), (x0, y0))
     cache[g] = got
     return got
 
@@ -912,18 +932,21 @@ def _photo_lift(face: Face, g: int
 @overload
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: Literal[True] = True) -> tuple[np.ndarray, np.ndarray]: ...
+                 closing: Literal[True] = True, n_dir: int = _N_DIR
+                 ) -> tuple[np.ndarray, np.ndarray]: ...
 @overload
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: Literal[False]) -> tuple[np.ndarray, None]: ...
+                 closing: Literal[False], n_dir: int = _N_DIR) -> tuple[np.ndarray, None]: ...
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+                 closing: bool = True, n_dir: int = _N_DIR
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
     """``S`` (h, w, 3) and ``C`` with the skin-likeness of that lifted level (h, w, 4), float32
     over ``box`` of ``img`` (see :func:`_unfold`; the gain is ``C / S``), for the valley
     sub-sampled at ``pts`` (weights ``w``; ``M`` segments ``d`` of lengths ``L``, ``K``
-    sub-samples each). ``closing=False``: ``S`` only (the second is None).
+    sub-samples each). ``closing=False``: ``S`` only (the second is None). ``n_dir``: the
+    directions of the along-fold smoothing.
     """
     H, W = img.shape[:2]
     sig = float(fa.sig[g])
@@ -959,13 +982,14 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         fs = cv2.resize(fs, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
     fc = fc * np.float32(f * f) + np.float32(1e-6 * c2.sum())
     fs = fs * np.float32(f * f) + np.float32(1e-6 * s2.sum())
-    k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
+    nd = n_dir
+    k = np.rint(np.arctan2(fs, fc) * (0.5 * nd / math.pi)).astype(np.int32) % nd
     iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
     sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
     cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
     Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
     along = round(max(1.5 * sig, 1.0), 2)
-    for j in np.flatnonzero(np.bincount(k.ravel(), minlength=_N_DIR)):
+    for j in np.flatnonzero(np.bincount(k.ravel(), minlength=nd)):
         m = k == j
         # filtered only over the rows/columns where this direction is used (+ the kernel)
         rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
@@ -973,7 +997,7 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         sy0, sx0 = cy + r0, cx + c0
         part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
         oy, ox = min(sy0, h), min(sx0, h)
-        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR, along, 0.35),
+        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / nd, along, 0.35),
                             borderType=cv2.BORDER_REPLICATE)
         np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
                   where=m[r0:r1, c0:c1, None])

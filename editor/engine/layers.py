@@ -193,11 +193,9 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
 
 
 def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
-    """``dst[:] = clip(res + 0.5, 0, 255)`` truncated to uint8, in place (``res`` is used up)."""
-    res += 0.5
-    np.maximum(res, 0, out=res)
-    np.minimum(res, 255, out=res)
-    np.copyto(dst, res, casting="unsafe")
+    """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
+    OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
+    cv2.add(res, np.zeros_like(res), dst=dst, dtype=cv2.CV_8U)
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,

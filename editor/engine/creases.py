@@ -655,8 +655,8 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
             continue
         dark, light = _splat_cat((y1 - y0 + 1, x1 - x0 + 1), both - (x0, y0),
                                  np.concatenate([w, w * fa.ridge[g]]), len(pts))
-        dark = cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig)
-        light = cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r)
+        dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
+        light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r), np.float32)
         k1 = math.sqrt(2 * math.pi) * sig
         k2 = math.sqrt(2 * math.pi) * sig_r
         view = out[y0:y1, x0:x1]
@@ -664,7 +664,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
         # small 3-channel boxes numpy's broadcasting over the channels costs more than the math)
         dif = cv2.transform(patch, fa.skin_shift[g])  # patch - skin
-        wskin = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
+        wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
         wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
         wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
         np.clip(wskin, 0.0, 1.0, out=wskin)
@@ -801,53 +801,84 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
     drawn. Without ``maps`` they are computed on ``out``.
     """
     fa = _fast(face)
-    tri, bary = _own_valleys(face)
+    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
     V = np.asarray(vertices, np.float64)
-    pos = (V[face.mesh.triangles[tri]] * bary[..., None]).sum(1)
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
     H, W = out.shape[:2]
+    live = np.maximum(un[fa.seg_a], un[fa.seg_b]) > _MIN_UNFOLD
     for g, (g0, g1) in enumerate(fa.seg_rng):
-        ia = fa.seg_a[g0:g1]
-        if not (np.maximum(un[ia], un[ia + 1]) > _MIN_UNFOLD).any():
+        if not np.count_nonzero(live[g0:g1]):
             continue
+        ia = fa.seg_a[g0:g1]
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
         pts, w, d, L, K = _band_samples(pos, ia, un)
         # the box that is written (the band)
-        lo, hi = pts.min(0) - 3.0 * sb, pts.max(0) + 3.0 * sb
-        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
+        x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
+        x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        o = np.array([x0, y0], np.float64)
-        band, _ = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, pts[:0], w[:0])
-        band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb)
+        band = _splat1((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w)
+        band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
         # flat across the valley, falling off over the band's edge
-        band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
+        band *= np.float32(1.6 * math.sqrt(2 * math.pi) * sb)
+        np.minimum(band, 1.0, out=band)
+        view = out[y0:y1, x0:x1]
         got = None if maps is None else _photo_gain(face, g)
         if got is None or maps is None:
             S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
             band *= c4[..., 3]
             gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
-            gain -= 1.0
         else:
             # S, C and the skin weight taken on the photo once and carried by the warp's own
-            # map (one remap): S lands on the valley exactly where the warp puts it
-            F, (px0, py0) = got
+            # map: S lands on the valley exactly where the warp puts it
+            (S, C, wsk), (px0, py0) = got
             mx, my = _box_maps(maps, (x0, y0, x1, y1))
             mx -= np.float32(px0)
             my -= np.float32(py0)
-            F = cv2.remap(F, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            band *= F[..., 6]
-            gain = np.clip(F[..., 3:6] / np.maximum(F[..., :3], 1.0), 1.0, 4.0)
-            gain -= 1.0
-        gain *= band[..., None]
+            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            C = cv2.remap(C, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            band *= cv2.remap(wsk, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            np.maximum(S, 1.0, out=S)
+            gain = cv2.divide(C, S)
+            np.clip(gain, 1.0, 4.0, out=gain)
+        gain -= 1.0
+        gain *= cv2.merge([band, band, band])
         gain += 1.0
-        patch = out[y0:y1, x0:x1].astype(np.float32)
-        gain *= patch
-        gain += 0.5
-        out[y0:y1, x0:x1] = np.clip(gain, 0, 255).astype(np.uint8)
+        cv2.multiply(view, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
+
+
+def _splat1(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """A float32 canvas with weights ``w`` added at sub-pixel positions ``xy`` (bilinear)."""
+    h, wd = shape
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    base = ip[:, 1] * wd + ip[:, 0]
+    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
+    fx, fy = F[:, 0], F[:, 1]
+    wx = np.stack([w * (1 - fx), w * fx])
+    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    return np.bincount(idx, ws, minlength=h * wd)[: h * wd].astype(np.float32).reshape(h, wd)
+
+
+_VALLEY_SAMPLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _valley_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """:func:`_own_valleys` as 3 x (N,) vertex indices and 3 x (N, 1) barycentric coordinates
+    (gathered once per face, not every frame)."""
+    got = _VALLEY_SAMPLES.get(face)
+    if got is None:
+        tri, bary = _own_valleys(face)
+        t = face.mesh.triangles[tri]
+        got = (tuple(np.ascontiguousarray(t[:, k]) for k in range(3)),
+               tuple(np.ascontiguousarray(bary[:, k, None]) for k in range(3)))
+        _VALLEY_SAMPLES[face] = got
+    return got
 
 
 def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray
@@ -888,10 +919,11 @@ _LIFT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _photo_gain(face: Face, g: int) -> tuple[np.ndarray, tuple[int, int]] | None:
-    """``(F, (x0, y0))``: the fields of group ``g``'s own fold on the photo in one array,
-    ``F`` (h, w, 7) float32 = ``S``, ``C`` and the skin weight (:func:`_lift_fields`) over the
-    box at ``(x0, y0)`` (cached per face; None if the group has no own fold)."""
+def _photo_gain(face: Face, g: int
+                ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[int, int]] | None:
+    """``((S, C, w), (x0, y0))``: the fields of group ``g``'s own fold on the photo
+    (:func:`_lift_fields`), contiguous float32: ``S`` and ``C`` (h, w, 3), the skin weight
+    ``w`` (h, w), over the box at ``(x0, y0)`` (cached per face; None: no own fold)."""
     cache = _GAIN.setdefault(face, {})
     if g not in cache:
         got = _photo_lift(face, g)
@@ -899,7 +931,8 @@ def _photo_gain(face: Face, g: int) -> tuple[np.ndarray, tuple[int, int]] | None
             cache[g] = None
         else:
             (S, c4), org = got
-            cache[g] = (np.ascontiguousarray(np.dstack([S, c4]), np.float32), org)
+            cache[g] = (tuple(np.ascontiguousarray(x, np.float32)
+                              for x in (S, c4[..., :3], c4[..., 3])), org)
     return cache[g]
 
 

@@ -812,20 +812,31 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         ia = fa.seg_a[g0:g1]
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
-        pts, w, d, L, K = _band_samples(pos, ia, un)
+        got = None if maps is None else _photo_gain(face, g)
+        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
+        f = 1 if got is None else max(1, int(sb / 1.5))
+        pts, w, d, L, K = _band_samples(pos, ia, un, 0.5 * f)
         # the box that is written (the band)
         px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
         x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
         x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        band = _splat1((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w)
-        band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
         # flat across the valley, falling off over the band's edge
-        band *= np.float32(1.6 * math.sqrt(2 * math.pi) * sb)
+        k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
+        if f == 1:
+            band = _splat1((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w)
+            band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
+        else:
+            hb, wb = y1 - y0, x1 - x0
+            hc, wc = -(-hb // f), -(-wb // f)
+            band = _splat1((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w)
+            band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb / f)
+            band = np.asarray(cv2.resize(band, (wc * f, hc * f),
+                                         interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
+        band *= k
         np.minimum(band, 1.0, out=band)
         view = out[y0:y1, x0:x1]
-        got = None if maps is None else _photo_gain(face, g)
         if got is None or maps is None:
             S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
             band *= c4[..., 3]
@@ -881,14 +892,14 @@ def _valley_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarra
     return got
 
 
-def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray
+def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float = 0.5
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Sub-samples ``pts`` (n, 2) of the segments ``ia`` -> ``ia + 1`` of the valley ``pos``,
-    their weights ``w`` (strength ``un`` x length), the segments ``d`` (M, 2), their lengths
-    ``L`` and the sub-samples per segment ``K``."""
+    """Sub-samples ``pts`` (n, 2) of the segments ``ia`` -> ``ia + 1`` of the valley ``pos``
+    (at most ``step`` px apart), their weights ``w`` (strength ``un`` x length), the segments
+    ``d`` (M, 2), their lengths ``L`` and the sub-samples per segment ``K``."""
     a, d = pos[ia], pos[ia + 1] - pos[ia]
     L = np.sqrt((d * d).sum(1))
-    K = int(min(max(np.ceil(L.max() / 0.5), 1), 64))
+    K = int(min(max(np.ceil(L.max() / step), 1), 64))
     u = (np.arange(K) + 0.5) / K
     pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
     ua, ub = un[ia], un[ia + 1]

@@ -843,16 +843,29 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
         else:
             # S, C and the skin weight taken on the photo once and carried by the warp's own
-            # map: S lands on the valley exactly where the warp puts it
-            (S, C, wsk), (px0, py0) = got
-            mx, my = _box_maps(maps, (x0, y0, x1, y1))
+            # map: S lands on the valley exactly where the warp puts it. C and the weight are
+            # smooth (a closing blurred over ~2 line widths): on large faces they are carried
+            # at 1/f resolution (the map averaged over f x f blocks) and resized
+            (S, Cw), (px0, py0) = got
+            hb, wb = y1 - y0, x1 - x0
+            hc, wc = -(-hb // f), -(-wb // f)
+            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f))
             mx -= np.float32(px0)
             my -= np.float32(py0)
+            if f > 1:
+                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
+                               cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
+                               cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                Cw = cv2.resize(Cw, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)
+                mx, my = mx[:hb, :wb], my[:hb, :wb]
+                Cw = Cw[:hb, :wb]
+            else:
+                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
             S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            C = cv2.remap(C, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            band *= cv2.remap(wsk, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            C, wsk = Cw[..., :3], Cw[..., 3]
+            band *= wsk
             np.maximum(S, 1.0, out=S)
-            gain = cv2.divide(C, S)
+            gain = C / S
             np.clip(gain, 1.0, 4.0, out=gain)
         gain -= 1.0
         gain *= cv2.merge([band, band, band])
@@ -931,10 +944,10 @@ _GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _photo_gain(face: Face, g: int
-                ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[int, int]] | None:
-    """``((S, C, w), (x0, y0))``: the fields of group ``g``'s own fold on the photo
-    (:func:`_lift_fields`), contiguous float32: ``S`` and ``C`` (h, w, 3), the skin weight
-    ``w`` (h, w), over the box at ``(x0, y0)`` (cached per face; None: no own fold)."""
+                ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[int, int]] | None:
+    """``((S, Cw), (x0, y0))``: the fields of group ``g``'s own fold on the photo
+    (:func:`_lift_fields`), contiguous float32: ``S`` (h, w, 3) and ``Cw`` (h, w, 4), ``C``
+    with the skin weight, over the box at ``(x0, y0)`` (cached per face; None: no own fold)."""
     cache = _GAIN.setdefault(face, {})
     if g not in cache:
         got = _photo_lift(face, g)
@@ -942,8 +955,8 @@ def _photo_gain(face: Face, g: int
             cache[g] = None
         else:
             (S, c4), org = got
-            cache[g] = (tuple(np.ascontiguousarray(x, np.float32)
-                              for x in (S, c4[..., :3], c4[..., 3])), org)
+            cache[g] = ((np.ascontiguousarray(S, np.float32), np.ascontiguousarray(c4, np.float32)),
+                        org)
     return cache[g]
 
 

@@ -406,6 +406,7 @@ def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int
     D = off[:, :V]
     base = base[:, :V]
     pairs = plan.pairs
+    scaled = False
     for _ in range(rounds):
         tau = _tau(plan, D, base)
         if (tau >= 1.0).all():
@@ -416,7 +417,8 @@ def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int
         f[:, pairs[:, 0]] = fp
         f[:, pairs[:, 1]] = fp
         D = D * f[..., None]
-    if D is off[:, :V]:
+        scaled = True
+    if not scaled:  # (``off[:, :V]`` is a new view each time: test the flag, not identity)
         return off
     out = off.copy()
     out[:, :V] = D

@@ -865,7 +865,7 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             C, wsk = Cw[..., :3], Cw[..., 3]
             band *= wsk
             np.maximum(S, 1.0, out=S)
-            gain = C / S
+            gain = np.divide(C, S, out=S)
             np.clip(gain, 1.0, 4.0, out=gain)
         gain -= 1.0
         gain *= cv2.merge([band, band, band])

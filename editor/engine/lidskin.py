@@ -142,21 +142,23 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         rows.append(np.full(w, j, np.float32))
         los.append(np.full(w, lo))
     xc, y0c, lo_c = np.concatenate(xs), np.concatenate(y0s), np.concatenate(los)
-    yc = np.arange(hmax, dtype=np.float64)[:, None] + y0c[None, :]  # (hmax, n) image y
-    # the pixels in the frame (``fr.to_frame``): X indexes the table, Y is the height
-    X = (xc - org[0]) * R[0, 0] + (yc - org[1]) * R[1, 0]
-    Y = ((xc - org[0]) * R[0, 1] + (yc - org[1]) * R[1, 1]).astype(np.float32)
-    tx = ((X - lo_c) * (1.0 / _STEP)).astype(np.float32)
+    # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
+    # per-column term plus the row times a constant (float32: sub-1e-4 px here)
+    rows_f = np.arange(hmax, dtype=np.float32)[:, None]
+    tx = ((xc - org[0]) * R[0, 0] + (y0c - org[1]) * R[1, 0] - lo_c) * (1.0 / _STEP)
+    tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
     ty = np.repeat(np.concatenate(rows)[None, :], hmax, 0)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     ly, inv_hd, kk = cv2.split(got)
-    t = ly - Y
+    ly -= ((xc - org[0]) * R[0, 1] + (y0c - org[1]) * R[1, 1]).astype(np.float32)[None, :]
+    ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
+    t = ly
     t *= inv_hd
     np.clip(t, 0.0, 1.0, out=t)
     t -= t * t  # t (1 - t)
     t *= kk
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
-    my = yc.astype(np.float32) - np.float32(R[1, 1]) * t
+    my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
     new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     bbox = res.bbox
     c = 0

@@ -18,6 +18,7 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
 * ``facs_fit``: one frame's FAPs -> AU intensities and -> ARKit weights (the bounded
   least-squares fit of ``convert`` and the Action Units dock), on the six emotion presets;
   target: under 2 ms a frame (a 60 fps Live Link capture converts 8 x faster than real time);
+* ``--only ROW[,ROW...]`` runs just those rows (e.g. ``--only render_vs_engine``);
 * ``gui_slider_latency`` (with ``--gui``): slider change -> frame in the preview, in the real
   window (offscreen unless QT_QPA_PLATFORM is set), on the sample face;
 * ``scheduler_submit_while_busy`` (with ``--gui``): one ``RenderScheduler.submit`` while the
@@ -284,9 +285,19 @@ async def _load(base: str, tokens: list[str], seconds: float, think: tuple[float
 
         await asyncio.gather(*(rater(t, int(rng.integers(1 << 31))) for t in tokens))
     return rtt, img_ms, errors
+def _only(argv: list[str]) -> set[str] | None:
+    """The rows ``--only a,b`` (or ``--only=a,b``) asks for; None: every row."""
+    for i, a in enumerate(argv):
+        if a == "--only" and i + 1 < len(argv):
+            return set(argv[i + 1].split(","))
+        if a.startswith("--only="):
+            return set(a.split("=", 1)[1].split(","))
+    return None
 
 
 def main() -> None:
+    """``python -m editor.bench [--gui] [--only ROW[,ROW...]]``: ``--only`` runs just the named
+    rows of the engine benchmarks (e.g. ``--only render_vs_engine``; the ``env`` row always)."""
     import sys
 
     from editor.engine.deform import deform_points
@@ -298,61 +309,80 @@ def main() -> None:
     if "--serve" in sys.argv[1:]:
         serve_load_bench()
         return
+
+    only = _only(sys.argv[1:])
+
+    def want(*rows: str) -> bool:
+        return only is None or bool(only.intersection(rows))
+
     cv2.setNumThreads(1)
     from editor.engine.face import Face
     from editor.engine.faps import FAPS
     from editor.engine.imageio import load_image
 
     _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
-    fap_header_bench()
-    facs_bench()
+    if want("fap_reject_huge_header"):
+        fap_header_bench()
+    if want("facs_fit"):
+        facs_bench()
     img = load_image(SAMPLE)
-    t = _time(lambda: Face.from_image(img), 5, warm=1)
-    _emit({"bench": "face_from_image", "size": "512x512", **t})
+    if want("face_from_image"):
+        t = _time(lambda: Face.from_image(img), 5, warm=1)
+        _emit({"bench": "face_from_image", "size": "512x512", **t})
     for size in ((431, 591), (1920, 1080)):
         face = _face_at(size)
         vec = FAPS.clamp(FAPS.vector(EXPRESSION))
         face.render(vec)
         n = 40 if size[0] < 1000 else 20
         res = {"size": f"{size[0]}x{size[1]}", "interocular_px": round(face.interocular, 1)}
-        ours = _time(lambda f=face, v=vec: f.render(v), n * 3)
-        _emit({"bench": "fap_to_image", **res, **ours,
-               "fps": round(1000 / ours["median_ms"], 1)})
-        h, w = face.image.shape[:2]
-        mx, my = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-        mx += 0.3
-        floor = _time(lambda f=face, x=mx, y=my: cv2.remap(f.image, x, y, cv2.INTER_LINEAR), n * 3)
-        _emit({"bench": "remap_full_frame", **res, **floor})
-        _emit({"bench": "ratio_fap_to_image_vs_remap", **res,
-               "ratio": round(ours["median_ms"] / floor["median_ms"], 2)})
+
         # the engine alone: FAP vector -> deformed mesh -> warped image, no mouth/eye layers
         def engine(f=face, v=vec) -> None:
             pts = deform_points(f.plan, v)[: f.plan.n_vertices]
             warp(f.warp_plan, pts, f.layer_transforms(pts), cavity=False)
 
-        eng = _time(engine, n * 3)
-        _emit({"bench": "deform_warp_no_layers", **res, **eng})
-        _emit({"bench": "ratio_deform_warp_vs_remap", **res,
-               "ratio": round(eng["median_ms"] / floor["median_ms"], 2)})
-        p = _time_pair(lambda f=face, v=vec: f.render(v), engine, n * 3)
-        _emit({"bench": "render_vs_engine", **res, "render_ms": round(p["a_ms"], 3),
-               "engine_ms": round(p["b_ms"], 3), "render_cpu_ms": round(p["a_cpu_ms"], 3),
-               "engine_cpu_ms": round(p["b_cpu_ms"], 3),
-               "ratio": round(p["a_cpu_ms"] / p["b_cpu_ms"], 2),
-               "ratio_wall": round(p["a_ms"] / p["b_ms"], 2), "target_ratio": 2.0})
-        _emit({"bench": "layers_cost", **res,
-               "median_ms": round(ours["median_ms"] - eng["median_ms"], 3),
-               "note": "fap_to_image minus deform_warp_no_layers"})
-        # skin creases (editor/engine/creases.py): render with minus without, timed alternately
-        from editor.engine.creases import creases_cost_ms
-        from editor.formats.presets import apply_preset
+        if want("fap_to_image", "remap_full_frame", "ratio_fap_to_image_vs_remap",
+                "deform_warp_no_layers", "ratio_deform_warp_vs_remap", "layers_cost",
+                "speedup_vs_skimage", "skimage_piecewise_affine"):
+            ours = _time(lambda f=face, v=vec: f.render(v), n * 3)
+            _emit({"bench": "fap_to_image", **res, **ours,
+                   "fps": round(1000 / ours["median_ms"], 1)})
+            h, w = face.image.shape[:2]
+            mx, my = np.meshgrid(np.arange(w, dtype=np.float32),
+                                 np.arange(h, dtype=np.float32))
+            mx += 0.3
+            floor = _time(lambda f=face, x=mx, y=my: cv2.remap(f.image, x, y, cv2.INTER_LINEAR),
+                          n * 3)
+            _emit({"bench": "remap_full_frame", **res, **floor})
+            _emit({"bench": "ratio_fap_to_image_vs_remap", **res,
+                   "ratio": round(ours["median_ms"] / floor["median_ms"], 2)})
+            eng = _time(engine, n * 3)
+            _emit({"bench": "deform_warp_no_layers", **res, **eng})
+            _emit({"bench": "ratio_deform_warp_vs_remap", **res,
+                   "ratio": round(eng["median_ms"] / floor["median_ms"], 2)})
+            _emit({"bench": "layers_cost", **res,
+                   "median_ms": round(ours["median_ms"] - eng["median_ms"], 3),
+                   "note": "fap_to_image minus deform_warp_no_layers"})
+        if want("render_vs_engine"):
+            p = _time_pair(lambda f=face, v=vec: f.render(v), engine, n * 3)
+            _emit({"bench": "render_vs_engine", **res, "render_ms": round(p["a_ms"], 3),
+                   "engine_ms": round(p["b_ms"], 3), "render_cpu_ms": round(p["a_cpu_ms"], 3),
+                   "engine_cpu_ms": round(p["b_cpu_ms"], 3),
+                   "ratio": round(p["a_cpu_ms"] / p["b_cpu_ms"], 2),
+                   "ratio_wall": round(p["a_ms"] / p["b_ms"], 2), "target_ratio": 2.0})
+        if want("creases_cost"):
+            # skin creases (editor/engine/creases.py): render with minus without, alternately
+            from editor.engine.creases import creases_cost_ms
+            from editor.formats.presets import apply_preset
 
-        for emo in ("joy", "fear"):
-            _emit({"bench": "creases_cost", **res, "preset": emo,
-                   **creases_cost_ms(face, apply_preset(emo, 1.0), n=n)})
-        if size[0] > 1000:
+            for emo in ("joy", "fear"):
+                _emit({"bench": "creases_cost", **res, "preset": emo,
+                       **creases_cost_ms(face, apply_preset(emo, 1.0), n=n)})
+        if size[0] > 1000 and want("face_from_image"):
             t = _time(lambda f=face: Face.from_image(f.image), 3, warm=1)
             _emit({"bench": "face_from_image", **res, **t})
+        if not want("skimage_piecewise_affine", "speedup_vs_skimage"):
+            continue
         try:
             from skimage.transform import PiecewiseAffineTransform
             from skimage.transform import warp as sk_warp
@@ -368,8 +398,11 @@ def main() -> None:
 
         peer = _time(sk, 3 if size[0] < 1000 else 1, warm=1 if size[0] < 1000 else 0)
         _emit({"bench": "skimage_piecewise_affine", **res, **peer})
-        _emit({"bench": "speedup_vs_skimage", **res,
-               "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
+        if want("speedup_vs_skimage"):
+            _emit({"bench": "speedup_vs_skimage", **res,
+                   "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
+    if not want("deform_batch100"):
+        return
     # deformation alone, batched (presets, sequences)
     face = _face_at((431, 591))
     batch = np.tile(FAPS.clamp(FAPS.vector(EXPRESSION)), (100, 1))

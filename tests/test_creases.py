@@ -387,8 +387,14 @@ def test_closing_the_eyes_makes_no_nasal_root_lines(sample_face):
 
 
 def test_own_fold_lift_carried_from_the_photo_matches_the_frame(sample_face):
-    """The own folds' skin level, taken once on the photo and carried by the warp's backward
-    map, lifts the valley as taking it on the frame does (within a few grey levels)."""
+    """The own folds' lift fields (the valley smoothed along the fold, the skin level either
+    side, its skin weight), taken once on the photo and carried by the warp's backward map,
+    lift the valley as taking them on the frame does.
+
+    The two differ only where the valley is ragged (smoothing along the fold in the photo or in
+    the frame sees slightly different pixels): a few single pixels up to ~25 grey levels, the
+    total difference under a fifth of the lift itself. A map off by half a pixel gives 0.27-0.31
+    of the lift (1 px: ~0.5), an extra 1 px blur of the smoothed valley 0.25-0.29."""
     import dataclasses
 
     from editor.engine.creases import apply_creases
@@ -402,4 +408,6 @@ def test_own_fold_lift_carried_from_the_photo_matches_the_frame(sample_face):
         b = apply_creases(f, dataclasses.replace(base, image=base.image.copy(), maps=None),
                           v).image
         d = np.abs(a.astype(int) - b.astype(int))
-        assert d.max() <= 8 and (d > 3).mean() < 0.002
+        lift = np.abs(b.astype(int) - base.image.astype(int))
+        assert lift.sum() > 0
+        assert d.sum() < 0.22 * lift.sum() and (d > 3).mean() < 0.001 and d.max() <= 32

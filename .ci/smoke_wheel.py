@@ -1,7 +1,8 @@
 """Smoke test of an installed wheel, run by .ci/run from a folder outside the repository.
 
 Checks that ``editor`` comes from site-packages (not the source tree), that every data file is
-reachable as package data (mesh, presets, mouth textures, neutral prior, sample face) and that
+reachable as package data (mesh, presets, mouth textures, neutral prior, sample face, AU and
+ARKit mapping tables) and that
 the console script renders the sample headless and exports an H.264 MP4.
 """
 
@@ -46,7 +47,14 @@ def main() -> None:
           f"mesh loads ({len(mesh.names)} vertices, {len(mesh.triangles)} triangles)")
     check(set(load_textures()) == set(resources.MOUTH_TEXTURES), "mouth textures load")
     check(len(default_prior().names) > 0, "neutral prior loads")
+    from editor.formats.arkit import arkit_table
+    from editor.formats.facs import au_table
+
+    check(len(au_table().aus) == 23 and len(arkit_table().names) == 52,
+          "AU and ARKit mapping tables load (23 AUs, 52 blendshapes)")
     sample = load_image(resources.SAMPLE_FACE)
+    check(all((resources.WEB_DIR / n).is_file() for n in ("index.html", "app.js", "app.css")),
+          "the web rating page (index.html, app.js, app.css)")
     from editor.engine.landmarks import detect_landmarks
 
     lm = detect_landmarks(sample)  # the default detector's models are package data

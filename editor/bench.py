@@ -18,10 +18,19 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
 * ``face_from_image``: detection + fitting on the sample and on a 1920-px photo;
 * ``fap_reject_huge_header``: a ``.fap`` whose header declares the maximum frame count but
   holds one frame is refused (target: well under 500 ms; nothing is preallocated);
+* ``facs_fit``: one frame's FAPs -> AU intensities and -> ARKit weights (the bounded
+  least-squares fit of ``convert`` and the Action Units dock), on the six emotion presets;
+  target: under 2 ms a frame (a 60 fps Live Link capture converts 8 x faster than real time);
+* ``--only ROW[,ROW...]`` runs just those rows (e.g. ``--only render_vs_engine``);
 * ``gui_slider_latency`` (with ``--gui``): slider change -> frame in the preview, in the real
   window (offscreen unless QT_QPA_PLATFORM is set), on the sample face;
 * ``scheduler_submit_while_busy`` (with ``--gui``): one ``RenderScheduler.submit`` while the
-  worker is busy (target: under 1 ms; the GUI thread never waits for a render).
+  worker is busy (target: under 1 ms; the GUI thread never waits for a render);
+* ``study_serve_load`` (also alone with ``--serve``): ``fap-studio study serve`` in its own
+  process on localhost, 50 concurrent web raters (asyncio + httpx2 in this process) for 5 s,
+  each loading the page, then fetching an image, "thinking" 0.2-0.6 s (about ten times faster
+  than a person) and posting an answer; target: median answer round trip <= 50 ms with no
+  error (issue 20). Skipped without httpx2 (the ``test`` or ``bench`` extra).
 
 Speed targets live here, not in the tests (which check behaviour only).
 """
@@ -141,6 +150,19 @@ def fap_header_bench() -> None:
     _emit({"bench": "fap_reject_huge_header", **_time(run, 20), "target_ms": 500})
 
 
+def facs_bench() -> None:
+    from editor.formats.arkit import faps_to_arkit
+    from editor.formats.expressions import apply_preset
+    from editor.formats.facs import faps_to_aus
+
+    vecs = [apply_preset(e, 1.0) for e in ("joy", "sadness", "anger", "fear", "disgust",
+                                           "surprise")]
+    it = iter(range(10**9))
+    for name, fit in (("au", faps_to_aus), ("arkit", faps_to_arkit)):
+        _emit({"bench": "facs_fit", "to": name,
+               **_time(lambda f=fit: f(vecs[next(it) % 6]), 60), "target_ms": 2})
+
+
 def scheduler_bench() -> None:
     import threading
 
@@ -187,7 +209,119 @@ def gui_bench() -> None:
     sys.stdout.flush()
 
 
+def serve_load_bench(raters: int = 50, seconds: float = 5.0, think: tuple[float, float] = (
+        0.2, 0.6)) -> None:
+    """The ``study_serve_load`` row: a real server subprocess, ``raters`` concurrent clients."""
+    import asyncio
+    import os
+    import re
+    import subprocess
+    import sys
+    import tempfile
+
+    try:
+        import httpx2
+    except ImportError:
+        _emit({"bench": "study_serve_load", "skipped": "no httpx2 (pip install httpx2)"})
+        return
+    from editor.engine.imageio import load_image
+    from editor.study.mos import StimulusSpec, Study
+    from editor.study.qc import add_qc_items, trap_specs
+    from editor.study.remote import invite
+    from editor.study.stimuli import encode_png
+
+    img = load_image(SAMPLE)[60:460, 96:416]  # a face-sized crop (320 x 400), as stimuli are
+    png = encode_png(np.ascontiguousarray(img))
+    labels = ["joy", "sadness", "anger", "fear", "surprise"]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "load.db"
+        specs = [StimulusSpec(f"f{i % 4}", labels[i % 5], png, 1.0) for i in range(60)]
+        with Study.create(path, "load", labels, specs, break_every=20) as study:
+            add_qc_items(study, trap_specs(study, 2))
+            tokens = [i.token for i in invite(study, raters)]
+        proc = subprocess.Popen([sys.executable, "-m", "editor.cli", "study", "serve", str(path),
+                                 "--port", "0"], stdout=subprocess.PIPE, text=True,
+                                env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[1])})
+        try:
+            line = proc.stdout.readline() if proc.stdout else ""
+            m = re.search(r"http://[\d.]+:\d+", line)
+            if not m:
+                _emit({"bench": "study_serve_load", "error": f"server did not start: {line!r}"})
+                return
+            rtt, img_ms, errors = asyncio.run(_load(m.group(0), tokens, seconds, think, httpx2))
+        finally:
+            proc.kill()
+            proc.wait()
+        with Study.open(path) as study:
+            stored = len(study.answers())
+    a = np.array(rtt) if rtt else np.array([np.nan])
+    med = float(np.median(a))
+    _emit({"bench": "study_serve_load", "raters": raters, "seconds": seconds,
+           "answers": len(rtt), "answers_per_s": round(len(rtt) / seconds, 1),
+           "stored_main_answers": stored, "errors": errors,
+           "answer_median_ms": round(med, 2),
+           "answer_p95_ms": round(float(np.percentile(a, 95)), 2),
+           "answer_max_ms": round(float(a.max()), 2),
+           "image_median_ms": round(float(np.median(img_ms)), 2) if img_ms else None,
+           "image_kb": round(len(png) / 1024), "target_median_ms": 50,
+           "ok": bool(med <= 50 and errors == 0)})
+
+
+async def _load(base: str, tokens: list[str], seconds: float, think: tuple[float, float],
+                httpx2) -> tuple[list[float], list[float], int]:
+    """Every token a rater: page, script, state, then image / think / answer until time's up."""
+    import asyncio
+
+    rtt: list[float] = []
+    img_ms: list[float] = []
+    errors = 0
+    rng = np.random.default_rng(20)
+    import socket
+
+    limits = httpx2.Limits(max_connections=len(tokens) + 10)
+    # TCP_NODELAY as browsers set it (a POST's body must not wait for the ACK of its headers)
+    transport = httpx2.AsyncHTTPTransport(
+        limits=limits, socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
+    async with httpx2.AsyncClient(base_url=base, transport=transport, timeout=30) as client:
+        deadline = time.perf_counter() + seconds
+
+        async def rater(token: str, seed: int) -> None:
+            nonlocal errors
+            r_rng = np.random.default_rng(seed)
+            for part in ("", "app.js", "app.css"):
+                errors += (await client.get(f"/r/{token}/{part}")).status_code != 200
+            state = (await client.get(f"/r/{token}/api/state")).json()
+            while state["trial"] and time.perf_counter() < deadline:
+                t0 = time.perf_counter()
+                im = await client.get(f"/r/{token}/{state['trial']['image']}")
+                img_ms.append((time.perf_counter() - t0) * 1000)
+                errors += im.status_code != 200
+                await asyncio.sleep(float(r_rng.uniform(*think)))
+                answer = {"position": state["trial"]["position"], "label": "joy",
+                          "naturalness": int(r_rng.integers(1, 6)), "response_ms": 700.0}
+                t0 = time.perf_counter()
+                r = await client.post(f"/r/{token}/api/answer", json=answer)
+                rtt.append((time.perf_counter() - t0) * 1000)
+                if r.status_code != 200:
+                    errors += 1
+                    break
+                state = r.json()
+
+        await asyncio.gather(*(rater(t, int(rng.integers(1 << 31))) for t in tokens))
+    return rtt, img_ms, errors
+def _only(argv: list[str]) -> set[str] | None:
+    """The rows ``--only a,b`` (or ``--only=a,b``) asks for; None: every row."""
+    for i, a in enumerate(argv):
+        if a == "--only" and i + 1 < len(argv):
+            return set(argv[i + 1].split(","))
+        if a.startswith("--only="):
+            return set(a.split("=", 1)[1].split(","))
+    return None
+
+
 def main() -> None:
+    """``python -m editor.bench [--gui] [--only ROW[,ROW...]]``: ``--only`` runs just the named
+    rows of the engine benchmarks (e.g. ``--only render_vs_engine``; the ``env`` row always)."""
     import sys
 
     from editor.engine.deform import deform_points
@@ -196,61 +330,85 @@ def main() -> None:
     if "--gui" in sys.argv[1:]:
         gui_bench()
         return
+    if "--serve" in sys.argv[1:]:
+        serve_load_bench()
+        return
+
+    only = _only(sys.argv[1:])
+
+    def want(*rows: str) -> bool:
+        return only is None or bool(only.intersection(rows))
+
     cv2.setNumThreads(1)
     from editor.engine.face import Face
     from editor.engine.faps import FAPS
     from editor.engine.imageio import load_image
 
     _emit({"bench": "env", "opencv": cv2.__version__, "numpy": np.__version__, "threads": 1})
-    fap_header_bench()
-    landmarks_bench()
+    if want("fap_reject_huge_header"):
+        fap_header_bench()
+    if want("facs_fit"):
+        facs_bench()
+    if want("photo_to_landmarks"):
+        landmarks_bench()
     img = load_image(SAMPLE)
-    t = _time(lambda: Face.from_image(img), 5, warm=1)
-    _emit({"bench": "face_from_image", "size": "512x512", **t})
+    if want("face_from_image"):
+        t = _time(lambda: Face.from_image(img), 5, warm=1)
+        _emit({"bench": "face_from_image", "size": "512x512", **t})
     for size in ((431, 591), (1920, 1080)):
         face = _face_at(size)
         vec = FAPS.clamp(FAPS.vector(EXPRESSION))
         face.render(vec)
         n = 40 if size[0] < 1000 else 20
         res = {"size": f"{size[0]}x{size[1]}", "interocular_px": round(face.interocular, 1)}
-        ours = _time(lambda f=face, v=vec: f.render(v), n * 3)
-        _emit({"bench": "fap_to_image", **res, **ours,
-               "fps": round(1000 / ours["median_ms"], 1)})
-        h, w = face.image.shape[:2]
-        mx, my = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-        mx += 0.3
-        floor = _time(lambda f=face, x=mx, y=my: cv2.remap(f.image, x, y, cv2.INTER_LINEAR), n * 3)
-        _emit({"bench": "remap_full_frame", **res, **floor})
-        _emit({"bench": "ratio_fap_to_image_vs_remap", **res,
-               "ratio": round(ours["median_ms"] / floor["median_ms"], 2)})
+
         # the engine alone: FAP vector -> deformed mesh -> warped image, no mouth/eye layers
         def engine(f=face, v=vec) -> None:
             pts = deform_points(f.plan, v)[: f.plan.n_vertices]
             warp(f.warp_plan, pts, f.layer_transforms(pts), cavity=False)
 
-        eng = _time(engine, n * 3)
-        _emit({"bench": "deform_warp_no_layers", **res, **eng})
-        _emit({"bench": "ratio_deform_warp_vs_remap", **res,
-               "ratio": round(eng["median_ms"] / floor["median_ms"], 2)})
-        p = _time_pair(lambda f=face, v=vec: f.render(v), engine, n * 3)
-        _emit({"bench": "render_vs_engine", **res, "render_ms": round(p["a_ms"], 3),
-               "engine_ms": round(p["b_ms"], 3), "render_cpu_ms": round(p["a_cpu_ms"], 3),
-               "engine_cpu_ms": round(p["b_cpu_ms"], 3),
-               "ratio": round(p["a_cpu_ms"] / p["b_cpu_ms"], 2),
-               "ratio_wall": round(p["a_ms"] / p["b_ms"], 2), "target_ratio": 2.0})
-        _emit({"bench": "layers_cost", **res,
-               "median_ms": round(ours["median_ms"] - eng["median_ms"], 3),
-               "note": "fap_to_image minus deform_warp_no_layers"})
-        # skin creases (editor/engine/creases.py): render with minus without, timed alternately
-        from editor.engine.creases import creases_cost_ms
-        from editor.formats.expressions import apply_preset
+        if want("fap_to_image", "remap_full_frame", "ratio_fap_to_image_vs_remap",
+                "deform_warp_no_layers", "ratio_deform_warp_vs_remap", "layers_cost",
+                "speedup_vs_skimage", "skimage_piecewise_affine"):
+            ours = _time(lambda f=face, v=vec: f.render(v), n * 3)
+            _emit({"bench": "fap_to_image", **res, **ours,
+                   "fps": round(1000 / ours["median_ms"], 1)})
+            h, w = face.image.shape[:2]
+            mx, my = np.meshgrid(np.arange(w, dtype=np.float32),
+                                 np.arange(h, dtype=np.float32))
+            mx += 0.3
+            floor = _time(lambda f=face, x=mx, y=my: cv2.remap(f.image, x, y, cv2.INTER_LINEAR),
+                          n * 3)
+            _emit({"bench": "remap_full_frame", **res, **floor})
+            _emit({"bench": "ratio_fap_to_image_vs_remap", **res,
+                   "ratio": round(ours["median_ms"] / floor["median_ms"], 2)})
+            eng = _time(engine, n * 3)
+            _emit({"bench": "deform_warp_no_layers", **res, **eng})
+            _emit({"bench": "ratio_deform_warp_vs_remap", **res,
+                   "ratio": round(eng["median_ms"] / floor["median_ms"], 2)})
+            _emit({"bench": "layers_cost", **res,
+                   "median_ms": round(ours["median_ms"] - eng["median_ms"], 3),
+                   "note": "fap_to_image minus deform_warp_no_layers"})
+        if want("render_vs_engine"):
+            p = _time_pair(lambda f=face, v=vec: f.render(v), engine, n * 3)
+            _emit({"bench": "render_vs_engine", **res, "render_ms": round(p["a_ms"], 3),
+                   "engine_ms": round(p["b_ms"], 3), "render_cpu_ms": round(p["a_cpu_ms"], 3),
+                   "engine_cpu_ms": round(p["b_cpu_ms"], 3),
+                   "ratio": round(p["a_cpu_ms"] / p["b_cpu_ms"], 2),
+                   "ratio_wall": round(p["a_ms"] / p["b_ms"], 2), "target_ratio": 2.0})
+        if want("creases_cost"):
+            # skin creases (editor/engine/creases.py): render with minus without, alternately
+            from editor.engine.creases import creases_cost_ms
+            from editor.formats.presets import apply_preset
 
-        for emo in ("joy", "fear"):
-            _emit({"bench": "creases_cost", **res, "preset": emo,
-                   **creases_cost_ms(face, apply_preset(emo, 1.0), n=n)})
-        if size[0] > 1000:
+            for emo in ("joy", "fear"):
+                _emit({"bench": "creases_cost", **res, "preset": emo,
+                       **creases_cost_ms(face, apply_preset(emo, 1.0), n=n)})
+        if size[0] > 1000 and want("face_from_image"):
             t = _time(lambda f=face: Face.from_image(f.image), 3, warm=1)
             _emit({"bench": "face_from_image", **res, **t})
+        if not want("skimage_piecewise_affine", "speedup_vs_skimage"):
+            continue
         try:
             from skimage.transform import PiecewiseAffineTransform
             from skimage.transform import warp as sk_warp
@@ -266,14 +424,18 @@ def main() -> None:
 
         peer = _time(sk, 3 if size[0] < 1000 else 1, warm=1 if size[0] < 1000 else 0)
         _emit({"bench": "skimage_piecewise_affine", **res, **peer})
-        _emit({"bench": "speedup_vs_skimage", **res,
-               "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
+        if want("speedup_vs_skimage"):
+            _emit({"bench": "speedup_vs_skimage", **res,
+                   "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
+    if not want("deform_batch100"):
+        return
     # deformation alone, batched (presets, sequences)
     face = _face_at((431, 591))
     batch = np.tile(FAPS.clamp(FAPS.vector(EXPRESSION)), (100, 1))
 
     t = _time(lambda: deform_points(face.plan, batch), 5)
     _emit({"bench": "deform_batch100", **t, "per_vector_ms": round(t["median_ms"] / 100, 4)})
+    serve_load_bench()
 
 
 if __name__ == "__main__":

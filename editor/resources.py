@@ -14,6 +14,9 @@ refuses an installed copy.
 ``SAMPLE_FACE``       the bundled sample photo (NASA, public domain)
 ``MODELS_DIR``        MediaPipe's face detector, face mesh and iris models (Apache-2.0,
                       ``LICENSE`` and ``NOTICE`` beside them; :data:`MODEL_CREDITS`)
+``WEB_DIR``           the remote rating page (``index.html``, ``app.js``, ``app.css``)
+``MAPPINGS_DIR``      FACS AU -> FAP and ARKit blendshape -> FAP tables (``au_faps.json``,
+                      ``arkit.json``; :mod:`editor.formats.facs`, :mod:`editor.formats.arkit`)
 ``DATA_README``       origins and licences of the files above
 ====================  ======================================================================
 """
@@ -63,6 +66,8 @@ MOUTH_DIR = data_path("mouth")
 PRESETS_DIR = data_path("presets")
 SAMPLE_FACE = data_path("sample_face.png")
 MODELS_DIR = data_path("models")
+WEB_DIR = data_path("web")
+MAPPINGS_DIR = data_path("mappings")
 DATA_README = data_path("README.md")
 
 #: The landmark models FAP Studio can use, as (model, source, licence) for an About box. The

@@ -80,12 +80,6 @@ def read_bounded(path: str | os.PathLike, max_bytes: int, *,
         os.close(fd)
 
 
-def _umask() -> int:
-    old = os.umask(0o022)
-    os.umask(old)
-    return old
-
-
 def _temp_name(p: Path, suffix: str) -> Path:
     return p.with_name(f".{p.name}.{os.getpid()}.{secrets.token_hex(4)}.part{suffix}")
 

@@ -171,7 +171,6 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "nose": (20, "AU9 widens the nose wings a little (median 10/-3, p90 24/34)"),
     },
 }
-INTENSITIES = (1.0, 1.5)
 
 
 def group_vector(values: dict[object, float]) -> np.ndarray:

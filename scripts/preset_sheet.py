@@ -19,12 +19,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from editor.core import Face, save_image  # noqa: E402
 from editor.engine.imageio import load_image  # noqa: E402
-from editor.formats.expressions import apply_preset  # noqa: E402
+from editor.formats.presets import apply_preset  # noqa: E402
 from editor.resources import SAMPLE_FACE  # noqa: E402
+from editor.synthesis.jaffe import JAFFE_EMOTIONS  # noqa: E402
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
-JAFFE_CODE = {"joy": "HA", "sadness": "SA", "surprise": "SU", "anger": "AN", "fear": "FE",
-              "disgust": "DI"}
+JAFFE_CODE = {emotion: code for code, emotion in JAFFE_EMOTIONS.items()}
 
 
 def tile(face: Face, img: np.ndarray, size: int, label: str) -> np.ndarray:

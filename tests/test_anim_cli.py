@@ -8,8 +8,8 @@ import pytest
 from conftest import SAMPLE
 
 from editor.core import FapStudioError, load_image
-from editor.formats.expressions import apply_preset, get_preset
 from editor.formats.fapfile import FapSequence, read_fap
+from editor.formats.presets import apply_preset, get_preset
 from editor.formats.video import export_sequence
 
 

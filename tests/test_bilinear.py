@@ -20,24 +20,18 @@ from editor.synthesis.bilinear import (
     synthesize_region,
     train_bilinear,
     translate,
-    translate_mals,
-    translate_plain,
-    translate_ridge,
     vector_transpose,
 )
 from editor.synthesis.bilinear_data import (
-    CONTOUR,
     EXPRESSIONS,
-    INNER_EYE_CORNERS,
-    JAFFE_CODES,
-    NOSE_TIP,
-    REGIONS,
     LandmarkSet,
     load_stasm77,
     synthesize_shape,
     train_model,
 )
 from editor.synthesis.bilinear_eval import er_fp, evaluate, format_report, make_folds, s_within
+from editor.synthesis.jaffe import JAFFE_CODES
+from editor.synthesis.landmark_scheme import STASM77
 
 JAFFE = checkout_jaffe_dir()
 JAFFE_LM = JAFFE / "landmarks_stasm77"
@@ -110,13 +104,13 @@ def test_translation_recovers_a_and_b_up_to_the_gauge() -> None:
     m = trained_synthetic(rng)
     a_true, b_true = rng.normal(size=m.I), rng.normal(size=m.J)
     z = m.reconstruct(a_true, b_true)
-    a, b, costs, converged = translate_plain(m, z, tol=1e-14, max_iter=500)
+    a, b, costs, converged = translate(m, z, "plain", 0.0, tol=1e-14, max_iter=500)
     assert converged and costs[-1] < 1e-20 * (z @ z) and costs[-1] <= costs[0]
     np.testing.assert_allclose(np.outer(a, b), np.outer(a_true, b_true), atol=1e-8)
     # with I = S, a mix of trained expressions (Σ α = 1) is recovered exactly by the gauge
     full = trained_synthetic(rng, I=6, J=4)  # I = S; I·J = 24 ≤ K = 30: identifiable
     a_mix = full.A @ np.array([0.1, 0.5, -0.1, 0.2, 0.1, 0.2])
-    t = translate_plain(full, full.reconstruct(a_mix, b_true), tol=1e-14, max_iter=500)
+    t = translate(full, full.reconstruct(a_mix, b_true), "plain", 0.0, tol=1e-14, max_iter=500)
     a_fixed, b_fixed = fix_gauge(full, t.a, t.b)
     np.testing.assert_allclose(a_fixed, a_mix, atol=1e-7)
     np.testing.assert_allclose(b_fixed, b_true, atol=1e-7)
@@ -128,7 +122,7 @@ def test_translation_recovers_a_and_b_up_to_the_gauge() -> None:
     batch = translate(m, Z, "ridge", 0.1)
     assert batch.a.shape == (3, m.I) and batch.costs.shape[0] == 3
     for n in range(3):
-        one = translate_ridge(m, Z[n], 0.1)
+        one = translate(m, Z[n], "ridge", 0.1)
         np.testing.assert_allclose(batch.a[n], one.a, rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(batch.b[n], one.b, rtol=1e-10, atol=1e-12)
         assert bool(batch.converged[n]) == one.converged
@@ -142,8 +136,8 @@ def test_mals_with_tiny_lambda_equals_plain_als() -> None:
     rng = np.random.default_rng(3)
     m = trained_synthetic(rng)
     z = m.reconstruct(m.A[:, 1], rng.normal(size=m.J)) + 0.05 * rng.normal(size=m.K)
-    plain = translate_plain(m, z, tol=1e-6, max_iter=40)
-    mals = translate_mals(m, z, 1e-12, tol=1e-6, max_iter=40)
+    plain = translate(m, z, "plain", 0.0, tol=1e-6, max_iter=40)
+    mals = translate(m, z, "mals", 1e-12, tol=1e-6, max_iter=40)
     np.testing.assert_allclose(m.reconstruct(mals.a, mals.b), m.reconstruct(plain.a, plain.b),
                                rtol=1e-7, atol=1e-9)
     np.testing.assert_allclose(mals.costs, plain.costs, rtol=1e-7)
@@ -154,9 +148,9 @@ def test_mals_fixed_point_has_no_ridge_bias() -> None:
     m = trained_synthetic(rng)
     z = m.reconstruct(m.A[:, 3], rng.normal(size=m.J)) + 0.05 * rng.normal(size=m.K)
     lam = 20.0
-    ridge = translate_ridge(m, z, lam, tol=1e-14, max_iter=5000)
-    mals = translate_mals(m, z, lam, tol=1e-14, max_iter=5000)
-    plain = translate_plain(m, z, tol=1e-14, max_iter=5000)
+    ridge = translate(m, z, "ridge", lam, tol=1e-14, max_iter=5000)
+    mals = translate(m, z, "mals", lam, tol=1e-14, max_iter=5000)
+    plain = translate(m, z, "plain", 0.0, tol=1e-14, max_iter=5000)
     assert mals.converged and ridge.converged
     assert np.all(np.diff(mals.costs) <= 1e-9 * mals.costs[0])  # proximal steps never go up
 
@@ -207,8 +201,8 @@ def synthetic_set(n_people: int = 4, images: int = 1, seed: int = 6) -> Landmark
     """Faces = base + person deformation + expression deformation (+ a little noise), pixels."""
     rng = np.random.default_rng(seed)
     base = rng.uniform(60, 200, size=(77, 2))
-    base[INNER_EYE_CORNERS[0]], base[INNER_EYE_CORNERS[1]] = (110, 120), (150, 120)
-    base[NOSE_TIP] = (130, 160)
+    base[STASM77.inner_eye_corners[0]], base[STASM77.inner_eye_corners[1]] = (110, 120), (150, 120)
+    base[STASM77.nose_tip] = (130, 160)
     person = rng.normal(0, 4, size=(n_people, 77, 2))
     expr = rng.normal(0, 2, size=(7, 77, 2))
     pts, persons, labels, names = [], [], [], []
@@ -238,13 +232,13 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     save_model(model, path)
     back = load_model(path)
     assert back.expressions == EXPRESSIONS and back.identities == model.identities
-    assert back.region_indices == model.region_indices == REGIONS
+    assert back.region_indices == model.region_indices == STASM77.regions
     assert back.meta == model.meta
     for name, reg in model.regions.items():
         for x in "WAB":
             np.testing.assert_array_equal(getattr(back.regions[name], x), getattr(reg, x))
-        assert back.regions[name].K == reg.K == 2 * len(REGIONS[name])
-    assert set(errors) == set(REGIONS)
+        assert back.regions[name].K == reg.K == 2 * len(STASM77.regions[name])
+    assert set(errors) == set(STASM77.regions)
 
 
 def _npz(path: Path, **arrays: np.ndarray) -> Path:
@@ -295,7 +289,7 @@ def test_synthesize_shape_api() -> None:
     face = data.points[0]  # P0 neutral
     out = synthesize_shape(model, face, "neutral", "plain", tol=1e-10, max_iter=300)
     assert out.shape == (77, 2)
-    np.testing.assert_array_equal(out[list(CONTOUR)], face[list(CONTOUR)])
+    np.testing.assert_array_equal(out[list(STASM77.contour)], face[list(STASM77.contour)])
     np.testing.assert_allclose(out, face, atol=0.05)  # reconstruction of a trained face
     mix = synthesize_shape(model, face, {"happy": 0.5, "surprise": 0.5}, "ridge", lam=0.1)
     same = synthesize_shape(model, face, np.eye(7)[1] * 0.5 + np.eye(7)[3] * 0.5, "ridge", 0.1)
@@ -348,8 +342,8 @@ def test_jaffe_layout_and_training() -> None:
     data = load_stasm77(JAFFE_LM)
     assert data.points.shape == (213, 77, 2) and len(data.people) == 10
     p = data.points.mean(axis=0)
-    left, right = p[INNER_EYE_CORNERS[0]], p[INNER_EYE_CORNERS[1]]
-    assert left[0] < p[NOSE_TIP, 0] < right[0] and p[NOSE_TIP, 1] > left[1]
+    left, right = p[STASM77.inner_eye_corners[0]], p[STASM77.inner_eye_corners[1]]
+    assert left[0] < p[STASM77.nose_tip, 0] < right[0] and p[STASM77.nose_tip, 1] > left[1]
     assert p[34, 0] < left[0] and p[44, 0] > right[0]  # outer eye corners lie outside
     assert p[16:28, 1].max() < p[30:48, 1].min()  # brows above eyes
     assert p[59:77, 1].min() > p[48:59, 1].max()  # mouth below nose

@@ -14,7 +14,6 @@ from editor.errors import ModelError
 from editor.resources import SAMPLE_FACE, checkout_jaffe_dir
 from editor.synthesis.bilinear import BilinearModel, load_model, save_model
 from editor.synthesis.bilinear_photo import (
-    CONTOUR68,
     EXPRESSIONS68,
     check_model68,
     detect_training_set,
@@ -28,6 +27,7 @@ from editor.synthesis.bilinear_photo import (
     synthetic_model68,
     train_model68,
 )
+from editor.synthesis.landmark_scheme import DLIB68
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = SAMPLE_FACE
@@ -62,8 +62,8 @@ def _check_result(face, res) -> None:
     assert res.vertices.shape == (V, 2) and res.points68.shape == (68, 2)
     area = signed_areas(res.vertices.astype(np.float64), face.triangles)
     assert (area > 0).all(), "folded triangles"
-    np.testing.assert_allclose(res.points68[list(CONTOUR68)],
-                               neutral_points68(face)[list(CONTOUR68)], atol=1e-4)
+    np.testing.assert_allclose(res.points68[list(DLIB68.contour)],
+                               neutral_points68(face)[list(DLIB68.contour)], atol=1e-4)
     border = face.mesh.regions == "border"
     np.testing.assert_allclose(res.vertices[border], face.vertices[border], atol=1e-4)
 

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from conftest import SAMPLE, jaffe_images
 
-from editor.cli.clone import add_clone_parser, roundtrip_vectors, upscaled_face
+from editor.cli.clone import add_clone_parser
 from editor.core import FAPS, Face, FapStudioError, load_image, save_image, signed_areas
 from editor.engine.laplacian import mean_value_weights
 from editor.formats.fapfile import read_fap, write_fap
+from editor.synthesis.clone_eval import roundtrip_vectors, upscaled_face
 from editor.synthesis.cloning import (
     KeyModels,
     clone,
@@ -245,7 +246,7 @@ def _run(argv):
 
 
 def test_cli_clone_and_errors(tmp_path, sample_face, sample_neutral, capsys):
-    from editor.formats.expressions import load_preset
+    from editor.formats.presets import load_preset
 
     expr = tmp_path / "expr.png"
     # the performer's expression photo is surprise on the photo the clone opens as the

@@ -119,7 +119,7 @@ def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
     """The nasal-root lines follow the inner brows pushed down (AU4 procerus, AU9): the shipped
     disgust and anger presets (inner brows -65 / -115 ENS; this file's old disgust lowers them by
     only 30) wrinkle the nose, a smile does not."""
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     f = sample_neutral
 
@@ -172,7 +172,7 @@ def test_width_follows_the_face_not_the_resolution():
 def test_cli_no_creases_flag(tmp_path, sample_face):
     # the CLI opens the photo as the product does (own expression estimated)
     from editor.cli import main
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     a, b = tmp_path / "on.png", tmp_path / "off.png"
     assert main(["render", str(SAMPLE), "--preset", "surprise", "-o", str(a)]) == 0
@@ -299,7 +299,7 @@ def test_a_neutral_photo_has_no_own_folds_to_fade(sample_neutral):
 def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
     """AU10 (disgust's raised upper lip) pushes the skin below the nose wing up: the upper part
     of the nasolabial furrow darkens even without a smile; sadness and surprise do not."""
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     f = sample_neutral
 
@@ -316,7 +316,7 @@ def test_no_own_folds_faded_on_nearly_neutral_photos():
     sample's real smile (0.15-0.27) is faded fully (test above)."""
     from editor.core import Face
     from editor.engine.creases import unfold_strength
-    from editor.formats.expressions import apply_preset as shipped
+    from editor.formats.presets import apply_preset as shipped
 
     paths = [p for who in ("KA", "NA", "KR") for p in jaffe_images(f"{who}.NE*.tiff")[:1]]
     if len(paths) < 3:
@@ -387,8 +387,14 @@ def test_closing_the_eyes_makes_no_nasal_root_lines(sample_face):
 
 
 def test_own_fold_lift_carried_from_the_photo_matches_the_frame(sample_face):
-    """The own folds' skin level, taken once on the photo and carried by the warp's backward
-    map, lifts the valley as taking it on the frame does (within a few grey levels)."""
+    """The own folds' lift fields (the valley smoothed along the fold, the skin level either
+    side, its skin weight), taken once on the photo and carried by the warp's backward map,
+    lift the valley as taking them on the frame does.
+
+    The two differ only where the valley is ragged (smoothing along the fold in the photo or in
+    the frame sees slightly different pixels): a few single pixels up to ~25 grey levels, the
+    total difference under a fifth of the lift itself. A map off by half a pixel gives 0.27-0.31
+    of the lift (1 px: ~0.5), an extra 1 px blur of the smoothed valley 0.25-0.29."""
     import dataclasses
 
     from editor.engine.creases import apply_creases
@@ -402,4 +408,6 @@ def test_own_fold_lift_carried_from_the_photo_matches_the_frame(sample_face):
         b = apply_creases(f, dataclasses.replace(base, image=base.image.copy(), maps=None),
                           v).image
         d = np.abs(a.astype(int) - b.astype(int))
-        assert d.max() <= 8 and (d > 3).mean() < 0.002
+        lift = np.abs(b.astype(int) - base.image.astype(int))
+        assert lift.sum() > 0
+        assert d.sum() < 0.22 * lift.sum() and (d > 3).mean() < 0.001 and d.max() <= 32

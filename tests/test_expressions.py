@@ -10,14 +10,11 @@ import pytest
 
 from editor.engine.faps import FAPS
 from editor.errors import PresetError
-from editor.formats.expressions import (
-    EXPRESSIONS,
-    VISEMES,
+from editor.formats.blends import EXPRESSIONS, VISEMES, blend_expressions, blend_visemes
+from editor.formats.presets import (
     Preset,
     all_presets,
     apply_preset,
-    blend_expressions,
-    blend_visemes,
     get_preset,
     load_preset,
     preset_from_dict,
@@ -250,7 +247,7 @@ def test_malformed_json_and_structure(tmp_path):
 
 def test_broken_user_preset_is_named_not_unknown(tmp_path, monkeypatch):
     from editor.errors import PresetError
-    from editor.formats.expressions import get_preset
+    from editor.formats.presets import get_preset
 
     monkeypatch.setenv("FAP_STUDIO_DATA_DIR", str(tmp_path))
     (tmp_path / "presets").mkdir()

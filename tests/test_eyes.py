@@ -220,7 +220,7 @@ def test_uncovered_white_is_as_bright_as_the_photos_sclera(big_faces):
     brightest sclera, barely shaded (a lit ball, the lid's soft shadow), not a grey band
     (median over the new pixels outside the iris, mean over the eyes: 0.85 of the photo's bright
     sclera; 0.80 with the former reference, ball shade and lid shadow)."""
-    from editor.formats.expressions import apply_preset
+    from editor.formats.presets import apply_preset
 
     vec = apply_preset("surprise", 1.5)
     ratios = []

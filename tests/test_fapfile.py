@@ -9,7 +9,7 @@ import pytest
 
 from editor.engine.faps import FAPS
 from editor.errors import FapFileError
-from editor.formats.expressions import blend_expressions, blend_visemes
+from editor.formats.blends import blend_expressions, blend_visemes
 from editor.formats.fapfile import (
     MAX_FRAMES,
     ExpressionField,
@@ -18,9 +18,9 @@ from editor.formats.fapfile import (
     fap_info,
     format_fap,
     read_fap,
-    sequence_from_keyframes,
     write_fap,
 )
+from editor.formats.keyframes import sequence_from_keyframes
 
 
 def mask_line(faps: list[int], n: int = 68) -> str:

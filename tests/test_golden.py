@@ -63,7 +63,7 @@ CASES: dict[str, dict] = {
 
 def _vector(spec: dict) -> np.ndarray:
     from editor.engine.faps import FAPS
-    from editor.formats.expressions import apply_preset, get_preset
+    from editor.formats.presets import apply_preset, get_preset
 
     vec = np.zeros(68, np.float32)
     for name, value in spec.get("presets", []):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from editor.core import Face
-from editor.engine.layers import layer_plan, layers_cost_ms
+from editor.engine.layers import layer_plan
 from editor.engine.mouth import UPPER_TIP
 
 LUM = np.array([0.299, 0.587, 0.114], np.float32)
@@ -271,12 +271,6 @@ def test_pupils_dilate_and_contract(sample_face):
     big = core_lum(f.render({29: 300, 30: 300}))
     small = core_lum(f.render({29: -300, 30: -300}))
     assert big < n - 8 and small > n + 2, (small, n, big)
-
-
-def test_layers_cost_reports(sample_face):
-    c = layers_cost_ms(sample_face, {"open_jaw": 500, 23: 20000}, n=3, warm=1)
-    assert set(c) == {"without_ms", "with_ms", "layers_ms"}
-    assert c["with_ms"] > 0 and c["without_ms"] > 0
 
 
 @pytest.mark.parametrize("value", [300, 1080])

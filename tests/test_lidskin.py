@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import editor.engine.face as face_mod
-from editor.formats.expressions import apply_preset
+from editor.formats.presets import apply_preset
 
 
 def _profile(img: np.ndarray, face, x: float, y_lid: float, ds: np.ndarray) -> np.ndarray:

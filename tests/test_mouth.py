@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from editor.core import Face
-from editor.formats.expressions import apply_preset
+from editor.formats.presets import apply_preset
 
 LUM = np.float32([0.299, 0.587, 0.114])
 #: FAPs that bring the sample's parted lips together (inner lips meet at the middle)

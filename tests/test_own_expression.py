@@ -8,7 +8,7 @@ from conftest import JAFFE, SAMPLE, jaffe_images
 
 from editor.core import Face, signed_areas
 from editor.engine.own_expression import canonical, default_prior, estimate_own, symmetrize
-from editor.formats.expressions import apply_preset
+from editor.formats.presets import apply_preset
 
 
 def test_sample_smile_is_estimated_and_neutralised(sample_face):

@@ -24,6 +24,8 @@ def test_every_named_data_file_exists_inside_the_package():
     for t in resources.MOUTH_TEXTURES:
         assert (resources.MOUTH_DIR / f"{t}.png").is_file()
     assert len(list(resources.PRESETS_DIR.glob("*.json"))) == 21
+    assert sorted(p.name for p in resources.WEB_DIR.iterdir()) == ["app.css", "app.js",
+                                                                   "index.html"]
     for old in ("resources", "presets"):  # the pre-wheel layout, outside the package
         assert not any(p.is_file() for p in (ROOT / old).rglob("*")), old
 
@@ -42,7 +44,7 @@ def test_package_data_globs_cover_every_data_file():
 
 def test_shipped_presets_and_mesh_load_from_the_package():
     from editor.engine.mesh import standard_mesh
-    from editor.formats.expressions import shipped_preset_dir, shipped_presets
+    from editor.formats.presets import shipped_preset_dir, shipped_presets
 
     assert shipped_preset_dir() == resources.PRESETS_DIR
     presets = shipped_presets()

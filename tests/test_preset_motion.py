@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from editor.formats.expressions import apply_preset, get_preset
+from editor.formats.presets import apply_preset, get_preset
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from conftest import JAFFE, ROOT
 
 from editor.engine.faps import FAPS
 from editor.engine.landmarks import dlib_available
-from editor.formats.expressions import apply_preset, shipped_presets
+from editor.formats.presets import apply_preset, shipped_presets
 from editor.synthesis import jaffe_stats as js
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")

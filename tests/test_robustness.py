@@ -141,7 +141,7 @@ def bad_user_presets(tmp_path, monkeypatch):
 
 
 def test_case03_bad_user_presets_are_skipped(capfd, tmp_path, bad_user_presets):
-    from editor.formats.expressions import all_presets, get_preset
+    from editor.formats.presets import all_presets, get_preset
 
     problems: list[str] = []
     presets = all_presets(problems)
@@ -647,7 +647,7 @@ def test_fuzz_fap_reader():
 
 
 def test_fuzz_preset_reader(tmp_path):
-    from editor.formats.expressions import load_preset
+    from editor.formats.presets import load_preset
 
     base = [p.read_bytes() for p in sorted(PRESETS_DIR.glob("*.json"))[:6]]
     path = tmp_path / "p.json"

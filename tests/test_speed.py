@@ -64,3 +64,13 @@ def test_bench_pair_timer_reports_both_clocks():
     r = _time_pair(lambda: sum(range(100)), lambda: None, n=3, warm=1)
     assert set(r) == {"a_ms", "a_cpu_ms", "b_ms", "b_cpu_ms"}
     assert all(v >= 0 for v in r.values())
+
+
+def test_bench_only_selects_the_named_rows():
+    from editor.bench import _only
+
+    assert _only([]) is None  # every row
+    assert _only(["--gui"]) is None
+    assert _only(["--only", "render_vs_engine"]) == {"render_vs_engine"}
+    assert _only(["--only=render_vs_engine,creases_cost"]) == {"render_vs_engine",
+                                                                "creases_cost"}

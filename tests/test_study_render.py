@@ -9,7 +9,7 @@ import numpy as np
 from conftest import SAMPLE
 
 from editor.cli.study import add_study_parser
-from editor.formats.expressions import apply_preset, get_preset
+from editor.formats.presets import apply_preset, get_preset
 from editor.study.mos import Study
 from editor.study.stimuli import PAPER_EXPRESSIONS, face_crop
 

@@ -12,7 +12,7 @@ from PySide6.QtGui import QImage  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
-from editor.formats.expressions import apply_preset, get_preset, shipped_presets  # noqa: E402
+from editor.formats.presets import apply_preset, get_preset, shipped_presets  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
 

@@ -10,8 +10,8 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from editor.core import save_image  # noqa: E402
-from editor.formats.expressions import apply_preset  # noqa: E402
 from editor.formats.fapfile import read_fap  # noqa: E402
+from editor.formats.presets import apply_preset  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.synthesis.bilinear import save_model  # noqa: E402
 from editor.synthesis.bilinear_photo import synthetic_model68  # noqa: E402

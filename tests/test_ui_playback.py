@@ -14,9 +14,9 @@ from PySide6.QtWidgets import QPushButton  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
 from editor.formats.fapfile import FapSequence, read_fap, write_fap  # noqa: E402
+from editor.formats.playhead import Playhead  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
-from editor.ui.playback_clock import Playhead  # noqa: E402
 from editor.ui.playback_panel import PlaybackPanel  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]

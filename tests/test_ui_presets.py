@@ -12,12 +12,8 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QInputDialog, QMessageBox  # noqa: E402
 
 from editor.core import FAPS, Face  # noqa: E402
-from editor.formats.expressions import (  # noqa: E402
-    apply_preset,
-    blend_expressions,
-    blend_visemes,
-    shipped_presets,
-)
+from editor.formats.blends import blend_expressions, blend_visemes  # noqa: E402
+from editor.formats.presets import apply_preset, shipped_presets  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.ui.main_window import MainWindow  # noqa: E402
 from editor.ui.presets_panel import ADD, REPLACE, PresetsPanel  # noqa: E402

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from editor.core import Face, load_image
-from editor.formats.expressions import apply_preset, get_preset
 from editor.formats.fapfile import FapSequence
+from editor.formats.presets import apply_preset, get_preset
 from editor.formats.video import export_sequence
 from editor.resources import SAMPLE_FACE
 

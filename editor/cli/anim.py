@@ -32,7 +32,7 @@ def parse_preset(spec: str) -> tuple[str, float]:
 def preset_vector(specs: list[str] | None) -> np.ndarray:
     """Sum of presets ``NAME[:INTENSITY]`` as a (68,) vector (clamped)."""
     from editor.engine.faps import FAPS
-    from editor.formats.expressions import apply_preset, get_preset
+    from editor.formats.presets import apply_preset, get_preset
 
     total = np.zeros(68, np.float32)
     for spec in specs or []:
@@ -43,11 +43,15 @@ def preset_vector(specs: list[str] | None) -> np.ndarray:
 
 def cmd_animate(a: argparse.Namespace) -> int:
     from editor.engine.face import Face
-    from editor.formats.fapfile import read_fap
+    from editor.formats.facecsv import read_animation
     from editor.formats.video import export_sequence
+    from editor.safeio import finite_in
 
-    seq = read_fap(a.fap_file)
+    fps = None if a.fps is None else finite_in(a.fps, 0, 1000, "--fps", lo_open=True)
+    seq, kind, notes = read_animation(a.fap_file, fps)
     face = Face.from_image(a.photo)
+    for n in notes if kind != "fap" else []:  # what a CSV reader inferred (fps, columns)
+        print(f"fap-studio: note: {n}", file=sys.stderr)
     with ProgressBar("render", quiet=a.quiet) as bar:
         res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases)
     print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
@@ -55,8 +59,8 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_export(a: argparse.Namespace) -> int:
-    from editor.formats.expressions import sequence_from_keyframes
     from editor.formats.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
+    from editor.formats.keyframes import sequence_from_keyframes
     from editor.safeio import finite_in
 
     fps = finite_in(a.fps, 0, MAX_FPS, "--fps", lo_open=True)
@@ -79,17 +83,20 @@ def cmd_fap_export(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_info(a: argparse.Namespace) -> int:
-    from editor.formats.expressions import fap_info
-    from editor.formats.fapfile import read_fap
+    from editor.formats.fapfile import fap_info, read_fap
 
     print(fap_info(read_fap(a.fap_file)))
     return 0
 
 
 def add_anim_parser(sub) -> None:
-    s = sub.add_parser("animate", help="render a .fap sequence on a photo to MP4 or PNG frames")
+    s = sub.add_parser("animate", help="render a .fap sequence, Live Link Face CSV or AU CSV on "
+                       "a photo to MP4 or PNG frames")
     s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
-    s.add_argument("fap_file")
+    s.add_argument("fap_file", metavar="animation",
+                   help=".fap, Live Link Face .csv (ARKit blendshapes) or AU .csv (AUxx_r)")
+    s.add_argument("--fps", type=float, help="CSV input: frame rate to render at (default: "
+                   "the file's, inferred and said)")
     s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.add_argument("--no-creases", action="store_true", help="geometry only: no skin folds")

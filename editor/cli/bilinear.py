@@ -230,12 +230,13 @@ def run_synth(args: argparse.Namespace) -> int:
     assert res.image is not None
     save_image(args.output, res.image)
     if args.faps_json:
-        from editor.cli.clone import faps_document
-
-        faps = faps_for_points(face, res.points68)
-        doc = faps_document(faps, f"bilinear_{args.expression}_{args.method}",
-                            f"bilinear synth {args.photo}")
+        from editor.engine.faps import FAPS
+        from editor.formats.presets import preset_document, preset_name
         from editor.safeio import atomic_write_text
+
+        faps = FAPS.clamp(faps_for_points(face, res.points68))
+        doc = preset_document(faps, preset_name(f"bilinear_{args.expression}_{args.method}"),
+                              f"bilinear synth {args.photo}")
 
         atomic_write_text(args.faps_json, json.dumps(doc, indent=2) + "\n", error=ModelError)
     print(f"{args.expression} ({args.method}) -> {args.output}")

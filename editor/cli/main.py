@@ -18,6 +18,7 @@ from editor.errors import FapStudioError
 from .anim import add_anim_parser
 from .bilinear import add_bilinear_parser
 from .clone import add_clone_parser
+from .facs import add_facs_parser
 from .study import add_study_parser
 from .util import PHOTO_HELP, detector_option, photo_arg
 
@@ -117,9 +118,11 @@ def _requested_vector(a: argparse.Namespace):
     from editor.engine.faps import FAPS
 
     from .anim import preset_vector
+    from .facs import au_vector
 
     try:
-        return preset_vector(a.preset) + FAPS.vector(_fap_pairs(a.fap))
+        return (preset_vector(a.preset) + au_vector(getattr(a, "au", None))
+                + FAPS.vector(_fap_pairs(a.fap)))
     except ValueError as e:
         raise FapStudioError(str(e)) from e
 
@@ -222,6 +225,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="FAP by name or number and its value in FAPU (repeatable)")
     s.add_argument("--preset", action="append", metavar="NAME[:INTENSITY]",
                    help="emotion or viseme preset, intensity 0-1.5 (repeatable; adds up)")
+    s.add_argument("--au", action="append", metavar="AU=INTENSITY",
+                   help="FACS Action Unit, intensity 0-1 or a letter A-E: AU12=0.8, 6=B, "
+                   "L12=C (one side); repeatable, adds to --preset and --fap")
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--mesh-json", help="write the neutral and deformed mesh as JSON")
     s.add_argument("--no-creases", action="store_true",
@@ -240,7 +246,8 @@ def build_parser() -> argparse.ArgumentParser:
     detector_option(s)
     s.set_defaults(func=cmd_gui)
 
-    for add in (add_anim_parser, add_clone_parser, add_study_parser, add_bilinear_parser):
+    for add in (add_anim_parser, add_clone_parser, add_study_parser, add_bilinear_parser,
+                add_facs_parser):
         add(sub)
     return p
 

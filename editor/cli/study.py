@@ -1,7 +1,8 @@
-"""``fap-studio study ...``: create, report and export MOS rating studies (no Qt).
+"""``fap-studio study ...``: create, report, export, QC, invite, revoke and serve (no Qt).
 
 The builders and the CSV export live in :mod:`editor.study.stimuli` (the rating panel uses them
-too); this module is the argparse sub-command (:func:`add_study_parser`).
+too), quality control in :mod:`editor.study.qc`, remote raters in :mod:`editor.study.remote` and
+:mod:`editor.study.web`; this module is the argparse sub-command (:func:`add_study_parser`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,16 @@ from pathlib import Path
 
 from editor.errors import StudyError
 from editor.study.mos import Study
+from editor.study.qc import (
+    add_qc_items,
+    format_qc,
+    mos_answers,
+    qc_items,
+    rater_qc,
+    render_qc,
+    trap_specs,
+)
+from editor.study.remote import count_tokens, invite, revoke
 from editor.study.stimuli import (
     PAPER_EXPRESSIONS,
     create_from_renders,
@@ -49,6 +60,70 @@ def _cmd_create(args: argparse.Namespace) -> int:
     with study:
         print(f"created study {study.name!r} in {study.path}: {len(study.stimuli())} stimuli, "
               f"labels {', '.join(study.labels)} (+ cannot tell)")
+        if args.qc:
+            _add_qc(study, args.faces or [], args.crop == "face", 3, 2)
+    return 0
+
+
+def _add_qc(study: Study, faces: list, crop: bool, training: int, traps: int) -> None:
+    specs = render_qc(faces, study.labels, crop, training) if faces else []
+    specs += trap_specs(study, traps, seed=len(qc_items(study)))
+    add_qc_items(study, specs)
+    n = {k: sum(s.kind == k for s in specs) for k in ("training", "gold", "trap")}
+    print(f"added QC trials: {n['training']} training, {n['gold']} gold, {n['trap']} trapping"
+          + ("" if faces else " (gold and training need --faces)"))
+
+
+@guarded
+def _cmd_qc(args: argparse.Namespace) -> int:
+    """``study qc STUDY.db [--faces PHOTO ...] [--training N] [--traps N]``."""
+    if args.training < 0 or args.traps < 0:
+        raise StudyError("--training and --traps must be >= 0")
+    with Study.open(args.study) as study:
+        _add_qc(study, args.faces or [], args.crop == "face", args.training, args.traps)
+    return 0
+
+
+@guarded
+def _cmd_invite(args: argparse.Namespace) -> int:
+    """``study invite STUDY.db --raters N [--base-url URL]``: one URL per new web rater."""
+    base = args.base_url.rstrip("/")
+    if not base.startswith(("http://", "https://")):
+        raise StudyError(f"--base-url must start with http:// or https://, got {base!r}")
+    with Study.open(args.study) as study:
+        for inv in invite(study, args.raters):
+            print(f"{inv.rater}\t{base}/r/{inv.token}/")
+    return 0
+
+
+@guarded
+def _cmd_revoke(args: argparse.Namespace) -> int:
+    """``study revoke STUDY.db RATER_OR_TOKEN ...``."""
+    with Study.open(args.study) as study:
+        for who in args.who:
+            print(f"revoked {revoke(study, who)}")
+    return 0
+
+
+@guarded
+def _cmd_serve(args: argparse.Namespace) -> int:
+    """``study serve STUDY.db [--host H] [--port P]``: the rating page until Ctrl-C."""
+    import sys
+
+    from editor.study.web import serve
+
+    if not 0 <= args.port <= 65535:
+        raise StudyError(f"--port must be 0 … 65535, got {args.port}")
+
+    with Study.open(args.study) as study:
+        valid, revoked = count_tokens(study)
+
+    def ready(url: str) -> None:
+        print(f"serving study {args.study} at {url}/r/TOKEN/ to {valid} invited raters "
+              f"({revoked} revoked; more: fap-studio study invite); Ctrl-C stops", flush=True)
+        sys.stdout.flush()
+
+    serve(args.study, args.host, args.port, args.rate_limit, ready)
     return 0
 
 
@@ -58,11 +133,16 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from editor.study.mos_stats import analyse, format_report  # scipy: import lazily
 
     with Study.open(args.study) as study:
-        answers, stimuli = study.answers(), study.stimuli()
+        answers, stimuli = mos_answers(study), study.stimuli()
         report = analyse(answers, study.labels, stimuli, confidence=args.confidence)
+        qc = rater_qc(study)
+        n_out = sum(r.excluded for r in qc)
         title = (f"Study {study.name!r}: {len(stimuli)} stimuli, {len(study.raters())} raters, "
-                 f"{len(answers)} answers")
+                 f"{len(answers)} answers"
+                 + (f" (MOS without the {n_out} raters excluded by QC)" if n_out else ""))
+        qc_text = format_qc(qc_items(study), qc)
     print(format_report(report, title), end="")
+    print("\n" + qc_text, end="")
     return 0
 
 
@@ -88,7 +168,8 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
     Each leaf sets ``func``: the main CLI calls ``args.func(args)`` and exits with the returned
     code (0 ok, 2 on a :class:`FapStudioError`, already printed as one line on stderr).
     """
-    study = subparsers.add_parser("study", help="MOS rating studies: create, report, export")
+    study = subparsers.add_parser("study", help="MOS rating studies: create, report, export, "
+                                  "qc, invite, revoke, serve")
     sub = study.add_subparsers(dest="study_command", required=True, metavar="COMMAND")
     create = sub.add_parser(
         "create", help="create a study: render faces x presets x intensities (default: the "
@@ -112,6 +193,9 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="let raters change a committed answer")
     create.add_argument("--break-every", type=int, default=0, metavar="N",
                         help="offer a break after every N answers (0: never)")
+    create.add_argument("--qc", action="store_true",
+                        help="add P.808-style QC trials: 2 trapping, and with --faces 3 "
+                        "training and 2 gold per face (see 'study qc')")
     detector_option(create)
     create.set_defaults(func=_cmd_create)
     report = sub.add_parser("report", help="print the result tables of a study")
@@ -123,3 +207,33 @@ def add_study_parser(subparsers: argparse._SubParsersAction) -> None:
     export.add_argument("study", type=Path)
     export.add_argument("-o", "--output", type=Path, required=True, help="CSV file to write")
     export.set_defaults(func=_cmd_export)
+    qc = sub.add_parser("qc", help="add P.808-style quality-control trials (training, gold, "
+                        "trapping) for web raters")
+    qc.add_argument("study", type=Path)
+    qc.add_argument("--faces", nargs="+", metavar="PHOTO", type=photo_arg,
+                    help="neutral photos for gold trials (the photo unchanged, a preset at "
+                    "150 %%) and, with them, training trials on the sample face")
+    qc.add_argument("--training", type=int, default=3, metavar="N",
+                    help="training trials with feedback (needs --faces; default 3)")
+    qc.add_argument("--traps", type=int, default=2, metavar="N",
+                    help="trapping trials with a printed instruction (default 2)")
+    qc.add_argument("--crop", choices=("face", "full"), default="face")
+    qc.set_defaults(func=_cmd_qc)
+    inv = sub.add_parser("invite", help="create web rater tokens; prints one URL per rater")
+    inv.add_argument("study", type=Path)
+    inv.add_argument("--raters", type=int, required=True, metavar="N")
+    inv.add_argument("--base-url", default="http://127.0.0.1:8808",
+                     help="public address of 'study serve' (default %(default)s)")
+    inv.set_defaults(func=_cmd_invite)
+    rev = sub.add_parser("revoke", help="revoke web raters' links (rater id or token)")
+    rev.add_argument("study", type=Path)
+    rev.add_argument("who", nargs="+", metavar="RATER_OR_TOKEN")
+    rev.set_defaults(func=_cmd_revoke)
+    serve = sub.add_parser("serve", help="serve the rating page to invited web raters")
+    serve.add_argument("study", type=Path)
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on "
+                       "(default %(default)s; put a TLS reverse proxy in front, see README)")
+    serve.add_argument("--port", type=int, default=8808, help="port (default %(default)s; 0: any)")
+    serve.add_argument("--rate-limit", default="300/minute", metavar="N/PERIOD",
+                       help="requests per token (default %(default)s)")
+    serve.set_defaults(func=_cmd_serve)

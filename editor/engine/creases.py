@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .layers import _rebox, _to_uint8, _union
+from .layers import _rebox, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -425,6 +425,7 @@ class _Fast:
     keep: np.ndarray = field(init=False)  # (N,) 1 - spread
     seg_b: np.ndarray = field(init=False)  # (M,) seg_a + 1: the last sample of each segment
     ref_l: np.ndarray = field(init=False)  # (G,) luminance of ``skin`` (at least 20)
+    skin_shift: list[np.ndarray] = field(init=False)  # per group (3, 4) ``cv2.transform``: - skin
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -469,6 +470,7 @@ def _fast(face: Face) -> _Fast:
     f.keep = 1.0 - spread
     f.seg_b = f.seg_a + 1
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
+    f.skin_shift = [np.hstack([np.eye(3), -x[:, None]]).astype(np.float32) for x in skin]
     _FAST[face] = f
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
@@ -583,6 +585,7 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
 
 
 _TURN = np.array([-1.0, 1.0])
+_MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 
 def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
@@ -626,7 +629,6 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     if np.count_nonzero(un > _MIN_UNFOLD):
         bbox = _unfold(face, out, V, un, bbox, res.maps)
     live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
-    tint = p.tint.astype(np.float32)
     for g, (g0, g1) in enumerate(fa.seg_rng):
         if not np.count_nonzero(live[g0:g1]):
             continue
@@ -653,22 +655,25 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
             continue
         dark, light = _splat_cat((y1 - y0 + 1, x1 - x0 + 1), both - (x0, y0),
                                  np.concatenate([w, w * fa.ridge[g]]), len(pts))
-        dark = cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig)
-        light = cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r)
-        k1 = np.float32(math.sqrt(2 * math.pi) * sig)
-        k2 = np.float32(math.sqrt(2 * math.pi) * sig_r)
-        patch = out[y0:y1, x0:x1].astype(np.float32)
-        # skin-likeness: hair, brows, eyes and lashes are not folded
-        dif = patch - fa.skin[g]
-        dif *= dif
-        wskin = np.sqrt((dif[..., 0] + dif[..., 1] + dif[..., 2]) / 3) / float(fa.ref_l[g])
-        wskin = np.minimum(np.maximum((0.45 - wskin) * 4.0, 0.0), 1.0)
-        dl = (dark * k1)[..., None] * tint
-        np.subtract((light * k2)[..., None], dl, out=dl)
-        dl *= wskin[..., None]
-        dl += 1.0
-        dl *= patch  # patch * (1 + dl * wskin)
-        _to_uint8(dl, out[y0:y1, x0:x1])
+        dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
+        light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r), np.float32)
+        k1 = math.sqrt(2 * math.pi) * sig
+        k2 = math.sqrt(2 * math.pi) * sig_r
+        view = out[y0:y1, x0:x1]
+        patch = view.astype(np.float32)
+        # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
+        # small 3-channel boxes numpy's broadcasting over the channels costs more than the math)
+        dif = cv2.transform(patch, fa.skin_shift[g])  # patch - skin
+        wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
+        wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
+        wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
+        np.clip(wskin, 0.0, 1.0, out=wskin)
+        # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
+        light *= wskin
+        dark *= wskin
+        gain = cv2.transform(cv2.merge([light, dark]),
+                             np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32))
+        cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
@@ -757,8 +762,11 @@ _VALLEY_REACH = 0.08
 _VALLEY_WIDTH = 4.0
 
 
-#: directions of the along-fold smoothing (every 180 / _N_DIR degrees)
+#: directions of the along-fold smoothing (every 180 / _N_DIR degrees) in a frame, and on the
+#: photo (done once per face, so finer: the lift carried from the photo follows the valley
+#: within 4 degrees)
 _N_DIR = 6
+_N_DIR_PHOTO = 24
 
 
 @functools.lru_cache(maxsize=64)
@@ -787,68 +795,124 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
     skin-like that lifted level is (hair, brows, eyes are not).
 
     The gain and the skin weight depend on the photo only: with the warp's backward ``maps``
-    (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_lift`)
-    and carried to the frame by the warp's own map; per frame only the band is drawn. Without
-    ``maps`` they are computed on ``out``.
+    (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_gain`)
+    and carried to the frame by the warp's own map (one ``cv2.remap`` of the band's box, so
+    the gain lies on the valley exactly where the warp puts it); per frame only the band is
+    drawn. Without ``maps`` they are computed on ``out``.
     """
     fa = _fast(face)
-    tri, bary = _own_valleys(face)
+    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
     V = np.asarray(vertices, np.float64)
-    pos = (V[face.mesh.triangles[tri]] * bary[..., None]).sum(1)
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
     H, W = out.shape[:2]
+    live = np.maximum(un[fa.seg_a], un[fa.seg_b]) > _MIN_UNFOLD
     for g, (g0, g1) in enumerate(fa.seg_rng):
-        ia = fa.seg_a[g0:g1]
-        if not (np.maximum(un[ia], un[ia + 1]) > _MIN_UNFOLD).any():
+        if not np.count_nonzero(live[g0:g1]):
             continue
+        ia = fa.seg_a[g0:g1]
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
-        pts, w, d, L, K = _band_samples(pos, ia, un)
+        got = None if maps is None else _photo_gain(face, g)
+        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
+        f = 1 if got is None else max(1, int(sb / 1.5))
+        pts, w, d, L, K = _band_samples(pos, ia, un, 0.5 * f)
         # the box that is written (the band)
-        lo, hi = pts.min(0) - 3.0 * sb, pts.max(0) + 3.0 * sb
-        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
+        x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
+        x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        o = np.array([x0, y0], np.float64)
-        band, _ = _splat2((y1 - y0 + 1, x1 - x0 + 1), pts - o, w, pts[:0], w[:0])
-        band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb)
         # flat across the valley, falling off over the band's edge
-        band = np.minimum(band * np.float32(1.6 * math.sqrt(2 * math.pi) * sb), 1.0)
-        got = None if maps is None else _photo_lift(face, g)
+        k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
+        if f == 1:
+            band = _splat1((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w)
+            band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
+        else:
+            hb, wb = y1 - y0, x1 - x0
+            hc, wc = -(-hb // f), -(-wb // f)
+            band = _splat1((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w)
+            band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb / f)
+            band = np.asarray(cv2.resize(band, (wc * f, hc * f),
+                                         interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
+        band *= k
+        np.minimum(band, 1.0, out=band)
+        view = out[y0:y1, x0:x1]
         if got is None or maps is None:
             S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
+            band *= c4[..., 3]
+            gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
         else:
-            # the skin level C either side of the valley and how skin-like it is are smooth:
-            # taken on the photo once and carried by the warp's own map; S, sharp across the
-            # valley, is taken in the frame
-            S, _ = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
-                                closing=False)
-            (_, c4), (px0, py0) = got
-            mx, my = _box_maps(maps, (x0, y0, x1, y1))
+            # S, C and the skin weight taken on the photo once and carried by the warp's own
+            # map: S lands on the valley exactly where the warp puts it. C and the weight are
+            # smooth (a closing blurred over ~2 line widths): on large faces they are carried
+            # at 1/f resolution (the map averaged over f x f blocks) and resized
+            (S, Cw), (px0, py0) = got
+            hb, wb = y1 - y0, x1 - x0
+            hc, wc = -(-hb // f), -(-wb // f)
+            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f))
             mx -= np.float32(px0)
             my -= np.float32(py0)
-            c4 = cv2.remap(c4, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        band *= c4[..., 3]
-        gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
+            if f > 1:
+                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
+                               cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
+                               cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                Cw = cv2.resize(Cw, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)
+                mx, my = mx[:hb, :wb], my[:hb, :wb]
+                Cw = Cw[:hb, :wb]
+            else:
+                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            C, wsk = Cw[..., :3], Cw[..., 3]
+            band *= wsk
+            np.maximum(S, 1.0, out=S)
+            gain = np.divide(C, S, out=S)
+            np.clip(gain, 1.0, 4.0, out=gain)
         gain -= 1.0
-        gain *= band[..., None]
+        gain *= cv2.merge([band, band, band])
         gain += 1.0
-        patch = out[y0:y1, x0:x1].astype(np.float32)
-        gain *= patch
-        gain += 0.5
-        out[y0:y1, x0:x1] = np.clip(gain, 0, 255).astype(np.uint8)
+        cv2.multiply(view, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
 
 
-def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray
+def _splat1(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """A float32 canvas with weights ``w`` added at sub-pixel positions ``xy`` (bilinear)."""
+    h, wd = shape
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    base = ip[:, 1] * wd + ip[:, 0]
+    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
+    fx, fy = F[:, 0], F[:, 1]
+    wx = np.stack([w * (1 - fx), w * fx])
+    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    return np.bincount(idx, ws, minlength=h * wd)[: h * wd].astype(np.float32).reshape(h, wd)
+
+
+_VALLEY_SAMPLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _valley_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """:func:`_own_valleys` as 3 x (N,) vertex indices and 3 x (N, 1) barycentric coordinates
+    (gathered once per face, not every frame)."""
+    got = _VALLEY_SAMPLES.get(face)
+    if got is None:
+        tri, bary = _own_valleys(face)
+        t = face.mesh.triangles[tri]
+        got = (tuple(np.ascontiguousarray(t[:, k]) for k in range(3)),
+               tuple(np.ascontiguousarray(bary[:, k, None]) for k in range(3)))
+        _VALLEY_SAMPLES[face] = got
+    return got
+
+
+def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float = 0.5
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Sub-samples ``pts`` (n, 2) of the segments ``ia`` -> ``ia + 1`` of the valley ``pos``,
-    their weights ``w`` (strength ``un`` x length), the segments ``d`` (M, 2), their lengths
-    ``L`` and the sub-samples per segment ``K``."""
+    """Sub-samples ``pts`` (n, 2) of the segments ``ia`` -> ``ia + 1`` of the valley ``pos``
+    (at most ``step`` px apart), their weights ``w`` (strength ``un`` x length), the segments
+    ``d`` (M, 2), their lengths ``L`` and the sub-samples per segment ``K``."""
     a, d = pos[ia], pos[ia + 1] - pos[ia]
     L = np.sqrt((d * d).sum(1))
-    K = int(min(max(np.ceil(L.max() / 0.5), 1), 64))
+    K = int(min(max(np.ceil(L.max() / step), 1), 64))
     u = (np.arange(K) + 0.5) / K
     pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
     ua, ub = un[ia], un[ia + 1]
@@ -876,6 +940,24 @@ def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
 
 
 _LIFT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _photo_gain(face: Face, g: int
+                ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[int, int]] | None:
+    """``((S, Cw), (x0, y0))``: the fields of group ``g``'s own fold on the photo
+    (:func:`_lift_fields`), contiguous float32: ``S`` (h, w, 3) and ``Cw`` (h, w, 4), ``C``
+    with the skin weight, over the box at ``(x0, y0)`` (cached per face; None: no own fold)."""
+    cache = _GAIN.setdefault(face, {})
+    if g not in cache:
+        got = _photo_lift(face, g)
+        if got is None:
+            cache[g] = None
+        else:
+            (S, c4), org = got
+            cache[g] = ((np.ascontiguousarray(S, np.float32), np.ascontiguousarray(c4, np.float32)),
+                        org)
+    return cache[g]
 
 
 def _photo_lift(face: Face, g: int
@@ -903,8 +985,8 @@ def _photo_lift(face: Face, g: int
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
         if x1 - x0 >= 4 and y1 - y0 >= 4:
-            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1)),
-                   (x0, y0))
+            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
+                                n_dir=_N_DIR_PHOTO), (x0, y0))
     cache[g] = got
     return got
 
@@ -912,18 +994,21 @@ def _photo_lift(face: Face, g: int
 @overload
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: Literal[True] = True) -> tuple[np.ndarray, np.ndarray]: ...
+                 closing: Literal[True] = True, n_dir: int = _N_DIR
+                 ) -> tuple[np.ndarray, np.ndarray]: ...
 @overload
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: Literal[False]) -> tuple[np.ndarray, None]: ...
+                 closing: Literal[False], n_dir: int = _N_DIR) -> tuple[np.ndarray, None]: ...
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+                 closing: bool = True, n_dir: int = _N_DIR
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
     """``S`` (h, w, 3) and ``C`` with the skin-likeness of that lifted level (h, w, 4), float32
     over ``box`` of ``img`` (see :func:`_unfold`; the gain is ``C / S``), for the valley
     sub-sampled at ``pts`` (weights ``w``; ``M`` segments ``d`` of lengths ``L``, ``K``
-    sub-samples each). ``closing=False``: ``S`` only (the second is None).
+    sub-samples each). ``closing=False``: ``S`` only (the second is None). ``n_dir``: the
+    directions of the along-fold smoothing.
     """
     H, W = img.shape[:2]
     sig = float(fa.sig[g])
@@ -959,13 +1044,14 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         fs = cv2.resize(fs, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
     fc = fc * np.float32(f * f) + np.float32(1e-6 * c2.sum())
     fs = fs * np.float32(f * f) + np.float32(1e-6 * s2.sum())
-    k = np.rint(np.arctan2(fs, fc) * (0.5 * _N_DIR / math.pi)).astype(np.int32) % _N_DIR
+    nd = n_dir
+    k = np.rint(np.arctan2(fs, fc) * (0.5 * nd / math.pi)).astype(np.int32) % nd
     iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
     sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
     cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
     Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
     along = round(max(1.5 * sig, 1.0), 2)
-    for j in np.flatnonzero(np.bincount(k.ravel(), minlength=_N_DIR)):
+    for j in np.flatnonzero(np.bincount(k.ravel(), minlength=nd)):
         m = k == j
         # filtered only over the rows/columns where this direction is used (+ the kernel)
         rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
@@ -973,7 +1059,7 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         sy0, sx0 = cy + r0, cx + c0
         part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
         oy, ox = min(sy0, h), min(sx0, h)
-        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / _N_DIR, along, 0.35),
+        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / nd, along, 0.35),
                             borderType=cv2.BORDER_REPLICATE)
         np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
                   where=m[r0:r1, c0:c1, None])

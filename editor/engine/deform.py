@@ -78,7 +78,6 @@ class DeformPlan:
     neutral_sigma: np.ndarray  # (T,)
     movable: np.ndarray  # (V,) bool: can move for some FAP vector (not border)
     brow_gap: float = np.inf  # frame distance between the inner brow ends 4.1 and 4.2, pixels
-    extra_names: tuple[str, ...] = EXTRA_POINTS
     # float64 copies set by __post_init__
     neutral64: np.ndarray = field(init=False, repr=False)  # (N, 2)
     basis_flat: np.ndarray = field(init=False, repr=False)  # (68, N*2)
@@ -331,6 +330,15 @@ def _pair_rule(plan: DeformPlan, pos: np.ndarray) -> None:
         pos[:, u], pos[:, lo] = pu, pl
 
 
+def _tri_columns(plan: DeformPlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The triangles' three corner indices as contiguous arrays (once per plan)."""
+    cols = plan.__dict__.get("_tri_cols")
+    if cols is None:
+        cols = tuple(np.ascontiguousarray(plan.triangles[:, k]) for k in range(3))
+        object.__setattr__(plan, "_tri_cols", cols)
+    return cols
+
+
 def _tau(plan: DeformPlan, D: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
     """First t in (0, 1] where a triangle's area reaches EPS_SOLVE of its neutral area. (B, T).
 
@@ -341,11 +349,17 @@ def _tau(plan: DeformPlan, D: np.ndarray, base: np.ndarray | None = None) -> np.
     if base is None:
         tn = plan.tri_neutral  # (T, 3, 2) neutral corners, precomputed
         A0, B0, C0 = tn[:, 0], tn[:, 1], tn[:, 2]
+        dA, dB, dC = D[:, t[:, 0]], D[:, t[:, 1]], D[:, t[:, 2]]
+        u0, w0 = C0 - A0, C0 - B0
+        du, dw = dC - dA, dC - dB
     else:
-        A0, B0, C0 = base[:, t[:, 0]], base[:, t[:, 1]], base[:, t[:, 2]]
-    dA, dB, dC = D[:, t[:, 0]], D[:, t[:, 1]], D[:, t[:, 2]]
-    u0, w0 = C0 - A0, C0 - B0
-    du, dw = dC - dA, dC - dB
+        # positions and displacements gathered together (3 gathers, not 6)
+        t0, t1, t2 = _tri_columns(plan)
+        X = np.concatenate([base, D], axis=2)  # (B, V, 4)
+        XC = X[:, t2]
+        u = XC - X[:, t0]
+        w = XC - X[:, t1]
+        u0, du, w0, dw = u[..., :2], u[..., 2:], w[..., :2], w[..., 2:]
 
     def cross(p: np.ndarray, q: np.ndarray) -> np.ndarray:
         return p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]
@@ -391,6 +405,7 @@ def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int
     D = off[:, :V]
     base = base[:, :V]
     pairs = plan.pairs
+    scaled = False
     for _ in range(rounds):
         tau = _tau(plan, D, base)
         if (tau >= 1.0).all():
@@ -401,7 +416,8 @@ def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int
         f[:, pairs[:, 0]] = fp
         f[:, pairs[:, 1]] = fp
         D = D * f[..., None]
-    if D is off[:, :V]:
+        scaled = True
+    if not scaled:  # (``off[:, :V]`` is a new view each time: test the flag, not identity)
         return off
     out = off.copy()
     out[:, :V] = D

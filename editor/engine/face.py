@@ -47,6 +47,7 @@ from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
 from .mesh import StandardMesh, signed_areas, standard_mesh
+from .transform import similarity
 from .warp import WarpPlan, WarpResult, warp
 
 #: estimate_own rounds, each against the FAPU of the neutral the previous one implies
@@ -73,14 +74,55 @@ def _extra_points(mesh: StandardMesh, verts: np.ndarray, lm: Landmarks,
 
 @dataclass(eq=False)
 class Face:
-    """A photo with its personalized MPEG-4 mesh.
+    """A photo with its personalized MPEG-4 mesh: FAP values in, deformed mesh or image out.
+
+    Made by :meth:`from_image` (detect, fit, estimate the photo's own expression) or
+    :meth:`from_landmarks`; immutable in use (``with_*`` methods return copies). FAP values
+    are in FAPU and relative to the neutral face: a photo that shows an expression is
+    neutralised first (:attr:`expression`), so ``render(None)`` is its neutral face.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        (H, W, 3) uint8 RGB photo.
+    landmarks : Landmarks
+        The detected landmarks of its face.
+    vertices : numpy.ndarray
+        (V, 2) personalized mesh fitted to them.
+    mesh : StandardMesh, optional
+        The topology (default :func:`standard_mesh`).
+    source : str, optional
+        Where the photo came from (used in messages).
+    expression : numpy.ndarray, optional
+        (68,) FAP vector of the photo's own expression (default zeros: a neutral photo).
 
     Attributes
     ----------
     image : (H, W, 3) uint8 RGB photo (read-only)
     landmarks : Landmarks
-    vertices : (V, 2) float32 neutral personalized mesh, image pixels (x, y), y down
+    vertices : (V, 2) float32 personalized mesh of the photo, image pixels (x, y), y down
+    neutral_vertices : (V, 2) float32 the neutralised mesh (``vertices`` for a neutral photo)
     fapu : dict name -> pixels per unit (MNS, MW, ENS, ES, IRISD; AU = 1e-5 rad)
+    fdp : dict feature point -> vertex index
+    expression : (68,) float32 the photo's own expression f0; ``expression_words`` says it
+
+    Examples
+    --------
+    >>> from editor.core import Face
+    >>> from editor.resources import SAMPLE_FACE
+    >>> face = Face.from_image(SAMPLE_FACE)
+    >>> face.expression_words  # the sample smiles
+    'smile, lips apart, lips stretched'
+    >>> sorted(face.fapu)
+    ['AU', 'ENS', 'ES', 'IRISD', 'MNS', 'MW']
+    >>> v = face.deform({"open_jaw": 400, 53: 120})  # names or numbers, FAPU
+    >>> v.shape, v.dtype
+    ((285, 2), dtype('float32'))
+    >>> chin = face.fdp["2.1"]
+    >>> bool(v[chin, 1] > face.deform(None)[chin, 1])  # the chin goes down (y grows)
+    True
+    >>> face.render({"open_jaw": 400}).shape  # the photo's size
+    (512, 512, 3)
     """
 
     image: np.ndarray
@@ -138,6 +180,8 @@ class Face:
         the upper lip next to the corners drops below them, and the fold guard then keeps the
         corners up (the neutral still smiled).
         """
+        # imported on first use (not a cycle): scipy.sparse and scipy.stats add ~0.4 s to
+        # `import editor.core`
         from .laplacian import CONSTRAINT_WEIGHTS, MU, LaplacianDeformer, landmark_map
 
         P = self.vertices
@@ -212,11 +256,35 @@ class Face:
                    own_expression: bool = True) -> Face:
         """Detect the face in a photo (path or RGB array) and fit the personalized mesh.
 
-        With ``own_expression`` (default) the expression the photo already shows is estimated
-        (:attr:`expression`) and FAPs apply to the neutralised face; ``False`` declares the
-        photo neutral (a performer's neutral photo, a JAFFE neutral).
-        Raises ImageError for unreadable/corrupt/too-large files and NoFaceError when no face
-        is found.
+        Parameters
+        ----------
+        image : str, os.PathLike or numpy.ndarray
+            A photo file, or an (H, W), (H, W, 3) or (H, W, 4) uint8 array in RGB order.
+        detector : LandmarkDetector, optional
+            Default: the bundled offline detector.
+        own_expression : bool, default True
+            Estimate the expression the photo already shows (:attr:`expression`), so that
+            FAPs apply to the neutralised face; ``False`` declares the photo neutral (a
+            performer's neutral photo, a JAFFE neutral).
+
+        Returns
+        -------
+        Face
+
+        Raises
+        ------
+        ImageError
+            An unreadable, corrupt or too large file, or an unusable array.
+        NoFaceError
+            No face is found.
+
+        Examples
+        --------
+        >>> from editor.core import Face
+        >>> from editor.resources import SAMPLE_FACE
+        >>> neutral = Face.from_image(SAMPLE_FACE, own_expression=False)
+        >>> neutral.has_expression, neutral.expression_words
+        (False, 'neutral')
         """
         if isinstance(image, np.ndarray):
             rgb, source = as_rgb8(image), None
@@ -231,7 +299,7 @@ class Face:
 
     def with_own_expression(self) -> Face:
         """A copy whose :attr:`expression` is the estimate of what the photo shows."""
-        from .own_expression import estimate_own
+        from .own_expression import estimate_own  # on first use, as above
 
         base = self if not self.expression.any() else self.with_expression(None)
         own = estimate_own(base)
@@ -361,11 +429,37 @@ class Face:
         return FAPS.clamp(FAPS.vector(faps))
 
     def deform(self, faps: FapInput) -> np.ndarray:
-        """Deformed mesh vertices (V, 2) float32 for FAP values in FAPU.
+        """Deformed mesh vertices for FAP values in FAPU.
 
-        Keys are FAP names or numbers; unknown keys and values that are not finite numbers
-        within ±1e9 (:data:`~editor.engine.faps.MAX_VALUE`; dict or array alike) raise
-        ValueError; other out-of-range values are clamped to the FAP table's range.
+        Parameters
+        ----------
+        faps : mapping, numpy.ndarray or None
+            ``{name or number: value}``, a (68,) vector (index i = FAP i+1) or None (all 0,
+            the neutral face). Values outside a FAP's range are clamped to it.
+
+        Returns
+        -------
+        numpy.ndarray
+            (V, 2) float32 vertices, image pixels (x, y), y down; fold-free.
+
+        Raises
+        ------
+        ValueError
+            An unknown FAP, or a value that is not a finite number within ±1e9
+            (:data:`~editor.engine.faps.MAX_VALUE`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from editor.core import Face
+        >>> from editor.resources import SAMPLE_FACE
+        >>> face = Face.from_image(SAMPLE_FACE, own_expression=False)
+        >>> np.array_equal(face.deform(None), face.vertices)  # neutral photo: FAP 0 = photo
+        True
+        >>> face.deform({"open_jaw": 1e12})
+        Traceback (most recent call last):
+        ...
+        ValueError: FAP 'open_jaw': value 1000000000000.0 is not a finite number within ±1e+09
         """
         pts = self._deform(self.fap_vector(faps))
         return pts[: self.plan.n_vertices]
@@ -419,7 +513,7 @@ class Face:
         Each eyeball follows its two eye corners (a similarity); the mouth interior (teeth)
         follows the skull: a least-squares similarity of the inner eye corners and the nose.
         """
-        return {name: _similarity(self.vertices[idx], v[idx])
+        return {name: similarity(self.vertices[idx], v[idx])
                 for name, idx in self._layer_anchors.items()}
 
     @cached_property
@@ -433,7 +527,34 @@ class Face:
         return out
 
     def render(self, faps: FapInput, creases: bool = True) -> np.ndarray:
-        """The photo with the expression: (H, W, 3) uint8, same size as the photo."""
+        """The photo with the expression.
+
+        Parameters
+        ----------
+        faps : mapping, numpy.ndarray or None
+            As for :meth:`deform`.
+        creases : bool, default True
+            Add and remove skin folds (nasolabial, crow's feet, forehead, ...).
+
+        Returns
+        -------
+        numpy.ndarray
+            (H, W, 3) uint8 RGB, the photo's size.
+
+        Raises
+        ------
+        ValueError
+            As for :meth:`deform`.
+
+        Examples
+        --------
+        >>> from editor.core import Face, apply_preset
+        >>> from editor.resources import SAMPLE_FACE
+        >>> face = Face.from_image(SAMPLE_FACE)
+        >>> img = face.render(apply_preset("surprise"))
+        >>> img.shape, img.dtype
+        ((512, 512, 3), dtype('uint8'))
+        """
         return self.render_full(faps, creases=creases).image
 
     def crop_box(self, left: float, top: float, right: float, bottom: float
@@ -460,19 +581,6 @@ def _fap_gap(G: np.ndarray, Gc: np.ndarray, vec: np.ndarray) -> np.ndarray:
     va, vb = f[LIP_PAIRS[:, 0]], f[LIP_PAIRS[:, 1]]
     common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
     return G @ f - Gc @ common
-
-
-def _similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Least-squares similarity (2x3) mapping the points ``src`` onto ``dst``."""
-    s = np.asarray(src, np.float64)
-    d = np.asarray(dst, np.float64)
-    ms, md = s.mean(0), d.mean(0)
-    a, b = s - ms, d - md
-    den = float((a * a).sum()) or 1.0
-    c = float((a * b).sum()) / den
-    sn = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()) / den
-    R = np.array([[c, -sn], [sn, c]])
-    return np.hstack([R, (md - R @ ms)[:, None]])
 
 
 def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,

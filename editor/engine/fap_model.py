@@ -41,6 +41,8 @@ from scipy.optimize import lsq_linear
 
 from .deform import LIP_PAIRS, deform_points, linear_positions
 from .faps import FAPS
+from .laplacian import landmark_map
+from .transform import apply_affine, similarity
 
 OBSERVABLE: tuple[int, ...] = (3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 15, 19, 20, 21, 22,
                                31, 32, 33, 34, 35, 36, 37, 38, 41, 42,
@@ -57,25 +59,6 @@ ESTIMATE_STABLE_WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5])
 #: 27 not at all (see :data:`ESTIMATE_STABLE`).
 LANDMARK_WEIGHTS = np.select([np.arange(68) < 4, np.arange(68) < 13, np.arange(68) < 17,
                               np.arange(68) == 27], [0.25, 0.5, 0.25, 0.0], 1.0)
-
-
-# ---------------------------------------------------------------------------- geometry
-def similarity(src: np.ndarray, dst: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
-    """Weighted least-squares similarity (2x3) with ``dst ~ M[:, :2] @ src + M[:, 2]``."""
-    s, d = np.asarray(src, np.float64), np.asarray(dst, np.float64)
-    w = np.ones(len(s)) if w is None else np.asarray(w, np.float64)
-    w = w / w.sum()
-    ms, md = w @ s, w @ d
-    a, b = s - ms, d - md
-    den = float(w @ (a * a).sum(1)) or 1.0
-    c = float(w @ (a * b).sum(1)) / den
-    sn = float(w @ (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])) / den
-    R = np.array([[c, -sn], [sn, c]])
-    return np.hstack([R, (md - R @ ms)[:, None]])
-
-
-def apply_affine(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    return np.asarray(pts, np.float64) @ M[:, :2].T + M[:, 2]
 
 
 def remove_head_motion(neutral68: np.ndarray, expr68: np.ndarray
@@ -129,8 +112,6 @@ class FapEstimator:
         self.lo = np.asarray(lo, np.float64)[self.idx]
         self.hi = np.asarray(hi, np.float64)[self.idx]
         V = face.plan.n_vertices
-        from editor.engine.laplacian import landmark_map
-
         A = landmark_map(face.vertices, face.triangles, face.mesh.names, self.neutral)
         basis = face.plan.basis.astype(np.float64)[:, :V]  # (68, V, 2)
         self.J = np.stack([(A @ basis[k]).ravel() for k in range(68)], 1)  # (136, 68)

@@ -59,6 +59,15 @@ class Fap:
     fdp : str | None       the feature point it drives (rotation pivot for eye/head rotations)
     range : (float, float) slider range in FAPU
     mirror : int | None    the left/right partner FAP
+
+    Examples
+    --------
+    >>> from editor.core import FAPS
+    >>> fap = FAPS["raise_l_cornerlip_o"]
+    >>> fap.number, fap.unit, fap.direction, fap.fdp, FAPS[fap.mirror].name
+    (59, 'MNS', 'up', '8.3', 'raise_r_cornerlip_o')
+    >>> fap.group_name
+    'outer lips'
     """
 
     number: int
@@ -196,7 +205,40 @@ MAX_VALUE = 1e9
 
 
 class FapTable(Mapping[object, Fap]):
-    """The 68 FAPs, indexable by number (1..68) or name (``FAPS["open_jaw"]``)."""
+    """The 68 FAPs, indexable by number (1..68) or name (``FAPS["open_jaw"]``).
+
+    :data:`FAPS` is the one table; iterating yields the numbers 1..68. A FAP vector is a
+    (68,) float32 array, index i = FAP i+1, values in FAPU.
+
+    Parameters
+    ----------
+    rows : list of tuple
+        ``(number, name, description, unit, bidirectional, direction, group, fdp, range)``
+        per FAP (the MPEG-4 table); the left/right partners are found from the names.
+
+    Attributes
+    ----------
+    lo, hi : (68,) float32
+        The lower and upper ends of each FAP's range.
+
+    Raises
+    ------
+    ValueError
+        Looking up an unknown name or number, or a vector value that is not finite.
+
+    Examples
+    --------
+    >>> from editor.core import FAPS
+    >>> len(FAPS), FAPS[3].name, FAPS["open_jaw"].number, FAPS[3].range
+    (68, 'open_jaw', 3, (0.0, 1080.0))
+    >>> v = FAPS.vector({"open_jaw": 2000, 53: -50})  # names or numbers, not clamped
+    >>> float(v[2]), float(v[52]), float(FAPS.clamp(v)[2])
+    (2000.0, -50.0, 1080.0)
+    >>> FAPS["smile"]
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown FAP 'smile' (expected a number 1-68 or an MPEG-4 FAP name)
+    """
 
     def __init__(self, rows: list[tuple]) -> None:
         by_name = {r[1]: r[0] for r in rows}
@@ -281,3 +323,83 @@ class FapTable(Mapping[object, Fap]):
 
 
 FAPS = FapTable(_ROWS)
+
+#: Left/right partner index of each FAP (0-based, -1 for none): vectorised ``Fap.mirror``.
+_MIRROR_INDEX = np.array([(FAPS[n].mirror or 0) - 1 for n in range(1, 69)], np.int64)
+
+
+def round_half_away(a: np.ndarray | float | list) -> np.ndarray:
+    """Round to integers, halves away from zero (as .fap files and presets store values).
+
+    Parameters
+    ----------
+    a : array_like
+        Values in FAPU.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 array of the same shape, integer-valued.
+
+    Examples
+    --------
+    >>> round_half_away([12.5, -12.5, 0.4]).tolist()
+    [13.0, -13.0, 0.0]
+    """
+    a = np.asarray(a, np.float64)
+    return np.sign(a) * np.floor(np.abs(a) + 0.5)
+
+
+def check_vector(vector: np.ndarray) -> np.ndarray:
+    """A (68,) float64 copy of a finite low-level FAP vector (FAP 1/2 zero).
+
+    Parameters
+    ----------
+    vector : array_like
+        68 values, index i = FAP i+1.
+
+    Returns
+    -------
+    numpy.ndarray
+        (68,) float64 copy.
+
+    Raises
+    ------
+    ValueError
+        Wrong size, a non-finite value, or a non-zero FAP 1/2.
+
+    Examples
+    --------
+    >>> float(check_vector(FAPS.vector({"open_jaw": 300}))[2])
+    300.0
+    """
+    v = np.array(vector, np.float64).reshape(-1)
+    if v.shape != (68,) or not np.isfinite(v).all() or v[0] or v[1]:
+        raise ValueError(f"expected 68 finite low-level FAP values (FAP 1/2 zero), got {v}")
+    return v
+
+
+def partner_mask(m: np.ndarray) -> np.ndarray:
+    """The (68,) mask ``m`` plus the left/right partner of each masked FAP, FAP 1/2 off.
+
+    Parameters
+    ----------
+    m : array_like of bool
+        (68,) mask, index i = FAP i+1.
+
+    Returns
+    -------
+    numpy.ndarray
+        (68,) bool.
+
+    Examples
+    --------
+    >>> m = partner_mask(FAPS.vector({"raise_l_cornerlip": 100}) != 0)
+    >>> [FAPS[int(i) + 1].name for i in m.nonzero()[0]]
+    ['raise_l_cornerlip', 'raise_r_cornerlip']
+    """
+    out = np.array(m, bool).reshape(68)
+    partners = _MIRROR_INDEX[out]
+    out[partners[partners >= 0]] = True
+    out[:2] = False
+    return out

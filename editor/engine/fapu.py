@@ -18,8 +18,6 @@ import numpy as np
 from .fitting import FaceFrame
 from .mesh import StandardMesh
 
-FAPU_NAMES = ("MNS", "MW", "ENS", "ES", "IRISD", "AU")
-
 
 def _lid_y(frame_xy: np.ndarray, mesh: StandardMesh, s: str, lid: str, x: float) -> float:
     names = [f"eye_{s}_c0"] + [f"eye_{s}_{lid}{k}" for k in range(1, 6)] + [f"eye_{s}_c1"]

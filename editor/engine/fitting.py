@@ -94,11 +94,15 @@ def _interp_y(curve: np.ndarray, x: float) -> float:
 
 K6 = np.arange(1, 6) / 6.0
 K8 = np.arange(1, 8) / 8.0
+Vertices = dict[str, np.ndarray]
 
 
 def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
                  ) -> tuple[dict[str, np.ndarray], FaceFrame]:
     """Place every named vertex of the standard mesh on a face.
+
+    The regions are fitted in turn (see the module docstring), each by its own function on the
+    landmarks in the face frame; later regions lean on the curves of earlier ones.
 
     Parameters
     ----------
@@ -113,10 +117,26 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
     """
     fr = FaceFrame.from_points(np.asarray(points68, np.float64))
     P = fr.to_frame(points68)
-    V: dict[str, np.ndarray] = {}
+    V: Vertices = {}
     iod = float(np.linalg.norm(P[42:48].mean(0) - P[36:42].mean(0)))
+    brow_upper, thick = _fit_brows(V, P, iod)
+    _fit_eyes(V, P, iod, brow_upper, thick)
+    _fit_nose(V, P, iod)
+    ou, od = _fit_mouth(V, P)
+    contour = _fit_contour(V, P)
+    hair, hair_mid = _fit_forehead(V, P, contour, brow_upper, thick)
+    _fit_cheeks(V, P, iod, contour, ou, od, hair)
+    _fit_philtrum(V, P, ou)
+    _fit_jaw(V, P, contour, od)
+    _fit_ears(V, iod, contour)
+    _fit_rings(V, fr, image_size, iod, contour, P[8], hair_mid)
+    return {k: fr.to_image(v) for k, v in V.items()}, fr
 
-    # ---------------- brows (upper edge + lower edge) ----------------
+
+def _fit_brows(V: Vertices, P: np.ndarray, iod: float
+               ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """Brows: upper edge (the landmarks) and lower edge; returns each side's upper contour and
+    thickness."""
     brow_upper = {}
     thick = {}
     for s, (a, b) in (("r", (17, 21)), ("l", (22, 26))):
@@ -135,16 +155,18 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
         for k, q in enumerate(low, 1):
             taper = 0.75 + 0.25 * np.sin(np.pi * k / 4.0)
             V[f"brow_{s}_d{k}"] = q + (0, T * taper)
+    return brow_upper, thick
 
-    # ---------------- eyes (lids + surrounding ring) ----------------
-    eye_w = {}
+
+def _fit_eyes(V: Vertices, P: np.ndarray, iod: float, brow_upper: dict[str, np.ndarray],
+              thick: dict[str, float]) -> None:
+    """Eyes: lid parabolas and the ring of skin points around each eye (below the brow)."""
     for s, base in (("r", 36), ("l", 42)):
         c0, c1 = P[base], P[base + 3]
         up = parabola(c0, c1, P[base + 1 : base + 3], K6)
         lo = parabola(c0, c1, P[[base + 5, base + 4]], K6)
         lo[:, 1] = np.maximum(lo[:, 1], up[:, 1] + 0.02 * iod)  # lids never cross
         W = float(np.linalg.norm(c1 - c0))
-        eye_w[s] = W
         V[f"eye_{s}_c0"], V[f"eye_{s}_c1"] = c0, c1
         for k in range(5):
             V[f"eye_{s}_u{k + 1}"] = up[k]
@@ -162,7 +184,9 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
         V[f"eyering_{s}_c{1 if s == 'l' else 0}"] = outer + (out * 0.22 * W, -0.02 * W)
         V[f"eyering_{s}_c{0 if s == 'l' else 1}"] = inner + (-out * 0.14 * W, -0.04 * W)
 
-    # ---------------- nose ----------------
+
+def _fit_nose(V: Vertices, P: np.ndarray, iod: float) -> None:
+    """Nose: the nine nose landmarks, the sides of the bridge and the alae."""
     for i in range(27, 36):
         V[f"nose_{i}"] = P[i]
     wn = P[35, 0] - P[31, 0]
@@ -171,7 +195,10 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
     V["ala_r"] = np.array([P[31, 0] - 0.12 * wn, 0.45 * P[29, 1] + 0.55 * P[31, 1]])
     V["ala_l"] = np.array([P[35, 0] + 0.12 * wn, 0.45 * P[29, 1] + 0.55 * P[35, 1]])
 
-    # ---------------- mouth ----------------
+
+def _fit_mouth(V: Vertices, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mouth: outer and inner lip contours and the lip bodies; returns the outer upper and
+    outer lower contours (7 points each)."""
     oc0, oc1 = P[48], P[54]
     mw = float(oc1[0] - oc0[0])
     left = parabola(oc0, P[51], P[49:51], np.array([0.25, 0.5, 0.75]))
@@ -200,8 +227,12 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
     for k in (2, 4, 6):
         V[f"lipb_u{k}"] = 0.5 * (ou[k - 1] + iu[k - 1])
         V[f"lipb_d{k}"] = 0.5 * (od[k - 1] + idn[k - 1])
+    return ou, od
 
-    # ---------------- face contour (33) ----------------
+
+def _fit_contour(V: Vertices, P: np.ndarray) -> np.ndarray:
+    """Face contour: 33 points on four parabola segments between the jaw landmarks 0, 4, 8,
+    12, 16; returns them (33, 2), image-left temple first."""
     J = P[0:17]
     segs = [_vparabola(J[0], J[4], J[1:4], K8), parabola(J[4], J[8], J[5:8], K8),
             parabola(J[8], J[12], J[9:12], K8), _vparabola(J[12], J[16], J[13:16], K8)]
@@ -212,19 +243,24 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
     contour_a = np.array(contour)
     for i, q in enumerate(contour_a):
         V[f"contour_{i}"] = q
-    chin = J[8]
+    return contour_a
 
-    # ---------------- forehead ----------------
+
+def _fit_forehead(V: Vertices, P: np.ndarray, contour: np.ndarray,
+                  brow_upper: dict[str, np.ndarray], thick: dict[str, float]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Forehead: the hairline (1 : 2 rule, elliptic), two rows of points between it and the
+    brows, the glabella; returns the 11 hairline points and the hairline midpoint."""
+    chin = P[8]
     g = 0.5 * (P[21] + P[22])
     hair_mid = g - 0.5 * (chin - g)
-    cl, cr = contour_a[0], contour_a[-1]
+    cl, cr = contour[0], contour[-1]
     cx, cy = 0.5 * (cl[0] + cr[0]), 0.5 * (cl[1] + cr[1])
     a_ax = 0.5 * (cr[0] - cl[0])
     b_ax = cy - hair_mid[1]
     th = np.deg2rad(180.0 - 15.0 * np.arange(1, 12))
     hair = np.stack([cx + a_ax * np.cos(th) + (hair_mid[0] - cx) * np.sin(th),
                      cy - b_ax * np.sin(th)], 1)
-    # keep the hairline clear of the contour ends' neighbours
     for k, q in enumerate(hair, 1):
         V[f"hair_{k}"] = q
     brow_top = np.vstack([brow_upper["r"], brow_upper["l"]])
@@ -238,14 +274,20 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
             yh = cy - b_ax * np.sqrt(1 - t * t)
             V[f"forehead_{row}_{k}"] = np.array([x, yb + frac * (yh - yb)])
     V["glabella"] = np.array([g[0], g[1] + 0.35 * (thick["r"] + thick["l"]) / 2])
+    return hair, hair_mid
 
-    # ---------------- cheeks ----------------
+
+def _fit_cheeks(V: Vertices, P: np.ndarray, iod: float, contour: np.ndarray, ou: np.ndarray,
+                od: np.ndarray, hair: np.ndarray) -> None:
+    """Cheeks: five rows between the nose/mouth and the contour, the nasolabial points, the
+    mouth-corner skin and the temples."""
+    oc0, oc1, chin = P[48], P[54], P[8]
     ring_lo = {s: V[f"eyering_{s}_d3"][1] for s in "rl"}
     nose_base = P[33, 1]
     mouth_y = 0.5 * (oc0[1] + oc1[1])
     lip_bottom = od[3, 1]
     for s, sign in (("r", -1.0), ("l", 1.0)):
-        side = contour_a[:17] if s == "r" else contour_a[16:]
+        side = contour[:17] if s == "r" else contour[16:]
         eye_lo = ring_lo[s]
         corner = oc0 if s == "r" else oc1
         ala = V[f"ala_{s}"]
@@ -272,33 +314,45 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
         hx = hair[1] if s == "r" else hair[9]
         V[f"temple_{s}_2"] = np.array([0.5 * (be[0] + hx[0]) + sign * 0.03 * iod,
                                        0.5 * (be[1] + hx[1]) + 0.08 * iod])
-    # philtrum row between the nose base and the upper lip
+
+
+def _fit_philtrum(V: Vertices, P: np.ndarray, ou: np.ndarray) -> None:
+    """Philtrum: a row midway between the nose base and the upper lip."""
     for k, (ni, lip) in enumerate(zip((31, 32, 33, 34, 35), (0, 2, 3, 4, 6), strict=True), 1):
         top, bot = P[ni], ou[lip]
         V[f"phil_{k}"] = np.array([0.5 * (top[0] + bot[0]), top[1] + 0.5 * (bot[1] - top[1])])
 
-    # ---------------- jaw (between the lower lip and the chin) ----------------
+
+def _fit_jaw(V: Vertices, P: np.ndarray, contour: np.ndarray, od: np.ndarray) -> None:
+    """Jaw: two rows between the lower lip and the chin, across the contour."""
+    chin, lip_bottom = P[8], od[3, 1]
     for row, frac in ((1, 0.38), (2, 0.7)):
         y = lip_bottom + frac * (chin[1] - lip_bottom)
-        xl = _interp_x(contour_a[:17], y)
-        xr = _interp_x(contour_a[16:], y)
+        xl = _interp_x(contour[:17], y)
+        xr = _interp_x(contour[16:], y)
         for k, f in enumerate(np.linspace(0.14, 0.86, 7), 1):
             x = xl + f * (xr - xl)
             if row == 2 and k == 4:
                 x = chin[0]
             V[f"jaw_{row}_{k}"] = np.array([x, y])
 
-    # ---------------- ears ----------------
+
+def _fit_ears(V: Vertices, iod: float, contour: np.ndarray) -> None:
+    """Ears: four points beside each upper contour."""
     for s, sign, idx in (("r", -1.0, (0, 2, 5)), ("l", 1.0, (32, 30, 27))):
-        top, mid, low = (contour_a[i] for i in idx)
+        top, mid, low = (contour[i] for i in idx)
         be = V[f"brow_{s}_e{0 if s == 'r' else 1}"]
         V[f"ear_{s}_top"] = np.array([top[0] + sign * 0.13 * iod, be[1] + 0.05 * iod])
         V[f"ear_{s}_back"] = mid + (sign * 0.24 * iod, 0.0)
         V[f"ear_{s}_mid"] = 0.5 * (top + mid) + (sign * 0.1 * iod, 0.0)
         V[f"ear_{s}_lobe"] = low + (sign * 0.12 * iod, 0.0)
 
-    # ---------------- margin ring and image-border ring ----------------
-    centre = np.array([cx, 0.5 * (hair_mid[1] + chin[1])])
+
+def _fit_rings(V: Vertices, fr: FaceFrame, image_size: tuple[int, int], iod: float,
+               contour: np.ndarray, chin: np.ndarray, hair_mid: np.ndarray) -> None:
+    """The margin ring around the face and the ring on the image border that close the mesh."""
+    cl, cr = contour[0], contour[-1]
+    centre = np.array([0.5 * (cl[0] + cr[0]), 0.5 * (hair_mid[1] + chin[1])])
     half_w = 0.5 * (cr[0] - cl[0]) + 0.35 * iod
     half_h = 0.5 * (chin[1] - hair_mid[1])
     corners_img = np.array([[0, 0], [image_size[0], 0], [image_size[0], image_size[1]],
@@ -316,7 +370,6 @@ def fit_vertices(points68: np.ndarray, image_size: tuple[int, int]
         db = np.array([np.cos(phi_b), np.sin(phi_b)])
         r_b = max(_ray_exit(centre, db, corners_fr), 1.25 * r_m)
         V[f"border_{k}"] = centre + r_b * db
-    return {k: fr.to_image(v) for k, v in V.items()}, fr
 
 
 MARGIN_COUNT = 20

@@ -495,10 +495,14 @@ class EyePlan:
                     k_lo = 1.0 - s_lo * (1.0 - _clamp(w_lo0 - W - self.band_low + 0.5, 0, 1))
                     keep = k_lo if keep is None else keep * k_lo
                 assert keep is not None  # up_moved or low_moved
-                keep = keep.astype(np.float32)[..., None]
-                ball = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
-                                 borderMode=cv2.BORDER_REPLICATE)
-                white = ball + keep * (white - ball)
+                keep = keep.astype(np.float32)
+                ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
+                                             borderMode=cv2.BORDER_REPLICATE)
+                # (weights spread over the channels with cv2.merge: numpy's broadcasting of
+                # (h, w, 1) over 3 channels is several times slower on these small boxes)
+                white -= ball
+                white *= cv2.merge([keep, keep, keep])
+                white += ball
                 if up_moved:
                     fall = LID_SHADOW_FALL * self.r0
                     shadow = (1.0 - LID_SHADOW * s_up
@@ -509,7 +513,7 @@ class EyePlan:
         rho = np.sqrt(Di * Di + Dw * Dw)
         a = _clamp(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
         if not np.count_nonzero(a):
-            return white if shadow is None else white * shadow[..., None]
+            return white if shadow is None else white * cv2.merge([shadow, shadow, shadow])
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
         if du == 0.0 and dw == 0.0 and abs(r_new - self.r0) <= 1e-9 * self.r0 \
@@ -534,14 +538,14 @@ class EyePlan:
             lum = iris @ np.array([0.299, 0.587, 0.114], np.float32)
             ap *= 1.0 - np.clip((lum - 1.3 * self.iris_lum) / (0.3 * self.iris_lum + 1.0),
                                 0.0, 1.0)
-            ap = ap[..., None]
+            ap = cv2.merge([ap, ap, ap])
             iris = iris * (1.0 - ap) + self.pupil * ap
-        a = a.astype(np.float32)[..., None]
-        col = iris * a
-        white *= 1.0 - a  # (white is this frame's own array)
+        a = a.astype(np.float32)
+        col = iris - white  # a iris + (1 - a) white (white is this frame's own array)
+        col *= cv2.merge([a, a, a])
         col += white
         if shadow is not None:
-            col *= shadow[..., None]
+            col *= cv2.merge([shadow, shadow, shadow])
         return col
 
 

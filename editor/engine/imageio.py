@@ -100,10 +100,32 @@ def to_rgb8(img: np.ndarray) -> np.ndarray:
 def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     """Read a photo as an ``H x W x 3`` RGB uint8 array, EXIF orientation applied.
 
+    The file is read once (regular files only, at most 512 MB) and decoded once; its size is
+    checked against :data:`MAX_PIXELS` from the header, before decoding. Grey, 16-bit and
+    RGBA images become RGB uint8 (alpha composited on white).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A PNG, JPEG, TIFF, BMP, WebP, ... file.
+
+    Returns
+    -------
+    numpy.ndarray
+        (H, W, 3) uint8, RGB.
+
     Raises
     ------
     ImageError
         If the file is missing, unreadable, empty, not an image, corrupt or too large.
+
+    Examples
+    --------
+    >>> from editor.core import load_image
+    >>> from editor.resources import SAMPLE_FACE
+    >>> rgb = load_image(SAMPLE_FACE)
+    >>> rgb.shape, rgb.dtype
+    ((512, 512, 3), dtype('uint8'))
     """
     p = Path(path)
     if not p.exists():
@@ -148,7 +170,33 @@ def as_rgb8(image: np.ndarray) -> np.ndarray:
 
 
 def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> None:
-    """Write an RGB uint8 image; the format follows the file extension (PNG, JPEG, ...)."""
+    """Write an RGB uint8 image; the format follows the file extension (PNG, JPEG, ...).
+
+    The file is written beside its target and renamed into place when complete (nothing
+    partial on an error); JPEG quality is 95; no extension means PNG.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file.
+    rgb : numpy.ndarray
+        (H, W, 3) uint8, RGB.
+
+    Raises
+    ------
+    ImageError
+        If the format is unknown to the encoder or the file cannot be written.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> from editor.core import load_image, save_image
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "grey.png"
+    >>> save_image(out, np.full((32, 48, 3), 128, np.uint8))
+    >>> load_image(out).shape
+    (32, 48, 3)
+    """
     p = Path(path)
     ext = p.suffix.lower() or ".png"
     bgr = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR)

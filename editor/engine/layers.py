@@ -26,7 +26,6 @@ them (skin lighting, its own teeth, what its mouth opening shows: :func:`_own_in
 from __future__ import annotations
 
 import math
-import time
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
@@ -52,7 +51,7 @@ from .mouth import (
 from .warp import WarpResult
 
 if TYPE_CHECKING:
-    from .face import Face, FapInput
+    from .face import Face
 
 _SHIFT = 4
 _TOL = 1e-3
@@ -193,11 +192,9 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
 
 
 def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
-    """``dst[:] = clip(res + 0.5, 0, 255)`` truncated to uint8, in place (``res`` is used up)."""
-    res += 0.5
-    np.maximum(res, 0, out=res)
-    np.minimum(res, 255, out=res)
-    np.copyto(dst, res, casting="unsafe")
+    """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
+    OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
+    cv2.add(res, np.zeros_like(res), dst=dst, dtype=cv2.CV_8U)
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
@@ -205,21 +202,25 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole``;
     ``shade`` (h, w) multiplies the face (the lips' inner edge)."""
     x0, y0, x1, y1 = box
-    face = out[y0:y1, x0:x1].astype(np.float32)
+    view = out[y0:y1, x0:x1]
+    face = view.astype(np.float32)
+    # (per-pixel weights spread over the 3 channels with cv2.merge: numpy's broadcasting of
+    # an (h, w, 1) array over 3 channels is several times slower on these small boxes)
     if shade is not None:
-        face *= shade[..., None]
+        face *= cv2.merge([shade, shade, shade])
     if np.count_nonzero(hole):
         keep = (~hole).astype(np.float32)
-        num: np.ndarray = cv2.boxFilter(face * keep[..., None], -1, (5, 5), normalize=False,
-                            borderType=cv2.BORDER_REPLICATE)
+        num: np.ndarray = cv2.boxFilter(face * cv2.merge([keep, keep, keep]), -1, (5, 5),
+                                        normalize=False, borderType=cv2.BORDER_REPLICATE)
         den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
-        num /= np.maximum(den, 1e-6)[..., None]
-        np.copyto(face, num, where=(hole & (den > 0.5))[..., None])
-    a = alpha[..., None]
-    res = interior * a
-    face *= 1.0 - a
+        fill = hole & (den > 0.5)
+        np.maximum(den, 1e-6, out=den)
+        num /= cv2.merge([den, den, den])
+        face[fill] = num[fill]
+    res = interior - face  # alpha * interior + (1 - alpha) * face
+    res *= cv2.merge([alpha, alpha, alpha])
     res += face
-    _to_uint8(res, out[y0:y1, x0:x1])
+    _to_uint8(res, view)
 
 
 def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
@@ -516,7 +517,8 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     else:
         k = 2 * dilate * ss + 1
         big = cv2.dilate(big, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    return cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
+    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA)
+    return np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)
 
 
 def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
@@ -536,40 +538,3 @@ def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
         a0, b0, a1, b1 = box
         masks[key][b0 - y0:b1 - y0, a0 - x0:a1 - x0] |= hole
     return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"], res.maps)
-
-
-def layers_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:
-    """Median time (ms) of ``face.render(faps)`` with and without the layers.
-
-    ``without`` = deform + warp with its flat cavity (what ``render`` did before the layers),
-    ``with`` = ``face.render``; the two are timed alternately so that machine load affects
-    both alike; ``layers`` is the difference of the medians. For ``python -m editor.bench``.
-    """
-    from .deform import deform_points
-    from .warp import warp
-
-    vec = face.fap_vector(faps)
-
-    def bare() -> None:
-        pts = deform_points(face.plan, vec)
-        vv = pts[: face.plan.n_vertices]
-        warp(face.warp_plan, vv, face.layer_transforms(vv))
-
-    def full() -> None:
-        face.render(vec)
-
-    layer_plan(face)
-    for _ in range(warm):
-        bare()
-        full()
-    ta, tb = [], []
-    for _ in range(n):
-        t0 = time.perf_counter()
-        bare()
-        t1 = time.perf_counter()
-        full()
-        t2 = time.perf_counter()
-        ta.append(t1 - t0)
-        tb.append(t2 - t1)
-    a, b = float(np.median(ta) * 1000.0), float(np.median(tb) * 1000.0)
-    return {"without_ms": round(a, 3), "with_ms": round(b, 3), "layers_ms": round(b - a, 3)}

@@ -19,6 +19,7 @@ small box per eye; it runs between the warp and the layers (the lash line is dra
 
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -36,6 +37,8 @@ if TYPE_CHECKING:
 END_FADE = 0.25
 #: strips stretched by less than this (pixels) are left to the warp
 _MIN_STRETCH = 0.1
+#: spacing (frame pixels) of the per-column table of the strip (lid line, height, stretch)
+_STEP = 0.25
 
 
 @dataclass(eq=False)
@@ -73,67 +76,95 @@ def _smooth01(x: np.ndarray) -> np.ndarray:
 
 
 def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
-    """Redistribute the stretch of the lid-to-brow strips of ``res.image`` (in place)."""
+    """Redistribute the stretch of the lid-to-brow strips of ``res.image`` (in place).
+
+    With ``t = d / Hd`` the source height is ``f = t Hs + m ex t (1 - t)`` (``ex = Hd - Hs``)
+    and the warp put it at ``e = f Hd / Hs = d + k t (1 - t)``, ``k = m ex Hd / Hs``: the pixel
+    at frame height ``Y`` shows the warped strip at ``Y - k t (1 - t)``, ``t`` clipped to
+    [0, 1] (outside the strip nothing moves). ``k`` and the lid line depend on the frame's x
+    only: they are tabulated along x (every :data:`_STEP` px, exact there) and read per pixel
+    with one ``cv2.remap`` of the table; where ``k = 0`` the map is the identity and the
+    resampling returns the pixel itself. Both eyes' boxes are processed side by side in one
+    set of arrays (one table lookup, one resampling of the frame).
+    """
     fr = face.frame
     V = fr.to_frame(np.asarray(vertices, np.float64))
     img = res.image
     H, W = img.shape[:2]
-    bbox = res.bbox
+    R, org = fr.rot, fr.origin
+    jobs = []  # per stretched strip: box, table, its first frame x
     for st in _strips(face):
         L, B = V[st.lid], V[st.brow]
         x_lo = max(L[0, 0], B[0, 0])
         x_hi = min(L[-1, 0], B[-1, 0])
         if x_hi - x_lo < 2.0:
             continue
-        # per column of the deformed strip: its height now and in the photo
-        xs = np.linspace(x_lo, x_hi, 64)
-        hd = np.interp(xs, L[:, 0], L[:, 1]) - np.interp(xs, B[:, 0], B[:, 1])
-        hs = (np.interp(xs, L[:, 0], st.lid_s[:, 1]) - np.interp(xs, B[:, 0], st.brow_s[:, 1]))
-        if not ((hd - hs) > _MIN_STRETCH).any():
-            continue
         # image box of the strip
         corners = fr.to_image(np.concatenate([L, B]))
-        x0, y0 = np.floor(corners.min(0)).astype(int) - 1
-        x1, y1 = np.ceil(corners.max(0)).astype(int) + 2
-        x0, y0, x1, y1 = max(int(x0), 0), max(int(y0), 0), min(int(x1), W), min(int(y1), H)
+        cx, cy = corners[:, 0], corners[:, 1]
+        x0, y0 = max(math.floor(cx.min()) - 1, 0), max(math.floor(cy.min()) - 1, 0)
+        x1, y1 = min(math.ceil(cx.max()) + 2, W), min(math.ceil(cy.max()) + 2, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        # the box's pixels in the frame (``fr.to_frame``, without building the pixel grid)
-        shape = (y1 - y0, x1 - x0)
-        R, org = fr.rot, fr.origin
-        gx = np.arange(x0, x1, dtype=np.float64) - org[0]
-        gy = (np.arange(y0, y1, dtype=np.float64) - org[1])[:, None]
-        X = (gx * R[0, 0] + gy * R[1, 0]).ravel()
-        Y = (gx * R[0, 1] + gy * R[1, 1]).ravel()
-        lid_y = np.interp(X, L[:, 0], L[:, 1])
-        Hd = lid_y - np.interp(X, B[:, 0], B[:, 1])
-        Hs = np.interp(X, L[:, 0], st.lid_s[:, 1]) - np.interp(X, B[:, 0], st.brow_s[:, 1])
-        d = lid_y - Y
-        t = d / np.maximum(Hd, 1e-6)
+        # the frame's x over the box (its extremes are at the box's corners)
+        bx = (np.array([x0, x1 - 1, x0, x1 - 1]) - org[0]) * R[0, 0] \
+            + (np.array([y0, y0, y1 - 1, y1 - 1]) - org[1]) * R[1, 0]
+        lo = float(bx.min())
+        # the table along the frame's x over the box: lid line, 1 / Hd, k (from the strip's
+        # height now and in the photo)
+        u = lo + _STEP * np.arange(int(np.ceil((float(bx.max()) - lo) / _STEP)) + 2)
+        lid_y = np.interp(u, L[:, 0], L[:, 1])
+        Hd = lid_y - np.interp(u, B[:, 0], B[:, 1])
+        Hs = np.interp(u, L[:, 0], st.lid_s[:, 1]) - np.interp(u, B[:, 0], st.brow_s[:, 1])
         ex = Hd - Hs
-        fade = (_smooth01((X - x_lo) / (END_FADE * (x_hi - x_lo)))
-                * _smooth01((x_hi - X) / (END_FADE * (x_hi - x_lo))))
+        fade = (_smooth01((u - x_lo) / (END_FADE * (x_hi - x_lo)))
+                * _smooth01((x_hi - u) / (END_FADE * (x_hi - x_lo))))
         m = fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
-        live = (t > 0) & (t < 1) & (ex > _MIN_STRETCH) & (Hs > 0.5) & (m > 0)
+        live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m > 0)
         if not live.any():
             continue
-        # source height f, then where the warp put that height: e = f * Hd / Hs
-        f = t * Hs + m * ex * t * (1.0 - t)
-        e = np.where(live, f * Hd / np.maximum(Hs, 1e-6), d)
-        Ye = lid_y - e  # back to the image (``fr.to_image``)
-        mx = (X * R[0, 0] + Ye * R[0, 1] + org[0]).astype(np.float32).reshape(shape)
-        my = (X * R[1, 0] + Ye * R[1, 1] + org[1]).astype(np.float32).reshape(shape)
-        patch = img[y0:y1, x0:x1]
-        # sample the warped frame around the box (the remap reads up to a pixel outside it)
-        X0, Y0 = max(x0 - 2, 0), max(y0 - 2, 0)
-        X1, Y1 = min(x1 + 2, W), min(y1 + 2, H)
-        mx -= np.float32(X0)
-        my -= np.float32(Y0)
-        new = cv2.remap(img[Y0:Y1, X0:X1], mx, my, cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
-        keep = ~live.reshape(shape)
-        new[keep] = patch[keep]
-        img[y0:y1, x0:x1] = new
+        k = np.where(live, m * ex * Hd / np.maximum(Hs, 1e-6), 0.0)
+        jobs.append(((x0, y0, x1, y1), np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k], 1),
+                     lo))
+    if not jobs:
+        return res
+    # the boxes side by side: per column its image x, first row, table row and first frame x
+    hmax = max(b[3] - b[1] for b, _, _ in jobs)
+    n_tab = max(len(t) for _, t, _ in jobs)
+    table = np.zeros((len(jobs), n_tab, 3), np.float32)
+    xs, y0s, rows, los = [], [], [], []
+    for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
+        table[j, :len(tab)] = tab
+        table[j, len(tab):] = tab[-1]
+        w = x1 - x0
+        xs.append(np.arange(x0, x1, dtype=np.float64))
+        y0s.append(np.full(w, y0, np.float64))
+        rows.append(np.full(w, j, np.float32))
+        los.append(np.full(w, lo))
+    xc, y0c, lo_c = np.concatenate(xs), np.concatenate(y0s), np.concatenate(los)
+    # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
+    # per-column term plus the row times a constant (float32: sub-1e-4 px here)
+    rows_f = np.arange(hmax, dtype=np.float32)[:, None]
+    tx = ((xc - org[0]) * R[0, 0] + (y0c - org[1]) * R[1, 0] - lo_c) * (1.0 / _STEP)
+    tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
+    ty = np.repeat(np.concatenate(rows)[None, :], hmax, 0)
+    got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    ly, inv_hd, kk = cv2.split(got)
+    ly -= ((xc - org[0]) * R[0, 1] + (y0c - org[1]) * R[1, 1]).astype(np.float32)[None, :]
+    ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
+    t = ly
+    t *= inv_hd
+    np.clip(t, 0.0, 1.0, out=t)
+    t -= t * t  # t (1 - t)
+    t *= kk
+    mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
+    my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
+    new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    bbox = res.bbox
+    c = 0
+    for (x0, y0, x1, y1), _, _ in jobs:
+        img[y0:y1, x0:x1] = new[:y1 - y0, c:c + x1 - x0]
+        c += x1 - x0
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res

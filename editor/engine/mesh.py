@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,17 @@ class StandardMesh:
         (upper, lower) vertex pairs that may meet but never cross (inner lips, eyelids).
     template : (V, 2) float32
         Vertex positions on the template face (inter-ocular distance 100).
+
+    Examples
+    --------
+    >>> from editor.core import standard_mesh
+    >>> mesh = standard_mesh()
+    >>> mesh.n_vertices, mesh.triangles.shape, len(mesh.edges())
+    (285, (514, 3), 801)
+    >>> mesh.names[mesh.fdp["2.1"]], mesh.index("contour_16")  # the chin
+    ('contour_16', 135)
+    >>> sorted(mesh.holes)
+    ['eye_l', 'eye_r', 'mouth']
     """
 
     names: tuple[str, ...]
@@ -50,14 +61,16 @@ class StandardMesh:
 
     @property
     def n_vertices(self) -> int:
+        """Number of vertices V."""
         return len(self.names)
 
     def index(self, name: str) -> int:
+        """The index of the vertex called ``name`` (KeyError if there is none)."""
         return self._index[name]
 
-    @property
+    @cached_property
     def _index(self) -> dict[str, int]:
-        return _name_index(self)
+        return {n: i for i, n in enumerate(self.names)}
 
     def edges(self) -> np.ndarray:
         """Unique undirected edges (E, 2)."""
@@ -65,19 +78,32 @@ class StandardMesh:
         return np.unique(np.sort(e, 1), axis=0)
 
 
-_INDEX_CACHE: dict[int, dict[str, int]] = {}
-
-
-def _name_index(mesh: StandardMesh) -> dict[str, int]:
-    key = id(mesh)
-    if key not in _INDEX_CACHE:
-        _INDEX_CACHE[key] = {n: i for i, n in enumerate(mesh.names)}
-    return _INDEX_CACHE[key]
-
-
 @lru_cache(maxsize=1)
 def standard_mesh(path: str | None = None) -> StandardMesh:
-    """Load the standard mesh (cached)."""
+    """The standard face mesh (``editor/data/mesh.json``; loaded once, cached).
+
+    Parameters
+    ----------
+    path : str, optional
+        Another mesh file of the same format (tests, tools); default the shipped one.
+
+    Returns
+    -------
+    StandardMesh
+
+    Raises
+    ------
+    ValueError
+        If the file is not a version-1 FAP Studio mesh.
+
+    Examples
+    --------
+    >>> from editor.core import standard_mesh
+    >>> standard_mesh() is standard_mesh()
+    True
+    >>> standard_mesh().regions[:3].tolist()
+    ['eyebrow', 'eyebrow', 'eyebrow']
+    """
     p = Path(path) if path else MESH
     d = json.loads(p.read_text())
     if d.get("format") != "fap-studio-mesh" or d.get("version") != 1:
@@ -99,7 +125,33 @@ def standard_mesh(path: str | None = None) -> StandardMesh:
 def signed_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Twice the signed area of each triangle (SPEC eq. 3), batched.
 
-    ``vertices`` is (V, 2) or (B, V, 2); returns (T,) or (B, T).
+    Positive for the mesh's own orientation; zero or negative marks a fold (a triangle turned
+    over), which the deformation guards against.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray
+        (V, 2) or (B, V, 2) vertex positions (x, y), y down.
+    triangles : numpy.ndarray
+        (T, 3) vertex indices.
+
+    Returns
+    -------
+    numpy.ndarray
+        (T,) or (B, T).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from editor.core import signed_areas, standard_mesh
+    >>> mesh = standard_mesh()
+    >>> bool((signed_areas(mesh.template, mesh.triangles) > 0).all())
+    True
+    >>> flipped = mesh.template * [-1, 1]  # a mirror image turns every triangle over
+    >>> bool((signed_areas(flipped, mesh.triangles) < 0).all())
+    True
+    >>> signed_areas(np.array([[0.0, 0], [2, 0], [0, 2]]), np.array([[0, 1, 2]])).tolist()
+    [4.0]
     """
     a = vertices[..., triangles[:, 0], :]
     b = vertices[..., triangles[:, 1], :]

@@ -289,24 +289,29 @@ class MouthPlan:
         cym = 0.5 * (lo_v + hi_v)
         side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
-        shade = (1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)
-        shade = shade.astype(np.float32)[..., None]
+        shade = ((1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)).astype(np.float32)
+        # (per-pixel weights are spread over the 3 channels with cv2.merge / cv2.transform:
+        # numpy's broadcasting of (h, w, 1) over 3 channels is several times slower here)
+        cav_rgb = self.cavity.reshape(3, 1)
         if rim is None or depth is None:
             rr = np.sqrt(((Qx - cxm) / hw) ** 2 + ((Qy - cym) / hh) ** 2)
             # the cavity: dark in the middle, reddish towards the lips (lit inner surfaces)
-            cav = (0.3 + 0.7 * np.clip(rr, 0.0, 1.0) ** 1.5).astype(np.float32)[..., None]
-            out = cav * self.cavity[None, None, :]
+            cav = (0.3 + 0.7 * np.clip(rr, 0.0, 1.0) ** 1.5).astype(np.float32)
+            out = np.asarray(cv2.transform(cav, cav_rgb), np.float32)
         else:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
-            g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))[..., None]
-            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)[..., None]
-            deep = back * self.cavity[None, None, :]
-            out = deep + (0.45 * rim - deep) * g
+            g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))
+            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)
+            deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
+            out = 0.45 * np.asarray(rim, np.float32) - deep
+            out *= cv2.merge([g, g, g])
+            out += deep
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
             # reads as a dark edge, not as a bright sliver
             g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
-            shade = shade * (1.0 - 0.3 * g1)[..., None]
+            shade *= 1.0 - 0.3 * g1
+        shade = cv2.merge([shade, shade, shade])
         cav = out
         # lower teeth and tongue (jaw), upper teeth (skull)
         y_lb = 0.25 * q21[1] + 0.75 * q23[1]
@@ -357,17 +362,20 @@ class MouthPlan:
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * (1.0 - 0.35 * side * side)
-            p_up = p_up * (1.0 - e * (1.0 - k.astype(np.float32)))[..., None]
+            m = (1.0 - e * (1.0 - k.astype(np.float32))).astype(np.float32)
+            p_up = p_up * cv2.merge([m, m, m])
         if a_up is not None or a_lo is not None:
             rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
             if a_up is not None:
-                out = out * (1.0 - a_up) + p_up * a_up
+                p_up -= out  # out (1 - a) + p a
+                p_up *= cv2.merge([a_up, a_up, a_up])
+                out = out + p_up
                 rest = 1.0 - a_up
             if a_lo is not None:
                 if rest is not None:
                     a_lo = np.minimum(a_lo, rest)
                     a_lo /= np.maximum(rest, 1e-6)
-                out = out + (p_lo - out) * a_lo
+                out = out + (p_lo - out) * cv2.merge([a_lo, a_lo, a_lo])
         if alpha is not None:
             out = _thin_gap(out, cav, alpha, D)
         return out
@@ -397,12 +405,13 @@ class MouthPlan:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=(0, 0, 0, 0))
-        res = s[..., :3] * shade
-        res += (1.0 - s[..., 3:4]) * out
+        res = s[..., :3] * shade  # shade (h, w, 3)
+        a = 1.0 - s[..., 3]
+        res += cv2.merge([a, a, a]) * out
         return res
 
     def _own(self, mx, my, k, fade):
-        """Coverage (h, w, 1) and colours of the photo's skull (k=0) or jaw (k=1) part;
+        """Coverage (h, w) and colours of the photo's skull (k=0) or jaw (k=1) part;
         ``mx``, ``my`` (h, w) float32: positions in the own interior's patch."""
         src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
             self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
@@ -412,7 +421,7 @@ class MouthPlan:
             return None, None
         px = cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR,
                        borderMode=cv2.BORDER_REPLICATE)
-        return a[..., None], px
+        return a, px
 
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
@@ -463,8 +472,11 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     h /= np.float32(3.0)
     h -= lo
     h /= ramp
-    vis = _smoothstep(h).astype(np.float32, copy=False)[..., None]
-    return cav + vis * (out - cav)
+    vis = _smoothstep(h).astype(np.float32, copy=False)
+    res = out - cav
+    res *= cv2.merge([vis, vis, vis])
+    res += cav
+    return res
 
 
 def _clamp(x, lo, hi):

@@ -38,8 +38,9 @@ from scipy.stats import chi2
 from editor.resources import NEUTRAL_PRIOR
 
 from .deform import LIP_PAIRS
-from .fap_model import STABLE_POINTS, STABLE_WEIGHTS, FapEstimator, apply_affine, similarity
+from .fap_model import STABLE_POINTS, STABLE_WEIGHTS, FapEstimator
 from .faps import FAPS
+from .transform import apply_affine, similarity
 
 PRIOR_PATH = NEUTRAL_PRIOR
 CORNER_SIGMA = 0.015  # prior spread of the corners' height above the lip line (IOD)

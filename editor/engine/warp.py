@@ -45,7 +45,6 @@ class WarpPlan:
     src: np.ndarray
     triangles: np.ndarray
     holes: dict[str, np.ndarray]
-    tri_of_vertex: list[np.ndarray] = field(default_factory=list)
     #: (H, W) bool, photo's own mouth opening (computed by __post_init__)
     neutral_mouth: np.ndarray = field(init=False)
 

@@ -14,26 +14,32 @@ truncation, extra data, counts > :data:`MAX_FRAMES`, NUL bytes, non-UTF-8: :clas
 Writer: ``2.1 <name_without_spaces> <fps> <n>``, per frame a 68-flag mask line and a data line
 numbered 0..n-1, integer values, single spaces, no comments. FAP 1/2 are expanded into low-level
 FAPs by default (``high_level="xface"`` writes the 4/6-token fields); plain FAP 1/2 tokens are
-dropped. ``sequence_from_keyframes`` and ``fap_info`` live in :mod:`.expressions` (re-exported).
+dropped; :func:`expand_high_level` does the expansion (the blends of :mod:`.blends`).
+:func:`fap_info` summarises a sequence (``fap-studio fap info``). Sequences are authored from
+keyframes in :mod:`.keyframes`.
 """
 
 from __future__ import annotations
 
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
-from editor.engine.faps import FAPS
+from editor.engine.faps import FAPS, check_vector, partner_mask, round_half_away
 from editor.errors import FapFileError
 from editor.safeio import atomic_write_text, read_bounded
 
-__all__ = ["MAX_FRAMES", "ExpressionField", "FapSequence", "VisemeField", "fap_info",
-           "format_fap", "read_fap", "round_half_away", "sequence_from_keyframes", "write_fap",
-           "fps_text"]
+from .blends import blend_expressions, blend_visemes
+from .presets import Preset
+
+__all__ = ["MAX_FRAMES", "ExpressionField", "FapSequence", "VisemeField", "check_vector",
+           "expand_high_level", "fap_info", "format_fap", "fps_text", "partner_mask", "read_fap",
+           "round_half_away", "write_fap"]
 
 N_FAPS = 68
 MAX_FRAMES = 1_000_000
@@ -44,12 +50,6 @@ MAX_ABS_VALUE = 2**24  # float32 holds every integer up to 2**24 exactly (exact 
 _INT = re.compile(r"[+-]?\d+\Z")
 _NUM = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
 _HEADER = "'2.1 <name> <fps> <frame count>'"
-
-
-def round_half_away(a: np.ndarray | float | list) -> np.ndarray:
-    """Round to integers, halves away from zero (12.5 -> 13, -12.5 -> -13)."""
-    a = np.asarray(a, np.float64)
-    return np.sign(a) * np.floor(np.abs(a) + 0.5)
 
 
 def _filled_in() -> Any:
@@ -110,6 +110,30 @@ class FapSequence:
     frame_numbers : (N,) int64    as read (default 0..N-1); the writer renumbers from 0
     visemes, expressions : list   per frame a VisemeField / ExpressionField (Xface form) or None
     notes : list of str           what the reader tolerated (floats rounded, Greta masks, ...)
+
+    Parameters
+    ----------
+    frames : array_like
+        (N, 68) or (68,) values, finite; N >= 1.
+    masks, fps, name, version, frame_numbers, visemes, expressions, notes
+        As the attributes; left out, masks are the non-zero values (FAP 1/2 off).
+
+    Raises
+    ------
+    ValueError
+        Frames of the wrong shape or not finite, fps outside (0, 1000], per-frame lists of
+        the wrong length.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from editor.core import FAPS, FapSequence, apply_preset
+    >>> seq = FapSequence.single(apply_preset("joy"), fps=25, frames=50, name="joy")
+    >>> seq.n_frames, seq.duration, seq.used_faps()[:3]
+    (50, 2.0, [3, 4, 5])
+    >>> ramp = np.outer(np.linspace(0, 1, 5), FAPS.vector({"open_jaw": 400}))
+    >>> FapSequence(ramp, fps=10).frames[:, 2].tolist()
+    [0.0, 100.0, 200.0, 300.0, 400.0]
     """
 
     # masks, frame_numbers, visemes, expressions: None (the default) is filled in by
@@ -183,29 +207,34 @@ class FapSequence:
                    fps=fps, name=name)
 
 
-def check_vector(vector: np.ndarray) -> np.ndarray:
-    """A (68,) float64 copy of a finite low-level FAP vector (FAP 1/2 zero); else ValueError."""
-    v = np.array(vector, np.float64).reshape(-1)
-    if v.shape != (N_FAPS,) or not np.isfinite(v).all() or v[0] or v[1]:
-        raise ValueError(f"expected 68 finite low-level FAP values (FAP 1/2 zero), got {v}")
-    return v
-
-
-def partner_mask(m: np.ndarray) -> np.ndarray:
-    """The (68,) mask ``m`` plus the left/right partner of each masked FAP, FAP 1/2 off."""
-    out = np.array(m, bool)
-    for i in np.flatnonzero(out):
-        mirror = FAPS[int(i) + 1].mirror
-        if mirror:
-            out[mirror - 1] = True
-    out[:2] = False
-    return out
-
-
 def read_fap(source: str | os.PathLike | bytes, *, label: str | None = None) -> FapSequence:
-    """Read a ``.fap`` path, bytes or text (a ``str`` with a line break or NUL, or empty).
+    """Read an MPEG-4 ``.fap`` file (2.1; 2.0 and common producers' variants tolerated).
 
-    ``label`` names the source in messages. Raises :class:`FapFileError` (see module doc).
+    Parameters
+    ----------
+    source : str, os.PathLike or bytes
+        A path, the file's bytes, or its text (a ``str`` with a line break or NUL, or empty).
+    label : str, optional
+        Names the source in messages (default the file name, ``<bytes>`` or ``<text>``).
+
+    Returns
+    -------
+    FapSequence
+        What the file holds (never clamped); ``notes`` lists what was tolerated.
+
+    Raises
+    ------
+    FapFileError
+        ``"<file> line <k>: expected ..., got ..."``: a bad header, count, number or flag,
+        a truncated file or extra data (see the module docstring); never a partial load.
+
+    Examples
+    --------
+    >>> from editor.core import read_fap
+    >>> text = "2.1 jaw 25 1\\n" + "0 0 1" + " 0" * 65 + "\\n0 300\\n"
+    >>> seq = read_fap(text)
+    >>> seq.name, seq.fps, seq.n_frames, float(seq.frames[0, 2])
+    ('jaw', 25.0, 1, 300.0)
     """
     if isinstance(source, (bytes, bytearray)):
         data, label = bytes(source), label or "<bytes>"
@@ -401,10 +430,91 @@ def format_fap(seq: FapSequence, *, high_level: str = "expand") -> str:
 
 
 def write_fap(seq: FapSequence, path: str | os.PathLike, *, high_level: str = "expand") -> Path:
-    """Write ``seq`` to ``path`` atomically (see :func:`format_fap`); returns the path."""
+    """Write ``seq`` as a ``.fap`` 2.1 file, atomically (nothing partial on an error).
+
+    Parameters
+    ----------
+    seq : FapSequence
+        The animation; values are written rounded to integers.
+    path : str or os.PathLike
+        The output file.
+    high_level : {"expand", "xface"}, default "expand"
+        FAP 1/2 fields expanded into low-level FAPs (readable by every player), or written
+        as Xface 4/6-token fields (see :func:`format_fap`).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    FapFileError
+        The file cannot be written (the message says why).
+    ValueError
+        An unknown ``high_level``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from editor.core import FapSequence, apply_preset, read_fap, write_fap
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "joy.fap"
+    >>> _ = write_fap(FapSequence.single(apply_preset("joy"), frames=3, name="joy"), out)
+    >>> out.read_text().splitlines()[0]
+    '2.1 joy 25 3'
+    >>> read_fap(out).n_frames
+    3
+    """
     path, text = Path(path), format_fap(seq, high_level=high_level)
     return atomic_write_text(path, text, error=FapFileError, label=path.name)
 
 
-# Imported last: expressions imports this module lazily (inside its functions).
-from .expressions import expand_high_level, fap_info, sequence_from_keyframes  # noqa: E402
+def expand_high_level(seq: FapSequence, *,
+                      expression_table: Mapping[int, Preset | np.ndarray] | None = None,
+                      viseme_table: Mapping[int, Preset | np.ndarray] | None = None
+                      ) -> FapSequence:
+    """A copy of ``seq`` with FAP 1/2 expanded into low-level FAPs and unmasked.
+
+    Xface-form fields: the blends (shipped presets unless a per-face table is given) are added
+    to the frame's low-level values, rounded, and their FAPs (plus L/R partners) masked. Plain
+    one-token FAP 1/2 values have no meaning and are dropped. Noted in ``notes``.
+    """
+    frames, masks = seq.frames.astype(np.float64), seq.masks.copy()
+    done, plain = 0, int(seq.masks[:, :2].any(axis=1).sum())
+    for k, (vis, expr) in enumerate(zip(seq.visemes, seq.expressions, strict=True)):
+        add = np.zeros(68)
+        if vis is not None:
+            add += blend_visemes(vis.select1, vis.select2, vis.blend, table=viseme_table)
+        if expr is not None:
+            add += blend_expressions(expr.select1, expr.intensity1, expr.select2,
+                                     expr.intensity2, table=expression_table)
+        done += vis is not None or expr is not None
+        frames[k] = round_half_away(frames[k] + add)
+        masks[k] |= partner_mask(add != 0)
+    frames[:, :2] = 0
+    masks[:, :2] = False
+    notes = seq.notes + [t for c, t in (
+        (done, f"FAP 1/2 fields of {done} frame(s) expanded into low-level FAPs"),
+        (plain - done, f"plain FAP 1/2 tokens of {plain - done} frame(s) dropped")) if c]
+    return FapSequence(frames, masks, fps=seq.fps, name=seq.name, version=seq.version,
+                       frame_numbers=seq.frame_numbers, notes=notes)
+
+
+def fap_info(seq: FapSequence) -> str:
+    """Summary for ``fap info``: version, name, fps, frames, duration, FAPs used, notes."""
+    nv = sum(v is not None for v in seq.visemes)
+    ne = sum(e is not None for e in seq.expressions)
+    plain = ", plain one-token form (no meaning)" if seq.has_high_level and not nv + ne else ""
+    lines = [f"version:  {seq.version}", f"name:     {seq.name}",
+             f"fps:      {fps_text(seq.fps)}",
+             f"frames:   {seq.n_frames} (numbered {seq.frame_numbers[0]}-"
+             f"{seq.frame_numbers[-1]})", f"duration: {seq.duration:.3f} s",
+             f"FAP 1/2:  viseme fields in {nv} frame(s), expression fields in {ne} frame(s)"
+             + plain]
+    used = [n for n in seq.used_faps() if n > 2]
+    lines.append(f"FAPs used ({len(used)}):")
+    for n in used:
+        col = seq.frames[seq.masks[:, n - 1], n - 1]
+        lines.append(f"  {n:2d} {FAPS[n].name:<22} in {col.size} frame(s), "
+                     f"values {col.min():g} .. {col.max():g}")
+    return "\n".join(lines + (["notes:"] + [f"  - {t}" for t in seq.notes] if seq.notes else []))

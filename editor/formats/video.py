@@ -30,6 +30,8 @@ from editor.engine.imageio import save_image
 from editor.errors import FapStudioError
 from editor.safeio import atomic_dir, atomic_file, quiet_stderr
 
+from .fapfile import expand_high_level
+
 #: suffix -> (FFmpeg encoder, pixel format, container options)
 VIDEO_SUFFIXES: dict[str, tuple[str, str, dict[str, str]]] = {
     ".mp4": ("libx264", "yuv420p", {"movflags": "+faststart"}),
@@ -99,8 +101,6 @@ class ExportResult:
 
 def sequence_vectors(seq) -> np.ndarray:
     """(N, 68) low-level FAP vectors of a sequence (FAP 1/2 expanded), clamped."""
-    from .expressions import expand_high_level
-
     s = expand_high_level(seq) if getattr(seq, "has_high_level", False) else seq
     v = np.asarray(s.frames, np.float32).copy()
     v[:, :2] = 0

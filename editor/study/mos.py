@@ -28,6 +28,10 @@ import numpy as np
 from editor.errors import ImageError, StudyError
 
 CANNOT_TELL = "cannot tell"
+#: The paper's naturalness wording (SPEC §4, ITU-T P.800 ACR style), shared by the rating
+#: window and the web page.
+NATURALNESS = {1: "very unnatural", 2: "rather unnatural", 3: "acceptable",
+               4: "rather natural", 5: "very realistic"}
 APPLICATION_ID = 0x46415053  # "FAPS"
 MAGIC = "fap-studio/mos-study"
 SCHEMA_VERSION = 1

@@ -12,10 +12,13 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+import cv2
 import numpy as np
 
+from editor.engine.face import Face
 from editor.engine.imageio import MAX_FILE_BYTES
 from editor.errors import ImageError, StudyError
+from editor.formats.presets import apply_preset, get_preset
 from editor.safeio import atomic_write_text, read_bounded
 from editor.study.mos import StimulusSpec, Study
 
@@ -25,7 +28,6 @@ def encode_png(rgb: np.ndarray) -> bytes:
     if not (isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.ndim == 3
             and rgb.shape[2] == 3 and rgb.shape[0] > 0 and rgb.shape[1] > 0):
         raise ImageError("a rendered stimulus must be a non-empty H x W x 3 uint8 RGB array")
-    import cv2
 
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
     if not ok:  # pragma: no cover - OpenCV encodes any valid uint8 image
@@ -139,9 +141,6 @@ def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
     With ``crop`` (default) each stimulus is cut to the face region (:func:`face_crop`), so
     that raters judge the face, not the photo around it.
     """
-    from editor.engine.face import Face
-    from editor.formats.expressions import apply_preset, get_preset
-
     out = []
     names: set[str] = set()
     for path in faces:

@@ -20,6 +20,7 @@ import io
 import json
 import math
 import zipfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -280,23 +281,6 @@ def translate(
     return Translation(a, b, costs[:, :n_used], converged)
 
 
-def translate_plain(model: RegionModel, z: np.ndarray, **kw: Any) -> Translation:
-    """Plain ALS translation (eq. 5), see :func:`translate`."""
-    return translate(model, z, "plain", 0.0, **kw)
-
-
-def translate_ridge(model: RegionModel, z: np.ndarray, lam1: float, lam2: float | None = None,
-                    **kw: Any) -> Translation:
-    """Ridge translation (eq. 8), λ2 = λ1 unless given, see :func:`translate`."""
-    return translate(model, z, "ridge", (lam1, lam1 if lam2 is None else lam2), **kw)
-
-
-def translate_mals(model: RegionModel, z: np.ndarray, lam1: float, lam2: float | None = None,
-                   **kw: Any) -> Translation:
-    """MALS translation (corrected eq. 16), λ2 = λ1 unless given, see :func:`translate`."""
-    return translate(model, z, "mals", (lam1, lam1 if lam2 is None else lam2), **kw)
-
-
 def fix_gauge(model: RegionModel, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pin the gauge ``(a, b) -> (c·a, b/c)`` to the scale and sign of the trained expressions.
 
@@ -332,6 +316,54 @@ class BilinearModel:
     expressions: tuple[str, ...]
     identities: tuple[str, ...]
     meta: dict[str, Any] = field(default_factory=dict)
+
+
+#: Other names of the expressions: the Stasm model's (happy, sad, angry) and JAFFE's codes.
+ALIASES = {"happy": "joy", "sad": "sadness", "angry": "anger", "ne": "neutral", "ha": "joy",
+           "sa": "sadness", "su": "surprise", "an": "anger", "di": "disgust", "fe": "fear"}
+
+
+def expression_alpha(model: BilinearModel, target: Any) -> np.ndarray:
+    """α (S,): the expression weights of ``target`` for ``model``.
+
+    ``target``: an expression name (case-insensitive, :data:`ALIASES` accepted: happy = joy),
+    an index, a ``{name or index: weight}`` mix (weights add up; not all zero) or an (S,) array.
+    Unknown names, indices out of range and non-finite weights raise :class:`ModelError`.
+    """
+    names = [n.lower() for n in model.expressions]
+    reverse = {v: k for k, v in ALIASES.items() if len(k) > 2}  # joy -> happy (Stasm's names)
+
+    def index(key: Any) -> int:
+        if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+            if 0 <= int(key) < len(names):
+                return int(key)
+            raise ModelError(f"expression index {key} out of range 0-{len(names) - 1}")
+        k = str(key).strip().lower()
+        for cand in (k, ALIASES.get(k, k), reverse.get(k, k)):
+            if cand in names:
+                return names.index(cand)
+        raise ModelError(f"unknown expression {key!r} (model has {', '.join(model.expressions)})")
+
+    if isinstance(target, (str, int, np.integer)):
+        target = {target: 1.0}
+    if isinstance(target, Mapping):
+        alpha = np.zeros(len(names))
+        for key, w in target.items():
+            try:
+                weight = float(w)
+            except (TypeError, ValueError):
+                weight = math.nan
+            if not math.isfinite(weight):
+                raise ModelError(f"weight of {key!r} is not a finite number")
+            alpha[index(key)] += weight
+        if not alpha.any():
+            raise ModelError("the expression mix has no non-zero weight")
+        return alpha
+    alpha = np.asarray(target, np.float64)
+    if alpha.shape != (len(names),) or not np.all(np.isfinite(alpha)):
+        raise ModelError(f"expression mix needs {len(names)} finite weights, got shape "
+                         f"{alpha.shape}")
+    return alpha
 
 
 def save_model(model: BilinearModel, path: str | Path) -> None:

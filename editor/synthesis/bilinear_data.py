@@ -23,18 +23,18 @@ people, neutral / happy / surprise). "Image-left" is the viewer's left (the subj
         (left → right), 72–76 outer lower lip (right → left, 74 centre)
 ======  ==============================================================================
 
-Normalisation conventions (SPEC §5): origin = the image's own nose tip (52); coordinates are
-divided by the person's neutral inner-eye-corner distance ‖p30 − p40‖ (mean over that person's
-neutral images; the same scale for all of the person's expressions; a face without a neutral
-image uses its own distance). Contour points (0–15) are not modelled. The nose tip is left out
-of the nose region because it is the origin (identically zero). Regions are brows / eyes / nose
-/ mouth, modelled separately and joined by concatenation.
+The layout is :data:`~editor.synthesis.landmark_scheme.STASM77` (mirror pairs and MPEG-4
+feature points there). Normalisation conventions (SPEC §5): origin = the image's own nose tip
+(52); coordinates are divided by the person's neutral inner-eye-corner distance ‖p30 − p40‖
+(mean over that person's neutral images; the same scale for all of the person's expressions; a
+face without a neutral image uses its own distance). Contour points (0–15) are not modelled.
+The nose tip is left out of the nose region because it is the origin (identically zero).
+Regions are brows / eyes / nose / mouth, modelled separately and joined by concatenation.
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,55 +42,16 @@ import numpy as np
 
 from editor.errors import ModelError
 from editor.safeio import read_bounded
-from editor.synthesis.bilinear import (
-    BilinearModel,
-    RegionModel,
-    fix_gauge,
-    synthesize_region,
-    train_bilinear,
-    translate,
-)
 
-N_LANDMARKS = 77
-NOSE_TIP = 52
-INNER_EYE_CORNERS = (30, 40)
-CONTOUR = tuple(range(0, 16))
-REGIONS: dict[str, tuple[int, ...]] = {
-    "brows": tuple(range(16, 28)),
-    "eyes": tuple(range(28, 48)),
-    "nose": tuple(i for i in range(48, 59) if i != NOSE_TIP),
-    "mouth": tuple(range(59, 77)),
-}
+from .bilinear import BilinearModel, expression_alpha
+from .jaffe import JAFFE_CODES
+from .landmark_scheme import STASM77, LandmarkSet
+
+__all__ = ["EXPRESSIONS", "LandmarkSet", "load_stasm77", "synthesize_shape", "train_from_means",
+           "train_model"]
+
+#: The Stasm model's expression names, label k = JAFFE_CODES[k].
 EXPRESSIONS = ("neutral", "happy", "sad", "surprise", "angry", "disgust", "fear")
-JAFFE_CODES = ("NE", "HA", "SA", "SU", "AN", "DI", "FE")  # label k <-> JAFFE_CODES[k]
-NORMALISATION = {
-    "layout": "stasm77",
-    "origin": f"nose tip (landmark {NOSE_TIP}) of the same image",
-    "scale": "person's mean neutral inner-eye-corner distance |p30 - p40| (own distance "
-             "if no neutral image)",
-    "vector": "x0, y0, x1, y1, ... of the region's landmarks, image coordinates, y down",
-    "nose_tip": NOSE_TIP,
-    "inner_eye_corners": list(INNER_EYE_CORNERS),
-}
-
-
-@dataclass(frozen=True)
-class LandmarkSet:
-    """Landmarks of N labelled images.
-
-    points (N, 77, 2) float pixels; persons N person codes; labels (N,) int expression indices
-    into :data:`EXPRESSIONS`; names N image names.
-    """
-
-    points: np.ndarray
-    persons: tuple[str, ...]
-    labels: np.ndarray
-    names: tuple[str, ...]
-
-    @property
-    def people(self) -> tuple[str, ...]:
-        """Distinct person codes in first-seen order."""
-        return tuple(dict.fromkeys(self.persons))
 
 
 def _read_lines(path: Path) -> list[str]:
@@ -120,8 +81,9 @@ def load_stasm77(path: str | Path) -> LandmarkSet:
             vals = [float(t) for t in toks]
         except ValueError as exc:
             raise ModelError(f"{feat}:{n}: non-numeric landmark value") from exc
-        if len(vals) != 2 * N_LANDMARKS or not np.all(np.isfinite(vals)):
-            raise ModelError(f"{feat}:{n}: expected {2 * N_LANDMARKS} numbers, got {len(vals)}")
+        if len(vals) != 2 * STASM77.n_points or not np.all(np.isfinite(vals)):
+            raise ModelError(f"{feat}:{n}: expected {2 * STASM77.n_points} numbers, "
+                             f"got {len(vals)}")
         rows.append(vals)
     if not rows:
         raise ModelError(f"{feat} holds no landmarks")
@@ -140,92 +102,18 @@ def load_stasm77(path: str | Path) -> LandmarkSet:
         raise ModelError(f"cannot read the expression labels next to {feat}") from exc
     if labels.shape != (len(rows),) or labels.min() < 0 or labels.max() >= len(EXPRESSIONS):
         raise ModelError(f"{labels_path}: need one label 0–6 per image")
-    pts = np.asarray(rows, dtype=np.float64).reshape(-1, N_LANDMARKS, 2)
+    pts = np.asarray(rows, dtype=np.float64).reshape(-1, STASM77.n_points, 2)
     return LandmarkSet(pts, persons, labels, names)
-
-
-def inner_eye_distance(points: np.ndarray) -> np.ndarray:
-    """Inner-eye-corner distance; points (..., 77, 2) -> (...)."""
-    i, j = INNER_EYE_CORNERS
-    return np.linalg.norm(points[..., i, :] - points[..., j, :], axis=-1)
-
-
-def person_scales(points: np.ndarray, persons: tuple[str, ...] | list[str],
-                  labels: np.ndarray) -> np.ndarray:
-    """Per-image scale (N,): the person's mean neutral inner-eye distance, or the image's own."""
-    own = inner_eye_distance(points)
-    scales = own.copy()
-    persons_arr = np.asarray(persons)
-    for p in np.unique(persons_arr):
-        mine = persons_arr == p
-        neutral = mine & (np.asarray(labels) == 0)
-        if neutral.any():
-            scales[mine] = own[neutral].mean()
-    if np.any(scales <= 0):
-        raise ModelError("a face has coincident inner eye corners (zero scale)")
-    return scales
-
-
-def normalise(points: np.ndarray, origin: np.ndarray, scale: np.ndarray | float) -> np.ndarray:
-    """(points − origin) / scale; points (..., n, 2), origin (..., 2), scale (...)."""
-    return (points - np.asarray(origin)[..., None, :]) / np.asarray(scale)[..., None, None]
-
-
-def denormalise(points: np.ndarray, origin: np.ndarray, scale: np.ndarray | float) -> np.ndarray:
-    """Inverse of :func:`normalise`."""
-    return points * np.asarray(scale)[..., None, None] + np.asarray(origin)[..., None, :]
-
-
-def normalise_set(data: LandmarkSet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Normalise every image: returns points (N, 77, 2), origins (N, 2), scales (N,)."""
-    scales = person_scales(data.points, data.persons, data.labels)
-    origins = data.points[:, NOSE_TIP, :]
-    return normalise(data.points, origins, scales), origins, scales
-
-
-def region_vectors(points: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
-    """Region K-vectors: points (..., 77, 2) -> (..., 2·len(indices)) as x0, y0, x1, y1, ..."""
-    sel = points[..., list(indices), :]
-    return sel.reshape(*sel.shape[:-2], -1)
-
-
-def mean_shapes(points: np.ndarray, persons: tuple[str, ...], labels: np.ndarray,
-                people: tuple[str, ...]) -> np.ndarray:
-    """Average the normalised images of each (person, expression): -> (C, S, 77, 2).
-
-    Every person needs at least one image of each of the S = 7 expressions.
-    """
-    persons_arr, labels = np.asarray(persons), np.asarray(labels)
-    out = np.empty((len(people), len(EXPRESSIONS), N_LANDMARKS, 2))
-    for c, p in enumerate(people):
-        for s, expr in enumerate(EXPRESSIONS):
-            sel = (persons_arr == p) & (labels == s)
-            if not sel.any():
-                raise ModelError(f"person {p} has no {expr} image")
-            out[c, s] = points[sel].mean(axis=0)
-    return out
-
-
-def training_matrix(means: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
-    """Z (S·K, C) of one region from mean shapes (C, S, 77, 2); block (s, c) = z^{sc}."""
-    v = region_vectors(means, indices)  # (C, S, K)
-    C, S, K = v.shape
-    return v.transpose(1, 2, 0).reshape(S * K, C)
 
 
 def train_from_means(means: np.ndarray, people: tuple[str, ...], I: int | None = None,  # noqa: E741
                      J: int | None = None, tol: float = 1e-10,
                      max_iter: int = 100) -> tuple[BilinearModel, dict[str, np.ndarray]]:
-    """Train one bilinear model per region. Returns the model and each region's error history."""
-    regions: dict[str, RegionModel] = {}
-    errors: dict[str, np.ndarray] = {}
-    for name, idx in REGIONS.items():
-        res = train_bilinear(training_matrix(means, idx), 2 * len(idx), I, J, tol, max_iter)
-        regions[name], errors[name] = res.model, res.errors
-    model = BilinearModel(regions, dict(REGIONS), EXPRESSIONS, tuple(people),
-                          {"normalisation": dict(NORMALISATION),
-                           "training": "mean of each person's images per expression"})
-    return model, errors
+    """Train one bilinear model per Stasm region from mean shapes (C, 7, 77, 2). Returns the
+    model and each region's error history."""
+    return STASM77.train_from_means(
+        means, people, EXPRESSIONS, {"training": "mean of each person's images per expression"},
+        I, J, tol, max_iter)
 
 
 def train_model(data: LandmarkSet, people: tuple[str, ...] | None = None, I: int | None = None,  # noqa: E741
@@ -233,32 +121,9 @@ def train_model(data: LandmarkSet, people: tuple[str, ...] | None = None, I: int
                 max_iter: int = 100) -> tuple[BilinearModel, dict[str, np.ndarray]]:
     """Normalise ``data`` and train on ``people`` (default all) × the 7 expressions."""
     people = data.people if people is None else tuple(people)
-    pts, _, _ = normalise_set(data)
-    return train_from_means(mean_shapes(pts, data.persons, data.labels, people), people,
+    pts, _, _ = STASM77.normalise_set(data)
+    return train_from_means(STASM77.mean_shapes(pts, data, people, EXPRESSIONS), people,
                             I, J, tol, max_iter)
-
-
-def expression_weights(model: BilinearModel, target: Any) -> np.ndarray:
-    """α (S,) from an expression name, an index, a ``{name: weight}`` mix or an array."""
-    S = len(model.expressions)
-    if isinstance(target, str | int | np.integer):
-        target = {target: 1.0}
-    if isinstance(target, dict):
-        alpha = np.zeros(S)
-        for key, w in target.items():
-            if isinstance(key, str):
-                if key not in model.expressions:
-                    raise ModelError(f"unknown expression {key!r} (model has "
-                                     f"{', '.join(model.expressions)})")
-                key = model.expressions.index(key)
-            if not 0 <= int(key) < S:
-                raise ModelError(f"expression index {key} out of range 0–{S - 1}")
-            alpha[int(key)] += float(w)
-        return alpha
-    alpha = np.asarray(target, dtype=np.float64)
-    if alpha.shape != (S,):
-        raise ModelError(f"expression mix needs {S} weights, got shape {alpha.shape}")
-    return alpha
 
 
 def synthesize_shape(model: BilinearModel, points: np.ndarray, target: Any,
@@ -267,28 +132,15 @@ def synthesize_shape(model: BilinearModel, points: np.ndarray, target: Any,
                      max_iter: int = 50) -> np.ndarray:
     """Landmarks (77, 2) of the face ``points`` (77, 2) with the target expression.
 
-    Each region is translated (``method``, ``lam``; default λ from ``model.meta["lambda"]``),
-    its gauge pinned (:func:`~editor.synthesis.bilinear.fix_gauge`), its expression vector
-    replaced by ``A α`` and rebuilt with its own identity vector; the scale (default the face's
-    own inner-eye distance) is undone and the nose tip added back. Contour points are copied.
+    ``target``: see :func:`~editor.synthesis.bilinear.expression_alpha`; ``lam`` defaults to
+    ``model.meta["lambda"][method]`` (:class:`ModelError` if neither is given for ridge/MALS);
+    the synthesis itself is :meth:`LandmarkScheme.synthesize
+    <editor.synthesis.landmark_scheme.LandmarkScheme.synthesize>`.
     """
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.shape != (N_LANDMARKS, 2) or not np.all(np.isfinite(pts)):
-        raise ModelError(f"need {N_LANDMARKS} finite landmarks, got shape {pts.shape}")
+    pts = STASM77.check_points(points)
     if lam is None and method != "plain":
         lam = model.meta.get("lambda", {}).get(method)
         if lam is None:
             raise ModelError(f"no λ given for {method} and none stored in the model")
-    alpha = expression_weights(model, target)
-    origin = pts[NOSE_TIP]
-    s = float(inner_eye_distance(pts)) if scale is None else float(scale)
-    if s <= 0:
-        raise ModelError("inner eye corners coincide: cannot normalise the face")
-    norm = normalise(pts, origin, s)
-    out = norm.copy()
-    for name, reg in model.regions.items():
-        idx = list(model.region_indices[name])
-        tr = translate(reg, region_vectors(norm, tuple(idx)), method, lam or 0.0, tol, max_iter)
-        _, b = fix_gauge(reg, tr.a, tr.b)
-        out[idx] = synthesize_region(reg, b, alpha).reshape(-1, 2)
-    return denormalise(out, origin, s)
+    return STASM77.synthesize(model, pts, expression_alpha(model, target), method, lam or 0.0,
+                              scale, tol=tol, max_iter=max_iter)

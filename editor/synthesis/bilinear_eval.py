@@ -27,16 +27,11 @@ import numpy as np
 
 from editor.errors import ModelError
 from editor.synthesis.bilinear import BilinearModel, RegionModel, fix_gauge, translate
-from editor.synthesis.bilinear_data import (
-    EXPRESSIONS,
-    REGIONS,
-    LandmarkSet,
-    inner_eye_distance,
-    mean_shapes,
-    normalise_set,
-    region_vectors,
-    train_from_means,
-)
+from editor.synthesis.bilinear_data import EXPRESSIONS, train_from_means
+from editor.synthesis.jaffe import JAFFE_CODES
+from editor.synthesis.landmark_scheme import STASM77, LandmarkSet, region_vectors
+
+REGIONS = STASM77.regions  # the regions evaluated (the Stasm model's)
 
 DEFAULT_GRID = tuple(float(x) for x in np.logspace(-4, 3, 15))
 PAPER_MOUTH_EXPRESSIONS = ("neutral", "happy", "fear", "sad", "surprise")
@@ -178,9 +173,9 @@ def evaluate(data: LandmarkSet, n_folds: int | None = None, test_size: int = 3,
 
     ``fixed_lambda`` (method -> λ) skips the cross-validation for those methods.
     """
-    pts, _, _ = normalise_set(data)
+    pts, _, _ = STASM77.normalise_set(data)
     people, persons = data.people, np.asarray(data.persons)
-    means = mean_shapes(pts, data.persons, data.labels, people)
+    means = STASM77.mean_shapes(pts, data, people, EXPRESSIONS)
     neutrals = [_neutral_images(pts, data, p) for p in people]
     folds = make_folds(people, test_size, n_folds)
     fixed = dict(fixed_lambda or {})
@@ -197,7 +192,7 @@ def evaluate(data: LandmarkSet, n_folds: int | None = None, test_size: int = 3,
                             tol, max_iter) if cv_methods else {}
         sel = np.isin(persons, test)
         labels, n_test = data.labels[sel], n_test + int(sel.sum())
-        d = np.array([inner_eye_distance(neutrals[people.index(p)]).mean()
+        d = np.array([STASM77.inner_eye_distance(neutrals[people.index(p)]).mean()
                       for p in persons[sel]])
         for m in methods:
             r = res[m]
@@ -264,7 +259,7 @@ def _row(label: str, values: np.ndarray | Sequence[float | str], width: int = 7,
 
 def format_report(res: EvalResult) -> str:
     """The evaluation as a plain-text table beside the paper's values."""
-    codes = ("NE", "HA", "SA", "SU", "AN", "DI", "FE")
+    codes = JAFFE_CODES
     out: list[str] = []
     add = out.append
     n_train = "the other"
@@ -325,8 +320,8 @@ def choose_lambdas(data: LandmarkSet, people: tuple[str, ...] | None = None,
     """λ per method by leave-one-person-out CV over ``people`` (default all), as in
     :func:`evaluate`; used to store default λ values in a trained model."""
     people = data.people if people is None else tuple(people)
-    pts, _, _ = normalise_set(data)
-    means = mean_shapes(pts, data.persons, data.labels, people)
+    pts, _, _ = STASM77.normalise_set(data)
+    means = STASM77.mean_shapes(pts, data, people, EXPRESSIONS)
     scores = cross_validate(means, [_neutral_images(pts, data, p) for p in people], people,
                             methods, grid, I, J, tol, max_iter)
     return {m: float(grid[int(np.argmin(s))]) for m, s in scores.items()}

@@ -3,7 +3,8 @@
 The photo pipeline detects iBUG/dlib-68 landmarks, so the photo route trains the same symmetric
 bilinear model (:func:`editor.synthesis.bilinear.train_bilinear`, SPEC §5) on dlib-68 points
 detected on the training images instead of the Stasm-77 points of
-:mod:`editor.synthesis.bilinear_data`. Conventions (stored in the model's metadata):
+:mod:`editor.synthesis.bilinear_data`. The layout is
+:data:`~editor.synthesis.landmark_scheme.DLIB68`; conventions (stored in the model's metadata):
 
 * origin = the image's nose tip (68-point index 30); scale = the person's mean neutral
   inner-eye-corner distance ``|p39 - p42|`` (a single photo: its own distance);
@@ -37,45 +38,24 @@ from typing import Any
 
 import numpy as np
 
+from editor.engine.fitting import fit_vertices
+from editor.engine.imageio import load_image
+from editor.engine.landmarks import default_detector
+from editor.engine.laplacian import landmark_map
 from editor.errors import ModelError, NoFaceError
 from editor.resources import user_cache_dir
+from editor.safeio import atomic_file
 
-from .bilinear import BilinearModel, RegionModel, fix_gauge, synthesize_region, train_bilinear
-from .bilinear import translate as translate_region
-from .bilinear_data import (
-    JAFFE_CODES,
-    LandmarkSet,
-    denormalise,
-    normalise,
-    region_vectors,
-    training_matrix,
-)
+from .bilinear import BilinearModel, expression_alpha
+from .cloning import finish
+from .fap_estimate import FapEstimator
+from .jaffe import JAFFE_CODES
+from .landmark_scheme import DLIB68, LandmarkSet, normalise
 
-LAYOUT = "dlib68"
-N68 = 68
-NOSE_TIP68 = 30
-INNER_EYE68 = (39, 42)
-CONTOUR68 = tuple(range(0, 17))
-REGIONS68: dict[str, tuple[int, ...]] = {
-    "brows": tuple(range(17, 27)),
-    "eyes": tuple(range(36, 48)),
-    "nose": tuple(i for i in range(27, 36) if i != NOSE_TIP68),
-    "mouth": tuple(range(48, 68)),
-}
+#: The dlib-68 model's expression names (as the presets), label k = JAFFE_CODES[k].
 EXPRESSIONS68 = ("neutral", "joy", "sadness", "surprise", "anger", "disgust", "fear")
-ALIASES = {"happy": "joy", "sad": "sadness", "angry": "anger", "ne": "neutral", "ha": "joy",
-           "sa": "sadness", "su": "surprise", "an": "anger", "di": "disgust", "fe": "fear"}
 #: λ used when the model stores none (normalised units; see the module docstring).
 DEFAULT_LAMBDA = {"ridge": 0.01, "mals": 0.01}
-NORMALISATION68 = {
-    "layout": LAYOUT,
-    "origin": f"nose tip (landmark {NOSE_TIP68}) of the same image",
-    "scale": "person's mean neutral inner-eye-corner distance |p39 - p42| (own distance "
-             "if no neutral image)",
-    "vector": "x0, y0, x1, y1, ... of the region's landmarks, image coordinates, y down",
-    "nose_tip": NOSE_TIP68,
-    "inner_eye_corners": list(INNER_EYE68),
-}
 
 
 # ---------------------------------------------------------------------------- training data
@@ -102,9 +82,6 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
     (person, expression). Detections are cached (one ``.npz`` per image list) in ``cache_dir``
     (default :func:`default_cache_dir`; ``""`` disables). Images without a face are skipped.
     """
-    from editor.engine.imageio import load_image
-    from editor.engine.landmarks import default_detector
-
     root = Path(images_dir)
     if not root.is_dir():
         raise ModelError(f"{root}: not a directory of training images")
@@ -123,9 +100,9 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
         chosen.append(p)
     if not chosen:
         raise ModelError(f"{root}: no JAFFE-style training images found")
-    det = detector or default_detector()
-    key = hashlib.sha1((det.name + "\n".join(f"{p.name}:{p.stat().st_size}"
-                                              for p in chosen)).encode())
+    det = detector or default_detector()  # its name is part of the key
+    key = hashlib.sha1("\n".join([det.name] + [f"{p.name}:{p.stat().st_size}" for p in chosen])
+                       .encode())
     cache = None
     if cache_dir != "":
         cache = Path(cache_dir or default_cache_dir()) / f"dlib68_{key.hexdigest()[:16]}.npz"
@@ -139,7 +116,8 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
     pts_l, names_l = [], []
     for i, p in enumerate(chosen):
         try:
-            pts_l.append(np.asarray(det.detect(load_image(p))[0], np.float64).reshape(N68, 2))
+            points = det.detect(load_image(p))[0]
+            pts_l.append(np.asarray(points, np.float64).reshape(DLIB68.n_points, 2))
             names_l.append(p.name)
         except NoFaceError:
             pass
@@ -150,9 +128,9 @@ def detect_training_set(images_dir: str | os.PathLike[str], people: tuple[str, .
     pts = np.array(pts_l)
     if cache is not None:
         try:
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            np.savez(cache, points=pts, names=np.array(names_l))
-        except OSError:
+            with atomic_file(cache, error=ModelError) as tmp, open(tmp, "wb") as fh:
+                np.savez(fh, points=pts, names=np.array(names_l))
+        except ModelError:  # a cache that cannot be written is only slower next time
             pass
     return _landmark_set(pts, names_l)
 
@@ -163,51 +141,13 @@ def _landmark_set(points: np.ndarray, names: list[str]) -> LandmarkSet:
     return LandmarkSet(np.asarray(points, np.float64), persons, labels, tuple(names))
 
 
-def inner_eye_distance68(points: np.ndarray) -> np.ndarray:
-    """|p39 − p42|; points (..., 68, 2) -> (...)."""
-    i, j = INNER_EYE68
-    return np.linalg.norm(points[..., i, :] - points[..., j, :], axis=-1)
-
-
-def normalise_set68(data: LandmarkSet) -> np.ndarray:
-    """Nose-tip origin, per-person mean neutral inner-eye scale: (N, 68, 2)."""
-    own = inner_eye_distance68(data.points)
-    scales = own.copy()
-    persons = np.asarray(data.persons)
-    for p in np.unique(persons):
-        mine = persons == p
-        neutral = mine & (data.labels == 0)
-        if neutral.any():
-            scales[mine] = own[neutral].mean()
-    if np.any(scales <= 0):
-        raise ModelError("a face has coincident inner eye corners (zero scale)")
-    return normalise(data.points, data.points[:, NOSE_TIP68, :], scales)
-
-
-def mean_shapes68(points: np.ndarray, data: LandmarkSet, people: tuple[str, ...]) -> np.ndarray:
-    """(C, 7, 68, 2) mean normalised shape per (person, expression)."""
-    persons = np.asarray(data.persons)
-    out = np.empty((len(people), len(EXPRESSIONS68), N68, 2))
-    for c, p in enumerate(people):
-        for s, expr in enumerate(EXPRESSIONS68):
-            sel = (persons == p) & (data.labels == s)
-            if not sel.any():
-                raise ModelError(f"person {p} has no {expr} image with a detected face")
-            out[c, s] = points[sel].mean(axis=0)
-    return out
-
-
 def train_from_means68(means: np.ndarray, people: tuple[str, ...], I: int | None = None,  # noqa: E741
                        J: int | None = None, source: str = "") -> BilinearModel:
     """One bilinear model per dlib-68 region from mean shapes (C, S, 68, 2)."""
-    regions: dict[str, RegionModel] = {}
-    for name, idx in REGIONS68.items():
-        regions[name] = train_bilinear(training_matrix(means, idx), 2 * len(idx), I, J).model
-    return BilinearModel(regions, dict(REGIONS68), EXPRESSIONS68[: means.shape[1]],
-                         tuple(people), {"normalisation": dict(NORMALISATION68),
-                                         "lambda": dict(DEFAULT_LAMBDA),
-                                         "lambda_selection": "fixed default",
-                                         "training": f"dlib-68 detections {source}".strip()})
+    return DLIB68.train_from_means(
+        means, people, EXPRESSIONS68,
+        {"lambda": dict(DEFAULT_LAMBDA), "lambda_selection": "fixed default",
+         "training": f"dlib-68 detections {source}".strip()}, I, J)[0]
 
 
 def train_model68(data: LandmarkSet, people: tuple[str, ...] | None = None,
@@ -218,46 +158,19 @@ def train_model68(data: LandmarkSet, people: tuple[str, ...] | None = None,
                        if set(data.labels[np.asarray(data.persons) == p]) >= set(range(7)))
     if not people:
         raise ModelError("no person has a detected image of every expression")
-    means = mean_shapes68(normalise_set68(data), data, tuple(people))
+    pts, _, _ = DLIB68.normalise_set(data)
+    means = DLIB68.mean_shapes(pts, data, tuple(people), EXPRESSIONS68)
     return train_from_means68(means, tuple(people), I, J, "")
 
 
 # ---------------------------------------------------------------------------- synthesis
 def check_model68(model: BilinearModel) -> None:
     """Raise ModelError unless ``model`` was trained on the dlib-68 layout."""
-    layout = model.meta.get("normalisation", {}).get("layout")
-    if layout != LAYOUT:
-        raise ModelError(f"the model was trained on {layout or 'an unknown'} landmarks; the "
-                         "photo route needs a dlib-68 model (bilinear train --detect IMAGES)")
-
-
-def expression_alpha(model: BilinearModel, target: str | Mapping[str, float] | np.ndarray
-                     ) -> np.ndarray:
-    """α (S,) from a name, a ``{name: weight}`` mix or an array (aliases: happy -> joy …)."""
-    names = list(model.expressions)
-
-    def index(key: str) -> int:
-        k = str(key).strip().lower()
-        for cand in (k, ALIASES.get(k, k)):
-            if cand in names:
-                return names.index(cand)
-        raise ModelError(f"unknown expression {key!r} (model has {', '.join(names)})")
-
-    if isinstance(target, str):
-        target = {target: 1.0}
-    if isinstance(target, Mapping):
-        alpha = np.zeros(len(names))
-        for key, w in target.items():
-            if not np.isfinite(float(w)):
-                raise ModelError(f"weight of {key!r} is not a finite number")
-            alpha[index(key)] += float(w)
-        if not alpha.any():
-            raise ModelError("the expression mix has no non-zero weight")
-        return alpha
-    alpha = np.asarray(target, np.float64)
-    if alpha.shape != (len(names),) or not np.all(np.isfinite(alpha)):
-        raise ModelError(f"expression mix needs {len(names)} finite weights")
-    return alpha
+    try:
+        DLIB68.check_model(model)
+    except ModelError as e:
+        raise ModelError(f"{e}: the photo route needs a dlib-68 model (bilinear train --detect "
+                         "IMAGES)") from None
 
 
 def parse_mix(text: str) -> dict[str, float]:
@@ -288,33 +201,14 @@ def synthesize_points68(model: BilinearModel, points68: np.ndarray,
     (our option; the paper's synthesis is ``keep_residual=False``).
     """
     check_model68(model)
-    pts = np.asarray(points68, np.float64)
-    if pts.shape != (N68, 2) or not np.all(np.isfinite(pts)):
-        raise ModelError(f"need {N68} finite landmarks, got shape {pts.shape}")
     if method not in ("plain", "ridge", "mals"):
         raise ModelError(f"unknown method {method!r} (use plain, ridge or mals)")
     if lam is None and method != "plain":
         lam = model.meta.get("lambda", {}).get(method, DEFAULT_LAMBDA[method])
     if lam is not None and (not np.isfinite(lam) or lam < 0):
         raise ModelError(f"λ must be a non-negative number, got {lam}")
-    alpha = expression_alpha(model, target)
-    origin = pts[NOSE_TIP68]
-    s = float(inner_eye_distance68(pts)) if scale is None else float(scale)
-    if not s > 0:
-        raise ModelError("inner eye corners coincide: cannot normalise the face")
-    norm = normalise(pts, origin, s)
-    out = norm.copy()
-    for name, reg in model.regions.items():
-        idx = tuple(model.region_indices[name])
-        z = region_vectors(norm, idx)
-        tr = translate_region(reg, z, method, lam or 0.0, tol, max_iter)
-        a, b = fix_gauge(reg, tr.a, tr.b)
-        zs = synthesize_region(reg, b, alpha)
-        if keep_residual:
-            zs = zs + (z - reg.reconstruct(a, b))
-        out[list(idx)] = zs.reshape(-1, 2)
-    out[list(CONTOUR68)] = norm[list(CONTOUR68)]
-    return denormalise(out, origin, s)
+    return DLIB68.synthesize(model, points68, expression_alpha(model, target), method,
+                             lam or 0.0, scale, keep_residual, tol, max_iter)
 
 
 @dataclass
@@ -336,7 +230,6 @@ def neutral_points68(face: Any) -> np.ndarray:
     pts = np.asarray(face.landmarks.points, np.float64)
     if not face.has_expression:
         return pts
-    from editor.engine.laplacian import landmark_map
 
     A = landmark_map(face.vertices, face.triangles, face.mesh.names, pts)
     return np.asarray(A @ face.deform(None).astype(np.float64))
@@ -347,10 +240,6 @@ def mesh_for_points(face: Any, points68: np.ndarray, base68: np.ndarray | None =
     """The face's neutral mesh moved so that it follows ``points68`` (fold-free), (V, 2)
     float32. ``base68`` are the landmarks of that neutral mesh (default
     :func:`neutral_points68`): the mesh moves by the fitted displacement base68 -> points68."""
-    from editor.engine.fitting import fit_vertices
-
-    from .cloning import finish
-
     base = neutral_points68(face) if base68 is None else np.asarray(base68, np.float64)
     h, w = face.image.shape[:2]
     names = face.mesh.names
@@ -381,8 +270,6 @@ def synthesize_on_face(face: Any, model: BilinearModel,
 def faps_for_points(face: Any, points68: np.ndarray) -> np.ndarray:
     """(68,) FAP vector (the face's FAPU) that best reproduces the landmark motion from the
     neutralised face (:func:`neutral_points68`) to ``points68``: the document's FAPs."""
-    from .fap_estimate import FapEstimator
-
     return FapEstimator(face).estimate(np.asarray(points68, np.float64),
                                        neutral68=neutral_points68(face)).faps
 
@@ -396,9 +283,9 @@ def synthetic_model68(points68: np.ndarray, n_people: int = 6, seed: int = 0) ->
     brows down and together, lips pressed; disgust: upper lip up; fear: brows up, corners back).
     """
     rng = np.random.default_rng(seed)
-    base = normalise(np.asarray(points68, np.float64), np.asarray(points68)[NOSE_TIP68],
-                     float(inner_eye_distance68(np.asarray(points68, np.float64))))
-    fields = np.zeros((7, N68, 2))
+    p68 = DLIB68.check_points(points68)
+    base = normalise(p68, p68[DLIB68.nose_tip], float(DLIB68.inner_eye_distance(p68)))
+    fields = np.zeros((7, DLIB68.n_points, 2))
     lower = [55, 56, 57, 58, 59, 65, 66, 67]
     fields[1, [48, 60], 0], fields[1, [54, 64], 0] = -0.12, 0.12
     fields[1, [48, 54, 60, 64], 1] = -0.15
@@ -411,10 +298,10 @@ def synthetic_model68(points68: np.ndarray, n_people: int = 6, seed: int = 0) ->
     fields[4, [61, 62, 63], 1], fields[4, [65, 66, 67], 1] = 0.04, -0.04
     fields[5, [49, 50, 51, 52, 53, 61, 62, 63], 1] = fields[6, 17:27, 1] = -0.12
     fields[6, [48, 60], 0], fields[6, [54, 64], 0] = -0.08, 0.08
-    means = np.empty((n_people, 7, N68, 2))
+    means = np.empty((n_people, 7, DLIB68.n_points, 2))
     for c in range(n_people):
         person = base.copy()
-        for idx in REGIONS68.values():
+        for idx in DLIB68.regions.values():
             i = list(idx)
             ctr = person[i].mean(0)
             person[i] = ctr + rng.normal(0, 0.03, 2) + (person[i] - ctr) * rng.uniform(0.9, 1.1, 2)

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from editor.engine.deform import guard
+from editor.engine.landmarks import detect_landmarks
 from editor.engine.laplacian import (
     CONSTRAINT_WEIGHTS,
     MU,
@@ -48,6 +49,7 @@ from editor.engine.laplacian import (
     landmark_map,
 )
 from editor.errors import NoFaceError
+from editor.formats.presets import apply_preset
 
 from .fap_estimate import FapEstimator, remove_head_motion
 
@@ -128,8 +130,6 @@ def key_models(source_face, key_points: dict[str, np.ndarray], target_face,
     ``target="transfer"``: each target key is the Laplacian clone of the source key;
     ``"presets"``: the target's key is its emotion preset (names must be preset names).
     """
-    from editor.formats.expressions import apply_preset
-
     names = tuple(key_points)
     neutral = np.asarray(source_face.landmarks.points, np.float64)
     src, tgt = [], []
@@ -212,8 +212,6 @@ def closed_loop_error(image: np.ndarray, expected: np.ndarray, target, detector=
     (its landmark box grown by 60 % of its width), so that another face-like thing in the photo
     (a badge, a poster) cannot be taken instead.
     """
-    from editor.engine.landmarks import detect_landmarks
-
     img = np.asarray(image)
     p = target.landmarks.points
     (x0, y0), (x1, y1) = p.min(0), p.max(0)
@@ -235,8 +233,6 @@ def round_trip(face, vectors: np.ndarray, estimator: FapEstimator | None = None,
 
     Returns the estimated vectors (n, 68); NaN rows where no face is found on the render.
     """
-    from editor.engine.landmarks import detect_landmarks
-
     est = estimator or FapEstimator(face)
     out = []
     for v in np.atleast_2d(np.asarray(vectors, np.float32)):

@@ -18,6 +18,7 @@ JAFFE is research-only: it is read from disk at run time, nothing derived from i
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,23 +26,17 @@ from typing import Any
 
 import numpy as np
 
-JAFFE_EMOTIONS = {"HA": "joy", "SA": "sadness", "SU": "surprise", "AN": "anger",
-                  "DI": "disgust", "FE": "fear"}
+from editor.engine.face import Face
+from editor.engine.imageio import load_image
+from editor.engine.landmarks import detect_landmarks
+from editor.errors import NoFaceError
+from editor.resources import checkout_jaffe_dir
+
+from .fap_estimate import FapEstimator, remove_head_motion
+from .jaffe import JAFFE_EMOTIONS, jaffe_files
+
 REGIONS = {"brows": np.arange(17, 27), "lids": np.arange(36, 48), "lips": np.arange(48, 68),
            "jaw": np.arange(5, 12), "inner": np.arange(17, 68)}
-
-
-def jaffe_files(images: Path) -> dict[str, dict[str, list[Path]]]:
-    """``{person: {code: [paths sorted by instance]}}`` of a JAFFE ``images`` folder."""
-    out: dict[str, dict[str, list[Path]]] = {}
-    for p in sorted(Path(images).glob("*.tiff")):
-        parts = p.name.split(".")
-        if len(parts) >= 3 and len(parts[1]) >= 3:
-            out.setdefault(parts[0], {}).setdefault(parts[1][:2], []).append(p)
-    for d in out.values():
-        for k in d:
-            d[k].sort(key=lambda q: (q.name.split(".")[1], q.name))
-    return out
 
 
 @dataclass
@@ -82,8 +77,6 @@ class ClosedLoop:
 
 
 def _pose_free(neutral: np.ndarray, expr: np.ndarray) -> np.ndarray:
-    from .fap_estimate import remove_head_motion
-
     return remove_head_motion(neutral, expr)[0]
 
 
@@ -116,13 +109,6 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
     :class:`~editor.synthesis.fap_estimate.FapEstimator`). ``noise_px``: real landmark motion below
     this is not sign-checked (dlib's integer points on 256 px faces).
     """
-    from editor.engine.face import Face
-    from editor.engine.imageio import load_image
-    from editor.engine.landmarks import detect_landmarks
-    from editor.errors import NoFaceError
-
-    from .fap_estimate import FapEstimator
-
     files = jaffe_files(images)
     who = [p for p in (people or sorted(files)) if "NE" in files.get(p, {})]
     make = estimator_factory or FapEstimator
@@ -162,9 +148,7 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
 
 
 if __name__ == "__main__":  # pragma: no cover - a development aid
-    import sys
 
-    from editor.resources import checkout_jaffe_dir
 
     root = Path(sys.argv[1]) if len(sys.argv) > 1 else checkout_jaffe_dir()
     res = closed_loop(root / "images", sys.argv[2].split(",") if len(sys.argv) > 2 else None)

@@ -14,9 +14,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 from scipy.signal import savgol_filter
 
+from editor.engine.face import Face
 from editor.engine.fap_model import (
     ESTIMATE_STABLE,
     ESTIMATE_STABLE_WEIGHTS,
@@ -26,18 +28,17 @@ from editor.engine.fap_model import (
     STABLE_WEIGHTS,
     Estimate,
     FapEstimator,
-    apply_affine,
     estimate_faps,
     remove_head_motion,
-    similarity,
 )
 from editor.engine.faps import FAPS
+from editor.engine.landmarks import LandmarkTracker, detect_landmarks
 from editor.errors import FapStudioError, NoFaceError
 from editor.formats.fapfile import FapSequence
 
 __all__ = [
     "OBSERVABLE", "STABLE_POINTS", "STABLE_WEIGHTS", "ESTIMATE_STABLE", "ESTIMATE_STABLE_WEIGHTS",
-    "LANDMARK_WEIGHTS", "similarity", "apply_affine", "remove_head_motion", "Estimate",
+    "LANDMARK_WEIGHTS", "remove_head_motion", "Estimate",
     "FapEstimator", "estimate_faps", "smooth", "fill_missing", "TrackReport", "track_video",
 ]
 
@@ -142,11 +143,6 @@ def track_video(path: str | os.PathLike[str], fps: float | None = None,
     ``progress(done, total)`` after each frame (total may be an estimate); ``False`` cancels
     (the frames read so far are returned, ``report.cancelled`` set).
     """
-    import cv2
-
-    from editor.engine.face import Face
-    from editor.engine.landmarks import LandmarkTracker
-
     t0 = time.perf_counter()
     tracker = LandmarkTracker(detector)
     cap = cv2.VideoCapture(str(path))

@@ -28,13 +28,23 @@ from pathlib import Path
 
 import numpy as np
 
+from editor.engine.face import Face
 from editor.engine.faps import FAPS
-from editor.engine.landmarks import FDP_FROM_68, Iris, Landmarks
+from editor.engine.imageio import load_image
+from editor.engine.landmarks import (
+    FDP_FROM_68,
+    Iris,
+    Landmarks,
+    get_detector,
+    detect_landmarks,
+)
+from editor.errors import FapStudioError
 from editor.resources import checkout_jaffe_dir
+from editor.safeio import atomic_file
 
-from .closed_loop import JAFFE_EMOTIONS
+from .fap_estimate import remove_head_motion
+from .jaffe import JAFFE_EMOTIONS
 
-CODES = JAFFE_EMOTIONS  # JAFFE expression code -> emotion
 #: The detector the statistics are measured with (see the module docstring).
 DETECTOR = "dlib"
 #: Feature point -> iBUG-68 indices: :data:`.landmarks.FDP_FROM_68` plus the lip mid-points
@@ -76,8 +86,6 @@ def _detect_all(paths: list[Path], detector: str = DETECTOR) -> dict[str, np.nda
     if cache.exists():
         with np.load(cache) as z:
             return {k: z[k] for k in z.files}
-    from editor.engine.imageio import load_image
-    from editor.engine.landmarks import detect_landmarks, get_detector
 
     det = get_detector(detector)
     out = {}
@@ -90,9 +98,11 @@ def _detect_all(paths: list[Path], detector: str = DETECTOR) -> dict[str, np.nda
                                       [lm.iris_left.cx, lm.iris_left.cy, lm.iris_left.r,
                                        lm.iris_right.cx, lm.iris_right.cy, lm.iris_right.r]]
                                      ).astype(np.float32)
-    tmp = cache.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, allow_pickle=False, **out)
-    tmp.replace(cache)
+    try:
+        with atomic_file(cache) as tmp, open(tmp, "wb") as fh:
+            np.savez_compressed(fh, allow_pickle=False, **out)
+    except FapStudioError:  # a cache that cannot be written is only slower next time
+        pass
     return out
 
 
@@ -131,11 +141,6 @@ class JaffeMotion:
 
 def measure(root: str | Path | None = None) -> JaffeMotion:
     """Measure every JAFFE expression photo against its woman's neutral (see the module)."""
-    from editor.engine.face import Face
-    from editor.engine.imageio import load_image
-
-    from .fap_estimate import remove_head_motion
-
     images = Path(root or default_root()) / "images"
     paths = sorted(images.glob("*.tiff"))
     if not paths:
@@ -165,10 +170,10 @@ def measure(root: str | Path | None = None) -> JaffeMotion:
                 samples.append(Sample(who, "neutral", p.name, motion(aligned[i], others)))
         for p in paths:
             code = p.name.split(".")[1][:2]
-            if not p.name.startswith(f"{who}.") or code not in CODES or p.name not in det:
+            if not p.name.startswith(f"{who}.") or code not in JAFFE_EMOTIONS or p.name not in det:
                 continue
             pts, _ = remove_head_motion(mean, det[p.name][:136].reshape(68, 2).astype(np.float64))
-            samples.append(Sample(who, CODES[code], p.name, motion(pts, mean)))
+            samples.append(Sample(who, JAFFE_EMOTIONS[code], p.name, motion(pts, mean)))
     return JaffeMotion(samples, faces, neutrals)
 
 

@@ -35,7 +35,8 @@ FAPU_SHOWN = ("MNS", "MW", "ENS", "ES", "IRISD")
 #: Optional panels: modules of ``editor.ui`` with ``install(window) -> None``. Each adds its own
 #: docks, menus and actions (``window.add_panel_dock``, ``window.menu(title)``), so panels are
 #: developed and tested independently of this file. A module that is missing is skipped.
-EXTENSIONS = ("presets_panel", "playback_panel", "mos_panel", "model_panel", "detector_menu")
+EXTENSIONS = ("presets_panel", "playback_panel", "au_panel", "mos_panel", "model_panel",
+              "detector_menu")
 
 
 class MainWindow(QMainWindow):

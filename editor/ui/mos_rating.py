@@ -34,13 +34,10 @@ from PySide6.QtWidgets import (
 )
 
 from editor.errors import FapStudioError
-from editor.study.mos import CANNOT_TELL, RaterSession, Stimulus, Study
+from editor.study.mos import CANNOT_TELL, NATURALNESS, RaterSession, Stimulus, Study
 
 from .qt_utils import run_guarded
 
-#: The paper's naturalness wording (SPEC §4, ITU-T P.800 ACR style).
-NATURALNESS = {1: "very unnatural", 2: "rather unnatural", 3: "acceptable",
-               4: "rather natural", 5: "very realistic"}
 _DIGITS = {getattr(Qt.Key, f"Key_{i}"): i for i in range(10)}
 _FKEYS = {getattr(Qt.Key, f"Key_F{i}"): i for i in range(1, 6)}
 _CONFIRM = (Qt.Key.Key_Return, Qt.Key.Key_Enter, Qt.Key.Key_Space)

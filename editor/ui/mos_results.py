@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import html
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,6 +30,7 @@ from editor.safeio import atomic_file
 from editor.study.mos import CANNOT_TELL, Study
 from editor.study.mos_stats import StudyReport, Summary, analyse, format_report
 from editor.study.mos_stats import format_ci as ci
+from editor.study.qc import mos_answers, qc_summary, rater_qc
 from editor.study.stimuli import export_answers_csv
 
 from .plots import BarPlot, ConfusionPlot
@@ -110,8 +112,9 @@ class ResultsWindow(QWidget):
     def reload(self) -> None:
         """Re-read the study and rebuild every tab (raises :class:`FapStudioError`)."""
         with Study.open(self.path) as study:
-            answers, stimuli, labels = study.answers(), study.stimuli(), study.labels
+            answers, stimuli, labels = mos_answers(study), study.stimuli(), study.labels
             name, n_raters = study.name, len(study.raters())
+            qc = qc_summary(rater_qc(study))  # P.808-style QC: excluded raters are not in MOS
         report = analyse(answers, labels, stimuli)
         title = (f"Study {name!r}: {len(stimuli)} stimuli, {n_raters} raters, "
                  f"{len(answers)} answers")
@@ -124,7 +127,7 @@ class ResultsWindow(QWidget):
             f"<b>{title}</b><br>Overall recognition {pct(o.recognition)} % "
             f"{ci(o.recognition_ci, 100)}, naturalness {nat(o.naturalness)} "
             f"{ci(o.naturalness_ci, 1, 2)}; Fleiss' kappa (labels incl. '{CANNOT_TELL}') "
-            f"{kappa} over {k.n_subjects} stimuli")
+            f"{kappa} over {k.n_subjects} stimuli<br>{html.escape(qc)}")
         self._fill(report)
 
     def reload_guarded(self) -> None:

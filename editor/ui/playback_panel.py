@@ -4,7 +4,7 @@ Playback drives the document through the model's *gesture* path: the first frame
 gesture, each frame is a ``preview`` (no undo entries, the FAP sliders follow), **Stop** aborts
 the gesture (back to the FAPs from before playback) and **Keep frame** commits it as one undo
 entry. The frame shown is the one for the elapsed time of the (injectable) clock
-(:class:`~.playback_clock.Playhead`), so slow rendering drops frames instead of drifting; the
+(:class:`~editor.formats.playhead.Playhead`), so slow rendering drops frames, not drifting; the
 render scheduler is latest-only, so the GUI never queues up frames either.
 """
 
@@ -31,10 +31,10 @@ from PySide6.QtWidgets import (
 
 from editor.errors import FapStudioError
 from editor.formats.fapfile import FapSequence, read_fap, write_fap
+from editor.formats.playhead import Clock, Playhead
 from editor.formats.video import ExportResult, sequence_vectors
 
 from .document_model import DocumentModel
-from .playback_clock import Clock, Playhead
 from .playback_export import ExportJob
 from .playback_keys import KeyframeEditor, low_level
 from .qt_utils import run_guarded, signals_blocked

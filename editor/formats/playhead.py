@@ -1,4 +1,5 @@
-"""Playhead timing (no Qt): which frame to show for the elapsed time of an injectable clock.
+"""Playhead timing, the editor's playback state (no Qt): which frame of a sequence to show for
+the elapsed time of an injectable clock.
 
 The playhead never counts ticks: the frame is ``floor((clock() - start) · fps)``, so when
 rendering (or the timer) is late, frames are skipped and playback keeps the file's speed

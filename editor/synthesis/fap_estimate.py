@@ -32,7 +32,7 @@ from editor.engine.fap_model import (
     remove_head_motion,
 )
 from editor.engine.faps import FAPS
-from editor.engine.landmarks import LandmarkTracker, detect_landmarks
+from editor.engine.landmarks import LandmarkTracker
 from editor.errors import FapStudioError, NoFaceError
 from editor.formats.fapfile import FapSequence
 

@@ -35,8 +35,8 @@ from editor.engine.landmarks import (
     FDP_FROM_68,
     Iris,
     Landmarks,
-    get_detector,
     detect_landmarks,
+    get_detector,
 )
 from editor.errors import FapStudioError
 from editor.resources import checkout_jaffe_dir

@@ -535,7 +535,14 @@ class EyePlan:
             # irises); a dark disc of the pupil's colour fades in, sparing the catch-lights
             w = min((p_new - p_rest) / max(1.0, 0.3 * p_rest), 1.0)
             ap = _clamp(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
-            lum = iris @ np.array([0.299, 0.587, 0.114], np.float32)
+            # catch-lights are reflections on the cornea: they keep their size while the
+            # pupil grows, so they are found on the iris without the pupil's radial stretch
+            # (the stretched sprite spreads a central catch-light over the new pupil)
+            k0 = (self.r0 / max(r_new, 1e-6))
+            plain = cv2.remap(self.iris, (ox + k0 * (Di * ex[0] + Dw * ey[0])).astype(np.float32),
+                              (oy + k0 * (Di * ex[1] + Dw * ey[1])).astype(np.float32),
+                              cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            lum = plain @ np.array([0.299, 0.587, 0.114], np.float32)
             ap *= 1.0 - np.clip((lum - 1.3 * self.iris_lum) / (0.3 * self.iris_lum + 1.0),
                                 0.0, 1.0)
             ap = cv2.merge([ap, ap, ap])

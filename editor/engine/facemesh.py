@@ -17,6 +17,13 @@ used. The pipeline follows MediaPipe's own graphs:
    more accurate than the iris model's on JAFFE) and 5 iris points (centre, then 4 on the rim:
    the radius is their mean distance to the centre).
 
+Limitation: the mesh model's prior damps motion it sees on a warped face. On the sample
+rendered 3x with the jaw open 400 and the brows raised 250 FAPU (131 px between the eyes) the
+chin follows 53 % of its 15.2 px (41 % with the tracking crop; 29-33 % at any crop size with the
+same crop on both images), the brows 36-48 % of 23.6 px and a 3 px mouth-corner lift not at
+all; every chin and brow vertex alike, so no choice in :data:`MESH_TO_68` recovers it. FAPs
+measured from detected landmarks (video tracking, cloning) are smaller than the motion shown.
+
 :class:`MediaPipeDetector` returns a :class:`MeshDetection`; ``track`` takes the previous frame's
 mesh to crop the next frame without running the detector (video). Everything is vectorised
 numpy; one face costs about 12 ms on one core (the sample, 512 x 512).

@@ -308,9 +308,14 @@ def _fit_cheeks(V: Vertices, P: np.ndarray, iod: float, contour: np.ndarray, ou:
         V[f"mcorner_{s}"] = corner + (sign * 0.07 * iod, 0.02 * iod)
         # temples: beside the eye ring and beside the brow's outer end
         oc = V[f"eyering_{s}_c{0 if s == 'r' else 1}"]
-        xo = _interp_x(side, oc[1])
-        V[f"temple_{s}_1"] = np.array([0.5 * (oc[0] + xo), oc[1]])
         be = V[f"brow_{s}_e{0 if s == 'r' else 1}"]
+        xo = _interp_x(side, oc[1])
+        # halfway from the eye ring's corner or the brow's outer end, whichever reaches further
+        # out, to the contour: on a turned face the far brow's end can lie outside the point
+        # halfway from the eye ring, and its triangle with the hairline then folds
+        # (JAFFE NM.DI3.109 with MediaPipe's outline)
+        inner = max(sign * oc[0], sign * be[0]) * sign
+        V[f"temple_{s}_1"] = np.array([0.5 * (inner + xo), oc[1]])
         hx = hair[1] if s == "r" else hair[9]
         V[f"temple_{s}_2"] = np.array([0.5 * (be[0] + hx[0]) + sign * 0.03 * iod,
                                        0.5 * (be[1] + hx[1]) + 0.08 * iod])
@@ -320,7 +325,14 @@ def _fit_philtrum(V: Vertices, P: np.ndarray, ou: np.ndarray) -> None:
     """Philtrum: a row midway between the nose base and the upper lip."""
     for k, (ni, lip) in enumerate(zip((31, 32, 33, 34, 35), (0, 2, 3, 4, 6), strict=True), 1):
         top, bot = P[ni], ou[lip]
-        V[f"phil_{k}"] = np.array([0.5 * (top[0] + bot[0]), top[1] + 0.5 * (bot[1] - top[1])])
+        x = 0.5 * (top[0] + bot[0])
+        # the outer two never inward of their nostril's outer point: under a wide nose (or a
+        # narrow, turned mouth) they would fold against the ala (JAFFE NM.DI3.109)
+        if k == 1:
+            x = min(x, top[0])
+        elif k == 5:
+            x = max(x, top[0])
+        V[f"phil_{k}"] = np.array([x, top[1] + 0.5 * (bot[1] - top[1])])
 
 
 def _fit_jaw(V: Vertices, P: np.ndarray, contour: np.ndarray, od: np.ndarray) -> None:

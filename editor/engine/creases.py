@@ -77,7 +77,7 @@ STYLES: dict[str, FoldStyle] = {
                             probe=0.07, spread=0.75),
     # the upper nasolabial furrow beside the nose wing, deepened by the upper lip raiser
     # (AU10, disgust) pushing the skin below the nose wing up
-    "upper_lip": FoldStyle(sigma=0.026, depth=0.20, c0=0.10, ridge=0.35, ridge_off=2.6,
+    "upper_lip": FoldStyle(sigma=0.026, depth=0.20, c0=0.35, ridge=0.35, ridge_off=2.6,
                            probe=0.07, dead=0.04),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
                       probe=0.05),
@@ -204,9 +204,12 @@ def _fold_lines(face: Face) -> list[_Line]:
         up = pts[: int(0.6 * len(pts))]
         tu = np.linspace(0.0, 1.0, len(up))
         lip = q(f"lipo_u{2 if s == 'r' else 6}")
-        probes = np.array([0.6 * ala + 0.4 * lip, 0.35 * ala + 0.65 * lip,
-                           0.6 * (ala + (sg * 0.06, 0.0)) + 0.4 * lip,
-                           0.35 * (ala + (sg * 0.06, 0.0)) + 0.65 * lip])
+        # (probes 0.55 and 0.8 of the way to the lip: they straddle the philtrum row, where
+        # the lip's lift compresses the skin; at 0.4 / 0.65 they sat above it on some fits, so
+        # the furrow came and went with a 2 % IOD shift of that row between detectors)
+        probes = np.array([0.45 * ala + 0.55 * lip, 0.2 * ala + 0.8 * lip,
+                           0.45 * (ala + (sg * 0.06, 0.0)) + 0.55 * lip,
+                           0.2 * (ala + (sg * 0.06, 0.0)) + 0.8 * lip])
         lines.append(_Line("upper_lip", f"nasolabial_{s}", up, _fade(tu, 0.3, 0.5),
                            (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the

@@ -170,9 +170,15 @@ def test_looking_down_leaves_no_white_above_the_iris(jaffe_faces):
             sclera = _sclera_lum(face, name)
             cx, cy = extra["3.5" if k == 0 else "3.6"]
             r = getattr(face.landmarks, _iris_name).r
+            # the opening one pixel clear of the lids, as _sclera_lum reads it: the polygon's
+            # edge row is the lid margin (skin blended with the eyeball; JAFFE KL and KM with
+            # MediaPipe's lids: 1-2 such pixels of lum 113-142 under a lid of that brightness,
+            # against a sclera of 142-177), not white showing above the iris
             op = _mask(img.shape, v[face.mesh.holes[name]])
+            op = cv2.erode(op.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
             ys, xs = np.mgrid[0:img.shape[0], 0:img.shape[1]]
             above = op & (np.abs(xs - cx) <= 0.5 * r) & (ys < cy - 0.3 * r)
+            assert above.sum() >= 5, (name, above.sum())  # there is something to look at
             assert not (above & (lum > 0.75 * sclera)).any(), name
 
 

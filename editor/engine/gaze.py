@@ -130,6 +130,17 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         fill = cv2.GaussianBlur(fill, (0, 0), max(0.6, 0.25 * radius))
         w = (np.clip(r_fill - rho, 0.0, 1.0) * opening)[..., None].astype(np.float32)
         out = w * fill + (1.0 - w) * out
+    # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
+    # it stays with the lid, so the eyeball's white there continues the nearest white inside
+    # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris)
+    inner = opening & (cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3) > 1.5)
+    margin = opening & ~inner
+    if inner.any() and margin.any():
+        _, lab = cv2.distanceTransformWithLabels((~inner).astype(np.uint8), cv2.DIST_L2, 3,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+        iy, ix = np.nonzero(inner)  # labels number the zero pixels in this (row-major) order
+        k = lab[margin] - 1
+        out[margin] = out[iy[k], ix[k]]
     ph, pw = opening.shape
     for j in range(pw):
         r_in = np.flatnonzero(opening[:, j])

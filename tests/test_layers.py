@@ -200,12 +200,6 @@ def _iris_runs(img: np.ndarray, opening: np.ndarray, thr: float, x_ref: float, c
     return out
 
 
-def _centre(runs: dict, cy: float, half: float) -> float:
-    """Mean mid-point of the runs on the rows from the centre down to ``half`` below it (the
-    upper rows may touch the lashes of the upper lid)."""
-    return float(np.mean([0.5 * (a + b) for y, (a, b) in runs.items() if 0 <= y - cy <= half]))
-
-
 def test_gaze_right_moves_the_round_iris(jaffe_faces):
     face = jaffe_faces[0]
     R = face.fapu["IRISD"] * 1024
@@ -221,12 +215,23 @@ def test_gaze_right_moves_the_round_iris(jaffe_faces):
         ra = _iris_runs(a, opening, thr, iris.cx, iris.cy, 0.8 * iris.r)
         rb = _iris_runs(b, opening, thr, iris.cx + expected, iris.cy, 0.8 * iris.r)
         half = 0.5 * iris.r
-        shift = _centre(rb, iris.cy, half) - _centre(ra, iris.cy, half)
+        # the median over rows of each row's shift: a run that merges with the lash line at a
+        # corner (JAFFE KA with MediaPipe's lids: eye_l's row 130 of the photo, eye_r's row
+        # 127) spoils that row's mid-point by 2-3 px, and the mean of the mid-points with it
+        # (3.17 against 2.41); such rows (the run reaching the opening's end) are not checked
+        # for width below
+        rows = [y for y in set(ra) & set(rb) if 0 <= y - iris.cy <= half]
+        assert len(rows) >= 2, name
+        shift = float(np.median([0.5 * (rb[y][0] + rb[y][1] - ra[y][0] - ra[y][1])
+                                 for y in rows]))
+        ends = {y: (np.flatnonzero(opening[y])[0], np.flatnonzero(opening[y])[-1])
+                for y in rows}
+        merged = {y for y in rows for run in (ra[y], rb[y])
+                  if run[0] <= ends[y][0] or run[1] >= ends[y][1]}
         assert abs(shift - expected) < 0.75, (name, shift, expected)
         # rigid: the rows through the centre keep their widths (the iris is not stretched)
-        for y in set(ra) & set(rb):
-            if 0 <= y - iris.cy <= half:
-                assert abs((ra[y][1] - ra[y][0]) - (rb[y][1] - rb[y][0])) <= 1, (name, y)
+        for y in set(rows) - merged:
+            assert abs((ra[y][1] - ra[y][0]) - (rb[y][1] - rb[y][0])) <= 1, (name, y)
         # round: a circle fitted to the iris edges of the lower rows (the upper ones may be
         # under the lid) fits them to a fraction of a pixel and has the iris's radius
         pts = np.array([[x, y] for y, ab in rb.items() if 0 <= y - iris.cy <= 0.9 * iris.r

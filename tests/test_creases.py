@@ -306,7 +306,7 @@ def test_upper_lip_raiser_deepens_the_upper_nasolabial_furrow(sample_neutral):
     def upper(name: str) -> float:
         return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(shipped(name)))
                    if k == "upper_lip")
-    assert upper("disgust") > 2 * _MIN_STRENGTH  # drawn: strength 0.05 on the sample (both detectors)
+    assert upper("disgust") > 2 * _MIN_STRENGTH  # drawn: 0.05 on the sample (both detectors)
     assert upper("sadness") < _MIN_STRENGTH and upper("surprise") < _MIN_STRENGTH
 
 

@@ -139,8 +139,8 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         _, lab = cv2.distanceTransformWithLabels((~inner).astype(np.uint8), cv2.DIST_L2, 3,
                                                  labelType=cv2.DIST_LABEL_PIXEL)
         iy, ix = np.nonzero(inner)  # labels number the zero pixels in this (row-major) order
-        k = lab[margin] - 1
-        out[margin] = out[iy[k], ix[k]]
+        near = lab[margin] - 1
+        out[margin] = out[iy[near], ix[near]]
     ph, pw = opening.shape
     for j in range(pw):
         r_in = np.flatnonzero(opening[:, j])

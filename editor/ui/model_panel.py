@@ -34,6 +34,7 @@ from .model_tools import CloneTools, guarded
 from .qt_utils import settings
 
 METHODS = (("Plain ALS", "plain"), ("Ridge", "ridge"), ("MALS", "mals"))
+PREVIEW_HINT = "Synthesize to see the expression here"
 
 
 class ModelPanel(QWidget):
@@ -72,7 +73,7 @@ class ModelPanel(QWidget):
         self.faps_button.setToolTip("Put the FAP vector that best reproduces the synthesized "
                                     "landmarks on the sliders (one undo step)")
         self.faps_button.clicked.connect(lambda: self.convert_to_faps())
-        self.preview = QLabel("Synthesize to see the expression here")
+        self.preview = QLabel(PREVIEW_HINT)
         self.preview.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.preview.setMinimumSize(200, 200)
 
@@ -92,6 +93,13 @@ class ModelPanel(QWidget):
         lay.addLayout(buttons)
         lay.addWidget(self.preview, 1)
         self._update_enabled()
+        window.model.loaded.connect(self.clear_result)
+
+    def clear_result(self) -> None:
+        """Forget the last synthesis (another photo or project was opened)."""
+        self.result, self._result_key = None, None
+        self.preview.clear()
+        self.preview.setText(PREVIEW_HINT)
 
     # ------------------------------------------------------------------ model
     def load_model(self, path: str | None = None) -> bool:

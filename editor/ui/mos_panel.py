@@ -85,9 +85,13 @@ class MosPanel(QObject):
         """Ask for faces × presets × intensities, render them and create the study."""
         photo = self.current_photo()
         dialog = dialog or NewStudyDialog([photo] if photo else [], self.window)
-        if dialog.exec() != NewStudyDialog.DialogCode.Accepted:
-            return None
-        return self.create_study(dialog)
+        # a failure after OK (a photo without a face, an unwritable file) reopens the same
+        # dialog, its input kept
+        while dialog.exec() == NewStudyDialog.DialogCode.Accepted:
+            path = self.create_study(dialog)
+            if path is not None:
+                return path
+        return None
 
     def create_study(self, dialog: NewStudyDialog) -> Path | None:
         def make() -> Path:

@@ -119,7 +119,8 @@ class PlaybackPanel(QWidget):
         self.slider.valueChanged.connect(self.scrub)
         self.keys.addRequested.connect(self._add_key)
         self.keys.buildRequested.connect(self.build_from_keys)
-        self.quick_button.clicked.connect(self.quick_neutral_current_neutral)
+        # clicked(bool) would pass False as the duration
+        self.quick_button.clicked.connect(lambda: self.quick_neutral_current_neutral())
         self.save_button.clicked.connect(lambda: self.save_file())
         self.video_button.clicked.connect(lambda: self.export("video"))
         self.frames_button.clicked.connect(lambda: self.export("frames"))

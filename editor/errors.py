@@ -38,3 +38,7 @@ class StudyError(FapStudioError):
 
 class ModelError(FapStudioError):
     """A bilinear model file or its training data is invalid."""
+
+
+class Cancelled(FapStudioError):
+    """The user cancelled a long operation (nothing was changed; not an error to report)."""

@@ -90,3 +90,90 @@ def test_model_thumbnail_cleared_when_another_photo_opens(window, sample_neutral
     assert panel.preview.pixmap().isNull() and panel.result is None
     assert "Synthesize" in panel.preview.text()
     assert np.isfinite(window.model.doc.faps).all()
+
+
+# ---------------------------------------------------------------- defect 4
+def _save_project_beside(window, folder, name="p.fapproj"):
+    import shutil
+
+    folder.mkdir(parents=True, exist_ok=True)
+    photo = folder / "face.png"
+    shutil.copy(SAMPLE_FACE, photo)
+    assert window.docs.open_photo(str(photo), ask=False)
+    window.model.set_faps({"open_jaw": 300}, "jaw")
+    project = folder / name
+    assert window.docs.save_to(str(project))
+    return photo, project
+
+
+def test_project_copied_elsewhere_finds_its_photo_by_the_absolute_path(window, tmp_path):
+    import json
+    import shutil
+
+    photo, project = _save_project_beside(window, tmp_path / "a")
+    data = json.loads(project.read_text())
+    assert data["photo"] == "face.png" and data["photo_absolute"] == str(photo.resolve())
+    copy = tmp_path / "elsewhere" / "p.fapproj"
+    copy.parent.mkdir()
+    shutil.copy(project, copy)
+    assert window.docs.open_project(str(copy), ask=False)
+    assert window.model.doc.photo == str(photo.resolve())
+    assert window.model.doc.fap("open_jaw") == 300 and not window.model.is_dirty()
+
+
+def test_missing_photo_is_located_by_the_user(window, tmp_path, monkeypatch):
+    from PySide6.QtWidgets import QFileDialog
+
+    photo, project = _save_project_beside(window, tmp_path / "a")
+    moved = tmp_path / "b" / "renamed.png"
+    moved.parent.mkdir()
+    photo.rename(moved)
+    asked: list[str] = []
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda _p, _t, text, *a, **k: asked.append(text)
+                        or QMessageBox.StandardButton.Open)
+    monkeypatch.setattr(QFileDialog, "getOpenFileName",
+                        lambda *a, **k: (str(moved), "Photos"))
+    assert window.docs.open_project(str(project), ask=False)
+    assert len(asked) == 1 and "face.png" in asked[0]
+    assert window.model.doc.photo == str(moved.resolve())
+    assert window.model.doc.fap("open_jaw") == 300
+    assert window.model.is_dirty()  # the new location is saved only when the user saves
+    # giving up leaves the current document alone
+    before = window.model.doc
+    moved.rename(tmp_path / "gone.png")
+    monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: ("", ""))
+    window.model.mark_clean()
+    assert not window.docs.open_project(str(project), ask=False)
+    assert window.model.doc is before
+
+
+def test_embedded_photo_travels_with_the_project(window, tmp_path, monkeypatch):
+    monkeypatch.setenv("FAP_STUDIO_CACHE", str(tmp_path / "cache"))
+    photo, project = _save_project_beside(window, tmp_path / "a")
+    small = project.stat().st_size
+    window.act_embed.trigger()
+    assert window.model.doc.embed_photo and window.model.is_dirty()
+    window.model.undo_stack.undo()
+    assert not window.model.doc.embed_photo and not window.act_embed.isChecked()
+    window.model.undo_stack.redo()
+    assert window.docs.save_to(str(project))
+    assert project.stat().st_size > small + photo.stat().st_size
+    photo.unlink()
+    assert window.docs.open_project(str(project), ask=False)
+    doc = window.model.doc
+    assert doc.embed_photo and window.act_embed.isChecked() and doc.fap("open_jaw") == 300
+    assert (tmp_path / "cache") in __import__("pathlib").Path(doc.photo).parents
+    from editor.engine.imageio import load_image
+
+    assert np.array_equal(load_image(doc.photo), load_image(SAMPLE_FACE))
+
+
+def test_old_version_1_project_still_opens(window, tmp_path):
+    import json
+
+    old = tmp_path / "old.fapproj"
+    old.write_text(json.dumps({"format": "fap-studio-project", "version": 1,
+                               "photo": str(SAMPLE_FACE), "faps": {"open_jaw": 120}}))
+    assert window.docs.open_project(str(old), ask=False)
+    assert window.model.doc.fap("open_jaw") == 120 and window.model.doc.animation.empty

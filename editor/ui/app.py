@@ -84,8 +84,8 @@ def open_initial(window: MainWindow, photo: str | None = None,
         if last and Path(last).is_file():
             window.docs.open_project(last, ask=False)
     if window.model.doc is None:
-        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False,
-                                    photo_neutral=photo_neutral) and ok
+        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False, photo_neutral=photo_neutral,
+                                    remember=False) and ok
     return ok
 
 
@@ -110,6 +110,11 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
     """
     app = application()
     headless = screenshot is not None
+    if not headless:  # dlib's face scan holds the GIL: scan in a helper process
+        from editor.engine import hog_process
+
+        hog_process.enable()
+        app.aboutToQuit.connect(hog_process.disable)
     window = MainWindow()
 
     errors: list[str] = []
@@ -122,6 +127,7 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
 
     if headless:  # no dialogs (errors go to stderr), no recent files
         window.docs.remember = False
+        window.docs.interactive = False
         window.docs.error = lambda _title, msg: errors.append(str(msg))
     ok = open_initial(window, photo, project, photo_neutral)
     if not ok and headless:

@@ -117,6 +117,11 @@ class MainWindow(QMainWindow):
                                              "Ctrl+Shift+O")
         self.act_save = self._action("&Save Project", d.save, QKeySequence.StandardKey.Save)
         self.act_save_as = self._action("Save Project &As…", d.save_as, "Ctrl+Shift+S")
+        self.act_embed = self._action(
+            "Embed Photo in Project", self.model.set_embed_photo, tip=(
+                "Save the photo itself inside the project file, so that the project opens "
+                "anywhere (the file grows by the photo's size)"))
+        self.act_embed.setCheckable(True)
         self.act_export = self._action("&Export Image…", lambda: d.export(), "Ctrl+E",
                                        "Save the rendered expression as PNG or JPEG")
         self.act_quit = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
@@ -161,7 +166,7 @@ class MainWindow(QMainWindow):
         f.addActions([self.act_open, self.act_open_project])
         self.recent_menu = f.addMenu("Open &Recent")
         f.addSeparator()
-        f.addActions([self.act_save, self.act_save_as, self.act_export])
+        f.addActions([self.act_save, self.act_save_as, self.act_embed, self.act_export])
         f.addSeparator()
         f.addAction(self.act_quit)
         e = mb.addMenu("&Edit")
@@ -257,6 +262,10 @@ class MainWindow(QMainWindow):
             self.scheduler.submit(face, new.faps, creases=self.act_creases.isChecked())
         if old is None or old.photo_neutral != new.photo_neutral:
             self._show_photo_expression(new.photo_neutral)
+        if old is None or old.embed_photo != new.embed_photo:
+            self.act_embed.blockSignals(True)
+            self.act_embed.setChecked(new.embed_photo)
+            self.act_embed.blockSignals(False)
         if (old is None or old.vertices is not new.vertices
                 or old.photo_neutral != new.photo_neutral):
             self._show_fapu(face)

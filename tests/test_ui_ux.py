@@ -177,3 +177,62 @@ def test_old_version_1_project_still_opens(window, tmp_path):
                                "photo": str(SAMPLE_FACE), "faps": {"open_jaw": 120}}))
     assert window.docs.open_project(str(old), ask=False)
     assert window.model.doc.fap("open_jaw") == 120 and window.model.doc.animation.empty
+
+
+# ---------------------------------------------------------------- defect 1
+class GapMeter:
+    """A 10 ms QTimer on the GUI thread: the longest time between two of its ticks is how long
+    the event loop was blocked."""
+
+    def __init__(self) -> None:
+        import time
+
+        from PySide6.QtCore import Qt, QTimer
+
+        self._now = time.perf_counter
+        self.last = self._now()
+        self.worst = 0.0
+        self.timer = QTimer()
+        self.timer.setTimerType(Qt.TimerType.PreciseTimer)
+        self.timer.timeout.connect(self._tick)
+        self.timer.start(10)
+
+    def _tick(self) -> None:
+        now = self._now()
+        self.worst = max(self.worst, now - self.last)
+        self.last = now
+
+    def stop(self) -> float:
+        self.timer.stop()
+        self._tick()
+        return self.worst * 1000
+
+
+@pytest.fixture
+def helper_process():
+    from editor.engine import hog_process
+
+    hog_process.enable()
+    yield
+    hog_process.disable()
+
+
+def test_opening_a_large_photo_never_blocks_the_event_loop(window, qtbot, tmp_path,
+                                                           helper_process):
+    import cv2
+
+    from editor.engine.imageio import load_image
+
+    big = tmp_path / "big.png"  # 12 MP
+    rgb = cv2.resize(load_image(SAMPLE_FACE), (3000, 4000), interpolation=cv2.INTER_CUBIC)
+    cv2.imwrite(str(big), rgb[:, :, ::-1])
+    assert window.scheduler.wait(5000)
+    meter = GapMeter()
+    qtbot.wait(30)
+    assert window.docs.open_photo(str(big), ask=False)
+    qtbot.waitUntil(lambda: window.last_result is not None
+                    and window.last_result.image.shape[:2] == (4000, 3000), timeout=20000)
+    qtbot.wait(50)
+    worst = meter.stop()
+    assert window.model.face.image.shape[:2] == (4000, 3000)
+    assert worst < 100, f"the event loop was blocked for {worst:.0f} ms"

@@ -4,7 +4,8 @@
 mix, method plain / ridge / MALS, λ; "Synthesize" previews the expression on the current photo in
 the dock; "Convert to FAPs" puts the FAP vector that best reproduces the synthesized landmarks on
 the sliders as one undo entry) and the Tools-menu actions of :mod:`editor.ui.model_tools`.
-Computations run on the GUI thread under the wait cursor (each takes well under a second);
+Loading a model runs on the thread pool (progress dialog); synthesis runs on the GUI thread
+under the wait cursor (well under a second);
 errors are shown as a message box with the one-line error text.
 """
 
@@ -32,6 +33,7 @@ from PySide6.QtWidgets import (
 
 from .model_tools import CloneTools, guarded
 from .qt_utils import settings
+from .tasks import run_task
 
 METHODS = (("Plain ALS", "plain"), ("Ridge", "ridge"), ("MALS", "mals"))
 PREVIEW_HINT = "Synthesize to see the expression here"
@@ -119,7 +121,9 @@ class ModelPanel(QWidget):
             check_model68(m)
             return m
 
-        model = guarded(self.window, "Load Model", load)
+        model = guarded(self.window, "Load Model", lambda: run_task(
+            self.window, f"Loading the model {Path(path).name}…", lambda _p: load(),
+            title="Load Model"))
         if model is None:
             return False
         self.bilinear = model

@@ -19,6 +19,7 @@ from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressDialog, QWidget
 
 from .qt_utils import error_text, run_guarded
+from .tasks import run_task
 
 IMAGE_FILTER = "Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff);;All files (*)"
 VIDEO_FILTER = "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
@@ -95,7 +96,9 @@ class CloneTools:
                                                         str(Path(neutral).parent), IMAGE_FILTER)
             if not expression:
                 return None
-        faps = guarded(w, "Clone from Photo", lambda: estimate_clone_faps(neutral, expression))
+        faps = guarded(w, "Clone from Photo", lambda: run_task(
+            w, "Measuring the performer's expression…",
+            lambda _p: estimate_clone_faps(neutral, expression), title="Clone from Photo"))
         if faps is None:
             return None
         values = {i + 1: float(v) for i, v in enumerate(faps) if i >= 2}

@@ -21,6 +21,7 @@ from .mos_new import NewStudyDialog
 from .mos_rating import RatingWindow, ask_rater
 from .mos_results import ResultsWindow
 from .qt_utils import run_guarded, settings
+from .tasks import Progress, run_task
 
 STUDY_FILTER = "FAP Studio study (*.db);;All files (*)"
 _LAST = "mos/lastStudy"
@@ -94,18 +95,26 @@ class MosPanel(QObject):
         return None
 
     def create_study(self, dialog: NewStudyDialog) -> Path | None:
-        def make() -> Path:
+        """Render the stimuli and write the study off the GUI thread (progress, Cancel)."""
+        got = self.guarded("Cannot create the study", dialog.values)
+        if got is None:
+            return None
+        faces, presets, ks, name, path, every, revise = got  # type: ignore[misc]
+
+        def make(progress: Progress) -> Path:
             from editor.study.stimuli import create_from_renders, render_stimuli
 
-            faces, presets, ks, name, path, every, revise = dialog.values()
-            renders = render_stimuli(faces, presets, ks)
+            renders = render_stimuli(faces, presets, ks, progress=lambda d, t: progress(
+                d, t, f"Rendering the stimuli: {d} of {t}…"))
+            progress.check()
             create_from_renders(path, name, presets, renders, revise, every).close()
             return path
 
-        path = self.guarded("Cannot create the study", make)
-        if isinstance(path, Path) and self.set_study(path):
-            self.window.statusBar().showMessage(f"Created study {path.name}", 5000)
-            return path
+        made = self.guarded("Cannot create the study", lambda: run_task(
+            self.window, f"Creating the study {path.name}…", make, title="New Study"))
+        if isinstance(made, Path) and self.set_study(made):
+            self.window.statusBar().showMessage(f"Created study {made.name}", 5000)
+            return made
         return None
 
     def open_study(self, path: str | None = None) -> bool:

@@ -38,6 +38,7 @@ from .playback_clock import Clock, Playhead
 from .playback_export import ExportJob
 from .playback_keys import KeyframeEditor, low_level
 from .qt_utils import run_guarded, signals_blocked
+from .tasks import run_task
 
 FAP_FILTER = "MPEG-4 FAP files (*.fap);;All files (*)"
 VIDEO_FILTER = "MP4 video (*.mp4);;AVI video (*.avi)"
@@ -176,8 +177,12 @@ class PlaybackPanel(QWidget):
             path, _ = QFileDialog.getOpenFileName(self, "Open FAP sequence", "", FAP_FILTER)
             if not path:
                 return False
-        return self.guarded("Open FAP sequence",
-                            lambda: self.load_sequence(read_fap(path), str(path)))
+        def read() -> None:
+            seq = run_task(self, f"Reading {Path(path).name}…", lambda _p: read_fap(path),
+                           title="Open FAP Sequence")
+            self.load_sequence(seq, str(path))
+
+        return self.guarded("Open FAP sequence", read)
 
     def save_file(self, path: str | None = None) -> bool:
         """Write the current sequence (built from the keys if there is none) as .fap."""

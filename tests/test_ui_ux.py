@@ -236,3 +236,43 @@ def test_opening_a_large_photo_never_blocks_the_event_loop(window, qtbot, tmp_pa
     worst = meter.stop()
     assert window.model.face.image.shape[:2] == (4000, 3000)
     assert worst < 100, f"the event loop was blocked for {worst:.0f} ms"
+
+
+def test_long_task_shows_progress_and_cancel_stops_it(window, qtbot):
+    import time
+
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QProgressDialog, QPushButton
+
+    from editor.errors import Cancelled
+    from editor.ui.tasks import run_task
+
+    steps: list[int] = []
+    seen: list[tuple[int, int]] = []
+
+    def work(progress) -> str:
+        for i in range(500):
+            progress(i, 500, f"step {i}")
+            steps.append(i)
+            time.sleep(0.01)
+        return "done"
+
+    def press_cancel() -> None:
+        dialogs = [d for d in window.findChildren(QProgressDialog) if d.isVisible()]
+        if dialogs:
+            seen.append((dialogs[0].value(), dialogs[0].maximum()))
+            dialogs[0].findChild(QPushButton).click()  # the user's Cancel
+        else:
+            QTimer.singleShot(50, press_cancel)
+
+    QTimer.singleShot(500, press_cancel)
+    t0 = time.perf_counter()
+    with pytest.raises(Cancelled):
+        run_task(window, "Working…", work)
+    assert time.perf_counter() - t0 < 2.5
+    assert seen and seen[0][1] == 500 and 0 < seen[0][0] < 500  # a real progress bar
+    qtbot.wait(50)
+    n = len(steps)
+    qtbot.wait(100)
+    assert len(steps) == n < 500  # the work saw the cancel and stopped
+    assert run_task(window, "Quick", lambda _p: 42) == 42  # short work: no dialog at all

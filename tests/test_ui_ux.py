@@ -276,3 +276,53 @@ def test_long_task_shows_progress_and_cancel_stops_it(window, qtbot):
     qtbot.wait(100)
     assert len(steps) == n < 500  # the work saw the cancel and stopped
     assert run_task(window, "Quick", lambda _p: 42) == 42  # short work: no dialog at all
+
+
+# ---------------------------------------------------------------- defect 9
+def test_animation_is_undoable_and_saved_in_the_project(window, tmp_path):
+    from editor.formats.fapfile import FapSequence, write_fap
+
+    panel, stack = window.playback_panel, window.model.undo_stack
+    keys = panel.keys
+    window.model.set_faps({"open_jaw": 0}, "zero")
+    keys.time.setValue(0.0)
+    keys.add_button.click()
+    window.model.set_faps({"open_jaw": 600}, "jaw")
+    keys.time.setValue(1.0)
+    keys.add_button.click()
+    assert [t for t, _ in window.model.doc.animation.keys] == [0.0, 1.0]
+    assert stack.undoText() == "Add key at 1 s"
+    stack.undo()  # the key goes, the list follows
+    assert [t for t, _ in keys.keys] == [0.0] and len(window.model.doc.animation.keys) == 1
+    stack.redo()
+    assert [t for t, _ in keys.keys] == [0.0, 1.0]
+    keys.interp.setCurrentText("smoothstep")
+    assert window.model.doc.animation.interpolation == "smoothstep"
+    keys.build_button.click()
+    assert panel.seq is not None and panel.seq.n_frames == 26
+    stack.undo()  # the built sequence goes away, the keys stay
+    assert panel.seq is None and panel.vectors is None and len(keys.keys) == 2
+    assert "No sequence" in panel.info.text() and not panel.play_button.isEnabled()
+    stack.redo()
+    assert panel.seq is not None and panel.slider.maximum() == 25
+    # an opened .fap replaces it, saved in the project with the keys
+    frames = np.zeros((7, 68), np.float32)
+    frames[:, 2] = np.arange(7) * 50
+    fap = tmp_path / "ramp.fap"
+    write_fap(FapSequence(frames, fps=10, name="ramp"), fap)
+    assert panel.open_file(str(fap))
+    project = tmp_path / "anim.fapproj"
+    assert window.docs.save_to(str(project))
+    fap.unlink()  # the project holds the sequence itself
+    window.model.undo_stack.clear()
+    window.load_face(window.model.fitted)  # anything else
+    window.model.set_animation(type(window.model.doc.animation)(), "clear")
+    assert panel.seq is None
+    assert window.docs.open_project(str(project), ask=False)
+    anim = window.model.doc.animation
+    assert anim.interpolation == "smoothstep" and [t for t, _ in anim.keys] == [0.0, 1.0]
+    assert anim.keys[1][1][2] == 600 and anim.source == str(fap)
+    assert panel.seq.n_frames == 7 and np.array_equal(panel.vectors[:, 2], frames[:, 2])
+    assert "ramp.fap: 7 frames at 10 fps" in panel.info.text()
+    assert [t for t, _ in keys.keys] == [0.0, 1.0] and keys.interp.currentText() == "smoothstep"
+    assert not window.model.is_dirty()

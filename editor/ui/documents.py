@@ -89,7 +89,10 @@ class Documents(QObject):
         def load() -> None:
             face = run_task(self.widget, f"Opening {Path(path).name}: finding the face…", fit,
                             title="Open Photo")
-            self.model.load(face, Document.initial(face, photo_neutral))
+            # the animation (FAP values, face-independent) comes along to the new photo
+            anim = self.model.doc.animation if self.model.doc is not None else None
+            doc = Document.initial(face, photo_neutral)
+            self.model.load(face, doc if anim is None else doc.replace(animation=anim))
 
         ok = self.guarded("Cannot open the photo", load)
         if ok and remember:

@@ -39,15 +39,22 @@ class MosPanel(QObject):
         if last and Path(str(last)).is_file():
             self.path = Path(str(last))
         menu = window.menu("&Study")  # type: ignore[attr-defined]
-        self.act_new = self._action(menu, "&New Study from Faces…", self.new_study)
-        self.act_open = self._action(menu, "&Open Study…", self.open_study)
+        self.act_new = self._action(menu, "&New Study from Faces…", self.new_study,
+                                    "Render faces × presets × intensities into a new MOS "
+                                    "rating study")
+        self.act_open = self._action(menu, "&Open Study…", self.open_study,
+                                     "Choose the study to rate or to see the results of")
         menu.addSeparator()
         self.act_rate = self._action(menu, "&Rate…", self.rate)
-        self.act_results = self._action(menu, "Re&sults…", self.results)
+        self.act_results = self._action(menu, "Re&sults…", self.results,
+                                        "Recognition, naturalness, agreement and rater "
+                                        "screening of the study")
         self._update()
 
-    def _action(self, menu: object, text: str, slot: Callable[[], object]) -> QAction:
+    def _action(self, menu: object, text: str, slot: Callable[[], object],
+                tip: str = "") -> QAction:
         a = QAction(text, self.window)
+        a.setStatusTip(tip)
         a.triggered.connect(lambda _=False: slot())
         menu.addAction(a)  # type: ignore[attr-defined]
         return a

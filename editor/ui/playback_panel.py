@@ -455,16 +455,22 @@ def install(window) -> PlaybackPanel:
                          "Open an MPEG-4 .fap animation for playback")
     p.act_save = _action(window, "Save FAP Sequence…", p.save_file,
                          tip="Save the sequence (or the keyframes, interpolated) as .fap")
-    p.act_play = _action(window, "Play / Pause", p.toggle_play, "Ctrl+Space")
+    p.act_play = _action(window, "Play / Pause", p.toggle_play, "Ctrl+Space",
+                         "Play the sequence on the face, or pause it")
     p.act_stop = _action(window, "Stop", p.stop, tip="Stop and restore the FAPs")
-    p.act_keep = _action(window, "Keep Frame", p.keep_frame)
+    p.act_keep = _action(window, "Keep Frame", p.keep_frame,
+                         tip="Stop and keep the frame shown as the FAPs (one undo step)")
     p.act_loop = QAction("Loop", window, checkable=True)
+    p.act_loop.setStatusTip("Start the sequence again when it ends")
     p.act_loop.toggled.connect(p.set_loop)
     p.loop_box.toggled.connect(p.act_loop.setChecked)
     p.act_quick = _action(window, "Neutral → Current → Neutral (2 s)",
-                          p.quick_neutral_current_neutral)
-    p.act_video = _action(window, "Export Video…", lambda: p.export("video"))
-    p.act_frames = _action(window, "Export Frames…", lambda: p.export("frames"))
+                          p.quick_neutral_current_neutral,
+                          tip="Build a 2 s sequence from neutral to the current FAPs and back")
+    p.act_video = _action(window, "Export Video…", lambda: p.export("video"),
+                          tip="Render the sequence on the face to an H.264 MP4 (or AVI)")
+    p.act_frames = _action(window, "Export Frames…", lambda: p.export("frames"),
+                           tip="Render the sequence on the face to a folder of PNG frames")
     m.addActions([p.act_open, p.act_save])
     m.addSeparator()
     m.addActions([p.act_play, p.act_stop, p.act_keep, p.act_loop])

@@ -163,13 +163,21 @@ def gui_bench() -> None:
     sys.stdout.flush()
 
 
-def main() -> None:
-    import sys
+def main(argv: list[str] | None = None) -> None:
+    import argparse
 
     from editor.engine.deform import deform_points
     from editor.engine.warp import warp
 
-    if "--gui" in sys.argv[1:]:
+    parser = argparse.ArgumentParser(
+        prog="python -m editor.bench",
+        description="FAP Studio's benchmarks: one JSON object per line on stdout (timings in "
+        "ms, with the speed targets they are held to). The core benchmarks by default.")
+    parser.add_argument("--gui", action="store_true",
+                        help="the editor's benchmarks instead (slider-to-preview latency, the "
+                        "render scheduler; offscreen Qt)")
+    args = parser.parse_args(argv)
+    if args.gui:
         gui_bench()
         return
     cv2.setNumThreads(1)

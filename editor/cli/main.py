@@ -238,11 +238,26 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _opens_the_editor(args: list[str], parser: argparse.ArgumentParser) -> bool:
+    """The first argument is neither a command nor a top-level option: a photo (or a gui
+    option such as ``--project``) for the editor."""
+    first = args[0]
+    if first in ("-h", "--help", "--version"):
+        return False
+    commands: set[str] = set()
+    for action in parser._actions:  # argparse keeps the subcommands here
+        if isinstance(action, argparse._SubParsersAction):
+            commands.update(action.choices)
+    return first not in commands
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     if not args_list:
         args_list = ["gui"]
+    elif _opens_the_editor(args_list, parser):  # ``fap-studio photo.jpg --fap ...`` = gui
+        args_list = ["gui", *args_list]
     a = parser.parse_args(args_list)
     if not getattr(a, "func", None):
         parser.print_help()

@@ -35,7 +35,7 @@ def disable() -> None:
     global _POOL
     pool, _POOL = _POOL, None
     if pool is not None:
-        pool.shutdown(wait=False, cancel_futures=True)
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def enabled() -> bool:

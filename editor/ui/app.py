@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 import traceback
@@ -30,6 +31,8 @@ def application() -> QApplication:
     """The QApplication (created on first use) with FAP Studio's names set."""
     app = QApplication.instance()
     if app is None:
+        # Qt's platform plugins chat on stderr (xcb, offscreen); a user cannot act on it
+        os.environ.setdefault("QT_LOGGING_RULES", "qt.qpa.*=false")
         qInstallMessageHandler(_qt_messages)
         app = QApplication(sys.argv[:1])
     assert isinstance(app, QApplication)

@@ -9,10 +9,20 @@ replace/add mode (one undo entry).
 
 from __future__ import annotations
 
+import threading
 import traceback
 
 import numpy as np
-from PySide6.QtCore import QObject, QRunnable, QSize, Qt, QThreadPool, QTimer, Signal
+from PySide6.QtCore import (
+    QCoreApplication,
+    QObject,
+    QRunnable,
+    QSize,
+    Qt,
+    QThreadPool,
+    QTimer,
+    Signal,
+)
 from PySide6.QtGui import QIcon, QImage, QPixmap
 from PySide6.QtWidgets import QListView, QListWidget, QListWidgetItem, QVBoxLayout, QWidget
 
@@ -46,14 +56,17 @@ class _Thumbs(QObject):
 
 
 class _ThumbJob(QRunnable):
-    def __init__(self, face, presets: dict, signals: _Thumbs) -> None:
+    def __init__(self, face, presets: dict, signals: _Thumbs, stop: threading.Event) -> None:
         super().__init__()
-        self.face, self.presets, self.signals = face, presets, signals
+        self.face, self.presets, self.signals, self.stop = face, presets, signals, stop
 
     def run(self) -> None:
+        out = []
         try:
-            out = [(n, thumbnail_rgb(self.face, apply_preset(p, 1.0)))
-                   for n, p in self.presets.items()]
+            for n, p in self.presets.items():
+                if self.stop.is_set():  # another face, or the application quits
+                    return
+                out.append((n, thumbnail_rgb(self.face, apply_preset(p, 1.0))))
         except Exception:  # noqa: BLE001 -- a thumbnail is not worth a crash
             traceback.print_exc()
             out = []
@@ -86,6 +99,11 @@ class PresetGallery(QWidget):
         self._signals = _Thumbs(self)
         self._signals.ready.connect(self._show_thumbs, Qt.ConnectionType.QueuedConnection)
         self._pending: object = None  # the face whose thumbnails are being rendered
+        self._stop = threading.Event()
+        app = QCoreApplication.instance()
+        if app is not None:
+            app.aboutToQuit.connect(lambda: self._stop.set())
+        self.destroyed.connect(lambda *_a, stop=self._stop: stop.set())
         self.view.itemClicked.connect(self._clicked)
         model.loaded.connect(self._timer.start)
         model.changed.connect(self._maybe_rebuild)
@@ -104,10 +122,12 @@ class PresetGallery(QWidget):
         if face is None:
             self.view.clear()
             return
+        self._stop.set()  # the thumbnails of the previous face are not wanted any more
+        self._stop = threading.Event()
         if background:
             self._pending = face
             QThreadPool.globalInstance().start(
-                _ThumbJob(face, dict(self.panel.presets), self._signals))
+                _ThumbJob(face, dict(self.panel.presets), self._signals, self._stop))
             return
         self._pending = None
         self._fill([(n, thumbnail_rgb(face, apply_preset(p, 1.0)))

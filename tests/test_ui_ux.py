@@ -8,6 +8,7 @@ import pytest
 
 pytest.importorskip("pytestqt")
 
+from PySide6.QtCore import Qt  # noqa: E402
 from PySide6.QtWidgets import QDialogButtonBox, QMessageBox  # noqa: E402
 
 from editor.resources import SAMPLE_FACE  # noqa: E402
@@ -326,3 +327,44 @@ def test_animation_is_undoable_and_saved_in_the_project(window, tmp_path):
     assert "ramp.fap: 7 frames at 10 fps" in panel.info.text()
     assert [t for t, _ in keys.keys] == [0.0, 1.0] and keys.interp.currentText() == "smoothstep"
     assert not window.model.is_dirty()
+
+
+# ---------------------------------------------------------------- defect 7
+def test_results_window_names_its_tabs_and_explains_a_missing_kappa(qtbot, tmp_path):
+    from editor.study.mos import Study
+    from editor.study.stimuli import create_from_renders
+    from editor.ui.mos_rating import NATURALNESS
+    from editor.ui.mos_results import ResultsWindow
+
+    rng = np.random.default_rng(1)
+    renders = [("Ann", lab, 1.0, rng.integers(0, 256, (40, 30, 3), dtype=np.uint8))
+               for lab in ("joy", "anger")]
+    path = tmp_path / "s.db"
+    create_from_renders(path, "pilot", ["joy", "anger"], renders).close()
+    from editor.ui.mos_rating import RatingWindow
+
+    rating = RatingWindow(str(path), "solo", 3)  # one rater only
+    qtbot.addWidget(rating)
+    rating.show()
+    for _ in range(2):
+        qtbot.keyClick(rating, Qt.Key.Key_1)
+        qtbot.keyClick(rating, Qt.Key.Key_4)
+        qtbot.keyClick(rating, Qt.Key.Key_Return)
+    rating.close()
+    with Study.open(path) as study:
+        assert {a.rater for a in study.answers()} == {"solo"}
+    win = ResultsWindow(path)
+    qtbot.addWidget(win)
+    tabs = [win.tabs.tabText(i) for i in range(win.tabs.count())]
+    assert not any(t.startswith("Table") for t in tabs)
+    assert {"Face × expression", "Per expression", "Per face", "Raters"} <= set(tabs)
+    text = win.summary_label.text()
+    assert "over 0 stimuli" not in text and "at least two raters" in text
+    raters = win.tables["Raters"]
+    headers = [raters.horizontalHeaderItem(j) for j in range(raters.columnCount())]
+    assert all(h.toolTip() for h in headers[1:])  # every rater column is explained
+    assert "BT.500" in headers[-1].toolTip() and "Pearson" in headers[4].toolTip()
+    nat_tip = win.tables["Overall"].horizontalHeaderItem(4).toolTip()
+    assert NATURALNESS[1] in nat_tip and NATURALNESS[5] in nat_tip  # the scale raters saw
+    assert [raters.horizontalHeaderItem(j).text() for j in (2, 3)] == ["recognition %",
+                                                                       "naturalness"]

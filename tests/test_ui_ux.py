@@ -368,3 +368,106 @@ def test_results_window_names_its_tabs_and_explains_a_missing_kappa(qtbot, tmp_p
     assert NATURALNESS[1] in nat_tip and NATURALNESS[5] in nat_tip  # the scale raters saw
     assert [raters.horizontalHeaderItem(j).text() for j in (2, 3)] == ["recognition %",
                                                                        "naturalness"]
+
+
+# ---------------------------------------------------------------- defects 6 and 8
+def test_docks_close_and_reset_layout_minimum_size_toolbar_help_and_about(window, qtbot):
+    from PySide6.QtWidgets import QDockWidget
+
+    from editor.resources import CREDITS
+    from editor.ui.help_panel import AboutDialog, action_rows
+
+    docks = window.findChildren(QDockWidget)
+    assert all(d.features() & QDockWidget.DockWidgetFeature.DockWidgetClosable for d in docks)
+    assert all(d.toggleViewAction().isEnabled() for d in docks)
+    assert window.presets_dock.isVisible()  # the Presets tab is in front at start
+    window.fap_dock.close()
+    window.gaze_dock.toggleViewAction().trigger()
+    assert not window.fap_dock.isVisible() and not window.gaze_dock.isVisible()
+    window.act_reset_layout.trigger()
+    qtbot.waitUntil(lambda: all(d.isVisible() for d in (window.fap_dock, window.presets_dock)))
+    assert window.minimumWidth() >= 900 and window.minimumHeight() >= 600
+    assert window.act_open in window.toolbar.actions()
+    assert window.act_help.shortcut().toString() == "F1"
+    window.act_help.trigger()
+    assert window.help_dock.isVisible() and "Ctrl+Z" in window.help_panel.toPlainText()
+    rows = action_rows(window)
+    assert len(rows) > 40
+    assert [r[:2] for r in rows if not r[3]] == []  # every action has a status tip
+    about = window._about()
+    qtbot.addWidget(about)
+    assert isinstance(about, AboutDialog)
+    page = about.text.toPlainText()
+    for component, _source, licence in CREDITS:
+        assert component in page and licence in page
+    assert "LGPL" in page and "300-W" in page and "Eileen Collins" in page
+
+
+def test_small_things_users_notice(window, qtbot, tmp_path, isolated_settings):
+    from editor.ui.fap_panel import FapPanel
+    from editor.ui.qt_utils import settings
+
+    # export says where the image went
+    out = tmp_path / "x.png"
+    assert window.docs.export(str(out))
+    assert str(out) in window.statusBar().currentMessage()
+    # the save prompt names the photo of an unsaved document
+    asked: list[str] = []
+    import editor.ui.documents as documents
+
+    orig = documents.QMessageBox.question
+    documents.QMessageBox.question = staticmethod(
+        lambda _p, _t, text, *a, **k: asked.append(text) or QMessageBox.StandardButton.Discard)
+    try:
+        window.model.set_faps({"open_jaw": 100}, "x")
+        assert window.docs.maybe_save()
+    finally:
+        documents.QMessageBox.question = orig
+    assert "sample_face.png" in asked[0]
+    # the sample face never enters Open Recent
+    from editor.ui.app import open_initial
+
+    window.docs.clear_recent()
+    assert open_initial(window)  # no last project: the sample face
+    assert window.docs.recent() == []
+    # Link left/right is remembered
+    window.fap_panel.link.setChecked(True)
+    assert FapPanel(window.model).link.isChecked()
+    window.fap_panel.link.setChecked(False)
+    assert not settings().value("faps/linkLeftRight", type=bool)
+    # gaze in degrees, under the pad
+    pad = window.gaze_pad
+    window.model.set_faps({23: 20000, 24: 20000}, "gaze")
+    assert "°" in pad.readout() and "yaw +11.5°" in pad.readout()
+    assert pad.pad_rect().bottom() < pad.height() - 15
+    # the first-run hint goes with the first edit and stays gone
+    assert not window.hint.isVisible()
+    w2 = MainWindow()
+    qtbot.addWidget(w2)
+    assert w2.hint.isHidden()
+    w2.close_without_prompt()
+
+
+def test_first_run_hint_shows_until_the_first_edit(qtbot, sample_neutral, boxes):
+    w = MainWindow()
+    qtbot.addWidget(w)
+    w.load_face(sample_neutral)
+    w.show()
+    assert w.hint.isVisible() and "Presets" in w.hint.text() and "gaze" in w.hint.text()
+    w.presets_panel.apply("joy", 1.0, "replace")
+    assert not w.hint.isVisible()
+    w.close_without_prompt()
+
+
+def test_fap_studio_photo_opens_the_editor_and_bench_help(cli, tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "shot.png"
+    r = cli(str(SAMPLE_FACE), "--preset", "joy", "--screenshot", str(out))
+    assert r.returncode == 0 and out.stat().st_size > 10000 and r.stderr == ""
+    r = cli("no_such_photo.jpg", "--screenshot", str(tmp_path / "no.png"))
+    assert r.returncode == 2 and "no_such_photo.jpg" in r.stderr
+    bench = subprocess.run([sys.executable, "-m", "editor.bench", "--help"],
+                           capture_output=True, text=True, timeout=60)
+    assert bench.returncode == 0 and "--gui" in bench.stdout and '"bench"' not in bench.stdout

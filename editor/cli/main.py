@@ -11,6 +11,7 @@ import contextlib
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from editor import __version__
 from editor.errors import FapStudioError
@@ -19,7 +20,10 @@ from .anim import add_anim_parser
 from .bilinear import add_bilinear_parser
 from .clone import add_clone_parser
 from .study import add_study_parser
-from .util import PHOTO_HELP, photo_arg
+from .util import PHOTO_HELP, SAMPLE_KEYWORD, photo_arg
+
+#: ``fap-studio NAME`` opens NAME in the editor when it ends so (photos and projects).
+EDITOR_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".fapproj")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -170,8 +174,11 @@ def cmd_gui(a: argparse.Namespace) -> int:
 
     vec = _requested_vector(a)
     named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
-    return run(photo=a.photo, faps=named, screenshot=a.screenshot,
-               project=getattr(a, "project", None), photo_neutral=a.photo_is_neutral,
+    photo, project = a.photo, getattr(a, "project", None)
+    if photo and project is None and Path(photo).suffix.lower() == ".fapproj":
+        photo, project = None, photo  # ``fap-studio work.fapproj`` opens the project
+    return run(photo=photo, faps=named, screenshot=a.screenshot, project=project,
+               photo_neutral=a.photo_is_neutral,
                keep_expression=a.keep_expression)
 
 
@@ -239,8 +246,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _opens_the_editor(args: list[str], parser: argparse.ArgumentParser) -> bool:
-    """The first argument is neither a command nor a top-level option: a photo (or a gui
-    option such as ``--project``) for the editor."""
+    """The first argument is not a command but a photo (an existing file, ``sample``, or a
+    name with an image or project suffix) or an option of ``gui`` (``--fap``, ``--project``):
+    it is for the editor. Anything else stays a command (a typo gets argparse's error)."""
     first = args[0]
     if first in ("-h", "--help", "--version"):
         return False
@@ -248,7 +256,10 @@ def _opens_the_editor(args: list[str], parser: argparse.ArgumentParser) -> bool:
     for action in parser._actions:  # argparse keeps the subcommands here
         if isinstance(action, argparse._SubParsersAction):
             commands.update(action.choices)
-    return first not in commands
+    if first in commands:
+        return False
+    return (first.startswith("--") or first == SAMPLE_KEYWORD or Path(first).is_file()
+            or Path(first).suffix.lower() in EDITOR_SUFFIXES)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -210,6 +210,7 @@ class Documents(QObject):
             self.add_recent(full)
             if self.remember:
                 settings().setValue("lastProject", full)
+            self.status(f"Saved project {full}")
         return ok
 
     def export(self, path: str | None = None) -> bool:

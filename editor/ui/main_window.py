@@ -268,8 +268,11 @@ class MainWindow(QMainWindow):
     def show_help(self) -> None:
         """F1: the help panel (rebuilt: extensions may have added actions)."""
         self.help_panel.refresh()
+        was_hidden = self.help_dock.isHidden()
         self.help_dock.show()
         self.help_dock.raise_()
+        if was_hidden and not self.help_dock.isFloating():
+            self.resizeDocks([self.help_dock], [420], Qt.Orientation.Horizontal)
 
     def menu(self, title: str) -> QMenu:
         """The top-level menu titled ``title`` (e.g. "&Tools"), created before Help if needed."""

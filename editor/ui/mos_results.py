@@ -121,6 +121,8 @@ class ResultsWindow(QWidget):
             b.clicked.connect(slot)
             buttons.addWidget(b)
         buttons.addStretch(1)
+        self.status = QLabel()  # what the last export wrote
+        buttons.addWidget(self.status)
         lay = QVBoxLayout(self)
         lay.addWidget(self.summary_label)
         lay.addWidget(self.tabs, 1)
@@ -148,7 +150,8 @@ class ResultsWindow(QWidget):
             answers, stimuli, labels = study.answers(), study.stimuli(), study.labels
             name, n_raters = study.name, len(study.raters())
         report = analyse(answers, labels, stimuli)
-        title = (f"Study {name!r}: {len(stimuli)} stimuli, {n_raters} raters, "
+        title = (f"Study {name!r}: {len(stimuli)} stimuli, {n_raters} "
+                 f"rater{'s' if n_raters != 1 else ''}, "
                  f"{len(answers)} answers")
         self.setWindowTitle(f"Results – {name}")
         self.report, self.text = report, format_report(report, title)
@@ -232,7 +235,9 @@ class ResultsWindow(QWidget):
             return None
         try:
             with Study.open(self.path) as study:
-                return export_answers_csv(study, path)
+                n = export_answers_csv(study, path)
+            self.status.setText(f"Exported {n} answers to {path}")
+            return n
         except FapStudioError as e:
             QMessageBox.warning(self, "Cannot export the answers", str(e))
             return None
@@ -254,6 +259,7 @@ class ResultsWindow(QWidget):
                 if not image.save(str(tmp), "PNG"):
                     raise FapStudioError(f"{path}: cannot write PNG")
             ok = True
+            self.status.setText(f"Saved the plots to {path}")
         except FapStudioError:
             ok = False
         if not ok:

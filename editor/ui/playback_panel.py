@@ -261,7 +261,11 @@ class PlaybackPanel(QWidget):
             if not Path(path).suffix:
                 path += ".fap"
         seq = self.seq
-        return self.guarded("Save FAP sequence", lambda: write_fap(seq, path))
+        ok = self.guarded("Save FAP sequence", lambda: write_fap(seq, path))
+        win = self.window()
+        if ok and hasattr(win, "statusBar"):
+            win.statusBar().showMessage(f"Saved {seq.n_frames} frames to {path}", 8000)
+        return ok
 
     def build_from_keys(self) -> bool:
         """Interpolate the keyframes into a sequence and load it (one undo command)."""

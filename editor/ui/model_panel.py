@@ -4,8 +4,8 @@
 mix, method plain / ridge / MALS, λ; "Synthesize" previews the expression on the current photo in
 the dock; "Convert to FAPs" puts the FAP vector that best reproduces the synthesized landmarks on
 the sliders as one undo entry) and the Tools-menu actions of :mod:`editor.ui.model_tools`.
-Loading a model runs on the thread pool (progress dialog); synthesis runs on the GUI thread
-under the wait cursor (well under a second);
+Loading a model and synthesizing run on the thread pool (a progress dialog when they take a
+while);
 errors are shown as a message box with the one-line error text.
 """
 
@@ -166,12 +166,16 @@ class ModelPanel(QWidget):
 
     # ------------------------------------------------------------------ actions
     def _compute(self, render: bool) -> Any:
+        """Synthesize with the dock's settings, read here on the GUI thread; the computation
+        runs on the thread pool (progress dialog when it takes a while)."""
         from editor.synthesis.bilinear_photo import synthesize_on_face
 
-        face = self.window.model.face
-        lam = self.lam.value() or None
-        return synthesize_on_face(face, self.bilinear, self.target(), self.method.currentData(),
-                                  lam, keep_residual=self.keep.isChecked(), render=render)
+        face, model, target = self.window.model.face, self.bilinear, self.target()
+        method, lam, keep = self.method.currentData(), self.lam.value() or None, \
+            self.keep.isChecked()
+        return run_task(self.window, "Synthesizing the expression…", lambda _p: (
+            synthesize_on_face(face, model, target, method, lam, keep_residual=keep,
+                               render=render)), title="Synthesize")
 
     def _ready(self, title: str) -> bool:
         from PySide6.QtWidgets import QMessageBox
@@ -222,7 +226,9 @@ class ModelPanel(QWidget):
             res = self.result if self._result_key == self.settings_key() else None
             if res is None:
                 res = self._compute(False)
-            return faps_for_points(face, res.points68)
+            points = res.points68
+            return run_task(self.window, "Converting to FAPs…",
+                            lambda _p: faps_for_points(face, points), title="Convert to FAPs")
 
         faps = guarded(self.window, "Convert to FAPs", run)
         if faps is None:

@@ -209,17 +209,7 @@ class GapMeter:
         return self.worst * 1000
 
 
-@pytest.fixture
-def helper_process():
-    from editor.engine import hog_process
-
-    hog_process.enable()
-    yield
-    hog_process.disable()
-
-
-def test_opening_a_large_photo_never_blocks_the_event_loop(window, qtbot, tmp_path,
-                                                           helper_process):
+def test_opening_a_large_photo_never_blocks_the_event_loop(window, qtbot, tmp_path):
     import cv2
 
     from editor.engine.imageio import load_image

@@ -155,12 +155,12 @@ class DlibDetector:
         )
         # Small images (e.g. 256 px JAFFE faces) need one upsampling step to find ~80 px faces.
         upsample = 1 if max(small.shape) < 640 else 0
-        rects, scores = _hog_scan(detector, small, upsample)
+        rects, scores, _ = detector.run(small, upsample, 0.0)
         if len(rects) == 0 and upsample == 0:
-            rects, scores = _hog_scan(detector, small, 1)
+            rects, scores, _ = detector.run(small, 1, 0.0)
         if len(rects) == 0:
             raise NoFaceError("no face found in the image")
-        boxes = np.array(rects, np.float64)
+        boxes = np.array([[r.left(), r.top(), r.right(), r.bottom()] for r in rects], np.float64)
         areas = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
         cand = np.flatnonzero(areas >= 0.75 * areas.max())
         best = cand[np.argmax(np.asarray(scores)[cand])]
@@ -169,19 +169,6 @@ class DlibDetector:
         shape = predictor(grey, rect)
         pts = np.array([(p.x, p.y) for p in shape.parts()], np.float32)
         return pts, box.astype(np.float32)
-
-
-def _hog_scan(detector: Any, grey: np.ndarray, upsample: int
-              ) -> tuple[list[tuple[int, int, int, int]], list[float]]:
-    """dlib's face scan: in the helper process when the editor enabled it (dlib holds the GIL
-    while scanning), else here."""
-    from .hog_process import scan
-
-    got = scan(grey, upsample)
-    if got is not None:
-        return got
-    rects, scores, _ = detector.run(grey, upsample, 0.0)
-    return [(r.left(), r.top(), r.right(), r.bottom()) for r in rects], list(scores)
 
 
 _DEFAULT_DETECTOR: LandmarkDetector | None = None

@@ -113,11 +113,6 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
     """
     app = application()
     headless = screenshot is not None
-    if not headless:  # dlib's face scan holds the GIL: scan in a helper process
-        from editor.engine import hog_process
-
-        hog_process.enable()
-        app.aboutToQuit.connect(hog_process.disable)
     window = MainWindow()
 
     errors: list[str] = []

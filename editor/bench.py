@@ -37,6 +37,7 @@ Speed targets live here, not in the tests (which check behaviour only).
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from collections.abc import Callable
@@ -309,32 +310,41 @@ async def _load(base: str, tokens: list[str], seconds: float, think: tuple[float
 
         await asyncio.gather(*(rater(t, int(rng.integers(1 << 31))) for t in tokens))
     return rtt, img_ms, errors
-def _only(argv: list[str]) -> set[str] | None:
-    """The rows ``--only a,b`` (or ``--only=a,b``) asks for; None: every row."""
-    for i, a in enumerate(argv):
-        if a == "--only" and i + 1 < len(argv):
-            return set(argv[i + 1].split(","))
-        if a.startswith("--only="):
-            return set(a.split("=", 1)[1].split(","))
-    return None
 
 
-def main() -> None:
-    """``python -m editor.bench [--gui] [--only ROW[,ROW...]]``: ``--only`` runs just the named
-    rows of the engine benchmarks (e.g. ``--only render_vs_engine``; the ``env`` row always)."""
-    import sys
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of ``python -m editor.bench``; ``only``: the set of rows asked for
+    (None: every row)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m editor.bench",
+        description="FAP Studio's benchmarks: one JSON object per line on stdout (timings in "
+        "ms, with the speed targets they are held to). The core benchmarks by default.")
+    parser.add_argument("--gui", action="store_true",
+                        help="the editor's benchmarks instead (slider-to-preview latency, the "
+                        "render scheduler; offscreen Qt)")
+    parser.add_argument("--serve", action="store_true",
+                        help="the remote-rating server's load test instead (study_serve_load)")
+    parser.add_argument("--only", metavar="ROW[,ROW...]",
+                        help="run just the named rows of the core benchmarks (e.g. "
+                        "render_vs_engine; the env row always)")
+    args = parser.parse_args(argv)
+    args.only = set(args.only.split(",")) if args.only else None
+    return args
 
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m editor.bench [--gui | --serve] [--only ROW[,ROW...]]``."""
     from editor.engine.deform import deform_points
     from editor.engine.warp import warp
 
-    if "--gui" in sys.argv[1:]:
+    args = _parse_args(argv)
+    if args.gui:
         gui_bench()
         return
-    if "--serve" in sys.argv[1:]:
+    if args.serve:
         serve_load_bench()
         return
-
-    only = _only(sys.argv[1:])
+    only = args.only
 
     def want(*rows: str) -> bool:
         return only is None or bool(only.intersection(rows))

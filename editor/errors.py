@@ -129,3 +129,8 @@ class ModelError(FapStudioError):
 
 class CsvFormatError(FapFileError):
     """A Live Link Face or Action Unit CSV file is malformed (row and column named)."""
+    """A bilinear model file or its training data is invalid."""
+
+
+class Cancelled(FapStudioError):
+    """The user cancelled a long operation (nothing was changed; not an error to report)."""

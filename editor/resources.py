@@ -129,3 +129,47 @@ def checkout_jaffe_dir() -> Path:
     """``$FAP_STUDIO_JAFFE``, else the development layout's ``../shared/data/jaffe`` beside the
     source checkout (for tests and scripts/ run from the repository)."""
     return jaffe_dir() or Path(__file__).resolve().parents[2] / "shared" / "data" / "jaffe"
+
+
+# ---------------------------------------------------------------------- credits
+#: What FAP Studio is made of and under which terms: (component, source, licence) entries,
+#: shown by the editor's About box. Qt-free, so any layer (and other detectors' modules) can
+#: append its own entry with :func:`add_credit`.
+CREDITS: list[tuple[str, str, str]] = [
+    ("Qt 6 via PySide6 (Qt for Python)", "The Qt Company, https://www.qt.io/qt-for-python",
+     "LGPL-3.0 (dynamically linked; you may replace the Qt libraries)"),
+    *MODEL_CREDITS,
+    ("dlib face detector and shape predictor (optional extra)", "http://dlib.net",
+     "Boost Software License 1.0"),
+    ("OpenCV (opencv-python-headless)", "https://opencv.org", "Apache-2.0"),
+    ("NumPy, SciPy", "https://numpy.org, https://scipy.org", "BSD-3-Clause"),
+    ("pyqtgraph", "https://www.pyqtgraph.org", "MIT"),
+    ("PyAV and FFmpeg's libraries", "https://pyav.org, https://ffmpeg.org",
+     "BSD-3-Clause (PyAV); LGPL-2.1+ (FFmpeg as shipped in the av wheels)"),
+    ("platformdirs, tqdm", "https://pypi.org", "MIT; MPL-2.0 and MIT"),
+    ("Starlette, uvicorn, limits (study serve)",
+     "https://www.starlette.io, https://www.uvicorn.org, https://limits.readthedocs.io",
+     "BSD-3-Clause; BSD-3-Clause; MIT"),
+    ("Sample face (editor/data/sample_face.png)",
+     "NASA portrait of astronaut Eileen Collins (1998), as shipped by scikit-image",
+     "public domain in the United States (NASA media usage guidelines)"),
+]
+
+
+def add_credit(component: str, source: str, licence: str) -> None:
+    """Add a (component, source, licence) entry to :data:`CREDITS` (once)."""
+    entry = (component, source, licence)
+    if entry not in CREDITS:
+        CREDITS.append(entry)
+
+
+def sample_face_credit() -> str:
+    """The sample photo's line of ``editor/data/README.md`` (origin and licence), or ''."""
+    try:
+        text = DATA_README.read_text(encoding="utf-8")
+    except OSError:
+        return ""
+    for line in text.splitlines():
+        if line.startswith("| `sample_face.png`"):
+            return line.strip("| ").split(" | ")[-1].strip()
+    return ""

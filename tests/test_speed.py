@@ -67,10 +67,10 @@ def test_bench_pair_timer_reports_both_clocks():
 
 
 def test_bench_only_selects_the_named_rows():
-    from editor.bench import _only
+    from editor.bench import _parse_args
 
-    assert _only([]) is None  # every row
-    assert _only(["--gui"]) is None
-    assert _only(["--only", "render_vs_engine"]) == {"render_vs_engine"}
-    assert _only(["--only=render_vs_engine,creases_cost"]) == {"render_vs_engine",
-                                                                "creases_cost"}
+    assert _parse_args([]).only is None  # every row
+    assert _parse_args(["--gui"]).only is None
+    assert _parse_args(["--only", "render_vs_engine"]).only == {"render_vs_engine"}
+    assert _parse_args(["--only=render_vs_engine,creases_cost"]).only == {"render_vs_engine",
+                                                                           "creases_cost"}

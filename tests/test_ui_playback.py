@@ -102,7 +102,8 @@ def test_open_file_menu_and_timeline(window, panel, ramp_file):
     assert panel.seq.n_frames == 10 and panel.playhead.fps == 10
     assert panel.slider.maximum() == 9
     assert "10 frames at 10 fps" in panel.info.text()
-    assert panel.shown == 0 and window.model.undo_stack.count() == 0
+    assert panel.shown == 0 and window.model.undo_stack.count() == 1  # opening is undoable
+    assert window.model.undo_stack.undoText() == "Open sequence ramp.fap"
 
 
 def test_playback_with_fake_clock_shows_the_frame_for_the_time(window, panel, clock, qtbot):
@@ -129,10 +130,10 @@ def test_playback_with_fake_clock_shows_the_frame_for_the_time(window, panel, cl
     clock.t += 5
     qtbot.waitUntil(lambda: not panel.playhead.playing, timeout=2000)
     assert panel.shown == 9 and jaw(window) == 900
-    assert window.model.undo_stack.count() == 1  # playback added no undo entries
+    assert window.model.undo_stack.count() == 2  # FAPs, sequence; playback added none
     panel.stop()  # restores the FAPs from before playback
     assert jaw(window) == 0 and window.model.doc.fap("raise_l_i_eyebrow") == 50
-    assert window.model.undo_stack.count() == 1
+    assert window.model.undo_stack.count() == 2
 
 
 def test_loop_wraps(window, panel, clock):
@@ -153,10 +154,10 @@ def test_loop_wraps(window, panel, clock):
 def test_scrub_and_keep_frame_is_one_undo_entry(window, panel):
     panel.load_sequence(ramp())
     panel.slider.setValue(7)
-    assert jaw(window) == 700 and window.model.undo_stack.count() == 0
+    assert jaw(window) == 700 and window.model.undo_stack.count() == 1  # the sequence
     panel.keep_frame()
     stack = window.model.undo_stack
-    assert stack.count() == 1 and stack.undoText() == "Playback frame 8"
+    assert stack.count() == 2 and stack.undoText() == "Playback frame 8"
     stack.undo()
     assert jaw(window) == 0
 
@@ -256,7 +257,7 @@ def test_preset_during_paused_playback_is_one_entry_and_pauses(window, panel, cl
     window.presets_panel.apply("joy", 1.0, "replace")
     assert not panel.playhead.playing  # an edit stops playback
     stack = window.model.undo_stack
-    assert stack.count() == 1 and stack.undoText() == "Apply preset joy 100 %"
+    assert stack.count() == 2 and stack.undoText() == "Apply preset joy 100 %"
     assert not window.model.in_gesture
     stack.undo()
     assert not window.model.doc.faps.any()  # back to before playback

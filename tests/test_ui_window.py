@@ -15,7 +15,7 @@ from PySide6.QtGui import QDropEvent, QImage  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from editor.core import FAPS, load_image  # noqa: E402
-from editor.formats.project import FORMAT, load_project  # noqa: E402
+from editor.formats.project import FORMAT, VERSION, load_project  # noqa: E402
 from editor.resources import SAMPLE_FACE
 from editor.ui import app as app_module  # noqa: E402
 from editor.ui.main_window import MainWindow  # noqa: E402
@@ -191,7 +191,7 @@ def test_project_round_trip(window, boxes, tmp_path, sample_face):
     assert window.docs.save_to(str(path))
     assert not window.isWindowModified() and m.path == str(path.resolve())
     data = json.loads(path.read_text())  # human-readable JSON with a format version
-    assert data["format"] == FORMAT and data["version"] == 1
+    assert data["format"] == FORMAT and data["version"] == VERSION
     assert data["faps"] == {"open_jaw": 420.5, "raise_l_i_eyebrow": -130, "head_yaw": 6000}
     assert Path(path.parent, data["photo"]).resolve() == SAMPLE.resolve()
     saved = m.doc
@@ -263,6 +263,7 @@ def test_bad_input_shows_error_and_keeps_document(window, boxes, tmp_path, kind)
     elif kind in BAD_PROJECTS:
         path.write_text(BAD_PROJECTS[kind])
     boxes.answer = QMessageBox.StandardButton.Discard
+    window.docs.interactive = False  # a missing photo is reported, not asked for
     assert not window.docs.open_path(str(path))
     assert len(boxes.warnings) == 1
     msg = boxes.warnings[0]

@@ -11,6 +11,7 @@ import contextlib
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from editor import __version__
 from editor.errors import FapStudioError
@@ -20,7 +21,10 @@ from .bilinear import add_bilinear_parser
 from .clone import add_clone_parser
 from .facs import add_facs_parser
 from .study import add_study_parser
-from .util import PHOTO_HELP, detector_option, photo_arg
+from .util import PHOTO_HELP, SAMPLE_KEYWORD, detector_option, photo_arg
+
+#: ``fap-studio NAME`` opens NAME in the editor when it ends so (photos and projects).
+EDITOR_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".fapproj")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -176,8 +180,11 @@ def cmd_gui(a: argparse.Namespace) -> int:
 
     vec = _requested_vector(a)
     named = {FAPS[i + 1].name: float(x) for i, x in enumerate(vec) if x}
-    return run(photo=a.photo, faps=named, screenshot=a.screenshot,
-               project=getattr(a, "project", None), photo_neutral=a.photo_is_neutral,
+    photo, project = a.photo, getattr(a, "project", None)
+    if photo and project is None and Path(photo).suffix.lower() == ".fapproj":
+        photo, project = None, photo  # ``fap-studio work.fapproj`` opens the project
+    return run(photo=photo, faps=named, screenshot=a.screenshot, project=project,
+               photo_neutral=a.photo_is_neutral,
                keep_expression=a.keep_expression)
 
 
@@ -252,11 +259,30 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _opens_the_editor(args: list[str], parser: argparse.ArgumentParser) -> bool:
+    """The first argument is not a command but a photo (an existing file, ``sample``, or a
+    name with an image or project suffix) or an option of ``gui`` (``--fap``, ``--project``):
+    it is for the editor. Anything else stays a command (a typo gets argparse's error)."""
+    first = args[0]
+    if first in ("-h", "--help", "--version"):
+        return False
+    commands: set[str] = set()
+    for action in parser._actions:  # argparse keeps the subcommands here
+        if isinstance(action, argparse._SubParsersAction):
+            commands.update(action.choices)
+    if first in commands:
+        return False
+    return (first.startswith("--") or first == SAMPLE_KEYWORD or Path(first).is_file()
+            or Path(first).suffix.lower() in EDITOR_SUFFIXES)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     if not args_list:
         args_list = ["gui"]
+    elif _opens_the_editor(args_list, parser):  # ``fap-studio photo.jpg --fap ...`` = gui
+        args_list = ["gui", *args_list]
     a = parser.parse_args(args_list)
     if not getattr(a, "func", None):
         parser.print_help()

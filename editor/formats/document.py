@@ -1,22 +1,25 @@
 """The editor's document: an immutable snapshot of one editing state (no Qt).
 
-A :class:`Document` is a frozen snapshot (photo path, edited neutral mesh, FAP vector) whose
-arrays are read-only, so undo keeps two references per command and a render request needs no
-lock. :class:`editor.ui.document_model.DocumentModel` holds the current one and the undo stack;
-:mod:`editor.formats.project` stores one in a project file.
+A :class:`Document` is a frozen snapshot (photo path, edited neutral mesh, FAP vector, the
+animation being authored) whose arrays are read-only, so undo keeps two references per command
+and a render request needs no lock. :class:`editor.ui.document_model.DocumentModel` holds the
+current one and the undo stack; :mod:`editor.formats.project` stores one in a project file.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from editor.engine.face import Face
 from editor.engine.faps import FAPS
+from editor.formats.fapfile import FapSequence
+
+INTERPOLATIONS = ("linear", "smoothstep")
 
 
 def _frozen(a: object, shape: tuple[int | None, ...]) -> np.ndarray:
@@ -29,6 +32,78 @@ def _frozen(a: object, shape: tuple[int | None, ...]) -> np.ndarray:
         arr = np.array(arr, np.float32, order="C")
         arr.setflags(write=False)
     return arr
+
+
+def _key_vector(vector: object) -> np.ndarray:
+    """A keyframe's (68,) read-only float32 FAP vector with FAP 1/2 zeroed."""
+    v = np.array(vector, np.float32).reshape(68)
+    v[:2] = 0
+    if not np.isfinite(v).all():
+        raise ValueError("keyframe FAP values must be finite")
+    v.setflags(write=False)
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class Animation:
+    """The animation being authored: keyframes, how they are sampled, and the loaded sequence.
+
+    keys : ((t seconds, (68,) float32 read-only FAP vector), ...) sorted by time, unique times
+    fps, interpolation : how :meth:`build` samples the keys ("linear" or "smoothstep")
+    sequence : the sequence loaded or built (what Playback plays and exports), or None
+    source : the .fap file it was read from ('' when built from keys)
+    """
+
+    keys: tuple[tuple[float, np.ndarray], ...] = ()
+    fps: float = 25.0
+    interpolation: str = "linear"
+    sequence: FapSequence | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        keys: dict[float, np.ndarray] = {}
+        for t, v in self.keys:
+            keys[round(float(t), 4)] = _key_vector(v)
+        object.__setattr__(self, "keys", tuple(sorted(keys.items(), key=lambda k: k[0])))
+        if not 0 < float(self.fps) <= 1000:
+            raise ValueError(f"keyframe fps must be in (0, 1000], got {self.fps!r}")
+        object.__setattr__(self, "fps", float(self.fps))
+        if self.interpolation not in INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got "
+                             f"{self.interpolation!r}")
+
+    @property
+    def empty(self) -> bool:
+        return not self.keys and self.sequence is None
+
+    def replace(self, **changes: Any) -> Animation:
+        return dataclasses.replace(self, **changes)
+
+    def with_key(self, t: float, vector: object) -> Animation:
+        """A copy with a key at ``t`` (replacing one at the same time)."""
+        t = round(float(t), 4)
+        return self.replace(keys=(*[k for k in self.keys if k[0] != t], (t, vector)))
+
+    def without_key(self, index: int) -> Animation:
+        return self.replace(keys=self.keys[:index] + self.keys[index + 1:])
+
+    def build(self, name: str = "keyframes") -> FapSequence:
+        """The keys interpolated into a sequence (ValueError without keys)."""
+        from editor.formats.expressions import sequence_from_keyframes
+
+        return sequence_from_keyframes(list(self.keys), self.fps, self.interpolation, name=name)
+
+    def equals(self, other: Animation) -> bool:
+        if other is self:
+            return True
+        return (self.fps == other.fps and self.interpolation == other.interpolation
+                and self.source == other.source and self.sequence is other.sequence
+                and len(self.keys) == len(other.keys)
+                and all(a[0] == b[0] and np.array_equal(a[1], b[1])
+                        for a, b in zip(self.keys, other.keys, strict=True)))
+
+
+NO_ANIMATION = Animation()
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,12 +121,18 @@ class Document:
     photo_neutral : bool
         The photo is declared neutral: FAPs apply to the photo itself (0 = the photo), not to
         the neutralised face with the photo's own expression estimated.
+    embed_photo : bool
+        Save the photo's file inside the project (a project that travels alone).
+    animation : Animation
+        Keyframes and the loaded sequence (undoable and saved like everything else).
     """
 
     photo: str | None
     vertices: np.ndarray
     faps: np.ndarray
     photo_neutral: bool = False
+    embed_photo: bool = False
+    animation: Animation = field(default=NO_ANIMATION)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "vertices", _frozen(self.vertices, (None, 2)))
@@ -74,11 +155,14 @@ class Document:
         return dataclasses.replace(self, **changes)
 
     def equals(self, other: Document | None) -> bool:
-        """Same photo, mesh and FAP values (array ``==`` is ambiguous, hence a method)."""
+        """Same photo, mesh, FAP values and animation (array ``==`` is ambiguous, hence a
+        method)."""
         if other is self:
             return True
         return (other is not None and self.photo == other.photo
                 and self.photo_neutral == other.photo_neutral
+                and self.embed_photo == other.embed_photo
+                and self.animation.equals(other.animation)
                 and np.array_equal(self.vertices, other.vertices)
                 and np.array_equal(self.faps, other.faps))
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import cv2
@@ -134,17 +134,23 @@ def face_crop(face) -> tuple[int, int, int, int]:
 
 
 def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
-                   intensities: Sequence[float], crop: bool = True
+                   intensities: Sequence[float], crop: bool = True,
+                   progress: Callable[[int, int], object] | None = None
                    ) -> list[tuple[str, str, float, np.ndarray]]:
     """Render faces x presets x intensities: (face name, expression, intensity, RGB image).
 
     With ``crop`` (default) each stimulus is cut to the face region (:func:`face_crop`), so
-    that raters judge the face, not the photo around it.
+    that raters judge the face, not the photo around it. ``progress(done, total)`` is called
+    after each face fit and each render (it may raise to stop).
     """
     out = []
     names: set[str] = set()
+    total, done = len(faces) * (1 + len(presets) * len(intensities)), 0
     for path in faces:
         face = Face.from_image(path)
+        done += 1
+        if progress is not None:
+            progress(done, total)
         name = Path(path).stem
         while name in names:
             name += "_"
@@ -156,5 +162,8 @@ def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
             for k in intensities:
                 img = face.render(apply_preset(preset, k))[y0:y1, x0:x1]
                 out.append((name, preset.name, float(k), np.ascontiguousarray(img)))
+                done += 1
+                if progress is not None:
+                    progress(done, total)
     return out
 

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 import traceback
@@ -30,6 +31,8 @@ def application() -> QApplication:
     """The QApplication (created on first use) with FAP Studio's names set."""
     app = QApplication.instance()
     if app is None:
+        # Qt's platform plugins chat on stderr (xcb, offscreen); a user cannot act on it
+        os.environ.setdefault("QT_LOGGING_RULES", "qt.qpa.*=false")
         qInstallMessageHandler(_qt_messages)
         app = QApplication(sys.argv[:1])
     assert isinstance(app, QApplication)
@@ -84,8 +87,8 @@ def open_initial(window: MainWindow, photo: str | None = None,
         if last and Path(last).is_file():
             window.docs.open_project(last, ask=False)
     if window.model.doc is None:
-        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False,
-                                    photo_neutral=photo_neutral) and ok
+        ok = window.docs.open_photo(str(SAMPLE_FACE), ask=False, photo_neutral=photo_neutral,
+                                    remember=False) and ok
     return ok
 
 
@@ -122,6 +125,7 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
 
     if headless:  # no dialogs (errors go to stderr), no recent files
         window.docs.remember = False
+        window.docs.interactive = False
         window.docs.error = lambda _title, msg: errors.append(str(msg))
     ok = open_initial(window, photo, project, photo_neutral)
     if not ok and headless:

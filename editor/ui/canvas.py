@@ -11,13 +11,15 @@ from __future__ import annotations
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
+from PySide6.QtGui import QPainter
 from PySide6.QtWidgets import QHBoxLayout, QSplitter, QWidget
 
 from .document_model import Document, DocumentModel
 from .mesh_item import MeshItem
 from .render_scheduler import RenderResult
 
-#: FAPs whose effect is drawn as iris rings on the preview (gaze, eyeball thrust, pupils).
+#: FAPs whose effect is drawn as iris rings over the photo, with the mesh (gaze, eyeball thrust,
+#: pupils); never over the preview, which shows the result as it is.
 EYEBALL_FAPS = slice(22, 30)
 
 
@@ -26,6 +28,8 @@ def _pane(title: str) -> tuple[pg.GraphicsLayoutWidget, pg.ViewBox]:
     w = pg.GraphicsLayoutWidget()
     w.setAcceptDrops(False)  # drops go to the main window
     w.viewport().setAcceptDrops(False)
+    # zoomed photos are drawn with bilinear filtering, not nearest-neighbour blocks
+    w.setRenderHint(QPainter.RenderHint.SmoothPixmapTransform, True)
     w.ci.setContentsMargins(2, 2, 2, 2)
     w.ci.setSpacing(2)
     w.addLabel(title, row=0, col=0, size="9pt")
@@ -71,7 +75,7 @@ class Canvas(QWidget):
         self.photo_view.addItem(self.mesh)
         self.irises = pg.ScatterPlotItem(pxMode=False, pen=pg.mkPen((255, 60, 60), width=1.5),
                                          brush=None, symbol="o")
-        self.preview_view.addItem(self.irises)
+        self.photo_view.addItem(self.irises)
         self._overlay = True
         self._eyes_moved = False
         self._last: RenderResult | None = None

@@ -21,7 +21,7 @@ from PySide6.QtGui import QUndoStack
 from editor.engine.face import Face
 from editor.engine.faps import FAPS
 from editor.engine.mesh import signed_areas
-from editor.formats.document import Document
+from editor.formats.document import Animation, Document
 
 from .commands import SetDocument
 
@@ -242,6 +242,17 @@ class DocumentModel(QObject):
         new = doc.replace(photo_neutral=neutral, faps=FAPS.clamp(faps))
         self.push(new, "Declare the photo neutral" if neutral else
                   "Estimate the photo's expression")
+
+    def set_embed_photo(self, embed: bool) -> None:
+        """Save the photo inside the project file (or refer to it only), as one command."""
+        if self._doc is not None and self._doc.embed_photo != bool(embed):
+            self.push(self._doc.replace(embed_photo=bool(embed)),
+                      "Embed the photo" if embed else "Refer to the photo")
+
+    def set_animation(self, animation: Animation, text: str) -> None:
+        """Replace the animation (keyframes, sequence) as one command."""
+        if self._doc is not None:
+            self.push(self._doc.replace(animation=animation), text)
 
     def reset_mesh(self) -> None:
         """Put the mesh back to the fitted one (one command)."""

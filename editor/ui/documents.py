@@ -1,7 +1,10 @@
 """Opening, saving and exporting: dialogs, recent files, the unsaved-changes prompt, errors.
 
 Every action catches :class:`FapStudioError` (and, as a last resort, any exception), shows the
-one-line message in a message box and leaves the current document as it was.
+one-line message in a message box and leaves the current document as it was. Reading and
+fitting a photo, reading a project and exporting run off the GUI thread (:func:`.tasks.run_task`,
+a progress dialog with Cancel when they take a while); the result is applied here, on the GUI
+thread, through the document model.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from editor.formats.project import SUFFIX, load_project, save_project
 
 from .document_model import Document, DocumentModel
 from .qt_utils import run_guarded, settings
+from .tasks import Progress, run_task
 
 PHOTO_FILTER = "Photos (*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp);;All files (*)"
 PROJECT_FILTER = f"FAP Studio projects (*{SUFFIX} *.json);;All files (*)"
@@ -48,6 +52,8 @@ class Documents(QObject):
         #: Record opened/saved files in QSettings (recent files, last project); headless
         #: screenshots turn this off.
         self.remember = True
+        #: Ask the user (where is the photo of a project?); headless runs turn this off.
+        self.interactive = True
 
     # ------------------------------------------------------------------ error handling
     def guarded(self, title: str, action: Callable[[], object]) -> bool:
@@ -64,9 +70,10 @@ class Documents(QObject):
         return self.open_project(path) if is_project(path) else self.open_photo(path)
 
     def open_photo(self, path: str | None = None, ask: bool = True,
-                   photo_neutral: bool = False) -> bool:
+                   photo_neutral: bool = False, remember: bool = True) -> bool:
         """Open a photo (file dialog when ``path`` is None): detect, fit, new document;
-        ``photo_neutral`` declares the photo neutral (Edit > Photo Is Neutral)."""
+        ``photo_neutral`` declares the photo neutral (Edit > Photo Is Neutral); ``remember``
+        False keeps it out of Open Recent (the bundled sample face)."""
         if path is None:
             path, _ = QFileDialog.getOpenFileName(self.widget, "Open photo", self._dir(),
                                                   PHOTO_FILTER)
@@ -76,17 +83,25 @@ class Documents(QObject):
             return False
         path = str(Path(path).resolve())
 
+        def fit(_progress: Progress) -> Face:
+            return Face.from_image(path)
+
         def load() -> None:
-            face = Face.from_image(path)
-            self.model.load(face, Document.initial(face, photo_neutral))
+            face = run_task(self.widget, f"Opening {Path(path).name}: finding the face…", fit,
+                            title="Open Photo")
+            # the animation (FAP values, face-independent) comes along to the new photo
+            anim = self.model.doc.animation if self.model.doc is not None else None
+            doc = Document.initial(face, photo_neutral)
+            self.model.load(face, doc if anim is None else doc.replace(animation=anim))
 
         ok = self.guarded("Cannot open the photo", load)
-        if ok:
+        if ok and remember:
             self.add_recent(path)
         return ok
 
     def open_project(self, path: str | None = None, ask: bool = True) -> bool:
-        """Open a project file (file dialog when ``path`` is None)."""
+        """Open a project file (file dialog when ``path`` is None). A photo found at neither
+        its relative nor its absolute path (nor embedded) is asked for."""
         if path is None:
             path, _ = QFileDialog.getOpenFileName(self.widget, "Open project", self._dir(),
                                                   PROJECT_FILTER)
@@ -94,15 +109,35 @@ class Documents(QObject):
                 return False
         if ask and not self.maybe_save():
             return False
+        from editor.engine.mesh import standard_mesh
+
+        names = standard_mesh().names
+        data = None
+
+        def read() -> None:
+            nonlocal data
+            data = run_task(self.widget, f"Reading {Path(path).name}…",
+                            lambda _p: load_project(path, names), title="Open Project")
+
+        if not self.guarded("Cannot open the project", read) or data is None:
+            return False
+        photo = data.photo
+        moved = False
+        if not data.photo_found:
+            located = self.locate_photo(photo, path)
+            if located is None:
+                return False
+            photo, moved = str(Path(located).resolve()), True
 
         def load() -> None:
-            from editor.engine.mesh import standard_mesh
-
-            data = load_project(path, standard_mesh().names)
-            face = Face.from_image(data.photo)
+            face = run_task(self.widget, f"Opening {Path(photo).name}: finding the face…",
+                            lambda _p: Face.from_image(photo), title="Open Project")
             verts = face.vertices if data.vertices is None else data.vertices
-            doc = Document(data.photo, verts, face.fap_vector(data.faps), data.photo_neutral)
+            doc = Document(photo, verts, face.fap_vector(data.faps), data.photo_neutral,
+                           data.embed_photo, data.animation)
             self.model.load(face, doc, str(Path(path).resolve()))
+            if moved:  # the project now points elsewhere: saving it is a change
+                self.model.undo_stack.resetClean()
 
         ok = self.guarded("Cannot open the project", load)
         if ok:
@@ -110,6 +145,26 @@ class Documents(QObject):
             if self.remember:
                 settings().setValue("lastProject", str(Path(path).resolve()))
         return ok
+
+    def locate_photo(self, missing: str, project: str) -> str | None:
+        """Ask where the photo of ``project`` is (it is not at ``missing``); None if the user
+        gives up (or nobody can be asked)."""
+        if not self.interactive:
+            self.error("Cannot open the project",
+                       f"{project}: its photo {missing} was not found")
+            return None
+        ans = QMessageBox.question(
+            self.widget, "Locate the photo",
+            f"The photo of {Path(project).name} was not found:\n{missing}\n\n"
+            "Do you want to locate it?",
+            QMessageBox.StandardButton.Open | QMessageBox.StandardButton.Cancel,
+            QMessageBox.StandardButton.Open)
+        if ans != QMessageBox.StandardButton.Open:
+            return None
+        start = str(Path(project).parent / Path(missing).name)
+        found, _ = QFileDialog.getOpenFileName(self.widget, f"Locate {Path(missing).name}",
+                                               start, PHOTO_FILTER)
+        return found or None
 
     # ------------------------------------------------------------------ saving
     def save(self) -> bool:
@@ -141,8 +196,11 @@ class Documents(QObject):
             return False
 
         def write() -> None:
-            save_project(path, photo, doc.vertices, doc.faps, face.mesh.names,
-                         doc.photo_neutral)
+            run_task(self.widget, f"Saving {Path(path).name}…",
+                     lambda _p: save_project(path, photo, doc.vertices, doc.faps,
+                                             face.mesh.names, doc.photo_neutral,
+                                             embed=doc.embed_photo, animation=doc.animation),
+                     title="Save Project", cancellable=False)
 
         ok = self.guarded("Cannot save the project", write)
         if ok:
@@ -152,6 +210,7 @@ class Documents(QObject):
             self.add_recent(full)
             if self.remember:
                 settings().setValue("lastProject", full)
+            self.status(f"Saved project {full}")
         return ok
 
     def export(self, path: str | None = None) -> bool:
@@ -168,14 +227,28 @@ class Documents(QObject):
                 path += ".jpg" if chosen.startswith("JPEG") else ".png"
         face, faps = self.model.face, self.model.doc.faps
         out = path
-        return self.guarded("Cannot export the image",
-                            lambda: save_image(out, face.render(faps)))
+        ok = self.guarded("Cannot export the image", lambda: run_task(
+            self.widget, f"Exporting {Path(out).name}…",
+            lambda _p: save_image(out, face.render(faps)), title="Export Image",
+            cancellable=False))
+        if ok:
+            self.status(f"Exported {out}")
+        return ok
+
+    def status(self, message: str, ms: int = 8000) -> None:
+        """A message in the window's status bar (when there is one)."""
+        bar = getattr(self.widget, "statusBar", None)
+        if callable(bar):
+            bar().showMessage(message, ms)
 
     def maybe_save(self) -> bool:
         """Ask to save unsaved changes. False if the user cancels (or saving fails)."""
         if not self.model.is_dirty():
             return True
-        name = Path(self.model.path).name if self.model.path else "the document"
+        doc = self.model.doc
+        name = (Path(self.model.path).name if self.model.path else
+                f"the document of {Path(doc.photo).name}" if doc is not None and doc.photo
+                else "the document")
         ans = QMessageBox.question(
             self.widget, "Unsaved changes", f"Save the changes to {name}?",
             QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard

@@ -27,6 +27,10 @@ from editor.engine.faps import FAPS
 from .document_model import Document, DocumentModel
 from .fap_group import FapGroup
 from .fap_row import FapRow
+from .qt_utils import settings
+
+#: QSettings key of the *Link left/right* box (remembered between sessions).
+LINK_KEY = "faps/linkLeftRight"
 
 
 class FapPanel(QWidget):
@@ -39,6 +43,8 @@ class FapPanel(QWidget):
         self.filter.setPlaceholderText("Filter FAPs: name or number")
         self.filter.setClearButtonEnabled(True)
         self.link = QCheckBox("Link left/right")
+        self.link.setChecked(settings().value(LINK_KEY, False, type=bool))
+        self.link.toggled.connect(lambda on: settings().setValue(LINK_KEY, bool(on)))
         self.link.setToolTip("Move the mirrored FAP (left <-> right) together with the one you "
                              "edit")
         self.reset_all = QPushButton("Reset all")

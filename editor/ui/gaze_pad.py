@@ -16,6 +16,10 @@ from editor.engine.faps import FAPS
 
 from .document_model import Document, DocumentModel
 
+#: MPEG-4 angular unit: 1e-5 rad.
+AU_DEGREES = 1e-5 * 180.0 / np.pi
+#: Height of the readout strip under the pad (the dot never covers it).
+READOUT_H = 18
 YAW = (23, 24)
 PITCH = (25, 26)
 
@@ -29,7 +33,7 @@ class GazePad(QWidget):
         self.yaw_max = min(FAPS[n].range[1] for n in YAW)
         self.pitch_max = min(FAPS[n].range[1] for n in PITCH)
         self._xy = np.zeros(2)
-        self.setMinimumSize(120, 120)
+        self.setMinimumSize(120, 120 + READOUT_H)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setToolTip("Eye gaze: drag the dot (x = yaw FAPs 23/24, y = pitch FAPs 25/26, both "
@@ -39,12 +43,20 @@ class GazePad(QWidget):
             self._on_changed(None, model.doc)
 
     def sizeHint(self) -> QSize:
-        return QSize(170, 170)
+        return QSize(170, 170 + READOUT_H)
 
     # ------------------------------------------------------------------ geometry
     def pad_rect(self) -> QRectF:
-        s = min(self.width(), self.height()) - 12
-        return QRectF((self.width() - s) / 2, (self.height() - s) / 2, s, s)
+        """The square the dot moves in; the gaze readout is written under it."""
+        h = self.height() - READOUT_H
+        s = min(self.width(), h) - 12
+        return QRectF((self.width() - s) / 2, (h - s) / 2, s, s)
+
+    def readout(self) -> str:
+        """The gaze in degrees (right/left, up/down as seen on the photo)."""
+        f = self.values(self._xy)
+        yaw, pitch = f[YAW[0]] * AU_DEGREES, f[PITCH[0]] * AU_DEGREES
+        return f"yaw {yaw:+.1f}°   pitch {pitch:+.1f}°"
 
     def to_pad(self, pos: QPointF) -> np.ndarray:
         """Widget position -> pad coordinates in [-1, 1]^2."""
@@ -128,7 +140,6 @@ class GazePad(QWidget):
         p.setBrush(QColor(20, 20, 20))
         p.drawEllipse(dot, 3, 3)
         p.setPen(pal.text().color())
-        f = self.values(self._xy)
-        p.drawText(r.adjusted(6, 4, -6, -4), Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop,
-                   f"yaw {f[YAW[0]]:+.0f} AU\npitch {f[PITCH[0]]:+.0f} AU")
+        strip = QRectF(0, self.height() - READOUT_H, self.width(), READOUT_H)
+        p.drawText(strip, Qt.AlignmentFlag.AlignCenter, self.readout())
         p.end()

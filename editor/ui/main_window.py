@@ -17,9 +17,16 @@ from PySide6.QtGui import (
     QDropEvent,
     QKeySequence,
 )
-from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMenu, QMessageBox, QWidget
+from PySide6.QtWidgets import (
+    QDockWidget,
+    QLabel,
+    QMainWindow,
+    QMenu,
+    QToolBar,
+    QVBoxLayout,
+    QWidget,
+)
 
-from editor import __version__
 from editor.engine.face import Face
 
 from .canvas import Canvas
@@ -27,6 +34,7 @@ from .document_model import Document, DocumentModel
 from .documents import Documents
 from .fap_panel import FapPanel
 from .gaze_pad import GazePad
+from .help_panel import AboutDialog, FirstRunHint, HelpPanel
 from .qt_utils import settings
 from .render_scheduler import RenderResult, RenderScheduler
 
@@ -37,6 +45,9 @@ FAPU_SHOWN = ("MNS", "MW", "ENS", "ES", "IRISD")
 #: developed and tested independently of this file. A module that is missing is skipped.
 EXTENSIONS = ("presets_panel", "playback_panel", "au_panel", "mos_panel", "model_panel",
               "detector_menu")
+
+#: The smallest window in which every dock's controls still fit.
+MINIMUM_SIZE = (960, 640)
 
 
 class MainWindow(QMainWindow):
@@ -50,7 +61,14 @@ class MainWindow(QMainWindow):
         self.scheduler = scheduler or RenderScheduler(parent=self)
         self.docs = Documents(self, self.model)
         self.canvas = Canvas(self.model)
-        self.setCentralWidget(self.canvas)
+        self.hint = FirstRunHint()
+        central = QWidget()
+        lay = QVBoxLayout(central)
+        lay.setContentsMargins(0, 0, 0, 0)
+        lay.setSpacing(0)
+        lay.addWidget(self.hint)
+        lay.addWidget(self.canvas, 1)
+        self.setCentralWidget(central)
         self.fap_panel = FapPanel(self.model)
         self.gaze_pad = GazePad(self.model)
         self.fap_dock = self._dock("FAPs", self.fap_panel, "fapDock")
@@ -74,7 +92,9 @@ class MainWindow(QMainWindow):
         self._make_actions()
         self._make_menus()
         self._install_extensions()
+        self._finish_layout()
         self.setAcceptDrops(True)
+        self.setMinimumSize(*MINIMUM_SIZE)
         self.resize(1400, 860)
 
         m = self.model
@@ -82,6 +102,7 @@ class MainWindow(QMainWindow):
         m.changed.connect(self._on_changed)
         m.pathChanged.connect(self._update_title)
         m.undo_stack.cleanChanged.connect(self._update_title)
+        m.undo_stack.indexChanged.connect(lambda i: self.hint.done() if i > 0 else None)
         self.docs.recentChanged.connect(self._fill_recent)
         self.scheduler.resultReady.connect(self._on_result)
         self.scheduler.failed.connect(self._on_render_failed)
@@ -95,7 +116,8 @@ class MainWindow(QMainWindow):
         dock.setObjectName(name)
         dock.setWidget(widget)
         dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
-                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
+                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable
+                         | QDockWidget.DockWidgetFeature.DockWidgetClosable)
         self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
         return dock
 
@@ -115,20 +137,32 @@ class MainWindow(QMainWindow):
         self.act_open = self._action("&Open Photo…", lambda: d.open_photo(),
                                      QKeySequence.StandardKey.Open, "Open a neutral frontal photo")
         self.act_open_project = self._action("Open &Project…", lambda: d.open_project(),
-                                             "Ctrl+Shift+O")
-        self.act_save = self._action("&Save Project", d.save, QKeySequence.StandardKey.Save)
-        self.act_save_as = self._action("Save Project &As…", d.save_as, "Ctrl+Shift+S")
+                                             "Ctrl+Shift+O", "Open a FAP Studio project "
+                                             "(.fapproj): photo, mesh, FAPs and animation")
+        self.act_save = self._action("&Save Project", d.save, QKeySequence.StandardKey.Save,
+                                     "Save the photo reference, mesh, FAPs and animation")
+        self.act_save_as = self._action("Save Project &As…", d.save_as, "Ctrl+Shift+S",
+                                        "Save the project under another name")
+        self.act_embed = self._action(
+            "Embed Photo in Project", self.model.set_embed_photo, tip=(
+                "Save the photo itself inside the project file, so that the project opens "
+                "anywhere (the file grows by the photo's size)"))
+        self.act_embed.setCheckable(True)
         self.act_export = self._action("&Export Image…", lambda: d.export(), "Ctrl+E",
                                        "Save the rendered expression as PNG or JPEG")
-        self.act_quit = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.act_quit = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit,
+                                     "Quit FAP Studio (asks to save unsaved changes)")
         stack = self.model.undo_stack
         self.act_undo = stack.createUndoAction(self, "&Undo")
         self.act_undo.setShortcut(QKeySequence("Ctrl+Z"))
+        self.act_undo.setStatusTip("Undo the last change (every slider drag is one step)")
         self.act_redo = stack.createRedoAction(self, "&Redo")
         self.act_redo.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        self.act_redo.setStatusTip("Redo the change undone last")
         self.addActions([self.act_undo, self.act_redo])
         self.act_reset_faps = self._action(
-            "Reset All &FAPs", lambda: self.model.reset_faps(None, "Reset all FAPs"))
+            "Reset All &FAPs", lambda: self.model.reset_faps(None, "Reset all FAPs"),
+            tip="Every FAP back to 0 (the neutralised face)")
         self.act_neutralize = self._action(
             "&Neutralize", self.model.neutralize, "Ctrl+Shift+N",
             "Remove the photo's own expression: every FAP to 0 (the neutral face)")
@@ -142,7 +176,8 @@ class MainWindow(QMainWindow):
         self.act_photo_neutral.setCheckable(True)
         self.act_reset_mesh = self._action("Reset &Mesh", self.model.reset_mesh,
                                            tip="Put every vertex back where it was fitted")
-        self.act_overlay = self._action("Show &Mesh", self.canvas.set_overlay_visible, "M")
+        self.act_overlay = self._action("Show &Mesh", self.canvas.set_overlay_visible, "M",
+                                        "Show or hide the fitted mesh over the photo")
         self.act_overlay.setCheckable(True)
         self.act_overlay.setChecked(True)
         self.act_creases = self._action("Skin &Creases", self._set_creases, tip=(
@@ -154,7 +189,13 @@ class MainWindow(QMainWindow):
                                     "Show the whole photo")
         self.act_fit_face = self._action("Zoom to F&ace", self.canvas.fit_face, "Shift+F",
                                          "Zoom onto the face")
-        self.act_about = self._action("&About FAP Studio", self._about)
+        self.act_about = self._action("&About FAP Studio", self._about,
+                                      tip="Versions and the licences of every component")
+        self.act_help = self._action("FAP Studio &Help", self.show_help, "F1",
+                                     "Show the help panel: what to do first, every shortcut")
+        self.act_reset_layout = self._action(
+            "&Reset Layout", self.reset_layout,
+            tip="Show every panel again where it was at the first start")
 
     def _make_menus(self) -> None:
         mb = self.menuBar()
@@ -162,7 +203,7 @@ class MainWindow(QMainWindow):
         f.addActions([self.act_open, self.act_open_project])
         self.recent_menu = f.addMenu("Open &Recent")
         f.addSeparator()
-        f.addActions([self.act_save, self.act_save_as, self.act_export])
+        f.addActions([self.act_save, self.act_save_as, self.act_embed, self.act_export])
         f.addSeparator()
         f.addAction(self.act_quit)
         e = mb.addMenu("&Edit")
@@ -173,9 +214,66 @@ class MainWindow(QMainWindow):
         v = mb.addMenu("&View")
         v.addActions([self.act_overlay, self.act_creases, self.act_fit, self.act_fit_face])
         v.addSeparator()
-        v.addActions([self.fap_dock.toggleViewAction(), self.gaze_dock.toggleViewAction()])
-        mb.addMenu("&Help").addAction(self.act_about)
+        v.addAction(self.act_reset_layout)
+        v.addSeparator()
+        v.addActions([self._view_action(self.fap_dock), self._view_action(self.gaze_dock)])
+        h = mb.addMenu("&Help")
+        h.addActions([self.act_help, self.act_about])
         self._fill_recent()
+
+    def _view_action(self, dock: QDockWidget) -> QAction:
+        a = dock.toggleViewAction()
+        a.setStatusTip(f"Show or hide the {dock.windowTitle()} panel")
+        return a
+
+    def _finish_layout(self) -> None:
+        """After every panel is in: the help dock, the toolbar, the Presets tab in front,
+        and this arrangement kept for View > Reset Layout."""
+        self.help_panel = HelpPanel(self)
+        self.help_dock = self._dock("Help", self.help_panel, "helpDock")
+        self.removeDockWidget(self.help_dock)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.help_dock)
+        self.help_dock.hide()
+        self.menu("&View").addAction(self._view_action(self.help_dock))
+        tb = QToolBar("Main toolbar", self)
+        tb.setObjectName("mainToolBar")
+        tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        tb.addActions([self.act_open, self.act_open_project, self.act_save, self.act_export])
+        tb.addSeparator()
+        tb.addActions([self.act_undo, self.act_redo])
+        tb.addSeparator()
+        tb.addActions([self.act_neutralize, self.act_fit, self.act_fit_face])
+        play = getattr(getattr(self, "playback_panel", None), "act_play", None)
+        if play is not None:
+            tb.addSeparator()
+            tb.addAction(play)
+        tb.addSeparator()
+        tb.addAction(self.act_help)
+        self.addToolBar(Qt.ToolBarArea.TopToolBarArea, tb)
+        self.toolbar = tb
+        presets = getattr(self, "presets_dock", None)
+        if presets is not None:
+            presets.raise_()
+        self._default_state = self.saveState()
+
+    def reset_layout(self) -> None:
+        """View > Reset Layout: every panel back where it was at the first start."""
+        self.restoreState(self._default_state)
+        for dock in self.findChildren(QDockWidget):
+            if dock is not self.help_dock:
+                dock.show()
+        presets = getattr(self, "presets_dock", None)
+        if presets is not None:
+            presets.raise_()
+
+    def show_help(self) -> None:
+        """F1: the help panel (rebuilt: extensions may have added actions)."""
+        self.help_panel.refresh()
+        was_hidden = self.help_dock.isHidden()
+        self.help_dock.show()
+        self.help_dock.raise_()
+        if was_hidden and not self.help_dock.isFloating():
+            self.resizeDocks([self.help_dock], [420], Qt.Orientation.Horizontal)
 
     def menu(self, title: str) -> QMenu:
         """The top-level menu titled ``title`` (e.g. "&Tools"), created before Help if needed."""
@@ -199,7 +297,7 @@ class MainWindow(QMainWindow):
             self.gaze_dock.raise_()
         else:
             self.addDockWidget(area, dock)
-        self.menu("&View").addAction(dock.toggleViewAction())
+        self.menu("&View").addAction(self._view_action(dock))
         return dock
 
     def _install_extensions(self) -> None:
@@ -225,7 +323,8 @@ class MainWindow(QMainWindow):
             a.triggered.connect(lambda _c=False, p=path: self.docs.open_path(p))
         if items:
             self.recent_menu.addSeparator()
-            self.recent_menu.addAction("Clear Menu", self.docs.clear_recent)
+            clear = self.recent_menu.addAction("Clear Menu", self.docs.clear_recent)
+            clear.setStatusTip("Forget the recently opened files")
         self.recent_menu.setEnabled(bool(items))
 
     # ------------------------------------------------------------------ documents
@@ -258,6 +357,10 @@ class MainWindow(QMainWindow):
             self.scheduler.submit(face, new.faps, creases=self.act_creases.isChecked())
         if old is None or old.photo_neutral != new.photo_neutral:
             self._show_photo_expression(new.photo_neutral)
+        if old is None or old.embed_photo != new.embed_photo:
+            self.act_embed.blockSignals(True)
+            self.act_embed.setChecked(new.embed_photo)
+            self.act_embed.blockSignals(False)
         if (old is None or old.vertices is not new.vertices
                 or old.photo_neutral != new.photo_neutral):
             self._show_fapu(face)
@@ -302,10 +405,11 @@ class MainWindow(QMainWindow):
         self.setWindowTitle(f"{name}[*] — FAP Studio")
         self.setWindowModified(self.model.is_dirty())
 
-    def _about(self) -> None:
-        QMessageBox.about(self, "About FAP Studio",
-                          f"FAP Studio {__version__}\nOne neutral frontal photo, any expression, "
-                          "through the MPEG-4 Facial Animation Parameters.")
+    def _about(self) -> AboutDialog:
+        dialog = AboutDialog(self)
+        dialog.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        dialog.show()
+        return dialog
 
     # ------------------------------------------------------------------ events
     def dragEnterEvent(self, e: QDragEnterEvent) -> None:

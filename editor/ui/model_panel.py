@@ -4,7 +4,8 @@
 mix, method plain / ridge / MALS, λ; "Synthesize" previews the expression on the current photo in
 the dock; "Convert to FAPs" puts the FAP vector that best reproduces the synthesized landmarks on
 the sliders as one undo entry) and the Tools-menu actions of :mod:`editor.ui.model_tools`.
-Computations run on the GUI thread under the wait cursor (each takes well under a second);
+Loading a model and synthesizing run on the thread pool (a progress dialog when they take a
+while);
 errors are shown as a message box with the one-line error text.
 """
 
@@ -32,8 +33,10 @@ from PySide6.QtWidgets import (
 
 from .model_tools import CloneTools, guarded
 from .qt_utils import settings
+from .tasks import run_task
 
 METHODS = (("Plain ALS", "plain"), ("Ridge", "ridge"), ("MALS", "mals"))
+PREVIEW_HINT = "Synthesize to see the expression here"
 
 
 class ModelPanel(QWidget):
@@ -72,7 +75,7 @@ class ModelPanel(QWidget):
         self.faps_button.setToolTip("Put the FAP vector that best reproduces the synthesized "
                                     "landmarks on the sliders (one undo step)")
         self.faps_button.clicked.connect(lambda: self.convert_to_faps())
-        self.preview = QLabel("Synthesize to see the expression here")
+        self.preview = QLabel(PREVIEW_HINT)
         self.preview.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.preview.setMinimumSize(200, 200)
 
@@ -92,6 +95,13 @@ class ModelPanel(QWidget):
         lay.addLayout(buttons)
         lay.addWidget(self.preview, 1)
         self._update_enabled()
+        window.model.loaded.connect(self.clear_result)
+
+    def clear_result(self) -> None:
+        """Forget the last synthesis (another photo or project was opened)."""
+        self.result, self._result_key = None, None
+        self.preview.clear()
+        self.preview.setText(PREVIEW_HINT)
 
     # ------------------------------------------------------------------ model
     def load_model(self, path: str | None = None) -> bool:
@@ -111,7 +121,9 @@ class ModelPanel(QWidget):
             check_model68(m)
             return m
 
-        model = guarded(self.window, "Load Model", load)
+        model = guarded(self.window, "Load Model", lambda: run_task(
+            self.window, f"Loading the model {Path(path).name}…", lambda _p: load(),
+            title="Load Model"))
         if model is None:
             return False
         self.bilinear = model
@@ -154,12 +166,16 @@ class ModelPanel(QWidget):
 
     # ------------------------------------------------------------------ actions
     def _compute(self, render: bool) -> Any:
+        """Synthesize with the dock's settings, read here on the GUI thread; the computation
+        runs on the thread pool (progress dialog when it takes a while)."""
         from editor.synthesis.bilinear_photo import synthesize_on_face
 
-        face = self.window.model.face
-        lam = self.lam.value() or None
-        return synthesize_on_face(face, self.bilinear, self.target(), self.method.currentData(),
-                                  lam, keep_residual=self.keep.isChecked(), render=render)
+        face, model, target = self.window.model.face, self.bilinear, self.target()
+        method, lam, keep = self.method.currentData(), self.lam.value() or None, \
+            self.keep.isChecked()
+        return run_task(self.window, "Synthesizing the expression…", lambda _p: (
+            synthesize_on_face(face, model, target, method, lam, keep_residual=keep,
+                               render=render)), title="Synthesize")
 
     def _ready(self, title: str) -> bool:
         from PySide6.QtWidgets import QMessageBox
@@ -210,7 +226,9 @@ class ModelPanel(QWidget):
             res = self.result if self._result_key == self.settings_key() else None
             if res is None:
                 res = self._compute(False)
-            return faps_for_points(face, res.points68)
+            points = res.points68
+            return run_task(self.window, "Converting to FAPs…",
+                            lambda _p: faps_for_points(face, points), title="Convert to FAPs")
 
         faps = guarded(self.window, "Convert to FAPs", run)
         if faps is None:

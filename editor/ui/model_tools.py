@@ -14,11 +14,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import QCoreApplication, Qt
+from PySide6.QtCore import Qt
 from PySide6.QtGui import QGuiApplication
-from PySide6.QtWidgets import QFileDialog, QMessageBox, QProgressDialog, QWidget
+from PySide6.QtWidgets import QFileDialog, QMessageBox, QWidget
+
+from editor.errors import Cancelled
 
 from .qt_utils import error_text, run_guarded
+from .tasks import Progress, run_task
 
 IMAGE_FILTER = "Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff);;All files (*)"
 VIDEO_FILTER = "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
@@ -95,7 +98,9 @@ class CloneTools:
                                                         str(Path(neutral).parent), IMAGE_FILTER)
             if not expression:
                 return None
-        faps = guarded(w, "Clone from Photo", lambda: estimate_clone_faps(neutral, expression))
+        faps = guarded(w, "Clone from Photo", lambda: run_task(
+            w, "Measuring the performer's expression…",
+            lambda _p: estimate_clone_faps(neutral, expression), title="Clone from Photo"))
         if faps is None:
             return None
         values = {i + 1: float(v) for i, v in enumerate(faps) if i >= 2}
@@ -106,8 +111,9 @@ class CloneTools:
 
     # ------------------------------------------------------------------ track
     def track_video(self, video: str | None = None, output: str | None = None) -> Any:
-        """Ask for a video and a .fap file (unless given), track with a cancellable progress
-        dialog, save, and report the frames without a face. Returns the TrackReport."""
+        """Ask for a video and a .fap file (unless given), track on the thread pool with a
+        cancellable progress dialog, save, and report the frames without a face. Returns the
+        TrackReport."""
         from editor.formats.fapfile import write_fap
         from editor.synthesis.fap_estimate import track_video
 
@@ -122,32 +128,33 @@ class CloneTools:
                                                     "FAP animation (*.fap)")
             if not output:
                 return None
-        dlg = QProgressDialog("Tracking the video…", "Cancel", 0, 100, w)
-        dlg.setWindowTitle("Track Video")
-        dlg.setWindowModality(Qt.WindowModality.WindowModal)
-        dlg.setMinimumDuration(300)
+        cancelled = False
 
-        def progress(done: int, total: int) -> bool:
-            dlg.setMaximum(max(total, 1))
-            dlg.setValue(min(done, max(total, 1)))
-            dlg.setLabelText(f"Tracking frame {done} of {total}…")
-            QCoreApplication.processEvents()
-            return not dlg.wasCanceled()
+        def track(progress: Progress) -> Any:
+            nonlocal cancelled
+
+            def step(done: int, total: int) -> bool:
+                if progress.cancelled:
+                    return False  # track_video stops and reports a cancelled track
+                progress(done, total, f"Tracking frame {done} of {total}…")
+                return True
+
+            seq, rep = track_video(video, progress=step)
+            cancelled = bool(rep.cancelled) or progress.cancelled  # nothing is written then
+            return rep if cancelled else (rep, write_fap(seq, output))
 
         try:
-            seq, rep = track_video(video, progress=progress)
-            if rep.cancelled:
-                w.statusBar().showMessage("Tracking cancelled: nothing saved", 6000)
-                self.last_track = rep
-                return rep
-            path = write_fap(seq, output)
+            got = run_task(w, "Tracking the video…", track, title="Track Video")
+        except Cancelled:
+            got = None
         except Exception as exc:  # noqa: BLE001
             report_error(w, "Track Video", exc)
             return None
-        finally:
-            dlg.reset()
-            dlg.close()
-            dlg.deleteLater()
+        if got is None or cancelled:
+            w.statusBar().showMessage("Tracking cancelled: nothing saved", 6000)
+            self.last_track = got if got is not None else self.last_track
+            return got
+        rep, path = got
         self.last_track = rep
         dropped = (f"{len(rep.missing)} frame(s) without a face were interpolated."
                    if rep.missing else "A face was found in every frame.")

@@ -12,6 +12,7 @@ from PySide6.QtWidgets import (
     QFormLayout,
     QGridLayout,
     QHBoxLayout,
+    QLabel,
     QLineEdit,
     QListWidget,
     QPushButton,
@@ -83,14 +84,35 @@ class NewStudyDialog(QDialog):
                                | QDialogButtonBox.StandardButton.Cancel)
         box.accepted.connect(self.accept)
         box.rejected.connect(self.reject)
+        self.error_label = QLabel()
+        self.error_label.setWordWrap(True)
+        self.error_label.setStyleSheet("color: #b00020; font-weight: bold")
+        self.error_label.hide()
         lay = QVBoxLayout(self)
         lay.addWidget(self.faces)
         lay.addLayout(face_buttons)
         lay.addLayout(grid)
         lay.addWidget(paper)
         lay.addLayout(form)
+        lay.addWidget(self.error_label)
         lay.addWidget(box)
         self.paper_design()
+
+    def accept(self) -> None:
+        """OK: close only when the input is valid; otherwise say why and keep everything
+        entered."""
+        try:
+            self.values()
+        except StudyError as e:
+            self.show_error(str(e))
+            return
+        self.error_label.hide()
+        super().accept()
+
+    def show_error(self, message: str) -> None:
+        """Show ``message`` above the buttons (the dialog stays open with its input)."""
+        self.error_label.setText(message)
+        self.error_label.show()
 
     def paper_design(self) -> None:
         """Check exactly the paper's five expressions at intensity 1.0."""

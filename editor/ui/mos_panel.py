@@ -21,6 +21,7 @@ from .mos_new import NewStudyDialog
 from .mos_rating import RatingWindow, ask_rater
 from .mos_results import ResultsWindow
 from .qt_utils import run_guarded, settings
+from .tasks import Progress, run_task
 
 STUDY_FILTER = "FAP Studio study (*.db);;All files (*)"
 _LAST = "mos/lastStudy"
@@ -38,15 +39,22 @@ class MosPanel(QObject):
         if last and Path(str(last)).is_file():
             self.path = Path(str(last))
         menu = window.menu("&Study")  # type: ignore[attr-defined]
-        self.act_new = self._action(menu, "&New Study from Faces…", self.new_study)
-        self.act_open = self._action(menu, "&Open Study…", self.open_study)
+        self.act_new = self._action(menu, "&New Study from Faces…", self.new_study,
+                                    "Render faces × presets × intensities into a new MOS "
+                                    "rating study")
+        self.act_open = self._action(menu, "&Open Study…", self.open_study,
+                                     "Choose the study to rate or to see the results of")
         menu.addSeparator()
         self.act_rate = self._action(menu, "&Rate…", self.rate)
-        self.act_results = self._action(menu, "Re&sults…", self.results)
+        self.act_results = self._action(menu, "Re&sults…", self.results,
+                                        "Recognition, naturalness, agreement and rater "
+                                        "screening of the study")
         self._update()
 
-    def _action(self, menu: object, text: str, slot: Callable[[], object]) -> QAction:
+    def _action(self, menu: object, text: str, slot: Callable[[], object],
+                tip: str = "") -> QAction:
         a = QAction(text, self.window)
+        a.setStatusTip(tip)
         a.triggered.connect(lambda _=False: slot())
         menu.addAction(a)  # type: ignore[attr-defined]
         return a
@@ -85,23 +93,35 @@ class MosPanel(QObject):
         """Ask for faces × presets × intensities, render them and create the study."""
         photo = self.current_photo()
         dialog = dialog or NewStudyDialog([photo] if photo else [], self.window)
-        if dialog.exec() != NewStudyDialog.DialogCode.Accepted:
-            return None
-        return self.create_study(dialog)
+        # a failure after OK (a photo without a face, an unwritable file) reopens the same
+        # dialog, its input kept
+        while dialog.exec() == NewStudyDialog.DialogCode.Accepted:
+            path = self.create_study(dialog)
+            if path is not None:
+                return path
+        return None
 
     def create_study(self, dialog: NewStudyDialog) -> Path | None:
-        def make() -> Path:
+        """Render the stimuli and write the study off the GUI thread (progress, Cancel)."""
+        got = self.guarded("Cannot create the study", dialog.values)
+        if got is None:
+            return None
+        faces, presets, ks, name, path, every, revise = got  # type: ignore[misc]
+
+        def make(progress: Progress) -> Path:
             from editor.study.stimuli import create_from_renders, render_stimuli
 
-            faces, presets, ks, name, path, every, revise = dialog.values()
-            renders = render_stimuli(faces, presets, ks)
+            renders = render_stimuli(faces, presets, ks, progress=lambda d, t: progress(
+                d, t, f"Rendering the stimuli: {d} of {t}…"))
+            progress.check()
             create_from_renders(path, name, presets, renders, revise, every).close()
             return path
 
-        path = self.guarded("Cannot create the study", make)
-        if isinstance(path, Path) and self.set_study(path):
-            self.window.statusBar().showMessage(f"Created study {path.name}", 5000)
-            return path
+        made = self.guarded("Cannot create the study", lambda: run_task(
+            self.window, f"Creating the study {path.name}…", make, title="New Study"))
+        if isinstance(made, Path) and self.set_study(made):
+            self.window.statusBar().showMessage(f"Created study {made.name}", 5000)
+            return made
         return None
 
     def open_study(self, path: str | None = None) -> bool:

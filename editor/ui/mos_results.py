@@ -35,7 +35,37 @@ from editor.study.stimuli import export_answers_csv
 
 from .plots import BarPlot, ConfusionPlot
 
-SUMMARY_HEADER = ["n", "recog %", "95 % CI", "natural", "95 % CI", ">=3 %", "=5 %"]
+SUMMARY_HEADER = ["n", "recognition %", "95 % CI", "naturalness", "95 % CI", "naturalness ≥ 3 %",
+                  "naturalness = 5 %"]
+SUMMARY_TIPS = ["answers", "share of answers naming the intended expression",
+                "Wilson 95 % interval of the recognition rate",
+                "mean naturalness score on the rating window's scale (1 = very unnatural … "
+                "5 = very realistic)",
+                "t-based 95 % interval of the mean naturalness",
+                "share of naturalness scores of 3 or more", "share of naturalness scores of 5"]
+RATER_HEADER = ["rater", "n", "recognition %", "naturalness", "r with panel", "n shared",
+                "P (above)", "Q (below)", "BT.500 screening"]
+RATER_TIPS = [
+    "rater id", "answers given by this rater",
+    "share of this rater's answers naming the intended expression",
+    "this rater's mean naturalness score (1–5)",
+    "Pearson correlation of this rater's naturalness scores with the mean of the other raters "
+    "on the same stimuli ('-' with fewer than 3 shared stimuli)",
+    "stimuli this rater shares with the other raters (the correlation's basis)",
+    "ITU-R BT.500 screening: scores above the per-stimulus interval of the panel",
+    "ITU-R BT.500 screening: scores below the per-stimulus interval of the panel",
+    "ITU-R BT.500 observer screening outcome: REJECT when too many scores fall outside the "
+    "panel's interval (indicative with fewer than 15 raters)"]
+#: Tab name -> what it holds (its tooltip); the paper's table numbers are named there.
+TAB_TIPS = {
+    "Face × expression": "recognition % / mean naturalness of each face and expression (the "
+                         "paper's Table 4)",
+    "Per stimulus": "every stimulus on its own",
+    "Per expression": "every expression over all faces (the paper's Table 5)",
+    "Per face": "every face over all expressions (the paper's Table 6)",
+    "Overall": "all answers together",
+    "Raters": "agreement of each rater with the others and BT.500 screening",
+}
 
 
 def pct(x: float) -> str:
@@ -52,10 +82,15 @@ def summary_cells(s: Summary) -> list[str]:
             ci(s.naturalness_ci, 1, 2), pct(s.share_ge3), pct(s.share_eq5)]
 
 
-def make_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> QTableWidget:
-    """A read-only table; text columns left, numbers right-aligned."""
+def make_table(header: Sequence[str], rows: Sequence[Sequence[str]],
+               tips: Sequence[str] = ()) -> QTableWidget:
+    """A read-only table; text columns left, numbers right-aligned; ``tips`` explain the
+    columns (header tooltips)."""
     table = QTableWidget(len(rows), len(header))
     table.setHorizontalHeaderLabels(list(header))
+    for j, tip in enumerate(tips):
+        if tip and j < len(header):
+            table.horizontalHeaderItem(j).setToolTip(tip)
     table.verticalHeader().setVisible(False)
     table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
     for i, row in enumerate(rows):
@@ -88,6 +123,8 @@ class ResultsWindow(QWidget):
             b.clicked.connect(slot)
             buttons.addWidget(b)
         buttons.addStretch(1)
+        self.status = QLabel()  # what the last export wrote
+        buttons.addWidget(self.status)
         lay = QVBoxLayout(self)
         lay.addWidget(self.summary_label)
         lay.addWidget(self.tabs, 1)
@@ -116,18 +153,23 @@ class ResultsWindow(QWidget):
             name, n_raters = study.name, len(study.raters())
             qc = qc_summary(rater_qc(study))  # P.808-style QC: excluded raters are not in MOS
         report = analyse(answers, labels, stimuli)
-        title = (f"Study {name!r}: {len(stimuli)} stimuli, {n_raters} raters, "
+        title = (f"Study {name!r}: {len(stimuli)} stimuli, {n_raters} "
+                 f"rater{'s' if n_raters != 1 else ''}, "
                  f"{len(answers)} answers")
         self.setWindowTitle(f"Results – {name}")
         self.report, self.text = report, format_report(report, title)
         k = report.kappa
-        kappa = "-" if math.isnan(k.kappa) else f"{k.kappa:.3f}"
+        if math.isnan(k.kappa) or k.n_subjects == 0:
+            kappa = ("Fleiss' kappa: not available yet, it needs stimuli rated by at least two "
+                     f"raters ({n_raters} rater{'s' if n_raters != 1 else ''} so far)")
+        else:
+            kappa = (f"Fleiss' kappa (labels incl. '{CANNOT_TELL}') {k.kappa:.3f} over "
+                     f"{k.n_subjects} stimuli")
         o = report.overall
         self.summary_label.setText(
             f"<b>{title}</b><br>Overall recognition {pct(o.recognition)} % "
             f"{ci(o.recognition_ci, 100)}, naturalness {nat(o.naturalness)} "
-            f"{ci(o.naturalness_ci, 1, 2)}; Fleiss' kappa (labels incl. '{CANNOT_TELL}') "
-            f"{kappa} over {k.n_subjects} stimuli<br>{html.escape(qc)}")
+            f"{ci(o.naturalness_ci, 1, 2)}; {kappa}<br>{html.escape(qc)}")
         self._fill(report)
 
     def reload_guarded(self) -> None:
@@ -153,20 +195,24 @@ class ResultsWindow(QWidget):
         raters = [[x.rater, str(x.n), pct(x.accuracy), nat(x.mean_naturalness),
                    "-" if math.isnan(x.r_panel) else f"{x.r_panel:.2f}", str(x.n_panel),
                    str(x.p), str(x.q), "REJECT" if x.rejected else "keep"] for x in r.raters]
+        cell_tip = "recognition % / mean naturalness (1–5)"
         self.tables = {
-            "Table 4: face × expression (recog % / natural)": make_table(
-                ["face", *r.labels], t4),
-            "Per stimulus": make_table(["id", "face", "expression", *SUMMARY_HEADER], stim),
-            "Table 5: per expression": make_table(["expression", *SUMMARY_HEADER], expr),
-            "Table 6: per face": make_table(["face", *SUMMARY_HEADER], face),
-            "Overall": make_table(["", *SUMMARY_HEADER], overall),
-            "Raters": make_table(["rater", "n", "recog %", "mean nat", "r panel", "n panel",
-                                  "P", "Q", "BT.500"], raters),
+            "Face × expression": make_table(["face", *r.labels], t4,
+                                            ["face", *[cell_tip] * len(r.labels)]),
+            "Per stimulus": make_table(["id", "face", "expression", *SUMMARY_HEADER], stim,
+                                       ["", "", "", *SUMMARY_TIPS]),
+            "Per expression": make_table(["expression", *SUMMARY_HEADER], expr,
+                                         ["", *SUMMARY_TIPS]),
+            "Per face": make_table(["face", *SUMMARY_HEADER], face, ["", *SUMMARY_TIPS]),
+            "Overall": make_table(["", *SUMMARY_HEADER], overall, ["", *SUMMARY_TIPS]),
+            "Raters": make_table(RATER_HEADER, raters, RATER_TIPS),
         }
         self.tabs.addTab(self.plots, "Plots")
+        self.tabs.setTabToolTip(0, "confusion matrix, recognition and naturalness per "
+                                   "expression with 95 % intervals")
         for name, table in self.tables.items():
-            self.tabs.addTab(table, name.split(":")[0])
-            self.tabs.setTabToolTip(self.tabs.count() - 1, name)
+            self.tabs.addTab(table, name)
+            self.tabs.setTabToolTip(self.tabs.count() - 1, TAB_TIPS[name])
         text = QPlainTextEdit(self.text)
         text.setReadOnly(True)
         text.setStyleSheet("font-family: monospace;")
@@ -192,7 +238,9 @@ class ResultsWindow(QWidget):
             return None
         try:
             with Study.open(self.path) as study:
-                return export_answers_csv(study, path)
+                n = export_answers_csv(study, path)
+            self.status.setText(f"Exported {n} answers to {path}")
+            return n
         except FapStudioError as e:
             QMessageBox.warning(self, "Cannot export the answers", str(e))
             return None
@@ -214,6 +262,7 @@ class ResultsWindow(QWidget):
                 if not image.save(str(tmp), "PNG"):
                     raise FapStudioError(f"{path}: cannot write PNG")
             ok = True
+            self.status.setText(f"Saved the plots to {path}")
         except FapStudioError:
             ok = False
         if not ok:

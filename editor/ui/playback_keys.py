@@ -1,8 +1,11 @@
 """Keyframe authoring: (time, FAP vector) keys taken from the current FAP state.
 
-The widget keeps a list of keys, sorted by time; "Add key" stores the document's low-level FAPs
-at the time in the spin box (the playhead's time while a sequence is loaded), "Remove" drops the
-selected key, and :meth:`KeyframeEditor.build` interpolates them (linear or smoothstep) into a
+The widget shows the document's keys (:class:`~editor.formats.document.Animation`, sorted by
+time) and reports every edit with ``edited(text)``: its owner pushes the new keys, fps and
+interpolation into the document as one undo command and calls :meth:`show_animation` back.
+"Add key" stores the document's low-level FAPs at the time in the spin box (the playhead's
+time while a sequence is loaded), "Remove" drops the selected key, and
+:meth:`KeyframeEditor.build` interpolates them (linear or smoothstep) into a
 :class:`~editor.formats.fapfile.FapSequence` with
 :func:`~editor.formats.expressions.sequence_from_keyframes`.
 """
@@ -22,6 +25,7 @@ from PySide6.QtWidgets import (
 )
 
 from editor.errors import FapStudioError
+from editor.formats.document import Animation
 from editor.formats.expressions import sequence_from_keyframes
 from editor.formats.fapfile import FapSequence
 
@@ -42,10 +46,13 @@ class KeyframeEditor(QGroupBox):
         "Add key" at this time: the owner answers with :meth:`add_key` and the current FAPs.
     buildRequested()
         "Build" was pressed.
+    edited(str)
+        The keys, fps or interpolation were changed by the user (the text names the edit).
     """
 
     addRequested = Signal(float)
     buildRequested = Signal()
+    edited = Signal(str)
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__("Keyframes", parent)
@@ -88,7 +95,23 @@ class KeyframeEditor(QGroupBox):
         self.clear_button.clicked.connect(self.clear)
         self.build_button.clicked.connect(self.buildRequested.emit)
         self.list.currentRowChanged.connect(self._on_row)
+        self.fps.valueChanged.connect(lambda v: self.edited.emit(f"Keyframe rate {v:g} fps"))
+        self.interp.currentTextChanged.connect(
+            lambda t: self.edited.emit(f"Keyframe interpolation {t}"))
         self._refresh()
+
+    def show_animation(self, anim: Animation) -> None:
+        """Show the document's keys, fps and interpolation (no ``edited``)."""
+        self.keys = [(t, np.asarray(v, np.float64)) for t, v in anim.keys]
+        with _blocked(self.fps, self.interp):
+            self.fps.setValue(anim.fps)
+            self.interp.setCurrentText(anim.interpolation)
+        self._refresh()
+
+    def animation(self, base: Animation) -> Animation:
+        """``base`` with the keys, fps and interpolation shown here."""
+        return base.replace(keys=tuple(self.keys), fps=self.fps.value(),
+                            interpolation=self.interp.currentText())
 
     # ------------------------------------------------------------------ keys
     def add_key(self, t: float, vector: np.ndarray) -> None:
@@ -98,22 +121,27 @@ class KeyframeEditor(QGroupBox):
         self.keys.append((t, low_level(vector)))
         self.keys.sort(key=lambda k: k[0])
         self._refresh()
+        self.edited.emit(f"Add key at {t:g} s")
 
     def remove_selected(self) -> None:
         row = self.list.currentRow()
         if 0 <= row < len(self.keys):
-            del self.keys[row]
+            t = self.keys.pop(row)[0]
             self._refresh()
+            self.edited.emit(f"Remove key at {t:g} s")
 
     def clear(self) -> None:
         self.keys = []
         self._refresh()
+        self.edited.emit("Clear keys")
 
     def set_keys(self, keys: list[tuple[float, np.ndarray]]) -> None:
-        self.keys = []
-        for t, v in keys:
-            self.add_key(t, v)
+        with _blocked(self):
+            self.keys = []
+            for t, v in keys:
+                self.add_key(t, v)
         self._refresh()
+        self.edited.emit("Set keys")
 
     def build(self) -> FapSequence:
         """The interpolated sequence; :class:`FapStudioError` with a one-line reason."""
@@ -137,3 +165,9 @@ class KeyframeEditor(QGroupBox):
     def _on_row(self, row: int) -> None:
         if 0 <= row < len(self.keys):
             self.time.setValue(self.keys[row][0])
+
+
+def _blocked(*objects: QWidget):  # noqa: ANN202 -- a context manager
+    from .qt_utils import signals_blocked
+
+    return signals_blocked(*objects)

@@ -6,6 +6,10 @@ the gesture (back to the FAPs from before playback) and **Keep frame** commits i
 entry. The frame shown is the one for the elapsed time of the (injectable) clock
 (:class:`~editor.formats.playhead.Playhead`), so slow rendering drops frames, not drifting; the
 render scheduler is latest-only, so the GUI never queues up frames either.
+
+The sequence and the keyframes live in the document (:class:`~editor.formats.document.Animation`):
+opening a .fap, building from keys and every key edit is one undo command, saved in the project;
+the panel shows whatever the current document holds (undo included).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from PySide6.QtWidgets import (
 )
 
 from editor.errors import FapStudioError
+from editor.formats.document import NO_ANIMATION, Animation
 from editor.formats.fapfile import FapSequence, read_fap, write_fap
 from editor.formats.playhead import Clock, Playhead
 from editor.formats.video import ExportResult, sequence_vectors
@@ -38,8 +43,10 @@ from .document_model import DocumentModel
 from .playback_export import ExportJob
 from .playback_keys import KeyframeEditor, low_level
 from .qt_utils import run_guarded, signals_blocked
+from .tasks import run_task
 
 FAP_FILTER = "MPEG-4 FAP files (*.fap);;All files (*)"
+NO_SEQUENCE = "No sequence. Open a .fap file or build one from keyframes."
 VIDEO_FILTER = "MP4 video (*.mp4);;AVI video (*.avi)"
 
 
@@ -62,9 +69,8 @@ class PlaybackPanel(QWidget):
         super().__init__(parent)
         self.model = model
         self.playhead = Playhead(1, 25.0, clock)
-        self.seq: FapSequence | None = None
         self.vectors: np.ndarray | None = None
-        self.path: str | None = None
+        self._shown_seq: FapSequence | None = None
         self.shown: int | None = None
         self.job: ExportJob | None = None
         self._gesture = False
@@ -72,7 +78,7 @@ class PlaybackPanel(QWidget):
         self.timer.setTimerType(Qt.TimerType.PreciseTimer)
         self.timer.timeout.connect(self.tick)
 
-        self.info = QLabel("No sequence. Open a .fap file or build one from keyframes.")
+        self.info = QLabel(NO_SEQUENCE)
         self.info.setWordWrap(True)
         self.open_button = QPushButton("Open…")
         self.play_button = QPushButton("Play")
@@ -119,11 +125,14 @@ class PlaybackPanel(QWidget):
         self.slider.valueChanged.connect(self.scrub)
         self.keys.addRequested.connect(self._add_key)
         self.keys.buildRequested.connect(self.build_from_keys)
-        self.quick_button.clicked.connect(self.quick_neutral_current_neutral)
+        self.keys.edited.connect(self._keys_edited)
+        # clicked(bool) would pass False as the duration
+        self.quick_button.clicked.connect(lambda: self.quick_neutral_current_neutral())
         self.save_button.clicked.connect(lambda: self.save_file())
         self.video_button.clicked.connect(lambda: self.export("video"))
         self.frames_button.clicked.connect(lambda: self.export("frames"))
         model.loaded.connect(self._on_loaded)
+        model.changed.connect(self._on_changed)
         model.undo_stack.indexChanged.connect(self._on_history)
         app = QCoreApplication.instance()
         if app is not None:
@@ -152,22 +161,80 @@ class PlaybackPanel(QWidget):
         return self._gesture
 
     # ------------------------------------------------------------------ sequence
-    def load_sequence(self, seq: FapSequence, path: str | None = None) -> None:
-        """Make ``seq`` the current sequence (paused at frame 0, shown on the face)."""
+    @property
+    def animation(self) -> Animation:
+        doc = self.model.doc
+        return doc.animation if doc is not None else NO_ANIMATION
+
+    @property
+    def seq(self) -> FapSequence | None:
+        """The document's sequence (opened or built), None when there is none."""
+        return self.animation.sequence
+
+    @property
+    def path(self) -> str | None:
+        return self.animation.source or None
+
+    def _release_playback(self) -> None:
+        """Stop playing and give the model's gesture back (before an undoable change)."""
         self.pause()
-        vectors = sequence_vectors(seq)
-        self.seq, self.vectors, self.path = seq, vectors, path
-        self.playhead.reset(seq.n_frames, seq.fps)
-        self.shown = None
-        with signals_blocked(self.slider):
-            self.slider.setRange(0, seq.n_frames - 1)
-            self.slider.setValue(0)
+        if self._owns_gesture():
+            self.model.abort_gesture()
+        self._gesture = False
+
+    def _set_animation(self, anim: Animation, text: str) -> None:
+        if self.model.doc is None or anim.equals(self.animation):
+            return
+        self._release_playback()
+        self.model.set_animation(anim, text)
+
+    def load_sequence(self, seq: FapSequence, path: str | None = None,
+                      keys: Animation | None = None, text: str = "") -> None:
+        """Make ``seq`` the document's sequence (one undo command; paused at frame 0, shown
+        on the face); ``keys`` also sets the keyframes in the same command."""
+        base = keys if keys is not None else self.animation
         name = Path(path).name if path else seq.name
-        self.info.setText(f"{name}: {seq.n_frames} frames at {seq.fps:g} fps "
-                          f"({seq.duration:.2f} s), {len([n for n in seq.used_faps() if n > 2])}"
-                          " FAPs")
-        self.info.setToolTip(path or "")
-        self.show_frame(0)
+        self._set_animation(base.replace(sequence=seq, source=path or ""),
+                            text or f"Open sequence {name}")
+        if self.seq is seq:
+            self.show_frame(0)
+
+    def _keys_edited(self, text: str) -> None:
+        self._set_animation(self.keys.animation(self.animation), text)
+        self.keys.show_animation(self.animation)  # an edit without a document is undone
+
+    def _on_changed(self, old: object, new: object) -> None:
+        anim = getattr(new, "animation", NO_ANIMATION)
+        if old is None or getattr(old, "animation", None) is not anim:
+            self._sync(anim)
+
+    def _sync(self, anim: Animation) -> None:
+        """Show the document's animation: keys, and the sequence on the timeline."""
+        self.keys.show_animation(anim)
+        seq = anim.sequence
+        if seq is not self._shown_seq:
+            self._shown_seq = seq
+            self.pause()
+            self.shown = None
+            if seq is None:
+                self.vectors = None
+                self.playhead.reset(1, 25.0)
+                with signals_blocked(self.slider):
+                    self.slider.setRange(0, 0)
+                self.frame_label.setText("– / –")
+                self.info.setText(NO_SEQUENCE)
+                self.info.setToolTip("")
+            else:
+                self.vectors = sequence_vectors(seq)
+                self.playhead.reset(seq.n_frames, seq.fps)
+                with signals_blocked(self.slider):
+                    self.slider.setRange(0, seq.n_frames - 1)
+                    self.slider.setValue(0)
+                name = Path(anim.source).name if anim.source else seq.name
+                used = len([n for n in seq.used_faps() if n > 2])
+                self.info.setText(f"{name}: {seq.n_frames} frames at {seq.fps:g} fps "
+                                  f"({seq.duration:.2f} s), {used} FAPs")
+                self.info.setToolTip(anim.source)
         self._update_enabled()
 
     def open_file(self, path: str | None = None) -> bool:
@@ -175,8 +242,12 @@ class PlaybackPanel(QWidget):
             path, _ = QFileDialog.getOpenFileName(self, "Open FAP sequence", "", FAP_FILTER)
             if not path:
                 return False
-        return self.guarded("Open FAP sequence",
-                            lambda: self.load_sequence(read_fap(path), str(path)))
+        def read() -> None:
+            seq = run_task(self, f"Reading {Path(path).name}…", lambda _p: read_fap(path),
+                           title="Open FAP Sequence")
+            self.load_sequence(seq, str(path))
+
+        return self.guarded("Open FAP sequence", read)
 
     def save_file(self, path: str | None = None) -> bool:
         """Write the current sequence (built from the keys if there is none) as .fap."""
@@ -190,21 +261,35 @@ class PlaybackPanel(QWidget):
             if not Path(path).suffix:
                 path += ".fap"
         seq = self.seq
-        return self.guarded("Save FAP sequence", lambda: write_fap(seq, path))
+        ok = self.guarded("Save FAP sequence", lambda: write_fap(seq, path))
+        win = self.window()
+        if ok and hasattr(win, "statusBar"):
+            win.statusBar().showMessage(f"Saved {seq.n_frames} frames to {path}", 8000)
+        return ok
 
     def build_from_keys(self) -> bool:
-        """Interpolate the keyframes into a sequence and load it."""
-        return self.guarded("Build sequence", lambda: self.load_sequence(self.keys.build()))
+        """Interpolate the keyframes into a sequence and load it (one undo command)."""
+        return self.guarded("Build sequence",
+                            lambda: self.load_sequence(self.keys.build(), text="Build sequence"))
 
     def quick_neutral_current_neutral(self, duration: float = 2.0) -> bool:
         """Keys neutral (0 s) → current FAPs (duration/2) → neutral (duration), built and
-        loaded."""
+        loaded as one undo command."""
         doc = self.model.doc
         if doc is None:
             return False
         zero = np.zeros(68)
-        self.keys.set_keys([(0.0, zero), (duration / 2, low_level(doc.faps)), (duration, zero)])
-        return self.build_from_keys()
+        keys = self.animation.replace(keys=((0.0, zero), (duration / 2, low_level(doc.faps)),
+                                            (float(duration), zero)))
+
+        def build() -> None:
+            try:
+                seq = keys.build()
+            except ValueError as e:
+                raise FapStudioError(f"cannot build the sequence: {e}") from None
+            self.load_sequence(seq, keys=keys, text="Neutral → current → neutral")
+
+        return self.guarded("Build sequence", build)
 
     def _add_key(self, t: float) -> None:
         if self.model.doc is not None:
@@ -374,16 +459,22 @@ def install(window) -> PlaybackPanel:
                          "Open an MPEG-4 .fap animation for playback")
     p.act_save = _action(window, "Save FAP Sequence…", p.save_file,
                          tip="Save the sequence (or the keyframes, interpolated) as .fap")
-    p.act_play = _action(window, "Play / Pause", p.toggle_play, "Ctrl+Space")
+    p.act_play = _action(window, "Play / Pause", p.toggle_play, "Ctrl+Space",
+                         "Play the sequence on the face, or pause it")
     p.act_stop = _action(window, "Stop", p.stop, tip="Stop and restore the FAPs")
-    p.act_keep = _action(window, "Keep Frame", p.keep_frame)
+    p.act_keep = _action(window, "Keep Frame", p.keep_frame,
+                         tip="Stop and keep the frame shown as the FAPs (one undo step)")
     p.act_loop = QAction("Loop", window, checkable=True)
+    p.act_loop.setStatusTip("Start the sequence again when it ends")
     p.act_loop.toggled.connect(p.set_loop)
     p.loop_box.toggled.connect(p.act_loop.setChecked)
     p.act_quick = _action(window, "Neutral → Current → Neutral (2 s)",
-                          p.quick_neutral_current_neutral)
-    p.act_video = _action(window, "Export Video…", lambda: p.export("video"))
-    p.act_frames = _action(window, "Export Frames…", lambda: p.export("frames"))
+                          p.quick_neutral_current_neutral,
+                          tip="Build a 2 s sequence from neutral to the current FAPs and back")
+    p.act_video = _action(window, "Export Video…", lambda: p.export("video"),
+                          tip="Render the sequence on the face to an H.264 MP4 (or AVI)")
+    p.act_frames = _action(window, "Export Frames…", lambda: p.export("frames"),
+                           tip="Render the sequence on the face to a folder of PNG frames")
     m.addActions([p.act_open, p.act_save])
     m.addSeparator()
     m.addActions([p.act_play, p.act_stop, p.act_keep, p.act_loop])

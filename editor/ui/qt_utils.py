@@ -10,7 +10,7 @@ from typing import Any
 from PySide6.QtCore import QObject, QSettings, Qt
 from PySide6.QtWidgets import QApplication, QMessageBox, QWidget
 
-from editor.errors import FapStudioError
+from editor.errors import Cancelled, FapStudioError
 
 ORGANIZATION = "FAP Studio"
 APPLICATION = "FAP Studio"
@@ -51,7 +51,8 @@ def run_guarded(parent: QWidget | None, title: str, action: Callable[[], Any], *
                 report: Callable[[str, str], None] | None = None) -> tuple[bool, Any]:
     """Run ``action``; any error becomes a one-line message and the GUI carries on.
 
-    Returns ``(True, result)`` or ``(False, None)``. ``busy`` shows the wait cursor meanwhile;
+    Returns ``(True, result)`` or ``(False, None)`` (also, silently, when the user cancelled:
+    :class:`Cancelled`). ``busy`` shows the wait cursor meanwhile;
     ``report(title, message)`` replaces the warning box (the headless CLI prints instead).
     Unexpected exceptions (bugs) also print their traceback on stderr.
     """
@@ -59,6 +60,8 @@ def run_guarded(parent: QWidget | None, title: str, action: Callable[[], Any], *
         QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
     try:
         return True, action()
+    except Cancelled:
+        return False, None
     except Exception as e:  # a bug must not take the user's work down
         if not isinstance(e, FapStudioError):
             traceback.print_exc()

@@ -30,7 +30,7 @@ def main() -> None:
     from editor.engine.mesh import standard_mesh
     from editor.engine.mouth import load_textures
     from editor.engine.own_expression import default_prior
-    from editor.formats.expressions import shipped_presets
+    from editor.formats.presets import shipped_presets
 
     site = Path(sysconfig.get_paths()["purelib"]).resolve()
     check(Path(editor.__file__).resolve().is_relative_to(site),

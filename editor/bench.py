@@ -153,8 +153,8 @@ def fap_header_bench() -> None:
 
 def facs_bench() -> None:
     from editor.formats.arkit import faps_to_arkit
-    from editor.formats.expressions import apply_preset
     from editor.formats.facs import faps_to_aus
+    from editor.formats.presets import apply_preset
 
     vecs = [apply_preset(e, 1.0) for e in ("joy", "sadness", "anger", "fear", "disgust",
                                            "surprise")]

@@ -22,8 +22,8 @@ import numpy as np
 
 from editor.engine.faps import FAPS
 from editor.formats.arkit import arkit_to_faps, faps_to_arkit
-from editor.formats.expressions import apply_preset, get_preset
 from editor.formats.facs import au_table, aus_to_faps, column_weights, faps_to_aus
+from editor.formats.presets import apply_preset, get_preset
 
 EMOTIONS = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
 #: SPEC §7.4 (EMFACS prototypes)

@@ -9,8 +9,8 @@ import pytest
 from editor.engine.faps import FAPS
 from editor.formats import facs
 from editor.formats.arkit import arkit_table, arkit_to_faps, faps_to_arkit
-from editor.formats.expressions import apply_preset, get_preset
 from editor.formats.facs import au_table, aus_to_faps, column_weights, faps_to_aus
+from editor.formats.presets import apply_preset, get_preset
 
 _AXIS = {"up": (1, -1.0), "down": (1, 1.0), "left": (0, 1.0), "right": (0, -1.0)}
 

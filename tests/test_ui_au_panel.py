@@ -12,9 +12,9 @@ from PySide6.QtCore import QPoint, Qt  # noqa: E402
 from PySide6.QtWidgets import QGroupBox, QStyle, QStyleOptionSlider  # noqa: E402
 
 from editor.core import FAPS  # noqa: E402
-from editor.formats.expressions import apply_preset, get_preset  # noqa: E402
 from editor.formats.facecsv import read_animation  # noqa: E402
 from editor.formats.facs import au_table, aus_to_faps  # noqa: E402
+from editor.formats.presets import apply_preset, get_preset  # noqa: E402
 from editor.ui.main_window import MainWindow  # noqa: E402
 
 pytestmark = [pytest.mark.gui, pytest.mark.usefixtures("isolated_settings")]

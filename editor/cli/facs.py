@@ -53,7 +53,7 @@ def cmd_convert(a: argparse.Namespace) -> int:
     kind_out = _output_kind(a.output, a.to)
     seq, kind_in, notes = read_animation(a.input, fps)
     if kind_in == "fap" and fps is not None and fps != seq.fps:
-        from editor.formats.expressions import expand_high_level
+        from editor.formats.fapfile import expand_high_level
 
         seq = expand_high_level(seq) if seq.has_high_level else seq
         times = np.arange(seq.n_frames) / seq.fps

@@ -89,7 +89,7 @@ class Animation:
 
     def build(self, name: str = "keyframes") -> FapSequence:
         """The keys interpolated into a sequence (ValueError without keys)."""
-        from editor.formats.expressions import sequence_from_keyframes
+        from editor.formats.keyframes import sequence_from_keyframes
 
         return sequence_from_keyframes(list(self.keys), self.fps, self.interpolation, name=name)
 

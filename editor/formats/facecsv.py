@@ -41,9 +41,16 @@ from editor.errors import CsvFormatError, FapFileError
 from editor.safeio import atomic_write_text, read_bounded
 
 from .arkit import arkit_table, arkit_to_faps, faps_to_arkit
-from .expressions import expand_high_level
 from .facs import au_table, aus_to_faps, faps_to_aus
-from .fapfile import MAX_FPS, MAX_FRAMES, FapSequence, fps_text, read_fap, write_fap
+from .fapfile import (
+    MAX_FPS,
+    MAX_FRAMES,
+    FapSequence,
+    expand_high_level,
+    fps_text,
+    read_fap,
+    write_fap,
+)
 
 __all__ = ["AuCapture", "LiveLinkCapture", "detect_kind", "read_animation", "read_au_csv",
            "read_live_link", "write_animation", "write_au_csv", "write_live_link"]

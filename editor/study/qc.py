@@ -199,7 +199,7 @@ def render_qc(faces: Sequence[str | Path], labels: Sequence[str], crop: bool = T
     """
     from editor.engine.face import Face
     from editor.errors import PresetError
-    from editor.formats.expressions import apply_preset, get_preset
+    from editor.formats.presets import apply_preset, get_preset
     from editor.resources import SAMPLE_FACE
     from editor.study.stimuli import encode_png, face_crop
 

@@ -33,9 +33,10 @@ from PySide6.QtWidgets import (
 )
 
 from editor.errors import FapStudioError
-from editor.formats.expressions import EXPRESSIONS, apply_preset, get_preset
+from editor.formats.blends import EXPRESSIONS
 from editor.formats.facecsv import read_animation, write_animation
 from editor.formats.facs import au_table, faps_to_aus
+from editor.formats.presets import apply_preset, get_preset
 
 from .document_model import Document, DocumentModel
 from .qt_utils import run_guarded, signals_blocked

@@ -29,7 +29,7 @@ IMAGE_FILTER = "Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff)"
 
 def expression_presets() -> list[str]:
     """Names of the available expression presets (visemes left out), paper's five first."""
-    from editor.formats.expressions import all_presets
+    from editor.formats.presets import all_presets
 
     names = [n for n, p in all_presets([]).items() if not n.startswith("viseme")
              and getattr(p, "kind", "expression") != "viseme"]

@@ -26,8 +26,8 @@ from PySide6.QtWidgets import (
 
 from editor.errors import FapStudioError
 from editor.formats.document import Animation
-from editor.formats.expressions import sequence_from_keyframes
 from editor.formats.fapfile import FapSequence
+from editor.formats.keyframes import sequence_from_keyframes
 
 
 def low_level(vector: np.ndarray) -> np.ndarray:

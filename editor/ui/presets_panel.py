@@ -31,16 +31,8 @@ from PySide6.QtWidgets import (
 )
 
 from editor.errors import FapStudioError
-from editor.formats.expressions import (
-    EXPRESSIONS,
-    VISEMES,
-    Preset,
-    all_presets,
-    apply_preset,
-    blend_expressions,
-    blend_visemes,
-    save_user_preset,
-)
+from editor.formats.blends import EXPRESSIONS, VISEMES, blend_expressions, blend_visemes
+from editor.formats.presets import Preset, all_presets, apply_preset, save_user_preset
 
 from .document_model import DocumentModel
 from .qt_utils import run_guarded

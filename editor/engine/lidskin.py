@@ -131,11 +131,12 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # the boxes side by side: per column its image x, first row, table row and first frame x
     hmax = max(b[3] - b[1] for b, _, _ in jobs)
     n_tab = max(len(t) for _, t, _ in jobs)
-    table = np.zeros((len(jobs), n_tab, 3), np.float32)
+    # (a 4th, unused channel: OpenCV resamples 4-channel float tables about twice as fast)
+    table = np.zeros((len(jobs), n_tab, 4), np.float32)
     xs, y0s, rows, los = [], [], [], []
     for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
-        table[j, :len(tab)] = tab
-        table[j, len(tab):] = tab[-1]
+        table[j, :len(tab), :3] = tab
+        table[j, len(tab):, :3] = tab[-1]
         w = x1 - x0
         xs.append(np.arange(x0, x1, dtype=np.float64))
         y0s.append(np.full(w, y0, np.float64))
@@ -149,7 +150,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
     ty = np.repeat(np.concatenate(rows)[None, :], hmax, 0)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    ly, inv_hd, kk = cv2.split(got)
+    ly, inv_hd, kk, _ = cv2.split(got)
     ly -= ((xc - org[0]) * R[0, 1] + (y0c - org[1]) * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
     t = ly

@@ -600,9 +600,7 @@ def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
     base[n1:] += h * wd  # the second canvas follows the first
     # corner-major (all top-left weights, then top-right, bottom-left, bottom-right)
     idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    fx, fy = F[:, 0], F[:, 1]
-    wx = np.stack([W * (1 - fx), W * fx])  # (2, n): W (1 - fx), W fx
-    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    ws = _bilinear_weights(F, W)
     acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
@@ -849,9 +847,7 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             (S, Cw), (px0, py0) = got
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f))
-            mx -= np.float32(px0)
-            my -= np.float32(py0)
+            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
             if f > 1:
                 Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
                                cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
@@ -885,10 +881,23 @@ def _splat1(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray) -> np.ndarray
     ip = P0.astype(np.int64)
     base = ip[:, 1] * wd + ip[:, 0]
     idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    fx, fy = F[:, 0], F[:, 1]
-    wx = np.stack([w * (1 - fx), w * fx])
-    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    ws = _bilinear_weights(F, w)
     return np.bincount(idx, ws, minlength=h * wd)[: h * wd].astype(np.float32).reshape(h, wd)
+
+
+def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(4 n,) corner-major bilinear weights of points with fractional parts ``F`` (n, 2) and
+    weights ``w`` (n,): ``(1 - fy) w (1 - fx)``, ``(1 - fy) w fx``, ``fy w (1 - fx)``,
+    ``fy w fx`` (into preallocated rows: ``np.stack`` costs more than the arithmetic)."""
+    n = len(w)
+    fx, fy = F[:, 0], F[:, 1]
+    wx = np.empty((2, n))
+    np.multiply(w, 1 - fx, out=wx[0])
+    np.multiply(w, fx, out=wx[1])
+    ws = np.empty((2, 2, n))
+    np.multiply(1 - fy, wx, out=ws[0])
+    np.multiply(fy, wx, out=ws[1])
+    return ws.ravel()
 
 
 _VALLEY_SAMPLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -923,13 +932,15 @@ def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float =
 
 
 def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
-              box: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """The warp's backward map over ``box`` (identity where the warp did not write)."""
+              box: tuple[int, int, int, int], shift: tuple[int, int] = (0, 0)
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The warp's backward map over ``box`` (identity where the warp did not write), minus
+    ``shift`` (new arrays)."""
     x0, y0, x1, y1 = box
     map_x, map_y, (a0, b0, a1, b1) = maps
     if a0 <= x0 and b0 <= y0 and x1 <= a1 and y1 <= b1:
-        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0].copy(),
-                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0].copy())
+        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[0]),
+                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[1]))
     mx = np.empty((y1 - y0, x1 - x0), np.float32)
     my = np.empty_like(mx)
     mx[:] = np.arange(x0, x1, dtype=np.float32)[None]
@@ -938,6 +949,9 @@ def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
     if c1 > c0 and r1 > r0:
         mx[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_x[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
         my[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_y[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
+    if shift != (0, 0):
+        mx -= np.float32(shift[0])
+        my -= np.float32(shift[1])
     return mx, my
 
 

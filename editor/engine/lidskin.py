@@ -131,8 +131,10 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # the boxes side by side: per column its image x, first row, table row and first frame x
     hmax = max(b[3] - b[1] for b, _, _ in jobs)
     n_tab = max(len(t) for _, t, _ in jobs)
-    # (a 4th, unused channel: OpenCV resamples 4-channel float tables about twice as fast)
-    table = np.zeros((len(jobs), n_tab, 4), np.float32)
+    # (a 4th, unused channel: OpenCV resamples 4-channel float tables about twice as fast;
+    # one more row, a copy of the last, which the rows' exact integer positions weigh by 0:
+    # without it every pixel of the last strip takes OpenCV's slow border path)
+    table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
     xs, y0s, rows, los = [], [], [], []
     for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
         table[j, :len(tab), :3] = tab
@@ -142,6 +144,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         y0s.append(np.full(w, y0, np.float64))
         rows.append(np.full(w, j, np.float32))
         los.append(np.full(w, lo))
+    table[-1] = table[-2]
     xc, y0c, lo_c = np.concatenate(xs), np.concatenate(y0s), np.concatenate(los)
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)

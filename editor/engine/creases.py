@@ -426,6 +426,8 @@ class _Fast:
     seg_b: np.ndarray = field(init=False)  # (M,) seg_a + 1: the last sample of each segment
     ref_l: np.ndarray = field(init=False)  # (G,) luminance of ``skin`` (at least 20)
     skin_shift: list[np.ndarray] = field(init=False)  # per group (3, 4) ``cv2.transform``: - skin
+    # per group (3, 3) ``cv2.transform`` of (light, dark, 1) to the per-channel gain
+    gain_mat: list[np.ndarray] = field(init=False)
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -471,6 +473,11 @@ def _fast(face: Face) -> _Fast:
     f.seg_b = f.seg_a + 1
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     f.skin_shift = [np.hstack([np.eye(3), -x[:, None]]).astype(np.float32) for x in skin]
+    # the blurred line and ridge canvases integrate to their weights: scaled back by the
+    # Gaussians' 1-D integrals (sqrt(2 pi) sigma; the ridge's is 1.6 times wider)
+    k1s, k2s = math.sqrt(2 * math.pi) * sig, math.sqrt(2 * math.pi) * (1.6 * sig)
+    f.gain_mat = [np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32)
+                  for k1, k2 in zip(k1s.tolist(), k2s.tolist(), strict=True)]
     _FAST[face] = f
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
@@ -616,7 +623,6 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     un = unfold_strength(face, vertices, sp)
     if not np.count_nonzero(s > _MIN_STRENGTH) and not np.count_nonzero(un > _MIN_UNFOLD):
         return res
-    p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
@@ -655,8 +661,6 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
                                  np.concatenate([w, w * fa.ridge[g]]), len(pts))
         dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
         light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r), np.float32)
-        k1 = math.sqrt(2 * math.pi) * sig
-        k2 = math.sqrt(2 * math.pi) * sig_r
         view = out[y0:y1, x0:x1]
         patch = view.astype(np.float32)
         # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -669,8 +673,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
         light *= wskin
         dark *= wskin
-        gain = cv2.transform(cv2.merge([light, dark]),
-                             np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32))
+        gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
         cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn

@@ -59,7 +59,6 @@ _SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
 _EYE_FAP_IDX = {k: np.array(v) for k, v in EYE_FAPS.items()}
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 _SQUARE = np.ones((3, 3), np.uint8)
-_ZERO4 = (0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(eq=False)
@@ -198,7 +197,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
 def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
     """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
     OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
-    cv2.add(res, _ZERO4, dst=dst, dtype=cv2.CV_8U)  # (a scalar: no array of zeros to fill)
+    cv2.add(res, np.zeros_like(res), dst=dst, dtype=cv2.CV_8U)
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,

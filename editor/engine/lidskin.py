@@ -136,10 +136,10 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     k = np.where(live, m * ex * Hd / np.maximum(Hs, 1e-6), 0.0)
     tab_all = np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k], 1)
     jobs = []  # per stretched strip: box, table, its first frame x
-    for c, a, b in zip(cand, np.cumsum([0, *n_u[:-1]]).tolist(), np.cumsum(n_u).tolist(),
-                       strict=True):
+    for cd, a, b in zip(cand, np.cumsum([0, *n_u[:-1]]).tolist(), np.cumsum(n_u).tolist(),
+                        strict=True):
         if live[a:b].any():
-            jobs.append((c[0], tab_all[a:b], c[1]))
+            jobs.append((cd[0], tab_all[a:b], cd[1]))
     if not jobs:
         return res
     # the boxes side by side: per column its image x, first row, table row and first frame x

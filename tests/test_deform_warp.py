@@ -226,3 +226,26 @@ def test_closed_loop_detector_sees_the_motion(sample_face_3x):
             _, score, _, loc = cv2.minMaxLoc(r)
             dy = loc[1] - 40.0  # vertical only: along the brow's hair x is ill-posed
             assert score > 0.9 and abs(dy - mesh_motion[1]) < 0.015 * iod, (name, dy, mesh_motion)
+
+
+def test_offset_fold_check_agrees_with_tau(sample_face):
+    """``deform._folds_none`` (the per-frame shortcut of ``_fit_offset``) says "nothing folds"
+    only where ``_tau`` finds every triangle unconstrained, and the random vectors include
+    many where the offset does fold a triangle (then the solve runs)."""
+    from editor.engine.deform import _folds_none, _gaze_lids, _linear, _tau, limit_squeeze
+
+    plan = sample_face.plan
+    V = plan.n_vertices
+    rng = np.random.default_rng(3)
+    folds = shortcut = 0
+    for vec in _random_vectors(400, 7):
+        vec = vec * rng.uniform(0.0, 1.0) ** 2  # from subtle to extreme
+        f = limit_squeeze(plan, _gaze_lids(plan, vec[None].astype(np.float64)))
+        base = _linear(plan, f)[:, :V]
+        off = np.broadcast_to(rng.uniform(0.0, 3.0) * sample_face._offset[:V], base.shape)
+        fast = _folds_none(plan, off, base)
+        full = bool((_tau(plan, off, base) >= 1.0).all())
+        assert not (fast and not full)
+        folds += not full
+        shortcut += fast
+    assert folds >= 40 and shortcut >= 100

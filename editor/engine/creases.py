@@ -429,6 +429,8 @@ class _Fast:
     seg_b: np.ndarray = field(init=False)  # (M,) seg_a + 1: the last sample of each segment
     ref_l: np.ndarray = field(init=False)  # (G,) luminance of ``skin`` (at least 20)
     skin_shift: list[np.ndarray] = field(init=False)  # per group (3, 4) ``cv2.transform``: - skin
+    # per group (3, 3) ``cv2.transform`` of (light, dark, 1) to the per-channel gain
+    gain_mat: list[np.ndarray] = field(init=False)
 
 
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -474,6 +476,11 @@ def _fast(face: Face) -> _Fast:
     f.seg_b = f.seg_a + 1
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     f.skin_shift = [np.hstack([np.eye(3), -x[:, None]]).astype(np.float32) for x in skin]
+    # the blurred line and ridge canvases integrate to their weights: scaled back by the
+    # Gaussians' 1-D integrals (sqrt(2 pi) sigma; the ridge's is 1.6 times wider)
+    k1s, k2s = math.sqrt(2 * math.pi) * sig, math.sqrt(2 * math.pi) * (1.6 * sig)
+    f.gain_mat = [np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32)
+                  for k1, k2 in zip(k1s.tolist(), k2s.tolist(), strict=True)]
     _FAST[face] = f
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
@@ -603,9 +610,7 @@ def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
     base[n1:] += h * wd  # the second canvas follows the first
     # corner-major (all top-left weights, then top-right, bottom-left, bottom-right)
     idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    fx, fy = F[:, 0], F[:, 1]
-    wx = np.stack([W * (1 - fx), W * fx])  # (2, n): W (1 - fx), W fx
-    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    ws = _bilinear_weights(F, W)
     acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
@@ -621,7 +626,6 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     un = unfold_strength(face, vertices, sp)
     if not np.count_nonzero(s > _MIN_STRENGTH) and not np.count_nonzero(un > _MIN_UNFOLD):
         return res
-    p = crease_plan(face)
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
@@ -660,8 +664,6 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
                                  np.concatenate([w, w * fa.ridge[g]]), len(pts))
         dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
         light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r), np.float32)
-        k1 = math.sqrt(2 * math.pi) * sig
-        k2 = math.sqrt(2 * math.pi) * sig_r
         view = out[y0:y1, x0:x1]
         patch = view.astype(np.float32)
         # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -674,8 +676,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
         light *= wskin
         dark *= wskin
-        gain = cv2.transform(cv2.merge([light, dark]),
-                             np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32))
+        gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
         cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
@@ -852,9 +853,7 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
             (S, Cw), (px0, py0) = got
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f))
-            mx -= np.float32(px0)
-            my -= np.float32(py0)
+            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
             if f > 1:
                 Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
                                cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
@@ -864,12 +863,14 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
                 Cw = Cw[:hb, :wb]
             else:
                 Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            # (all four channels at once: numpy is many times slower on a channel view; the
+            # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself)
             S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            C, wsk = Cw[..., :3], Cw[..., 3]
-            band *= wsk
             np.maximum(S, 1.0, out=S)
-            gain = np.divide(C, S, out=S)
-            np.clip(gain, 1.0, 4.0, out=gain)
+            g4 = np.divide(Cw, S, out=S)
+            band *= g4[..., 3]
+            np.clip(g4, 1.0, 4.0, out=g4)
+            gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         gain -= 1.0
         gain *= cv2.merge([band, band, band])
         gain += 1.0
@@ -886,10 +887,23 @@ def _splat1(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray) -> np.ndarray
     ip = P0.astype(np.int64)
     base = ip[:, 1] * wd + ip[:, 0]
     idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    fx, fy = F[:, 0], F[:, 1]
-    wx = np.stack([w * (1 - fx), w * fx])
-    ws = (np.stack([1 - fy, fy])[:, None, :] * wx[None]).ravel()
+    ws = _bilinear_weights(F, w)
     return np.bincount(idx, ws, minlength=h * wd)[: h * wd].astype(np.float32).reshape(h, wd)
+
+
+def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(4 n,) corner-major bilinear weights of points with fractional parts ``F`` (n, 2) and
+    weights ``w`` (n,): ``(1 - fy) w (1 - fx)``, ``(1 - fy) w fx``, ``fy w (1 - fx)``,
+    ``fy w fx`` (into preallocated rows: ``np.stack`` costs more than the arithmetic)."""
+    n = len(w)
+    fx, fy = F[:, 0], F[:, 1]
+    wx = np.empty((2, n))
+    np.multiply(w, 1 - fx, out=wx[0])
+    np.multiply(w, fx, out=wx[1])
+    ws = np.empty((2, 2, n))
+    np.multiply(1 - fy, wx, out=ws[0])
+    np.multiply(fy, wx, out=ws[1])
+    return ws.ravel()
 
 
 _VALLEY_SAMPLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -924,13 +938,15 @@ def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float =
 
 
 def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
-              box: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """The warp's backward map over ``box`` (identity where the warp did not write)."""
+              box: tuple[int, int, int, int], shift: tuple[int, int] = (0, 0)
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The warp's backward map over ``box`` (identity where the warp did not write), minus
+    ``shift`` (new arrays)."""
     x0, y0, x1, y1 = box
     map_x, map_y, (a0, b0, a1, b1) = maps
     if a0 <= x0 and b0 <= y0 and x1 <= a1 and y1 <= b1:
-        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0].copy(),
-                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0].copy())
+        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[0]),
+                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[1]))
     mx = np.empty((y1 - y0, x1 - x0), np.float32)
     my = np.empty_like(mx)
     mx[:] = np.arange(x0, x1, dtype=np.float32)[None]
@@ -939,6 +955,9 @@ def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
     if c1 > c0 and r1 > r0:
         mx[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_x[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
         my[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_y[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
+    if shift != (0, 0):
+        mx -= np.float32(shift[0])
+        my -= np.float32(shift[1])
     return mx, my
 
 
@@ -949,8 +968,10 @@ _GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def _photo_gain(face: Face, g: int
                 ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[int, int]] | None:
     """``((S, Cw), (x0, y0))``: the fields of group ``g``'s own fold on the photo
-    (:func:`_lift_fields`), contiguous float32: ``S`` (h, w, 3) and ``Cw`` (h, w, 4), ``C``
-    with the skin weight, over the box at ``(x0, y0)`` (cached per face; None: no own fold)."""
+    (:func:`_lift_fields`), contiguous float32: ``S`` (h, w, 4), its 4th channel zero, and
+    ``Cw`` (h, w, 4), ``C`` with the skin weight, over the box at ``(x0, y0)`` (cached per
+    face; None: no own fold). (Four channels: OpenCV resamples a 4-channel float image about
+    twice as fast as a 3-channel one, with the same values per channel.)"""
     cache = _GAIN.setdefault(face, {})
     if g not in cache:
         got = _photo_lift(face, g)
@@ -958,8 +979,9 @@ def _photo_gain(face: Face, g: int
             cache[g] = None
         else:
             (S, c4), org = got
-            cache[g] = ((np.ascontiguousarray(S, np.float32), np.ascontiguousarray(c4, np.float32)),
-                        org)
+            S4 = np.zeros(S.shape[:2] + (4,), np.float32)
+            S4[..., :3] = S
+            cache[g] = ((S4, np.ascontiguousarray(c4, np.float32)), org)
     return cache[g]
 
 

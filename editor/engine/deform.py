@@ -388,6 +388,38 @@ def _tau(plan: DeformPlan, D: np.ndarray, base: np.ndarray | None = None) -> np.
     return np.where(first <= 1.0, first * 0.999, 1.0)
 
 
+def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
+    """True when :func:`_tau` of ``D`` from ``base`` is 1 for every triangle, decided with a
+    margin (False near the limit: then the caller solves for tau).
+
+    A triangle's area along ``base + t D`` is ``a0 + a1 t + a2 t^2`` (above the limit at
+    ``t = 0``); it stays above the limit on [0, 1] when it is above it at ``t = 1`` and, for a
+    convex parabola whose vertex lies inside (0, 1), at the vertex. Triangles at or below the
+    limit at ``t = 0`` are left to the guard, as in :func:`_tau`.
+    """
+    t0, t1, t2 = _tri_columns(plan)
+    X = np.concatenate([base, D], axis=2)  # (B, V, 4)
+    XC = X[:, t2]
+    u = XC - X[:, t0]
+    w = XC - X[:, t1]
+    ux, uy, dux, duy = u[..., 0], u[..., 1], u[..., 2], u[..., 3]
+    wx, wy, dwx, dwy = w[..., 0], w[..., 1], w[..., 2], w[..., 3]
+    c0 = plan.neutral_sigma[None, :]
+    sg = np.sign(c0)
+    lim = EPS_SOLVE * np.abs(c0)
+    a2 = sg * (dux * dwy - duy * dwx)
+    a1 = sg * (ux * dwy - uy * dwx + dux * wy - duy * wx)
+    a0 = sg * (ux * wy - uy * wx) - lim
+    tol = 1e-7 * np.abs(c0) + 1e-9
+    p1 = a0 + a1 + a2
+    # the parabola's minimum inside (0, 1) (convex, vertex -a1 / (2 a2) there): a0 - a1^2/(4 a2)
+    inner = (a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        low = np.where(inner, a0 - a1 * a1 / (4.0 * a2), np.inf)
+    ok = (a0 <= 0) | ((p1 > tol) & (low > tol))
+    return bool(ok.all())
+
+
 def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int = 8
                 ) -> np.ndarray:
     """The offset (B, N, 2) scaled per vertex so that it folds no triangle the FAP motion
@@ -404,6 +436,8 @@ def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int
     V = plan.n_vertices
     D = off[:, :V]
     base = base[:, :V]
+    if _folds_none(plan, D, base):  # the common case, decided without solving for tau
+        return off
     pairs = plan.pairs
     scaled = False
     for _ in range(rounds):

@@ -187,7 +187,10 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
         return
     patch = out[y0:y1, x0:x1]
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE)
-    res = patch + w[..., None] * (opened.astype(np.float32) - patch)
+    res = opened.astype(np.float32)
+    res -= patch
+    res *= cv2.merge([w, w, w])
+    res += patch
     _to_uint8(res, out[y0:y1, x0:x1])
 
 
@@ -216,7 +219,7 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
         fill = hole & (den > 0.5)
         np.maximum(den, 1e-6, out=den)
         num /= cv2.merge([den, den, den])
-        face[fill] = num[fill]
+        cv2.copyTo(num, fill.view(np.uint8), face)  # face[fill] = num[fill], in place
     res = interior - face  # alpha * interior + (1 - alpha) * face
     res *= cv2.merge([alpha, alpha, alpha])
     res += face
@@ -517,8 +520,9 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     else:
         k = 2 * dilate * ss + 1
         big = cv2.dilate(big, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA)
-    return np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)
+    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)
+    small *= np.float32(1.0 / 255.0)
+    return small
 
 
 def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],

@@ -92,7 +92,10 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     img = res.image
     H, W = img.shape[:2]
     R, org = fr.rot, fr.origin
-    jobs = []  # per stretched strip: box, table, its first frame x
+    # per strip that spans enough: its box, first frame x, the frame x of its table (u), the
+    # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
+    # table is computed for both strips at once (one array of their u's)
+    cand = []
     for st in _strips(face):
         L, B = V[st.lid], V[st.brow]
         x_lo = max(L[0, 0], B[0, 0])
@@ -113,34 +116,49 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         # the table along the frame's x over the box: lid line, 1 / Hd, k (from the strip's
         # height now and in the photo)
         u = lo + _STEP * np.arange(int(np.ceil((float(bx.max()) - lo) / _STEP)) + 2)
-        lid_y = np.interp(u, L[:, 0], L[:, 1])
-        Hd = lid_y - np.interp(u, B[:, 0], B[:, 1])
-        Hs = np.interp(u, L[:, 0], st.lid_s[:, 1]) - np.interp(u, B[:, 0], st.brow_s[:, 1])
-        ex = Hd - Hs
-        fade = (_smooth01((u - x_lo) / (END_FADE * (x_hi - x_lo)))
-                * _smooth01((x_hi - u) / (END_FADE * (x_hi - x_lo))))
-        m = fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
-        live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m > 0)
-        if not live.any():
-            continue
-        k = np.where(live, m * ex * Hd / np.maximum(Hs, 1e-6), 0.0)
-        jobs.append(((x0, y0, x1, y1), np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k], 1),
-                     lo))
+        lines = (np.interp(u, L[:, 0], L[:, 1]), np.interp(u, B[:, 0], B[:, 1]),
+                 np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]))
+        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines))
+    if not cand:
+        return res
+    n_u = [len(c[2]) for c in cand]
+    u = np.concatenate([c[2] for c in cand])
+    lid_y, brow_y, lid_s, brow_s = (np.concatenate([c[5][i] for c in cand]) for i in range(4))
+    x_lo = np.repeat([c[3] for c in cand], n_u)
+    x_hi = np.repeat([c[4] for c in cand], n_u)
+    Hd = lid_y - brow_y
+    Hs = lid_s - brow_s
+    ex = Hd - Hs
+    fade = (_smooth01((u - x_lo) / (END_FADE * (x_hi - x_lo)))
+            * _smooth01((x_hi - u) / (END_FADE * (x_hi - x_lo))))
+    m = fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
+    live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m > 0)
+    k = np.where(live, m * ex * Hd / np.maximum(Hs, 1e-6), 0.0)
+    tab_all = np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k], 1)
+    jobs = []  # per stretched strip: box, table, its first frame x
+    for cd, a, b in zip(cand, np.cumsum([0, *n_u[:-1]]).tolist(), np.cumsum(n_u).tolist(),
+                        strict=True):
+        if live[a:b].any():
+            jobs.append((cd[0], tab_all[a:b], cd[1]))
     if not jobs:
         return res
     # the boxes side by side: per column its image x, first row, table row and first frame x
     hmax = max(b[3] - b[1] for b, _, _ in jobs)
     n_tab = max(len(t) for _, t, _ in jobs)
-    table = np.zeros((len(jobs), n_tab, 3), np.float32)
+    # (a 4th, unused channel: OpenCV resamples 4-channel float tables about twice as fast;
+    # one more row, a copy of the last, which the rows' exact integer positions weigh by 0:
+    # without it every pixel of the last strip takes OpenCV's slow border path)
+    table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
     xs, y0s, rows, los = [], [], [], []
     for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
-        table[j, :len(tab)] = tab
-        table[j, len(tab):] = tab[-1]
+        table[j, :len(tab), :3] = tab
+        table[j, len(tab):, :3] = tab[-1]
         w = x1 - x0
         xs.append(np.arange(x0, x1, dtype=np.float64))
         y0s.append(np.full(w, y0, np.float64))
         rows.append(np.full(w, j, np.float32))
         los.append(np.full(w, lo))
+    table[-1] = table[-2]
     xc, y0c, lo_c = np.concatenate(xs), np.concatenate(y0s), np.concatenate(los)
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)
@@ -149,7 +167,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
     ty = np.repeat(np.concatenate(rows)[None, :], hmax, 0)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    ly, inv_hd, kk = cv2.split(got)
+    ly, inv_hd, kk, _ = cv2.split(got)
     ly -= ((xc - org[0]) * R[0, 1] + (y0c - org[1]) * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
     t = ly

@@ -20,6 +20,10 @@ from .qt_utils import settings
 KEY = "landmarks/detector"
 LABELS = {"mediapipe": "&MediaPipe Face Mesh (default, Apache-2.0)",
           "dlib": "&dlib 68 Points (optional extra, non-commercial model)"}
+TIPS = {"mediapipe": "Find landmarks with MediaPipe's face mesh and iris models (shipped, "
+                     "Apache-2.0; used for the next photo you open)",
+        "dlib": "Find landmarks with dlib's 68-point model (optional extra; its iBUG 300-W "
+                "training data exclude commercial use; used for the next photo you open)"}
 
 
 class DetectorMenu:
@@ -34,9 +38,11 @@ class DetectorMenu:
         for name in landmarks.DETECTOR_NAMES:
             act = QAction(LABELS[name], window)
             act.setCheckable(True)
+            act.setStatusTip(TIPS[name])
             if name == "dlib" and not landmarks.dlib_available():
                 act.setEnabled(False)
                 act.setToolTip("not installed: pip install 'fap-studio[dlib]'")
+                act.setStatusTip("dlib is not installed: pip install 'fap-studio[dlib]'")
             act.triggered.connect(lambda _=False, n=name: self.choose(n))
             self.group.addAction(act)
             menu.addAction(act)

@@ -28,3 +28,15 @@ def test_headless_screenshot_and_clear_error_without_display(tmp_path):
                        text=True, timeout=60)
     assert r.returncode == 2
     assert r.stderr.startswith("fap-studio: error: no display")
+
+
+def test_a_missing_photo_or_project_is_named_before_the_window(cli, monkeypatch, tmp_path):
+    """``fap-studio nothing.jpg`` says the file is missing (not "no display"), one line, exit 2."""
+    monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    for args in ([tmp_path / "nothing.jpg"], ["gui", "--project", tmp_path / "x.fapproj"]):
+        r = cli(*args)
+        assert r.returncode == 2
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "no such file" in lines[0], r.stderr

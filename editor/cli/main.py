@@ -171,6 +171,9 @@ def _ensure_display(headless_ok: bool) -> None:
 
 
 def cmd_gui(a: argparse.Namespace) -> int:
+    for path in (a.photo, getattr(a, "project", None)):  # a missing file is named before Qt starts
+        if path and not Path(path).exists():
+            raise FapStudioError(f"{path}: no such file")
     _ensure_display(headless_ok=bool(a.screenshot))
     try:
         from editor.ui.app import run

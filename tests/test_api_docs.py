@@ -17,9 +17,8 @@ import editor.core
 CORE_PACKAGES = ("editor.engine", "editor.formats", "editor.study", "editor.synthesis",
                  "editor.core")
 #: Documented (with examples) in the editor.core module docstring instead of their own:
-#: constants have no docstring of their own, and landmarks.py is being rewritten in
-#: parallel (its new detector brings the docstrings).
-IN_MODULE_DOC = {"FAPS", "MAX_PIXELS", "Landmarks", "LandmarkDetector", "detect_landmarks"}
+#: constants have no docstring of their own.
+IN_MODULE_DOC = {"FAPS", "MAX_PIXELS"}
 #: Face methods a script uses besides the class itself.
 FACE_METHODS = ("from_image", "deform", "render")
 
@@ -61,6 +60,9 @@ def test_public_name_has_numpydoc_sections_and_an_example(name, obj):
     if inspect.isclass(obj) and issubclass(obj, Exception):
         return  # an error's example shows where it is raised
     target = inspect.unwrap(obj)  # standard_mesh is cached
+    if getattr(target, "_is_protocol", False):  # an interface: what implementations provide
+        assert "Attributes" in sections, f"{name}: no Attributes section"
+        return
     params = [p for p in inspect.signature(target).parameters if p not in ("self", "cls")]
     if params:  # a dataclass documents its fields (= its parameters) as Attributes
         fields = "Attributes" if hasattr(target, "__dataclass_fields__") else "Parameters"

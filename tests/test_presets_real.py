@@ -1,7 +1,13 @@
 """The emotion presets move the feature points as real people do (JAFFE, issue item 5).
 
-JAFFE is read at test time from ../shared/data/jaffe (skipped when absent); the landmark
-detections are cached in the system temp directory (first run ~10 s, then ~1 s).
+The real motion is dlib's (the instrument the presets were derived with, issue 14): measured
+live from ../shared/data/jaffe when the dlib extra is installed (landmark detections cached in
+the system temp directory; first run ~10 s, then ~1 s), and then
+:func:`test_frozen_summary_matches_dlib` fails when ``tests/data/jaffe_motion_dlib.json`` is
+stale; without dlib (CI) that frozen summary (``scripts/freeze_jaffe_motion.py``: summary numbers
+only, no JAFFE images or landmarks) stands in. The meshes the presets are applied to are the ten
+women's first neutral photos fitted by the default detector (they only give mesh and FAPU), so
+those tests are skipped only when JAFFE is absent.
 
 Band rule: with 29-32 photos per emotion, a preset at 100 % must move every measured feature
 point (FAP-equivalent motion, median over the ten women's meshes) inside the real p10..p90
@@ -12,6 +18,7 @@ inside the real min..max (strong, still human).
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -19,59 +26,100 @@ import numpy as np
 import pytest
 from conftest import JAFFE, ROOT
 
+from editor.engine.face import Face
 from editor.engine.faps import FAPS
 from editor.engine.landmarks import dlib_available
 from editor.formats.presets import apply_preset, shipped_presets
 from editor.synthesis import jaffe_stats as js
 
 EMOTIONS = ("joy", "sadness", "surprise", "anger", "fear", "disgust")
+#: dlib's JAFFE motion summary, frozen by scripts/freeze_jaffe_motion.py
+FROZEN = ROOT / "tests" / "data" / "jaffe_motion_dlib.json"
+
+
+def _have_jaffe() -> bool:
+    return (JAFFE / "images").is_dir()
+
+
+def _live_dlib() -> bool:
+    return _have_jaffe() and dlib_available()
+
+
+needs_live_dlib = pytest.mark.skipif(
+    not _live_dlib(), reason="needs dlib (pip install '.[dlib]') and ../shared/data/jaffe")
 
 
 @pytest.fixture(scope="module")
-def real() -> js.JaffeMotion:
-    if not (JAFFE / "images").is_dir():
+def live() -> js.MotionSummary:
+    """dlib's summary measured now (only with dlib and JAFFE)."""
+    if not _live_dlib():
+        pytest.skip("needs dlib (pip install '.[dlib]') and ../shared/data/jaffe")
+    return js.MotionSummary.of(js.measure(JAFFE))
+
+
+@pytest.fixture(scope="module")
+def real(request) -> js.MotionSummary:
+    """dlib's JAFFE motion summary: live with dlib, else the frozen copy (CI)."""
+    if _live_dlib():
+        return request.getfixturevalue("live")
+    return js.MotionSummary.load(FROZEN)
+
+
+@pytest.fixture(scope="module")
+def faces() -> dict[str, Face]:
+    """The women's meshes (first neutral photo, default detector): mesh and FAPU only."""
+    if not _have_jaffe():
         pytest.skip("../shared/data/jaffe is not available")
-    if not dlib_available():  # the presets were derived from dlib's JAFFE landmarks (issue 14)
-        pytest.skip("the real-motion bands are dlib's (pip install '.[dlib]')")
-    return js.measure(JAFFE)
+    return js.neutral_faces(JAFFE)
 
 
 @pytest.fixture(scope="module")
-def preset_motion(real):
+def preset_motion(faces):
     """emotion, intensity -> (len(MEASURED),) motion, median over the women's meshes."""
     cache: dict = {}
 
     def run(emotion: str, k: float = 1.0) -> np.ndarray:
         if (emotion, k) not in cache:
             vec = apply_preset(emotion, k)
-            cache[emotion, k] = np.median([js.preset_motion(f, vec)
-                                           for f in real.faces.values()], 0)
+            cache[emotion, k] = np.median([js.preset_motion(f, vec) for f in faces.values()], 0)
         return cache[emotion, k]
 
     return run
 
 
-def pd_motion(real: js.JaffeMotion, n: int, values: np.ndarray, people: list[str]) -> np.ndarray:
-    """FAP-equivalent values of FAP ``n`` -> pupil distances, per person."""
-    unit = js.fap_axis(n)[3]
-    out = []
-    for v, who in zip(values, people, strict=True):
-        f = real.faces[who]
-        il, ir = f.landmarks.iris_left, f.landmarks.iris_right
-        out.append(v * f.fapu[unit] / np.hypot(il.cx - ir.cx, il.cy - ir.cy))
-    return np.array(out)
+def test_frozen_summary_matches_dlib(live):
+    """The frozen copy CI uses is dlib's current measurement (else: re-run
+    scripts/freeze_jaffe_motion.py)."""
+    frozen = js.MotionSummary.load(FROZEN)
+    assert frozen.detector == "dlib" and frozen.faps == js.MEASURED
+    bad = frozen.differences(live)
+    assert not bad, "\n".join(bad[:20])
+
+
+def test_frozen_summary_holds_no_photo_data():
+    """Only summary numbers: no image names, landmarks or per-photo arrays."""
+    raw = json.loads(FROZEN.read_text(encoding="utf-8"))
+    assert ".tiff" not in json.dumps(raw)
+    assert set(raw) == {"about", "detector", "faps", "noise_p90", "n_neutral", "joy_lips",
+                        "emotions"}
+    assert set(raw["joy_lips"]) == {"n_closed", "n_open", "closed_max", "open_min", "median"}
+    assert set(raw["emotions"]) == set(EMOTIONS)
+    for st in raw["emotions"].values():
+        assert set(st) == set(js.STAT_KEYS)
+        assert all(len(v) == len(raw["faps"]) for v in st.values())
 
 
 def test_measurement_is_above_its_noise_floor(real):
     """Neutral vs neutral is the noise; a smile's corner lift and an open surprise jaw are
     far above it (else the table would be measuring detector jitter)."""
     i = {n: k for k, n in enumerate(real.faps)}
-    noise = np.percentile(np.abs(real.values("neutral")), 90, 0)
+    noise = real.noise_p90
     joy, sur = real.stats("joy"), real.stats("surprise")
     for n in (59, 60):
         assert joy["median"][i[n]] > 2.5 * noise[i[n]]
     assert sur["median"][i[3]] > 4 * noise[i[3]] and sur["median"][i[52]] < -4 * noise[i[52]]
-    assert {len(real.values(e)) for e in EMOTIONS} <= set(range(25, 40))
+    assert {int(real.stats(e)["n"][0]) for e in EMOTIONS} <= set(range(25, 40))
+    assert real.n_neutral >= 20
 
 
 @pytest.mark.parametrize("emotion", EMOTIONS)
@@ -92,16 +140,12 @@ def test_preset_inside_the_real_band(real, preset_motion, emotion):
     assert not bad, "\n".join(bad)
 
 
-def test_joy_lifts_the_corners_like_a_real_smile(real, preset_motion):
-    people = list(real.faces)
+def test_joy_lifts_the_corners_like_a_real_smile(real, faces, preset_motion):
     i = {n: k for k, n in enumerate(real.faps)}
     for n in (59, 60):  # outer corners, pupil distances
-        vals = [s.values[i[n]] for s in real.samples if s.emotion == "joy"]
-        who = [s.person for s in real.samples if s.emotion == "joy"]
-        real_pd = np.median(pd_motion(real, n, np.array(vals), who))
-        mine = np.median([js.preset_motion(real.faces[p], apply_preset("joy"))[i[n]]
-                          for p in people])
-        mine_pd = np.median(pd_motion(real, n, np.full(len(people), mine), people))
+        real_pd = real.stats("joy")["median_pd"][i[n]]  # per photo in her own PD, median
+        mine = preset_motion("joy")[i[n]]
+        mine_pd = np.median([js.to_pupil_distances(f, n, mine) for f in faces.values()])
         assert 0.09 <= real_pd <= 0.13  # the measurement: smiles lift the corners ~0.11 PD
         assert 0.09 <= mine_pd <= 0.13 and abs(mine_pd - real_pd) < 0.02
 
@@ -110,21 +154,17 @@ def test_joy_parts_the_lips_like_a_real_open_smile(real, preset_motion):
     # JAFFE smiles are closed or open, nothing in between: the inner lips' opening change
     # (2.3 - 2.2, MNS) is at most 175 or at least 331, median 332; joy parts them by that
     # median (main before: 215, a slit between the two that rendered as a dark line)
-    i = {n: k for k, n in enumerate(real.faps)}
-    gaps = np.array([-s.values[i[5]] - s.values[i[4]] for s in real.samples
-                     if s.emotion == "joy"])
-    closed, opened = gaps[gaps < 250], gaps[gaps >= 250]
-    assert len(closed) >= 10 and len(opened) >= 10 and closed.max() < opened.min() - 100
-    m = preset_motion("joy")
-    mine = -m[i[5]] - m[i[4]]
-    assert abs(mine - np.median(gaps)) < 25 and mine > opened.min() - 25, (mine, gaps)
+    lips = real.joy_lips  # split at js.LIP_OPEN_SPLIT = 250
+    assert lips["n_closed"] >= 10 and lips["n_open"] >= 10
+    assert lips["closed_max"] < lips["open_min"] - 100
+    mine = float(js.lip_opening(preset_motion("joy"), real.faps))
+    assert abs(mine - lips["median"]) < 25 and mine > lips["open_min"] - 25, (mine, lips)
 
 
-def test_anger_brows_down_and_barely_together(real, preset_motion):
-    people = list(real.faces)
+def test_anger_brows_down_and_barely_together(real, faces, preset_motion):
     i = {n: k for k, n in enumerate(real.faps)}
     m = preset_motion("anger")
-    squeeze_pd = pd_motion(real, 37, np.full(len(people), m[i[37]]), people)
+    squeeze_pd = np.array([js.to_pupil_distances(f, 37, m[i[37]]) for f in faces.values()])
     assert (squeeze_pd > 0.005).all() and (squeeze_pd < 0.05).all()  # real: ~0.02, max ~0.09
     assert m[i[35]] < 0 and m[i[36]] < 0  # outer brows lowered, not raised
     assert m[i[31]] < -50 and m[i[33]] < -50  # inner/middle brows clearly down (AU4)
@@ -162,7 +202,10 @@ def test_every_preset_value_has_a_source():
             assert f"{FAPS.number(name)}" in p.source, (e, name)
 
 
-def test_preset_files_match_the_derivation(real):
+@pytest.mark.skipif(not _live_dlib(), reason="derive_presets.py --check re-derives the presets "
+                    "from dlib's per-photo JAFFE landmarks, which no summary can stand in for "
+                    "(needs dlib and ../shared/data/jaffe)")
+def test_preset_files_match_the_derivation():
     r = subprocess.run([sys.executable, str(ROOT / "scripts" / "derive_presets.py"), "--check",
                         "--jaffe", str(JAFFE), "--table", "/dev/null"],
                        capture_output=True, text=True, timeout=300)
@@ -177,15 +220,17 @@ def _inner_gaps(face, vec) -> np.ndarray:
                      for k in range(1, 8)])
 
 
-def test_viseme_pbm_closes_the_lips_over_the_whole_width(real, sample_neutral, sample_face):
+def test_viseme_pbm_closes_the_lips_over_the_whole_width(faces, sample_neutral, sample_face):
     closed = 0
-    for face in real.faces.values():
+    for face in faces.values():
         g0 = _inner_gaps(face, None)
         if g0.max() / face.fapu["MNS"] > 80:  # parted lips in the photo: needs neutralisation
             continue
         closed += 1
         assert _inner_gaps(face, apply_preset("viseme_pbm")).max() < 0.05, face.source
-    assert closed >= 8
+    # 8 of the 10 neutral photos have closed lips by dlib's reading, 7 by MediaPipe's (it reads
+    # MK's neutral lips 270 MNS apart where dlib reads them closed)
+    assert closed >= 7
     # the sample declared neutral smiles with teeth (~540 MNS): pbm narrows the gap but cannot
     # close it alone; opened as the product does (its smile neutralised) pbm keeps it closed
     g0 = _inner_gaps(sample_neutral, None)
@@ -195,8 +240,8 @@ def test_viseme_pbm_closes_the_lips_over_the_whole_width(real, sample_neutral, s
     assert _inner_gaps(sample_face, apply_preset("viseme_pbm")).max() < 0.3
 
 
-def test_viseme_u_rounds_the_lips(real):
-    for face in list(real.faces.values())[:4]:
+def test_viseme_u_rounds_the_lips(faces):
+    for face in list(faces.values())[:4]:
         n = face.mesh.names
         v0, v1 = face.deform(None), face.deform(apply_preset("viseme_u"))
         w0, w1 = (np.linalg.norm(v[n.index("lipo_c0")] - v[n.index("lipo_c1")]) for v in (v0, v1))

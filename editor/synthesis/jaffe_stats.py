@@ -17,11 +17,19 @@ The landmarks come from :data:`DETECTOR` (dlib's 68 points, the optional extra),
 the shipped emotion presets were derived with (issue 14): MediaPipe's mesh, the default
 detector, follows the brows' and lids' expression motion less (JAFFE squeeze_eyebrow p10..p90
 -3..12 FAPU against dlib's -6..20 and more), so the bands are only comparable with dlib's.
+
+:class:`MotionSummary` is the summary of a measurement the preset tests use (per emotion and FAP:
+median, p10, p90, min, max, count, median in pupil distances; the neutral noise; the joy lip
+opening). ``scripts/freeze_jaffe_motion.py`` freezes dlib's into ``tests/data`` (summary numbers
+only) so that the tests keep their real-motion bands where dlib is not installed.
+:func:`neutral_faces` fits the women's meshes with any detector (the meshes presets are applied
+to only need a mesh and FAPU, not dlib's motion reading).
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +43,7 @@ from editor.engine.landmarks import (
     FDP_FROM_68,
     Iris,
     Landmarks,
+    default_detector,
     detect_landmarks,
     get_detector,
 )
@@ -183,3 +192,124 @@ def preset_motion(face, faps: np.ndarray, fap_list: tuple[int, ...] = MEASURED) 
     p1 = face.deform(faps).astype(np.float64)
     d = (p1 - p0) @ face.frame.rot
     return fap_motion({k: d[i] for k, i in face.fdp.items()}, face.fapu, fap_list)
+
+
+def neutral_faces(root: str | Path | None = None, detector: str | None = None) -> dict[str, Face]:
+    """person -> :class:`Face` of her first neutral JAFFE photo in which ``detector`` (default:
+    the session's default detector) finds the face; not cached (ten detections)."""
+    images = Path(root or default_root()) / "images"
+    det = get_detector(detector) if detector else default_detector()
+    out: dict[str, Face] = {}
+    for p in sorted(images.glob("*.NE*.tiff")):
+        who = p.name.split(".")[0]
+        if who in out:
+            continue
+        rgb = load_image(p)
+        try:
+            lm = detect_landmarks(rgb, det)
+        except FapStudioError:  # a missed face: try her next neutral photo
+            continue
+        out[who] = Face.from_landmarks(rgb, lm, source=str(p))
+    if not out:
+        raise FileNotFoundError(f"{images}: no JAFFE neutral images with a detectable face")
+    return out
+
+
+def pupil_distance(face: Face) -> float:
+    """Distance between the iris centres (pixels)."""
+    il, ir = face.landmarks.iris_left, face.landmarks.iris_right
+    return float(np.hypot(il.cx - ir.cx, il.cy - ir.cy))
+
+
+def to_pupil_distances(face: Face, n: int, value: float | np.ndarray) -> float | np.ndarray:
+    """FAP-equivalent value(s) of FAP ``n`` on ``face`` -> pupil distances."""
+    return value * face.fapu[fap_axis(n)[3]] / pupil_distance(face)
+
+
+#: Statistic names of :meth:`MotionSummary.stats` (arrays over the FAPs).
+STAT_KEYS = ("median", "p10", "p90", "min", "max", "n", "median_pd")
+#: JAFFE smiles are closed or open: inner-lip opening changes (MNS) below this are "closed".
+LIP_OPEN_SPLIT = 250.0
+
+
+def lip_opening(values: np.ndarray, faps: tuple[int, ...] = MEASURED) -> np.ndarray:
+    """Inner lips' opening change (2.3 - 2.2, MNS) of FAP-equivalent rows (..., len(faps))."""
+    i = {n: k for k, n in enumerate(faps)}
+    return np.asarray(-values[..., i[5]] - values[..., i[4]])
+
+
+@dataclass
+class MotionSummary:
+    """The summary numbers of a :class:`JaffeMotion` the preset tests use (no per-photo data)."""
+
+    detector: str
+    faps: tuple[int, ...]
+    emotions: dict[str, dict[str, np.ndarray]]  # emotion -> STAT_KEYS -> (len(faps),)
+    noise_p90: np.ndarray  # (len(faps),) p90 of |neutral vs her other neutrals|
+    n_neutral: int
+    joy_lips: dict[str, float]  # joy lip opening: n_closed, n_open, closed_max, open_min, median
+
+    @classmethod
+    def of(cls, m: JaffeMotion, detector: str = DETECTOR) -> MotionSummary:
+        emotions = {}
+        for e in sorted({s.emotion for s in m.samples} - {"neutral"}):
+            st = m.stats(e)
+            pd = np.array([[to_pupil_distances(m.faces[s.person], n, s.values[k])
+                            for k, n in enumerate(m.faps)]
+                           for s in m.samples if s.emotion == e])
+            emotions[e] = {**st, "median_pd": np.median(pd, 0)}
+        gaps = lip_opening(m.values("joy"), m.faps)
+        closed, opened = gaps[gaps < LIP_OPEN_SPLIT], gaps[gaps >= LIP_OPEN_SPLIT]
+        lips = {"n_closed": float(len(closed)), "n_open": float(len(opened)),
+                "closed_max": float(closed.max()) if len(closed) else float("nan"),
+                "open_min": float(opened.min()) if len(opened) else float("nan"),
+                "median": float(np.median(gaps))}
+        neutral = m.values("neutral")
+        return cls(detector, tuple(m.faps), emotions,
+                   np.percentile(np.abs(neutral), 90, 0), len(neutral), lips)
+
+    def stats(self, emotion: str) -> dict[str, np.ndarray]:
+        return self.emotions[emotion]
+
+    def to_json(self) -> dict:
+        def r(a: np.ndarray) -> list[float]:
+            return [round(float(x), 5) for x in a]
+
+        return {"detector": self.detector, "faps": list(self.faps),
+                "noise_p90": r(self.noise_p90), "n_neutral": self.n_neutral,
+                "joy_lips": {k: round(v, 5) for k, v in self.joy_lips.items()},
+                "emotions": {e: {k: r(st[k]) for k in STAT_KEYS}
+                             for e, st in self.emotions.items()}}
+
+    @classmethod
+    def from_json(cls, d: dict) -> MotionSummary:
+        return cls(str(d["detector"]), tuple(int(n) for n in d["faps"]),
+                   {e: {k: np.array(st[k], np.float64) for k in STAT_KEYS}
+                    for e, st in d["emotions"].items()},
+                   np.array(d["noise_p90"], np.float64), int(d["n_neutral"]),
+                   {k: float(v) for k, v in d["joy_lips"].items()})
+
+    @classmethod
+    def load(cls, path: str | Path) -> MotionSummary:
+        return cls.from_json(json.loads(Path(path).read_text(encoding="utf-8")))
+
+    def differences(self, other: MotionSummary, rtol: float = 1e-3,
+                    atol: float = 1e-3) -> list[str]:
+        """Where ``other`` differs from this summary beyond the tolerance (empty: it matches)."""
+        if (self.detector, self.faps, self.n_neutral) != (other.detector, other.faps,
+                                                           other.n_neutral):
+            return [f"detector/faps/n_neutral: {(self.detector, self.faps, self.n_neutral)} "
+                    f"!= {(other.detector, other.faps, other.n_neutral)}"]
+        if set(self.emotions) != set(other.emotions):
+            return [f"emotions {sorted(self.emotions)} != {sorted(other.emotions)}"]
+        bad = []
+        pairs = [("noise_p90", self.noise_p90, other.noise_p90),
+                 ("joy_lips", np.array(list(self.joy_lips.values())),
+                  np.array([other.joy_lips.get(k, np.nan) for k in self.joy_lips]))]
+        pairs += [(f"{e} {k}", st[k], other.emotions[e][k])
+                  for e, st in self.emotions.items() for k in STAT_KEYS]
+        for name, a, b in pairs:
+            if not np.allclose(a, b, rtol=rtol, atol=atol, equal_nan=True):
+                k = int(np.nanargmax(np.abs(a - b)))
+                bad.append(f"{name}: {a[k]:.4f} != {b[k]:.4f} (item {k})")
+        return bad

@@ -195,7 +195,10 @@ def _warp_band(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | 
     # node k of the grid sits where cv2.resize (x s) puts the centre of coarse pixel k:
     # full-frame x = k * s - s / 2 - 1 / 2, i.e. pixel x <- resized column x + s
     o = -0.5 * s - 0.5
-    _ids, cx, cy = _maps(plan, dst, layers, moved_t, tri_pts, o, o, nx, ny, s)
+    # only the band's triangles matter on the grid: every node of another moved triangle lies
+    # in ``inner``, more than a cell inside its edge, and is overwritten there
+    bt = plan._band_tri[moved_t]
+    _ids, cx, cy = _maps(plan, dst, layers, moved_t[bt], tri_pts[bt], o, o, nx, ny, s)
     # nodes outside the frame: extrapolated from the two nearest inside (exact within one
     # triangle; evaluated there they would fall outside the mesh, on the identity)
     for c in (cx, cy):

@@ -438,9 +438,9 @@ def main(argv: list[str] | None = None) -> None:
             _emit({"bench": "speedup_vs_skimage", **res,
                    "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
     if want("fap_to_image", "remap_full_frame", "fap_to_image_head_rotation", "warp_plan_build"):
-        from .bench_render import render_rows
+        from .bench_render import Helpers, render_rows
 
-        render_rows(_emit, want)
+        render_rows(Helpers(_emit, _face_at, _time_pair, EXPRESSION), want)
     if not want("deform_batch100"):
         return
     # deformation alone, batched (presets, sequences)

@@ -8,15 +8,31 @@ the same loop (alternately, so that machine load affects both alike):
 * ``warp_plan_build`` at 1920 x 1080: what the first render of a face builds once (the warp
   plan, the eye/mouth layer plans, the crease plan, ...), i.e. the first render of a fresh face
   minus a steady render; goal: at most 2 x ``remap_full_frame`` at 1920 x 1080.
+
+The helpers of :mod:`editor.bench` (the sample at a size, the alternating timer, the
+expression) come in as arguments (``python -m editor.bench`` imports this module, not the
+other way round).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Helpers:
+    """What the rows need of :mod:`editor.bench`."""
+
+    emit: Callable[[dict], None]
+    face_at: Callable[[tuple[int, int]], Any]  # the sample fitted to a frame size
+    time_pair: Callable[..., dict[str, float]]  # two callables timed alternately
+    expression: dict
 
 #: FAPs 48-50 (head pitch, yaw, roll; 1e-5 rad) of the head-rotation row: about 8, 11 and 9
 #: degrees, as in Xface's .fap files
@@ -38,15 +54,14 @@ def _row(name: str, size: str, ms: float, floor_ms: float, k: float, extra: dict
             "goal": f"<= {k} x remap_full_frame {size}", "ok": bool(ratio <= k)}
 
 
-def _face_wide(size: tuple[int, int], width: float):
+def _face_wide(hp: Helpers, size: tuple[int, int], width: float):
     """A fitted face whose jaw contour is ``width`` px wide: the sample upscaled (cubic, as
     the bench's ``_face_at``), cropped to ``size`` around the face, padded by reflection."""
-    from .bench import _face_at
     from .engine.face import Face
     from .engine.imageio import load_image
     from .resources import SAMPLE_FACE
 
-    small = _face_at((512, 512))
+    small = hp.face_at((512, 512))
     s = width / _face_width(small)
     big = cv2.resize(load_image(SAMPLE_FACE), None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
     v, m = small.vertices, small.mesh
@@ -62,15 +77,15 @@ def _face_wide(size: tuple[int, int], width: float):
     return face
 
 
-def render_4k_rows(emit: Callable[[dict], None], n: int = 15) -> None:
+def render_4k_rows(hp: Helpers, n: int = 15) -> None:
     """``fap_to_image`` and ``remap_full_frame`` at 3840x2160, a face 1000 px wide."""
-    from .bench import EXPRESSION, _time_pair
     from .engine.faps import FAPS
 
-    face = _face_wide((3840, 2160), 1000.0)
-    vec = FAPS.clamp(FAPS.vector(EXPRESSION))
+    emit = hp.emit
+    face = _face_wide(hp, (3840, 2160), 1000.0)
+    vec = FAPS.clamp(FAPS.vector(hp.expression))
     face.render(vec)
-    p = _time_pair(lambda: face.render(vec), _remap_floor(face.image), n)
+    p = hp.time_pair(lambda: face.render(vec), _remap_floor(face.image), n)
     res = {"interocular_px": round(face.interocular, 1),
            "face_width_px": round(_face_width(face), 1)}
     emit(_row("fap_to_image", "3840x2160", p["a_ms"], p["b_ms"], 1.0, res))
@@ -83,26 +98,24 @@ def _face_width(face) -> float:
     return float(face.vertices[m.index("contour_32"), 0] - face.vertices[m.index("contour_0"), 0])
 
 
-def head_rotation_row(emit: Callable[[dict], None], n: int = 20) -> None:
+def head_rotation_row(hp: Helpers, n: int = 20) -> None:
     """``fap_to_image_head_rotation`` at 1920x1080."""
-    from .bench import EXPRESSION, _face_at, _time_pair
     from .engine.faps import FAPS
 
-    face = _face_at((1920, 1080))
-    vec = FAPS.clamp(FAPS.vector({**EXPRESSION, **HEAD_ROTATION}))
+    face = hp.face_at((1920, 1080))
+    vec = FAPS.clamp(FAPS.vector({**hp.expression, **HEAD_ROTATION}))
     face.render(vec)
-    p = _time_pair(lambda: face.render(vec), _remap_floor(face.image), n)
-    emit(_row("fap_to_image_head_rotation", "1920x1080", p["a_ms"], p["b_ms"], 1.5,
+    p = hp.time_pair(lambda: face.render(vec), _remap_floor(face.image), n)
+    hp.emit(_row("fap_to_image_head_rotation", "1920x1080", p["a_ms"], p["b_ms"], 1.5,
               {"faps_48_50": list(HEAD_ROTATION.values())}))
 
 
-def warp_plan_row(emit: Callable[[dict], None], n: int = 7) -> None:
+def warp_plan_row(hp: Helpers, n: int = 9) -> None:
     """``warp_plan_build`` at 1920x1080: first render of a fresh face minus a steady one."""
-    from .bench import EXPRESSION, _face_at
     from .engine.faps import FAPS
 
-    face = _face_at((1920, 1080))
-    vec = FAPS.clamp(FAPS.vector(EXPRESSION))
+    face = hp.face_at((1920, 1080))
+    vec = FAPS.clamp(FAPS.vector(hp.expression))
     face.render(vec)  # imports, module-level caches
     floor = _remap_floor(face.image)
     build, first, steady, fl = [], [], [], []
@@ -120,16 +133,16 @@ def warp_plan_row(emit: Callable[[dict], None], n: int = 7) -> None:
         build.append((t1 - t0) - (t2 - t1))
         fl.append(t3 - t2)
     ms = 1000.0 * float(np.median(build))
-    emit(_row("warp_plan_build", "1920x1080", ms, 1000.0 * float(np.median(fl)), 2.0,
+    hp.emit(_row("warp_plan_build", "1920x1080", ms, 1000.0 * float(np.median(fl)), 2.0,
               {"first_render_ms": round(1000.0 * float(np.median(first)), 3),
                "steady_render_ms": round(1000.0 * float(np.median(steady)), 3)}))
 
 
-def render_rows(emit: Callable[[dict], None], want: Callable[..., bool]) -> None:
+def render_rows(hp: Helpers, want: Callable[..., bool]) -> None:
     """Every row of this module that ``want`` asks for."""
-    if want("fap_to_image", "remap_full_frame", "fap_to_image_4k"):
-        render_4k_rows(emit)
+    if want("fap_to_image", "remap_full_frame"):
+        render_4k_rows(hp)
     if want("fap_to_image_head_rotation"):
-        head_rotation_row(emit)
+        head_rotation_row(hp)
     if want("warp_plan_build"):
-        warp_plan_row(emit)
+        warp_plan_row(hp)

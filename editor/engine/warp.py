@@ -145,7 +145,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     y1 = int(np.clip(np.ceil(p[:, 1].max()) + 2, 0, h))
     if x1 <= x0 or y1 <= y0:
         return WarpResult(img.copy(), None)
-    if plan.band is not None and moved_v[plan.band].any():
+    if plan.band is not None and min(w, h) >= 4 * BAND_STEP and moved_v[plan.band].any():
         inner = _inner_box(plan, dst, moved_t, w, h)
         if 2 * _area(inner) < _area((x0, y0, x1, y1)):
             return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner)

@@ -437,6 +437,10 @@ def main(argv: list[str] | None = None) -> None:
         if want("speedup_vs_skimage"):
             _emit({"bench": "speedup_vs_skimage", **res,
                    "ratio": round(peer["median_ms"] / ours["median_ms"], 1)})
+    if want("fap_to_image", "remap_full_frame", "fap_to_image_head_rotation", "warp_plan_build"):
+        from .bench_render import Helpers, render_rows
+
+        render_rows(Helpers(_emit, _face_at, _time_pair, EXPRESSION), want)
     if not want("deform_batch100"):
         return
     # deformation alone, batched (presets, sequences)

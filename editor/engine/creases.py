@@ -310,19 +310,42 @@ def _normals(pts: np.ndarray) -> np.ndarray:
 
 def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
-    """Triangle index and barycentric coordinates of each point (nearest triangle outside)."""
+    """Triangle index and barycentric coordinates of each point (nearest triangle outside).
+
+    Per point, the barycentric coordinates in every triangle; the triangle whose smallest one
+    is largest (>= 0 inside). In blocks of points (the (points, triangles) arrays stay in
+    the cache), each coordinate a contiguous array."""
+    points = np.asarray(points, np.float64)
     a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
     e1, e2 = b - a, c - a
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
-    d = points[:, None, :] - a[None]
-    l1 = (d[..., 0] * e2[:, 1] - d[..., 1] * e2[:, 0]) / det
-    l2 = (e1[:, 0] * d[..., 1] - e1[:, 1] * d[..., 0]) / det
-    l0 = 1.0 - l1 - l2
-    worst = np.minimum(np.minimum(l0, l1), l2)  # >= 0 inside
-    ti = np.argmax(worst, axis=1)
-    r = np.arange(len(points))
-    bary = np.stack([l0[r, ti], l1[r, ti], l2[r, ti]], 1)
+    ax, ay = np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1])
+    e1x, e1y = np.ascontiguousarray(e1[:, 0]), np.ascontiguousarray(e1[:, 1])
+    e2x, e2y = np.ascontiguousarray(e2[:, 0]), np.ascontiguousarray(e2[:, 1])
+    n = len(points)
+    ti = np.zeros(n, np.int64)
+    bary = np.zeros((n, 3))
+    step = max(1, 32768 // max(len(tris), 1))
+    for i in range(0, n, step):
+        px = points[i:i + step, 0:1]
+        py = points[i:i + step, 1:2]
+        dx = px - ax
+        dy = py - ay
+        l1 = dx * e2y
+        l1 -= dy * e2x
+        l1 /= det
+        l2 = e1x * dy
+        l2 -= e1y * dx
+        l2 /= det
+        l0 = 1.0 - l1
+        l0 -= l2
+        worst = np.minimum(l0, l1)
+        np.minimum(worst, l2, out=worst)
+        k = np.argmax(worst, axis=1)
+        r = np.arange(len(k))
+        ti[i:i + step] = k
+        bary[i:i + step] = np.stack([l0[r, k], l1[r, k], l2[r, k]], 1)
     return ti.astype(np.int32), bary
 
 
@@ -338,6 +361,9 @@ def _build_plan(face: Face) -> CreasePlan:
     kinds, groups, gnames, starts = [], [], [], [0]
     all_tri, all_bary, all_probe, all_n, all_taper = [], [], [], [], []
     all_utaper = []
+    # every point that is located on the mesh (the lines, their probes), in one batch
+    queries: list[np.ndarray] = []
+    lines = []
     for ln in _fold_lines(face):
         kind, group, taper = ln.kind, ln.group, ln.taper
         utaper = taper if ln.utaper is None else ln.utaper
@@ -348,14 +374,26 @@ def _build_plan(face: Face) -> CreasePlan:
             # orient the line so that its normal points to the ridge side
             pts, taper, utaper = pts[::-1].copy(), taper[::-1].copy(), utaper[::-1].copy()
             nrm = _normals(pts)
-        ti, bary = _locate(pts, V, tris)
+        q0 = len(queries)
+        queries.append(pts)
         if ln.probes is None:
-            probes = [pts + k * st.probe * iod * nrm for k in (-1.0, -0.33, 0.33, 1.0)]
-            pt = np.stack([cand[_locate(p, V, tris)[0]] for p in probes], 1)
+            queries += [pts + k * st.probe * iod * nrm for k in (-1.0, -0.33, 0.33, 1.0)]
         else:
-            fixed = cand[_locate(fr.to_image(ln.probes * iod), V, tris)[0]]
-            pt = np.repeat(fixed[None], len(pts), 0)
+            queries.append(fr.to_image(ln.probes * iod))
             nrm = np.repeat((fr.rot @ np.asarray(ln.measure))[None], len(pts), 0)
+        lines.append((ln, kind, group, taper, utaper, pts, nrm, q0, len(queries)))
+    sizes = [len(q) for q in queries]
+    ti_all, bary_all = _locate(np.concatenate(queries), V, tris)
+    cut = np.cumsum([0] + sizes)
+    located = [(ti_all[cut[i]:cut[i + 1]], bary_all[cut[i]:cut[i + 1]])
+               for i in range(len(queries))]
+    for ln, kind, group, taper, utaper, pts, nrm, q0, q1 in lines:
+        ti, bary = located[q0]
+        if ln.probes is None:
+            pt = np.stack([cand[located[k][0]] for k in range(q0 + 1, q1)], 1)
+        else:
+            fixed = cand[located[q0 + 1][0]]
+            pt = np.repeat(fixed[None], len(pts), 0)
         kinds.append(kind)
         if group not in gnames:
             gnames.append(group)
@@ -722,7 +760,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     tri, bary = p.tri.copy(), p.bary.copy()
     img = face.image
     H, W = img.shape[:2]
-    lum = img.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+    luma = np.array([0.299, 0.587, 0.114], np.float32)
+    todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)
@@ -737,7 +776,9 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         pad = reach + 2 * r + 3
         x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
         x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
-        ls = cv2.GaussianBlur(lum[y0:y1, x0:x1], (0, 0), 0.7 * sig)
+        # the luminance of the fold's box only (the same values as of the whole photo)
+        lum = img[y0:y1, x0:x1].astype(np.float32) @ luma
+        ls = cv2.GaussianBlur(lum, (0, 0), 0.7 * sig)
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
         hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]
@@ -754,8 +795,13 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         num = np.convolve(np.pad(off * w, 4, mode="edge"), kern, mode="valid")
         den = np.convolve(np.pad(w, 4, mode="edge"), kern, mode="valid")
         off = np.clip(num / den, -reach, reach)
-        ti, bc = _locate(q + off[:, None] * nrm, V, face.mesh.triangles[cand])
-        tri[a:b], bary[a:b] = cand[ti], bc
+        todo.append((a, b, q + off[:, None] * nrm))
+    if todo:  # located on the mesh in one batch
+        ti, bc = _locate(np.concatenate([t[2] for t in todo]), V, face.mesh.triangles[cand])
+        k = 0
+        for a, b, _q in todo:
+            tri[a:b], bary[a:b] = cand[ti[k:k + b - a]], bc[k:k + b - a]
+            k += b - a
     _VALLEYS[face] = (tri, bary)
     return tri, bary
 

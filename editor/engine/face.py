@@ -422,7 +422,8 @@ class Face:
 
     @cached_property
     def warp_plan(self) -> WarpPlan:
-        return WarpPlan(self.image, self.vertices, self.mesh.triangles, self.mesh.holes)
+        return WarpPlan(self.image, self.vertices, self.mesh.triangles, self.mesh.holes,
+                        band=self.mesh.regions == "margin")
 
     def fap_vector(self, faps: FapInput) -> np.ndarray:
         """(68,) float32 FAP vector from a mapping (names or numbers) or array, clamped."""

@@ -82,11 +82,19 @@ def layer_plan(face: Face) -> LayerPlan:
                 for k in ("eye_l", "eye_r")}
         # the photo's lighting: the cheeks' skin, its own teeth when the mouth shows some
         cheek = np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)
-        skin_mask = np.zeros(img.shape[:2], np.uint8)
-        for t in mesh.triangles[cheek]:
-            cv2.fillConvexPoly(skin_mask, np.round(v[t] * 16).astype(np.int32), 1,
-                               cv2.LINE_8, 4)
-        skin = (np.median(img[skin_mask > 0], axis=0).astype(np.float32)
+        # drawn in the cheeks' box only (the same pixels as on the whole photo)
+        q = np.round(v[mesh.triangles[cheek]] * 16).astype(np.int32)  # (n, 3, 2)
+        h, w = img.shape[:2]
+        if len(q):
+            bx0, by0 = np.clip(q.reshape(-1, 2).min(0) // 16 - 1, 0, (w, h))
+            bx1, by1 = np.clip(q.reshape(-1, 2).max(0) // 16 + 2, 0, (w, h))
+        else:
+            bx0 = by0 = bx1 = by1 = 0
+        skin_mask = np.zeros((max(by1 - by0, 0), max(bx1 - bx0, 0)), np.uint8)
+        off = np.array([bx0, by0], np.int32) * 16
+        for t in q:
+            cv2.fillConvexPoly(skin_mask, t - off, 1, cv2.LINE_8, 4)
+        skin = (np.median(img[by0:by1, bx0:bx1][skin_mask > 0], axis=0).astype(np.float32)
                 if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
         skin_l = max(float(_lum(skin)), 20.0)
         sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))

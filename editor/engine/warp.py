@@ -45,6 +45,10 @@ class WarpPlan:
     src: np.ndarray
     triangles: np.ndarray
     holes: dict[str, np.ndarray]
+    #: (V,) bool or None: the band, vertices whose motion (e.g. the head's margin on a head
+    #: rotation) makes the warp cover the whole frame through a few large triangles; when one
+    #: of them moves, :func:`warp` interpolates those triangles' map from a coarse grid
+    band: np.ndarray | None = None
     #: (H, W) bool, photo's own mouth opening (computed by __post_init__)
     neutral_mouth: np.ndarray = field(init=False)
 
@@ -59,6 +63,8 @@ class WarpPlan:
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self.neutral_mouth = m.astype(bool)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
+        self._band_tri = (np.zeros(len(self.triangles), bool) if self.band is None
+                          else np.asarray(self.band, bool)[self.triangles].any(1))
         # source bounding box of every triangle (+1 px), to clamp the edge pixels that the
         # rasterizer assigns to a triangle although their centre is just outside it: for a
         # thin, stretched triangle the affine map would extrapolate them far away (speckles)
@@ -137,18 +143,119 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     y0 = int(np.clip(np.floor(p[:, 1].min()) - 1, 0, h))
     x1 = int(np.clip(np.ceil(p[:, 0].max()) + 2, 0, w))
     y1 = int(np.clip(np.ceil(p[:, 1].max()) + 2, 0, h))
-    out = img.copy()
     if x1 <= x0 or y1 <= y0:
-        return WarpResult(out, None)
+        return WarpResult(img.copy(), None)
+    if plan.band is not None and min(w, h) >= 4 * BAND_STEP and moved_v[plan.band].any():
+        inner = _inner_box(plan, dst, moved_t, w, h)
+        if 2 * _area(inner) < _area((x0, y0, x1, y1)):
+            return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner)
+    out = img.copy()
+    ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0, y1 - y0)
+    out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
+                                  borderMode=cv2.BORDER_REPLICATE)
+    return _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)
+
+
+def _area(box: tuple[int, int, int, int]) -> int:
+    return max(box[2] - box[0], 0) * max(box[3] - box[1], 0)
+
+
+#: Node spacing (px) of the coarse backward map of the band (see :func:`_warp_band`)
+BAND_STEP = 8
+
+
+def _inner_box(plan: WarpPlan, dst: np.ndarray, moved_t: np.ndarray, w: int, h: int
+               ) -> tuple[int, int, int, int]:
+    """The box of the moved triangles outside the band (the face and its openings) and of the
+    band's own vertices (where its triangles meet, their maps differ most), grown by one band
+    node spacing."""
+    inner_t = moved_t[~plan._band_tri[moved_t]]
+    p = np.vstack([dst[plan.triangles[inner_t]].reshape(-1, 2), dst[:len(plan.src)][plan.band]])
+    pad = BAND_STEP + 2
+    return (int(np.clip(np.floor(p[:, 0].min()) - pad, 0, w)),
+            int(np.clip(np.floor(p[:, 1].min()) - pad, 0, h)),
+            int(np.clip(np.ceil(p[:, 0].max()) + pad + 1, 0, w)),
+            int(np.clip(np.ceil(p[:, 1].max()) + pad + 1, 0, h)))
+
+
+def _warp_band(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
+               cavity: bool, moved_t: np.ndarray, tri_pts: np.ndarray,
+               inner: tuple[int, int, int, int]) -> WarpResult:
+    """The whole frame when the band (``plan.band``: e.g. the head's margin on a head
+    rotation) moves: its few large triangles stretch smoothly, so their backward map is
+    evaluated exactly on a grid of nodes ``BAND_STEP`` px apart and interpolated bilinearly
+    between them (exact wherever a grid cell lies in one triangle; across a band edge the
+    interpolation differs from the piecewise-affine map by a fraction of a pixel). Inside
+    ``inner`` (the face, its openings and a margin of one cell) the map is the exact per-pixel
+    one of :func:`warp`. One ``cv2.remap`` of the frame."""
+    img = plan.image
+    h, w = img.shape[:2]
+    s = BAND_STEP
+    nx, ny = -(-w // s) + 2, -(-h // s) + 2
+    # node k of the grid sits where cv2.resize (x s) puts the centre of coarse pixel k:
+    # full-frame x = k * s - s / 2 - 1 / 2, i.e. pixel x <- resized column x + s
+    o = -0.5 * s - 0.5
+    # only the band's triangles matter on the grid: every node of another moved triangle lies
+    # in ``inner``, more than a cell inside its edge, and is overwritten there
+    bt = plan._band_tri[moved_t]
+    _ids, cx, cy = _maps(plan, dst, layers, moved_t[bt], tri_pts[bt], o, o, nx, ny, s)
+    # nodes outside the frame: extrapolated from the two nearest inside (exact within one
+    # triangle; evaluated there they would fall outside the mesh, on the identity)
+    for c in (cx, cy):
+        for ax, n_px in ((1, w), (0, h)):
+            v = np.moveaxis(c, ax, 0)
+            v[0] = 2.0 * v[1] - v[2]
+            last = int((n_px - 1 - o) // s)  # the last node inside the frame
+            for k in range(last + 1, v.shape[0]):
+                v[k] = v[last] + (k - last) * (v[last] - v[last - 1])
+    size = (nx * s, ny * s)
+    map_x = cv2.resize(cx, size, interpolation=cv2.INTER_LINEAR)[s:s + h, s:s + w]
+    map_y = cv2.resize(cy, size, interpolation=cv2.INTER_LINEAR)[s:s + h, s:s + w]
+    # exact: the frame's edges (where the extrapolated nodes and the source-box clamp of
+    # :func:`_maps` would differ most) and the inner box
+    e = s + 2
+    for bx0, by0, bx1, by1 in ((0, 0, w, e), (0, h - e, w, h), (0, e, e, h - e),
+                               (w - e, e, w, h - e), inner):
+        bx0, by0, bx1, by1 = max(bx0, 0), max(by0, 0), min(bx1, w), min(by1, h)
+        if bx1 > bx0 and by1 > by0:
+            ids, mx, my = _maps(plan, dst, layers, moved_t, tri_pts, bx0, by0, bx1 - bx0,
+                                by1 - by0)
+            map_x[by0:by1, bx0:bx1] = mx
+            map_y[by0:by1, bx0:bx1] = my
+    x0, y0, x1, y1 = inner
+    out = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    mouth = np.zeros((h, w), bool)
+    eyes = np.zeros((h, w), bool)
+    if x1 > x0 and y1 > y0:
+        res = _finish(plan, dst, out, ids, mx, my, inner, cavity)
+        mouth[y0:y1, x0:x1] = res.mouth_local
+        eyes[y0:y1, x0:x1] = res.eyes_local
+    return WarpResult(out, (0, 0, w, h), mouth, eyes, (map_x, map_y, (0, 0, w, h)))
+
+
+def _maps(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
+          moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx: int, ny: int,
+          step: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Triangle ids (ny, nx) and the backward maps (destination -> photo) at the points
+    ``(x0 + i * step, y0 + j * step)``; ``step`` 1 (and integer ``x0, y0``): every pixel of
+    a box."""
+    tris = plan.triangles
     T = len(tris)
+    if step == 1 and len(moved_t):
+        # only the triangles that reach the box (the others draw nothing in it)
+        lo, hi = tri_pts.min(1), tri_pts.max(1)
+        keep = ((hi[:, 0] >= x0 - 1) & (lo[:, 0] <= x0 + nx + 1)
+                & (hi[:, 1] >= y0 - 1) & (lo[:, 1] <= y0 + ny + 1))
+        if not keep.all():
+            moved_t, tri_pts = moved_t[keep], tri_pts[keep]
     # id image: row T = identity (static triangles, uncovered pixels); T+1.. = opening layers
-    ids = np.full((y1 - y0, x1 - x0), T, np.int32)
+    ids = np.full((ny, nx), T, np.int32)
     table = np.zeros((T + 1 + len(LAYERS), 6), np.float32)
     table[:, 0] = 1.0
     table[:, 4] = 1.0
     off = np.array([x0, y0], np.float32)
     for k, name in enumerate(LAYERS):
-        poly = np.round((dst[plan.holes[name]] - off) * _ONE).astype(np.int32)
+        poly = np.round((dst[plan.holes[name]] - off) * (_ONE / step)).astype(np.int32)
         cv2.fillPoly(ids, [poly], T + 1 + k, cv2.LINE_8, _SHIFT)
         fwd = layers.get(name, _IDENTITY) if layers else _IDENTITY
         table[T + 1 + k] = cv2.invertAffineTransform(np.asarray(fwd, np.float64)).reshape(-1)
@@ -160,7 +267,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     dst_area = np.abs(e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0])
     order = np.argsort(dst_area / plan._src_area[moved_t], kind="stable")
     fill = cv2.fillConvexPoly
-    q_all = np.round((tri_pts[order] - off) * _ONE).astype(np.int32)
+    q_all = np.round((tri_pts[order] - off) * (_ONE / step)).astype(np.int32)
     for q, t in zip(q_all, moved_t[order].tolist(), strict=True):
         fill(ids, q, t, cv2.LINE_8, _SHIFT)
 
@@ -190,8 +297,8 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     zero = np.zeros_like(fid)
     cx = cv2.remap(np.ascontiguousarray(table[None, :, :3]), fid, zero, cv2.INTER_NEAREST)
     cy = cv2.remap(np.ascontiguousarray(table[None, :, 3:]), fid, zero, cv2.INTER_NEAREST)
-    xs = np.arange(x0, x1, dtype=np.float32)[None, :]
-    ys = np.arange(y0, y1, dtype=np.float32)[:, None]
+    xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
+    ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
     map_x = cx[..., 0] * xs
     map_x += cx[..., 1] * ys
     map_x += cx[..., 2]
@@ -201,8 +308,17 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     box = cv2.remap(np.ascontiguousarray(plan._src_box[None]), fid, zero, cv2.INTER_NEAREST)
     np.clip(map_x, box[..., 0], box[..., 2], out=map_x)
     np.clip(map_y, box[..., 1], box[..., 3], out=map_y)
-    out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
-                                  borderMode=cv2.BORDER_REPLICATE)
+    return ids, map_x, map_y
+
+
+def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
+            map_x: np.ndarray, map_y: np.ndarray, bbox: tuple[int, int, int, int],
+            cavity: bool, maps: tuple[np.ndarray, np.ndarray] | None = None) -> WarpResult:
+    """Opening masks and the mouth cavity of the box ``bbox`` (``ids``, ``map_x/y`` its
+    own); ``maps``: the result's maps over ``bbox`` when they are not ``map_x, map_y``."""
+    T = len(plan.triangles)
+    h, w = out.shape[:2]
+    x0, y0, x1, y1 = bbox
 
     mouth = ids == T + 1 + LAYERS.index("mouth")
     eyes = (ids == T + 1) | (ids == T + 2)
@@ -215,7 +331,8 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         if dark.any():
             yy, xx = yy[dark], xx[dark]
             out[y0 + yy, x0 + xx] = _cavity(dst, plan.holes["mouth"], x0 + xx, y0 + yy)
-    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes, (map_x, map_y, (x0, y0, x1, y1)))
+    mx, my = (map_x, map_y) if maps is None else maps
+    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes, (mx, my, (x0, y0, x1, y1)))
 
 
 def _cavity(dst: np.ndarray, loop: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:

@@ -357,6 +357,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> None:
     """``python -m editor.bench [--gui | --serve] [--only ROW[,ROW...]] [--check]``."""
     args = _parse_args(argv)
+    _MISSED.clear()
     _run(args)
     if args.check and _MISSED:
         for row in _MISSED:

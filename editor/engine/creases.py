@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
+from .fitting import luminance
 from .layers import _rebox, _union
 from .warp import WarpResult
 
@@ -722,7 +723,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     tri, bary = p.tri.copy(), p.bary.copy()
     img = face.image
     H, W = img.shape[:2]
-    lum = img.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+    lum = luminance(img)  # = float32(img) @ luma, without a float32 copy of the photo
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)

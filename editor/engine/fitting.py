@@ -415,6 +415,21 @@ CLOSED_LIPS_MW = {"dlib-68": 0.05, "mediapipe-468": 0.09}
 TEETH_RATIO = {"dlib-68": 1.25, "mediapipe-468": 1.1}
 
 
+#: Rows per block of :func:`luminance` (a block's float32 copy is 12 x rows x width bytes).
+LUMINANCE_ROWS = 256
+
+
+def luminance(rgb: np.ndarray, rows: int = LUMINANCE_ROWS) -> np.ndarray:
+    """``float32(rgb) @ (0.299, 0.587, 0.114)`` as one (H, W) float32 array, bit for bit, computed
+    in blocks of ``rows`` rows: no (H, W, 3) float32 copy of the whole photo (288 MB at 24 MP;
+    issue 15's peak memory)."""
+    luma = np.array([0.299, 0.587, 0.114], np.float32)
+    out = np.empty(rgb.shape[:2], np.float32)
+    for i in range(0, rgb.shape[0], rows):
+        out[i:i + rows] = np.asarray(rgb[i:i + rows], np.float32) @ luma
+    return out
+
+
 def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndarray,
                     closed_mw: float = 0.05, teeth_ratio: float = 1.25) -> None:
     """Move the inner-lip vertices (in place) onto the photo's own lip edges.
@@ -438,8 +453,7 @@ def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndar
 
     fr = FaceFrame.from_points(np.asarray(points68, np.float64))
     ey = fr.rot[:, 1]
-    luma = np.array([0.299, 0.587, 0.114], np.float32)
-    lum = np.ascontiguousarray(np.asarray(rgb, np.float32) @ luma)
+    lum = luminance(rgb)
     up = np.array([V[f"lipi_u{k}"] for k in range(1, 8)], np.float64)
     lo = np.array([V[f"lipi_d{k}"] for k in range(1, 8)], np.float64)
     mw = float(np.linalg.norm(V["lipo_c1"] - V["lipo_c0"]))

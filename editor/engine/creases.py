@@ -723,7 +723,6 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     tri, bary = p.tri.copy(), p.bary.copy()
     img = face.image
     H, W = img.shape[:2]
-    lum = luminance(img)  # = float32(img) @ luma, without a float32 copy of the photo
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)
@@ -738,7 +737,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         pad = reach + 2 * r + 3
         x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
         x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
-        ls = cv2.GaussianBlur(lum[y0:y1, x0:x1], (0, 0), 0.7 * sig)
+        # the luminance of this fold's box only (bit for bit the whole photo's, cut)
+        ls = cv2.GaussianBlur(luminance(img[y0:y1, x0:x1]), (0, 0), 0.7 * sig)
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
         hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]

@@ -11,26 +11,12 @@ import argparse
 from pathlib import Path
 
 from editor.errors import StudyError
-from editor.study.mos import Study
-from editor.study.qc import (
-    add_qc_items,
-    format_qc,
-    mos_answers,
-    qc_items,
-    rater_qc,
-    render_qc,
-    trap_specs,
-)
-from editor.study.remote import count_tokens, invite, revoke
-from editor.study.stimuli import (
-    PAPER_EXPRESSIONS,
-    create_from_renders,
-    export_answers_csv,
-    from_folder,
-    render_stimuli,
-)
+from editor.study.mos import PAPER_EXPRESSIONS, Study
 
 from .util import detector_option, guarded, photo_arg
+
+# The QC, remote-rater and stimulus modules (the renderer, OpenCV) are imported by the commands
+# that use them, so that ``fap-studio --help`` stays quick (issue 15, ``cli_help_s``).
 
 
 @guarded
@@ -47,6 +33,8 @@ def _cmd_create(args: argparse.Namespace) -> int:
             raise StudyError(f"--intensities {args.intensities!r}: not a list of numbers") from e
         if not ks or any(not 0 <= k <= 1.5 for k in ks):
             raise StudyError("--intensities must be numbers within 0 … 1.5")
+        from editor.study.stimuli import create_from_renders, render_stimuli
+
         renders = render_stimuli(args.faces, presets, ks, crop=args.crop == "face")
         study = create_from_renders(args.study, args.name or Path(args.study).stem,
                                     labels or presets, renders, args.allow_revise,
@@ -54,6 +42,8 @@ def _cmd_create(args: argparse.Namespace) -> int:
     else:
         if args.labels_csv is None:
             raise StudyError("--folder needs --labels-csv")
+        from editor.study.stimuli import from_folder
+
         study = from_folder(args.study, args.folder, args.labels_csv, name=args.name,
                             labels=labels, allow_revise=args.allow_revise,
                             break_every=args.break_every)
@@ -66,6 +56,8 @@ def _cmd_create(args: argparse.Namespace) -> int:
 
 
 def _add_qc(study: Study, faces: list, crop: bool, training: int, traps: int) -> None:
+    from editor.study.qc import add_qc_items, qc_items, render_qc, trap_specs
+
     specs = render_qc(faces, study.labels, crop, training) if faces else []
     specs += trap_specs(study, traps, seed=len(qc_items(study)))
     add_qc_items(study, specs)
@@ -87,6 +79,8 @@ def _cmd_qc(args: argparse.Namespace) -> int:
 @guarded
 def _cmd_invite(args: argparse.Namespace) -> int:
     """``study invite STUDY.db --raters N [--base-url URL]``: one URL per new web rater."""
+    from editor.study.remote import invite
+
     base = args.base_url.rstrip("/")
     if not base.startswith(("http://", "https://")):
         raise StudyError(f"--base-url must start with http:// or https://, got {base!r}")
@@ -99,6 +93,8 @@ def _cmd_invite(args: argparse.Namespace) -> int:
 @guarded
 def _cmd_revoke(args: argparse.Namespace) -> int:
     """``study revoke STUDY.db RATER_OR_TOKEN ...``."""
+    from editor.study.remote import revoke
+
     with Study.open(args.study) as study:
         for who in args.who:
             print(f"revoked {revoke(study, who)}")
@@ -110,6 +106,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     """``study serve STUDY.db [--host H] [--port P]``: the rating page until Ctrl-C."""
     import sys
 
+    from editor.study.remote import count_tokens
     from editor.study.web import serve
 
     if not 0 <= args.port <= 65535:
@@ -131,6 +128,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     """``study report STUDY.db``: print Tables 4-6, confusion matrix, kappa and raters."""
     from editor.study.mos_stats import analyse, format_report  # scipy: import lazily
+    from editor.study.qc import format_qc, mos_answers, qc_items, rater_qc
 
     with Study.open(args.study) as study:
         answers, stimuli = mos_answers(study), study.stimuli()
@@ -149,6 +147,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 @guarded
 def _cmd_export(args: argparse.Namespace) -> int:
     """``study export STUDY.db -o answers.csv``: one row per answer."""
+    from editor.study.stimuli import export_answers_csv
+
     with Study.open(args.study) as study:
         n = export_answers_csv(study, args.output)
     print(f"wrote {n} answers to {args.output}")

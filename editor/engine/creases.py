@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
+from .fitting import luminance
 from .layers import _rebox, _union
 from .warp import WarpResult
 
@@ -760,7 +761,6 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     tri, bary = p.tri.copy(), p.bary.copy()
     img = face.image
     H, W = img.shape[:2]
-    luma = np.array([0.299, 0.587, 0.114], np.float32)
     todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
@@ -776,9 +776,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         pad = reach + 2 * r + 3
         x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
         x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
-        # the luminance of the fold's box only (the same values as of the whole photo)
-        lum = img[y0:y1, x0:x1].astype(np.float32) @ luma
-        ls = cv2.GaussianBlur(lum, (0, 0), 0.7 * sig)
+        # the luminance of this fold's box only (bit for bit the whole photo's, cut)
+        ls = cv2.GaussianBlur(luminance(img[y0:y1, x0:x1]), (0, 0), 0.7 * sig)
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
         hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]

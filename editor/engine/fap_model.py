@@ -37,7 +37,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from .deform import LIP_PAIRS, deform_points, linear_positions
 from .faps import FAPS
@@ -207,6 +206,8 @@ class FapEstimator:
         return max(a, lo + 1.0)
 
     def _solve(self, d: np.ndarray) -> np.ndarray:
+        from scipy.optimize import lsq_linear  # scipy on first use: a quick start (issue 15)
+
         """Bounded least squares for a head-free landmark motion ``d`` (136,), re-solved at the
         lip-pair pattern of the previous solution; the (68,) vector of least cost."""
         n_prior = len(self._priors)

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from editor.engine.faps import FAPS
 from editor.resources import MAPPINGS_DIR
@@ -237,6 +236,8 @@ def fit_columns(faps: np.ndarray, matrix: np.ndarray, row_weights: np.ndarray | 
     the rest (e.g. to bring rotation units to the size of displacements). One small
     bounded-variable problem per frame (scipy's BVLS).
     """
+    from scipy.optimize import lsq_linear  # scipy on first use: a quick start (issue 15)
+
     f = np.atleast_2d(np.asarray(faps, np.float64))
     used = np.flatnonzero(np.abs(matrix).sum(axis=1) > 0)
     w = np.ones(N_FAPS) if row_weights is None else np.asarray(row_weights, np.float64)

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy import stats
 
 from editor.study.mos import CANNOT_TELL
 
@@ -56,6 +55,8 @@ def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, fl
     """
     if n <= 0:
         return math.nan, math.nan
+    from scipy import stats  # scipy on first use: a quick start (issue 15)
+
     ci = stats.binomtest(int(k), int(n)).proportion_ci(confidence, method="wilson")
     return (0.0 if k == 0 else float(ci.low)), (1.0 if k == n else float(ci.high))
 
@@ -64,6 +65,8 @@ def t_interval(values: Sequence[float] | np.ndarray,
                confidence: float = 0.95) -> tuple[float, float]:
     """Student t interval of the mean, mean ± t(n-1) · s / sqrt(n) (s: ddof 1), from
     ``scipy.stats.t.interval``; nan if n < 2, the mean itself when all values are equal."""
+    from scipy import stats  # scipy on first use: a quick start (issue 15)
+
     x = np.asarray(values, dtype=float)
     if x.size < 2:
         return math.nan, math.nan

@@ -20,7 +20,7 @@ from editor.engine.imageio import MAX_FILE_BYTES
 from editor.errors import ImageError, StudyError
 from editor.formats.presets import apply_preset, get_preset
 from editor.safeio import atomic_write_text, read_bounded
-from editor.study.mos import StimulusSpec, Study
+from editor.study.mos import PAPER_EXPRESSIONS, StimulusSpec, Study  # noqa: F401 (re-export)
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
@@ -124,8 +124,6 @@ def export_answers_csv(study: Study, out: str | Path) -> int:
     return len(answers)
 
 
-#: The paper's design (SPEC §4): these five expressions on every face, full intensity.
-PAPER_EXPRESSIONS = ("joy", "sadness", "anger", "fear", "surprise")
 
 
 def face_crop(face) -> tuple[int, int, int, int]:

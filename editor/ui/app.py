@@ -13,7 +13,13 @@ import traceback
 from pathlib import Path
 from types import TracebackType
 
-from PySide6.QtCore import QEventLoop, QMessageLogContext, QtMsgType, qInstallMessageHandler
+from PySide6.QtCore import (
+    QEventLoop,
+    QMessageLogContext,
+    QTimer,
+    QtMsgType,
+    qInstallMessageHandler,
+)
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 from editor.engine.faps import FAPS
@@ -123,32 +129,37 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
         window.close_without_prompt()
         return 2
 
+    def open_and_apply() -> int | None:  # the exit code when headless and failed
+        ok = open_initial(window, photo, project, photo_neutral)
+        if not ok and headless:
+            return fail(f"cannot open {project or photo or SAMPLE_FACE}")
+        if faps:
+            try:
+                # the requested FAPs replace the document's (the photo's own expression): they
+                # apply to the neutralised face, as presets and .fap files do; with
+                # keep_expression they add to what the photo shows
+                doc = window.model.doc
+                if doc is not None:
+                    vec = FAPS.vector(faps) + (doc.faps if keep_expression else 0)
+                    window.model.push(doc.with_fap_vector(vec), "Apply FAPs")
+            except ValueError as e:
+                if headless:
+                    return fail(str(e))
+                QMessageBox.warning(window, "Cannot apply the FAPs", str(e))
+        return None
+
     if headless:  # no dialogs (errors go to stderr), no recent files
         window.docs.remember = False
         window.docs.interactive = False
         window.docs.error = lambda _title, msg: errors.append(str(msg))
-    ok = open_initial(window, photo, project, photo_neutral)
-    if not ok and headless:
-        return fail(f"cannot open {project or photo or SAMPLE_FACE}")
-    if faps:
-        try:
-            # the requested FAPs replace the document's (the photo's own expression): they
-            # apply to the neutralised face, as presets and .fap files do; with
-            # keep_expression they add to what the photo shows
-            doc = window.model.doc
-            if doc is not None:
-                vec = FAPS.vector(faps) + (doc.faps if keep_expression else 0)
-                window.model.push(doc.with_fap_vector(vec), "Apply FAPs")
-        except ValueError as e:
-            if headless:
-                return fail(str(e))
-            QMessageBox.warning(window, "Cannot apply the FAPs", str(e))
-
-    if headless:
-        return _screenshot(app, window, str(screenshot))
+        code = open_and_apply()
+        return code if code is not None else _screenshot(app, window, str(screenshot))
     sys.excepthook = _excepthook
     window.restore_layout()
+    # the window first, then the photo: opening it (detector and models loaded on first use,
+    # landmarks, fitting) runs on the thread pool while the window is already up (issue 15)
     window.show()
+    QTimer.singleShot(0, open_and_apply)
     return app.exec()
 
 

@@ -75,3 +75,38 @@ def test_animate_jobs_option(cli, tmp_path):
     r = cli("animate", SAMPLE_FACE, fap, "-q", "-j", "2", "-o", tmp_path / "y")
     code, err = r.returncode, r.stderr
     assert code == 0 and len(list((tmp_path / "y").iterdir())) == 4, err
+
+
+def test_parallel_stimuli_are_the_serial_stimuli(tmp_path):
+    import cv2
+
+    from editor.study.stimuli import encode_png, render_stimuli
+
+    img = cv2.imread(str(SAMPLE_FACE))
+    faces = [SAMPLE_FACE, tmp_path / "mirror.png", tmp_path / "small.png"]
+    cv2.imwrite(str(faces[1]), img[:, ::-1])
+    cv2.imwrite(str(faces[2]), cv2.resize(img, None, fx=0.8, fy=0.8))
+    seen: list[tuple[int, int]] = []
+    args = (faces, ["joy", "anger"], [0.5, 1.0])
+    serial = render_stimuli(*args, jobs=1)
+    par = render_stimuli(*args, jobs=2, progress=lambda d, t: seen.append((d, t)))
+    assert len(serial) == len(par) == 12
+    assert [r[:3] for r in serial] == [r[:3] for r in par]
+    assert [encode_png(r[3]) for r in serial] == [encode_png(r[3]) for r in par]
+    assert seen == [(5, 15), (10, 15), (15, 15)]
+
+
+def test_parallel_stimuli_error_is_the_serial_error(tmp_path):
+    from editor.errors import FapStudioError
+    from editor.study.stimuli import render_stimuli
+
+    bad = tmp_path / "blank.png"
+    import cv2
+
+    cv2.imwrite(str(bad), np.full((200, 200, 3), 128, np.uint8))
+    errs = []
+    for jobs in (1, 2):
+        with pytest.raises(FapStudioError) as e:
+            render_stimuli([SAMPLE_FACE, bad, SAMPLE_FACE], ["joy"], [1.0], jobs=jobs)
+        errs.append(str(e.value))
+    assert errs[0] == errs[1] and "blank.png" in errs[0]

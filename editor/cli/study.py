@@ -47,7 +47,10 @@ def _cmd_create(args: argparse.Namespace) -> int:
             raise StudyError(f"--intensities {args.intensities!r}: not a list of numbers") from e
         if not ks or any(not 0 <= k <= 1.5 for k in ks):
             raise StudyError("--intensities must be numbers within 0 … 1.5")
-        renders = render_stimuli(args.faces, presets, ks, crop=args.crop == "face")
+        from editor.engine.pool import default_jobs
+
+        renders = render_stimuli(args.faces, presets, ks, crop=args.crop == "face",
+                                 jobs=default_jobs())
         study = create_from_renders(args.study, args.name or Path(args.study).stem,
                                     labels or presets, renders, args.allow_revise,
                                     args.break_every)

@@ -32,6 +32,10 @@ from editor.errors import FapStudioError
 T = TypeVar("T")
 R = TypeVar("R")
 
+#: imported once in the forkserver (no threads started), inherited by every worker
+PRELOAD = ["editor.engine.pool", "editor.engine.face", "editor.engine.own_expression",
+           "editor.engine.fap_model", "editor.engine.laplacian", "editor.formats.presets"]
+
 #: the Face of this worker process (set by :func:`init_face`)
 FACE: Any = None
 
@@ -48,8 +52,7 @@ def _context() -> Any:
     methods = mp.get_all_start_methods()
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
-        # imported once in the server, inherited by every worker it forks
-        ctx.set_forkserver_preload(["editor.engine.face", "editor.engine.pool"])
+        ctx.set_forkserver_preload(PRELOAD)
         return ctx
     return mp.get_context("spawn")  # pragma: no cover - Windows
 

@@ -71,6 +71,8 @@ def _study_faces(folder: Path) -> list[Path]:
     from .resources import SAMPLE_FACE
 
     img = cv2.imread(str(SAMPLE_FACE))
+    if img is None:
+        raise RuntimeError(f"cannot read {SAMPLE_FACE}")
     out = []
     for name, im in (("a", img), ("b", img[:, ::-1]), ("c", cv2.resize(img, None, fx=0.8, fy=0.8)),
                      ("d", cv2.resize(img, None, fx=1.5, fy=1.5))):

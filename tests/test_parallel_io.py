@@ -110,3 +110,88 @@ def test_parallel_stimuli_error_is_the_serial_error(tmp_path):
             render_stimuli([SAMPLE_FACE, bad, SAMPLE_FACE], ["joy"], [1.0], jobs=jobs)
         errs.append(str(e.value))
     assert errs[0] == errs[1] and "blank.png" in errs[0]
+
+
+# ---------------------------------------------------------------- fap info, streamed
+def _old_info(data: bytes) -> str:
+    from editor.errors import FapFileError
+    from editor.formats.fapfile import fap_info, read_fap
+
+    try:
+        return fap_info(read_fap(data, label="t.fap"))
+    except FapFileError as e:
+        return f"error: {e}"
+
+
+def _new_info(data: bytes, rng: np.random.Generator) -> str:
+    from editor.errors import FapFileError
+    from editor.formats.fapfile import _InfoStream, _stream_lines
+
+    cuts = np.sort(rng.integers(0, len(data) + 1, int(rng.integers(0, 12))))
+    chunks = [data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)], strict=True)]
+    try:
+        return _InfoStream("t.fap").run(_stream_lines(iter(chunks), "t.fap"))
+    except FapFileError as e:
+        return f"error: {e}"
+
+
+def _fap_samples() -> list[bytes]:
+    from editor.formats.fapfile import ExpressionField, VisemeField, format_fap
+
+    vec = np.eye(68)[2] * 300 + np.eye(68)[40] * 200
+    ramp = _ramp(5)
+    xf = FapSequence(np.zeros((3, 68)), visemes=[VisemeField(1, 2, 30), None, None],
+                     expressions=[None, ExpressionField(1, 40, 3, 20), None])
+    mask = " ".join(["0", "0", "1"] + ["0"] * 65)
+    return [format_fap(FapSequence.single(vec, frames=3)).encode(),
+            format_fap(ramp).encode(), format_fap(xf, high_level="xface").encode(),
+            b"\xef\xbb\xbf# greta\r\n2.0 a b c 12.5 2\r\n" + (" ".join(["0"] * 68 + ["1"])).encode()
+            + b"\r\n0\r\n" + (" ".join(["1"] * 68)).encode() + b"\r\n1 "
+            + b" ".join([b"1"] * 66) + b" 2 3\r\n",
+            f"2.1 t 25 3\n# c\n{mask}\n1 10.6\n\n{mask}\n2\t-3\r{mask}\n3 +4\n".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5\n{mask}\n1 {2**24 + 1}\n".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5\n{mask}\n".encode(),
+            f"2.1 t 25 1\n{mask}\n0 5\n{mask}\n0 5\n".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5\n{mask}\n7 5\n\x00".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5 6\n{mask}\n\xe9 5\n".encode("latin-1"),
+            b"", b"\n# only\n", b"2.2 x 25 1\n"]
+
+
+def test_fap_info_stream_is_fap_info_of_read_fap():
+    samples = _fap_samples()
+    rng = np.random.default_rng(15)
+    for data in samples:
+        old = _old_info(data)
+        for _ in range(4):  # chunked at random places (CR LF, UTF-8, BOM across chunks)
+            assert _new_info(data, rng) == old, data[:80]
+    assert sum(_old_info(d).startswith("error:") for d in samples) >= 8  # malformed ones too
+
+
+def test_fap_info_stream_fuzz():
+    from tests.test_robustness import _mutate
+
+    rng = np.random.default_rng(1515)
+    base = _fap_samples()[:6]
+    errors = 0
+    for k in range(300):
+        data = base[k % len(base)]
+        for _ in range(int(rng.integers(1, 4))):
+            data = _mutate(rng, data)
+        old = _old_info(data)
+        errors += old.startswith("error:")
+        assert _new_info(data, rng) == old, (k, data[:200])
+    assert 50 < errors < 300
+
+
+def test_fap_info_cli_streams_a_file(cli, tmp_path):
+    from editor.formats.fapfile import fap_info, read_fap, write_fap
+
+    p = tmp_path / "r.fap"
+    write_fap(_ramp(9), p)
+    r = cli("fap", "info", p)
+    assert r.returncode == 0 and r.stdout == fap_info(read_fap(p)) + "\n"
+    p.write_bytes(p.read_bytes()[:-30])
+    r = cli("fap", "info", p)
+    with pytest.raises(Exception) as e:
+        read_fap(p)
+    assert r.returncode == 2 and r.stderr == f"fap-studio: error: {e.value}\n"

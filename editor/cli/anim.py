@@ -88,9 +88,9 @@ def cmd_fap_export(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_info(a: argparse.Namespace) -> int:
-    from editor.formats.fapfile import fap_info, read_fap
+    from editor.formats.fapfile import fap_info_file
 
-    print(fap_info(read_fap(a.fap_file)))
+    print(fap_info_file(a.fap_file))  # streamed: memory flat in the file's length
     return 0
 
 

@@ -22,7 +22,7 @@ def test_worker_face_renders_like_the_parent(sample_face):
     vecs = _ramp(5).frames
     got = list(pool.ordered_map(pool.render_face, ((v, True) for v in vecs), 2, window=2,
                                 initializer=pool.init_face,
-                                initargs=(pool.face_args(sample_face),)))
+                                initargs=pool.face_args(sample_face)))
     assert len(got) == 5
     for v, img in zip(vecs, got, strict=True):
         assert np.array_equal(img, sample_face.render(v))

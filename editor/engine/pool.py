@@ -103,20 +103,23 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], jobs: int, *,
 
 
 # --------------------------------------------------------------------- a Face per worker
-def face_args(face: Any) -> tuple[Any, ...]:
+def face_args(face: Any) -> tuple[tuple[Any, ...], np.ndarray]:
     """What a worker needs to build ``face`` again: the photo, landmarks, fitted mesh and own
     expression (a few MB, sent once per worker; not the plans and caches)."""
     return (np.asarray(face.image), face.landmarks, np.asarray(face.vertices), face.mesh,
             face.source, np.asarray(face.expression), face.expression_words,
-            face.neutral_landmarks)
+            face.neutral_landmarks), np.asarray(face.neutral_vertices)
 
 
-def init_face(args: tuple[Any, ...]) -> None:
-    """Worker initializer: build this process's :data:`FACE` from :func:`face_args`."""
+def init_face(args: tuple[Any, ...], neutral: np.ndarray) -> None:
+    """Worker initializer: build this process's :data:`FACE` from :func:`face_args` (checked:
+    the same neutralised mesh as the parent's face, so the same frames)."""
     from editor.engine.face import Face
 
     global FACE
     FACE = Face(*args)
+    if not np.array_equal(FACE.neutral_vertices, neutral):  # pragma: no cover - a bug
+        raise FapStudioError("a render worker rebuilt the face differently")
 
 
 def render_face(task: tuple[np.ndarray, bool]) -> np.ndarray:

@@ -154,7 +154,7 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
     frames: Iterator[np.ndarray]
     if jobs > 1 and n > 1:
         frames = ordered_map(render_face, ((v, creases) for v in vecs), min(jobs, n),
-                             initializer=init_face, initargs=(face_args(face),))
+                             initializer=init_face, initargs=face_args(face))
     else:
         frames = (face.render(v, creases=creases) for v in vecs)
     try:

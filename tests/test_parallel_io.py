@@ -28,11 +28,20 @@ def test_worker_face_renders_like_the_parent(sample_face):
         assert np.array_equal(img, sample_face.render(v))
 
 
-@pytest.mark.parametrize("name", ["frames", "a.mp4"])
-def test_parallel_export_is_the_serial_export(sample_face, tmp_path, name):
+@pytest.fixture(scope="module")
+def odd_face():
+    """The sample cut to an odd width and height (the video pads one column and row)."""
+    from editor.core import Face, load_image
+
+    return Face.from_image(np.ascontiguousarray(load_image(SAMPLE_FACE)[:509, :507]))
+
+
+@pytest.mark.parametrize("name", ["frames", "a.mp4", "a.avi", "odd.mp4"])
+def test_parallel_export_is_the_serial_export(sample_face, odd_face, tmp_path, name):
     seq = _ramp(7)
-    a = export_sequence(sample_face, seq, tmp_path / "serial" / name, jobs=1)
-    b = export_sequence(sample_face, seq, tmp_path / "pool" / name, jobs=2)
+    face = odd_face if name.startswith("odd") else sample_face
+    a = export_sequence(face, seq, tmp_path / "serial" / name, jobs=1)
+    b = export_sequence(face, seq, tmp_path / "pool" / name, jobs=2)
     assert a.frames == b.frames == 7 and not b.cancelled
     if name == "frames":
         files = sorted(p.name for p in a.path.iterdir())
@@ -48,6 +57,8 @@ def test_parallel_export_is_the_serial_export(sample_face, tmp_path, name):
 
         fa, fb = frames(a.path), frames(b.path)
         assert len(fa) == len(fb) == 7
+        assert fa[0].shape[:2] == (face.image.shape[0] + face.image.shape[0] % 2,
+                                   face.image.shape[1] + face.image.shape[1] % 2)
         assert all(np.array_equal(x, y) for x, y in zip(fa, fb, strict=True))
 
 

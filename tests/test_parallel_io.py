@@ -206,3 +206,61 @@ def test_fap_info_cli_streams_a_file(cli, tmp_path):
     with pytest.raises(Exception) as e:
         read_fap(p)
     assert r.returncode == 2 and r.stderr == f"fap-studio: error: {e.value}\n"
+
+
+@pytest.mark.parametrize("name", ["a.mp4", "frames"])
+def test_ctrl_c_during_parallel_animate_leaves_nothing(tmp_path, name):
+    """tests/test_robustness.py case 6 with render workers (--jobs 2; the default is the
+    cores but one, so 1 on a 2-core machine)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from editor.formats.fapfile import write_fap
+    from tests.test_robustness import ENV, only
+
+    fap = tmp_path / "long.fap"
+    write_fap(FapSequence.single(np.eye(68)[2] * 300, frames=3000), fap)
+    out = tmp_path / "out"
+    out.mkdir()
+    p = subprocess.Popen([sys.executable, "-m", "editor", "animate", str(SAMPLE_FACE), str(fap),
+                          "--jobs", "2", "-o", str(out / name)], env=ENV,
+                         stderr=subprocess.PIPE, text=True, bufsize=1)
+    seen, deadline = "", time.monotonic() + 60
+    while time.monotonic() < deadline:  # until a few frames were written
+        ch = p.stderr.read(1)
+        if not ch:
+            break
+        seen += ch
+        if seen.endswith("/3000") and seen.count("/3000") >= 5:
+            break
+    p.send_signal(signal.SIGINT)
+    err = seen + p.stderr.read()
+    p.wait(60)
+    assert p.returncode == 130, err
+    assert err.rstrip().endswith("fap-studio: interrupted") and "Traceback" not in err, err
+    only(out)
+
+
+def test_worker_error_is_one_line_and_leaves_nothing(cli, tmp_path, monkeypatch):
+    """An error in a render worker: one line, exit 2, nothing partial (case 5 with workers)."""
+    from editor.formats.fapfile import write_fap
+
+    fap = tmp_path / "r.fap"
+    write_fap(_ramp(6), fap)
+    out = tmp_path / "out"
+    out.mkdir()
+    from editor.formats import video
+
+    monkeypatch.setattr(video, "render_face", _failing_render)  # runs in the workers
+    r = cli("animate", SAMPLE_FACE, fap, "-q", "--jobs", "2", "-o", out / "a.mp4")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "worker says no" in r.stderr and "Traceback" not in r.stderr
+    assert list(out.iterdir()) == []
+
+
+def _failing_render(task):
+    from editor.errors import FapStudioError
+
+    raise FapStudioError("worker says no")

@@ -51,6 +51,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from . import bench_io
 from .bench_start import start_benches
 from .resources import SAMPLE_FACE
 
@@ -396,6 +397,8 @@ def _run(args: argparse.Namespace) -> None:
         facs_bench()
     if want("photo_to_landmarks"):
         landmarks_bench()
+    if want("fap_info", "animate_fps", "study_create"):  # issue 15, throughput (bench_io.py)
+        bench_io.main(want, _face_at)
     img = load_image(SAMPLE)
     if want("face_from_image"):
         t = _time(lambda: Face.from_image(img), 5, warm=1)

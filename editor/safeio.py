@@ -27,7 +27,7 @@ from pathlib import Path
 from .errors import FapStudioError
 
 __all__ = ["atomic_dir", "atomic_file", "atomic_write_bytes", "atomic_write_text",
-           "finite_in", "quiet_stderr", "read_bounded"]
+           "finite_in", "iter_bounded", "quiet_stderr", "read_bounded"]
 
 _CHUNK = 1 << 20
 
@@ -45,6 +45,14 @@ def read_bounded(path: str | os.PathLike, max_bytes: int, *,
     open descriptor (regular files only), refused if larger than ``max_bytes`` before and
     while reading (a file that grows is cut off, never read without bound).
     """
+    return b"".join(iter_bounded(path, max_bytes, error=error, label=label, what=what))
+
+
+def iter_bounded(path: str | os.PathLike, max_bytes: int, *,
+                 error: type[FapStudioError] = FapStudioError, label: str | None = None,
+                 what: str = "a file", chunk: int = _CHUNK) -> Iterator[bytes]:
+    """:func:`read_bounded` in chunks of at most ``chunk`` bytes (a streaming reader's memory
+    stays flat in the file length); the same checks and messages, raised when reached."""
     p = Path(path)
     label = label or str(p)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
@@ -63,17 +71,16 @@ def read_bounded(path: str | os.PathLike, max_bytes: int, *,
             raise error(f"{label}: {st.st_size} bytes, expected at most {max_bytes} for {what}")
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
-        chunks, total = [], 0
+        total = 0
         while True:
-            b = os.read(fd, min(_CHUNK, max_bytes + 1 - total))
+            b = os.read(fd, min(chunk, max_bytes + 1 - total))
             if not b:
                 break
-            chunks.append(b)
             total += len(b)
             if total > max_bytes:
                 raise error(f"{label}: more than {max_bytes} bytes, expected at most "
                             f"{max_bytes} for {what}")
-        return b"".join(chunks)
+            yield b
     except OSError as e:
         raise error(f"{label}: cannot read ({_why(e)})") from None
     finally:

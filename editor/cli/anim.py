@@ -43,17 +43,22 @@ def preset_vector(specs: list[str] | None) -> np.ndarray:
 
 def cmd_animate(a: argparse.Namespace) -> int:
     from editor.engine.face import Face
+    from editor.engine.pool import default_render_jobs
     from editor.formats.facecsv import read_animation
     from editor.formats.video import export_sequence
     from editor.safeio import finite_in
 
     fps = None if a.fps is None else finite_in(a.fps, 0, 1000, "--fps", lo_open=True)
+    if a.jobs is not None and not 1 <= a.jobs <= 256:
+        raise FapStudioError(f"--jobs: expected 1-256, got {a.jobs}")
+    jobs = default_render_jobs() if a.jobs is None else a.jobs
     seq, kind, notes = read_animation(a.fap_file, fps)
     face = Face.from_image(a.photo)
     for n in notes if kind != "fap" else []:  # what a CSV reader inferred (fps, columns)
         print(f"fap-studio: note: {n}", file=sys.stderr)
     with ProgressBar("render", quiet=a.quiet) as bar:
-        res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases)
+        res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases,
+                              jobs=jobs)
     print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
     return 0
 
@@ -83,9 +88,9 @@ def cmd_fap_export(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_info(a: argparse.Namespace) -> int:
-    from editor.formats.fapfile import fap_info, read_fap
+    from editor.formats.fapfile import fap_info_file
 
-    print(fap_info(read_fap(a.fap_file)))
+    print(fap_info_file(a.fap_file))  # streamed: memory flat in the file's length
     return 0
 
 
@@ -100,6 +105,9 @@ def add_anim_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, help="out.mp4 / out.avi, or a folder")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.add_argument("--no-creases", action="store_true", help="geometry only: no skin folds")
+    s.add_argument("-j", "--jobs", type=int, metavar="N",
+                   help="render in N worker processes (default: the CPU cores but one, "
+                   "which the encoder uses; 1: in this process); the frames are the same")
     detector_option(s)
     s.set_defaults(func=cmd_animate)
 

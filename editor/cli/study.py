@@ -33,9 +33,11 @@ def _cmd_create(args: argparse.Namespace) -> int:
             raise StudyError(f"--intensities {args.intensities!r}: not a list of numbers") from e
         if not ks or any(not 0 <= k <= 1.5 for k in ks):
             raise StudyError("--intensities must be numbers within 0 … 1.5")
+        from editor.engine.pool import default_jobs
         from editor.study.stimuli import create_from_renders, render_stimuli
 
-        renders = render_stimuli(args.faces, presets, ks, crop=args.crop == "face")
+        renders = render_stimuli(args.faces, presets, ks, crop=args.crop == "face",
+                                 jobs=default_jobs())
         study = create_from_renders(args.study, args.name or Path(args.study).stem,
                                     labels or presets, renders, args.allow_revise,
                                     args.break_every)

@@ -21,9 +21,10 @@ keyframes in :mod:`.keyframes`.
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
@@ -32,14 +33,14 @@ import numpy as np
 
 from editor.engine.faps import FAPS, check_vector, partner_mask, round_half_away
 from editor.errors import FapFileError
-from editor.safeio import atomic_write_text, read_bounded
+from editor.safeio import atomic_write_text, iter_bounded, read_bounded
 
 from .blends import blend_expressions, blend_visemes
 from .presets import Preset
 
 __all__ = ["MAX_FRAMES", "ExpressionField", "FapSequence", "VisemeField", "check_vector",
-           "expand_high_level", "fap_info", "format_fap", "fps_text", "partner_mask", "read_fap",
-           "round_half_away", "write_fap"]
+           "expand_high_level", "fap_info", "fap_info_file", "format_fap", "fps_text",
+           "partner_mask", "read_fap", "round_half_away", "write_fap"]
 
 N_FAPS = 68
 MAX_FRAMES = 1_000_000
@@ -504,17 +505,215 @@ def fap_info(seq: FapSequence) -> str:
     """Summary for ``fap info``: version, name, fps, frames, duration, FAPs used, notes."""
     nv = sum(v is not None for v in seq.visemes)
     ne = sum(e is not None for e in seq.expressions)
-    plain = ", plain one-token form (no meaning)" if seq.has_high_level and not nv + ne else ""
-    lines = [f"version:  {seq.version}", f"name:     {seq.name}",
-             f"fps:      {fps_text(seq.fps)}",
-             f"frames:   {seq.n_frames} (numbered {seq.frame_numbers[0]}-"
-             f"{seq.frame_numbers[-1]})", f"duration: {seq.duration:.3f} s",
-             f"FAP 1/2:  viseme fields in {nv} frame(s), expression fields in {ne} frame(s)"
-             + plain]
     used = [n for n in seq.used_faps() if n > 2]
-    lines.append(f"FAPs used ({len(used)}):")
+    stats = []
     for n in used:
         col = seq.frames[seq.masks[:, n - 1], n - 1]
-        lines.append(f"  {n:2d} {FAPS[n].name:<22} in {col.size} frame(s), "
-                     f"values {col.min():g} .. {col.max():g}")
-    return "\n".join(lines + (["notes:"] + [f"  - {t}" for t in seq.notes] if seq.notes else []))
+        stats.append((n, col.size, col.min(), col.max()))
+    return _info_text(seq.version, seq.name, seq.fps, seq.n_frames,
+                      (int(seq.frame_numbers[0]), int(seq.frame_numbers[-1])), nv, ne,
+                      seq.has_high_level, stats, seq.notes)
+
+
+def _info_text(version: str, name: str, fps: float, n: int, numbers: tuple[int, int], nv: int,
+               ne: int, high_level: bool, stats: list[tuple[int, int, Any, Any]],
+               notes: list[str]) -> str:
+    plain = ", plain one-token form (no meaning)" if high_level and not nv + ne else ""
+    lines = [f"version:  {version}", f"name:     {name}",
+             f"fps:      {fps_text(fps)}",
+             f"frames:   {n} (numbered {numbers[0]}-{numbers[1]})",
+             f"duration: {n / fps:.3f} s",
+             f"FAP 1/2:  viseme fields in {nv} frame(s), expression fields in {ne} frame(s)"
+             + plain]
+    lines.append(f"FAPs used ({len(stats)}):")
+    for k, size, lo, hi in stats:
+        lines.append(f"  {k:2d} {FAPS[k].name:<22} in {size} frame(s), "
+                     f"values {lo:g} .. {hi:g}")
+    return "\n".join(lines + (["notes:"] + [f"  - {t}" for t in notes] if notes else []))
+
+
+def fap_info_file(path: str | os.PathLike, *, label: str | None = None) -> str:
+    """:func:`fap_info` of the ``.fap`` file ``path``, read as a stream: memory stays flat in
+    the file's length (a 1 M-frame file is never held whole). The same text as
+    ``fap_info(read_fap(path))``, and the same :class:`FapFileError` for a malformed file."""
+    p = Path(path)
+    label = label or p.name
+    chunks = iter_bounded(p, MAX_FILE_BYTES, error=FapFileError, label=label,
+                          what="a .fap file")
+    return _InfoStream(label).run(_stream_lines(chunks, label))
+
+
+def _stream_lines(chunks: Iterator[bytes], label: str) -> Iterator[str]:
+    """The lines of :meth:`_Parser`'s split (CRLF, CR, LF) of the decoded chunks, one by one;
+    at the end (only when run to the end) :func:`_decode`'s errors: the first NUL byte, else
+    the first non-UTF-8 byte, anywhere in the file."""
+    buf, first, nl_before = b"", True, 0
+    bad_utf8: FapFileError | None = None
+    nl = b"\n"
+    for chunk in itertools.chain(chunks, [None]):
+        if chunk is not None:
+            buf += chunk
+            cut = max(buf.rfind(nl), buf.rfind(b"\r", 0, len(buf) - 1))  # keep a last CR
+            if cut < 0:
+                continue
+            part, buf = buf[:cut + 1], buf[cut + 1:]
+        else:
+            part, buf = buf, b""
+        nul = part.find(b"\x00")
+        if nul >= 0:
+            raise FapFileError(f"{label} line {nl_before + part.count(nl, 0, nul) + 1}: binary "
+                               "data (NUL byte), expected a text .fap file")
+        if first:
+            part, first = part.removeprefix(b"\xef\xbb\xbf"), False
+        if bad_utf8 is None:
+            try:
+                text = part.decode("utf-8")
+            except UnicodeDecodeError as e:
+                bad_utf8 = FapFileError(
+                    f"{label} line {nl_before + part.count(nl, 0, e.start) + 1}: byte "
+                    f"0x{part[e.start]:02x} is not UTF-8, expected a text .fap file")
+            else:
+                lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+                yield from (lines if chunk is None else lines[:-1])
+        nl_before += part.count(nl)
+    if bad_utf8 is not None:
+        raise bad_utf8
+
+
+#: a data line of plain integer tokens (ASCII digits, spaces/tabs): the parser's fast path
+_PLAIN_INTS = re.compile(r"[ \t]*[+-]?[0-9]{1,15}(?:[ \t]+[+-]?[0-9]{1,15})*[ \t]*\Z")
+
+
+class _InfoStream(_Parser):
+    """:class:`_Parser` over a stream of lines, keeping per-FAP counts and ranges instead of
+    the frames. The first parse error is held until the stream has been read to the end
+    (a NUL byte or a non-UTF-8 byte anywhere wins, as in :func:`read_fap`)."""
+
+    def __init__(self, label: str) -> None:
+        super().__init__("", label)
+        self.lines: Any = {}
+        self.content = []
+        self.notes = []
+
+    def run(self, lines: Iterator[str]) -> str:
+        pending: FapFileError | None = None
+        try:
+            result = self._consume(lines)
+        except FapFileError as e:
+            pending = e
+        for _ in lines:  # the rest of the file: NUL / UTF-8 errors come first
+            pass
+        if pending is not None:
+            raise pending
+        return result
+
+    def _consume(self, lines: Iterator[str]) -> str:
+        comments = 0
+        idx = -1
+        header: tuple[str, str, float, int] | None = None
+        count = done = 0
+        last_content = -1
+        held: int | None = None  # the mask line of the frame being read
+        frame_lines: dict[int, str] = {}
+        self.lines = frame_lines
+        # statistics
+        n_used = np.zeros(N_FAPS, np.int64)
+        lo = np.full(N_FAPS, np.inf, np.float32)
+        hi = np.full(N_FAPS, -np.inf, np.float32)
+        first_num = last_num = 0
+        nv = ne = greta = xface = plain = 0
+        high = False
+        mask_text, mask_val = None, (np.zeros(N_FAPS, bool), False)
+        low = np.zeros(0, np.int64)
+        block: list[list[int]] = []
+
+        def flush() -> None:
+            if block:
+                a = np.array(block, np.float32)[:, 1:]
+                n_used[low - 1] += len(a)
+                if a.shape[1]:
+                    lo[low - 1] = np.minimum(lo[low - 1], a.min(axis=0))
+                    hi[low - 1] = np.maximum(hi[low - 1], a.max(axis=0))
+                block.clear()
+
+        for line in lines:
+            idx += 1
+            s = line.strip()
+            if not s:
+                continue
+            if s[0] == "#":
+                comments += 1
+                continue
+            last_content = idx
+            if header is None:
+                self.lines = {idx: line}
+                self.content = [idx]
+                header = self.header()
+                count = header[3]
+                self.lines = frame_lines
+                continue
+            if done == count:
+                raise self.fail(idx, f"expected the end of the file after the {count} "
+                                     f"frame(s) the header (line {self.content[0] + 1}) "
+                                     "declares, got more data")
+            if held is None:
+                held = idx
+                frame_lines.clear()
+                frame_lines[idx] = line
+                continue
+            frame_lines[idx] = line
+            mline = frame_lines[held]
+            if mline != mask_text:
+                flush()
+                mask_val = self.mask(held)
+                mask_text = mline
+                low = np.flatnonzero(mask_val[0][2:]) + 3
+            mask, extra = mask_val
+            expect = None if done == 0 else last_num + 1
+            toks = line.split() if not (mask[0] or mask[1]) else None
+            if (toks is not None and len(toks) == len(low) + 1 and _PLAIN_INTS.match(line)
+                    and (ints := [int(t) for t in toks])
+                    and (ints[0] == expect or (expect is None and ints[0] in (0, 1)))
+                    and (len(ints) == 1 or max(map(abs, ints[1:])) <= MAX_ABS_VALUE)):
+                block.append(ints)
+                num = ints[0]
+                if len(block) >= 4096:  # memory stays bounded
+                    flush()
+            else:  # anything else: the reader's own code (its checks, its messages)
+                flush()
+                row = np.zeros(N_FAPS, np.float32)
+                num, vis, expr, is_x = self.data(idx, mask, expect, row)
+                nv, ne = nv + (vis is not None), ne + (expr is not None)
+                xface += is_x
+                plain += (not is_x) and bool(mask[:2].any())
+                sel = np.flatnonzero(mask[2:]) + 2
+                n_used[sel] += 1
+                lo[sel] = np.minimum(lo[sel], row[sel])
+                hi[sel] = np.maximum(hi[sel], row[sel])
+            high = high or bool(mask[0] or mask[1])
+            greta += extra
+            if done == 0:
+                first_num = num
+            last_num = num
+            done += 1
+            held = None
+        flush()
+        if header is None:
+            raise self.fail(0, f"empty file, expected the header {_HEADER}")
+        if done < count:
+            raise self.fail(last_content + 1,
+                            f"unexpected end of file: the header (line {self.content[0] + 1}) "
+                            f"declares {count} frames, expected a mask line and a data line "
+                            f"per frame, got {done} complete frame(s)")
+        version, name, fps, _ = header
+        notes = ([f"{comments} '#' comment line(s) skipped"] if comments else []) + self.notes
+        notes += [text for cond, text in (
+            (first_num == 1, "frame numbers start at 1 (VREng style); written from 0"),
+            (greta, f"{greta} mask line(s) with 69 flags (Greta style); 69th ignored"),
+            (self.decimals, f"values were floats and were rounded ({self.decimals} token(s))"),
+            (xface, f"Xface 4/6-token FAP 1/2 fields in {xface} frame(s)"),
+            (plain, f"FAP 1/2 masked with one plain token in {plain} frame(s): no defined "
+                    "meaning, kept in frames[:, 0/1], not expanded")) if cond]
+        stats = [(k + 1, int(n_used[k]), lo[k], hi[k]) for k in range(2, N_FAPS) if n_used[k]]
+        return _info_text(version, name, fps, count, (first_num, last_num), nv, ne, high,
+                          stats, notes)

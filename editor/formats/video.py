@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -27,6 +27,7 @@ import numpy as np
 
 from editor.engine.faps import FAPS
 from editor.engine.imageio import save_image
+from editor.engine.pool import face_args, init_face, ordered_map, render_face
 from editor.errors import FapStudioError
 from editor.safeio import atomic_dir, atomic_file, quiet_stderr
 
@@ -109,8 +110,12 @@ def sequence_vectors(seq) -> np.ndarray:
 
 def export_sequence(face, seq, out: str | os.PathLike[str],
                     progress: Callable[[int, int], bool | None] | None = None,
-                    creases: bool = True) -> ExportResult:
-    """Render ``seq`` on ``face`` into an MP4 file or a folder of PNG frames."""
+                    creases: bool = True, jobs: int = 1) -> ExportResult:
+    """Render ``seq`` on ``face`` into an MP4 file or a folder of PNG frames.
+
+    ``jobs`` > 1 renders the frames in that many worker processes (:mod:`editor.engine.pool`:
+    each builds the face once, a bounded window of frames in flight), written in order here:
+    the same frames as ``jobs=1``."""
     vecs = sequence_vectors(seq)
     n = len(vecs)
     if n == 0:
@@ -120,7 +125,7 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
     try:
         # staged next to the target, moved there only when complete (issue 16)
         with (atomic_file if codec else atomic_dir)(p) as tmp:
-            done = _write_frames(face, vecs, tmp, codec, seq.fps, progress, creases)
+            done = _write_frames(face, vecs, tmp, codec, seq.fps, progress, creases, jobs)
             if done < n:
                 raise _Cancelled(done)
             if codec:
@@ -134,7 +139,8 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
 
 
 def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
-                  progress: Callable[[int, int], bool | None] | None, creases: bool) -> int:
+                  progress: Callable[[int, int], bool | None] | None, creases: bool,
+                  jobs: int = 1) -> int:
     """Render into the video file or folder ``out``; the number of frames written (fewer
     when ``progress`` cancelled). The video is finalised (released) before returning."""
     n = len(vecs)
@@ -145,9 +151,14 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
         with quiet_stderr():
             writer = VideoWriter(out, (w, h), fps)
     done = 0
+    frames: Iterator[np.ndarray]
+    if jobs > 1 and n > 1:
+        frames = ordered_map(render_face, ((v, creases) for v in vecs), min(jobs, n),
+                             initializer=init_face, initargs=face_args(face))
+    else:
+        frames = (face.render(v, creases=creases) for v in vecs)
     try:
-        for i, vec in enumerate(vecs):
-            img = face.render(vec, creases=creases)
+        for i, img in enumerate(frames):
             if writer is not None:
                 with quiet_stderr():  # a full disk is checked after (check_video)
                     writer.write(img)
@@ -157,6 +168,9 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
             if progress is not None and progress(done, n) is False:
                 break
     finally:
+        close = getattr(frames, "close", None)
+        if close is not None:  # stop the workers (cancel, error, Ctrl-C)
+            close()
         if writer is not None:
             with quiet_stderr():
                 writer.close()

@@ -133,35 +133,70 @@ def face_crop(face) -> tuple[int, int, int, int]:
 
 def render_stimuli(faces: Sequence[str | Path], presets: Sequence[str],
                    intensities: Sequence[float], crop: bool = True,
-                   progress: Callable[[int, int], object] | None = None
+                   progress: Callable[[int, int], object] | None = None, jobs: int = 1
                    ) -> list[tuple[str, str, float, np.ndarray]]:
     """Render faces x presets x intensities: (face name, expression, intensity, RGB image).
 
     With ``crop`` (default) each stimulus is cut to the face region (:func:`face_crop`), so
     that raters judge the face, not the photo around it. ``progress(done, total)`` is called
-    after each face fit and each render (it may raise to stop).
+    after each face fit and each render (it may raise to stop). ``jobs`` > 1 fits and renders
+    the faces in that many worker processes (:func:`editor.engine.pool.ordered_map`, a face
+    per task; progress then moves a face at a time): the same images, in the same order.
     """
+    from editor.engine.landmarks import default_detector_name
+    from editor.engine.pool import ordered_map
+
     out = []
     names: set[str] = set()
     total, done = len(faces) * (1 + len(presets) * len(intensities)), 0
-    for path in faces:
-        face = Face.from_image(path)
+    tasks = [(path, tuple(presets), tuple(float(k) for k in intensities), crop,
+              default_detector_name()) for path in faces]
+    parallel = jobs > 1 and len(tasks) > 1
+
+    def step() -> None:
+        nonlocal done
         done += 1
         if progress is not None:
             progress(done, total)
-        name = Path(path).stem
-        while name in names:
-            name += "_"
-        names.add(name)
-        x0, y0, x1, y1 = face_crop(face) if crop else (0, 0, face.image.shape[1],
-                                                          face.image.shape[0])
-        for p in presets:
-            preset = get_preset(p)
-            for k in intensities:
-                img = face.render(apply_preset(preset, k))[y0:y1, x0:x1]
-                out.append((name, preset.name, float(k), np.ascontiguousarray(img)))
-                done += 1
-                if progress is not None:
-                    progress(done, total)
+
+    results = (ordered_map(_face_stimuli, tasks, min(jobs, len(tasks))) if parallel
+               else (_face_stimuli(t, step) for t in tasks))
+    try:
+        for path, renders in zip(faces, results, strict=True):
+            name = Path(path).stem
+            while name in names:
+                name += "_"
+            names.add(name)
+            out += [(name, expr, k, img) for expr, k, img in renders]
+            if parallel:
+                done += len(renders)
+                step()
+    finally:
+        close = getattr(results, "close", None)
+        if close is not None:
+            close()
     return out
 
+
+def _face_stimuli(task: tuple[str | Path, tuple[str, ...], tuple[float, ...], bool, str],
+                  step: Callable[[], None] | None = None
+                  ) -> list[tuple[str, float, np.ndarray]]:
+    """One face's stimuli: fit the photo, render every preset x intensity (cropped);
+    ``step()`` after the fit and after each render."""
+    from editor.engine.landmarks import get_detector
+
+    path, presets, intensities, crop, detector = task
+    face = Face.from_image(path, get_detector(detector))
+    if step is not None:
+        step()
+    x0, y0, x1, y1 = face_crop(face) if crop else (0, 0, face.image.shape[1],
+                                                      face.image.shape[0])
+    out = []
+    for p in presets:
+        preset = get_preset(p)
+        for k in intensities:
+            img = face.render(apply_preset(preset, k))[y0:y1, x0:x1]
+            out.append((preset.name, float(k), np.ascontiguousarray(img)))
+            if step is not None:
+                step()
+    return out

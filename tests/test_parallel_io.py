@@ -1,0 +1,266 @@
+"""Issue 15 (throughput): parallel animate and study stimuli give the serial path's output;
+``fap info`` streams and says what it said before (good and malformed files)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from editor.engine import pool
+from editor.formats.fapfile import FapSequence
+from editor.formats.presets import apply_preset, get_preset
+from editor.formats.video import export_sequence
+from editor.resources import SAMPLE_FACE
+
+
+def _ramp(frames: int) -> FapSequence:
+    vec = apply_preset(get_preset("joy"), 1.0)
+    return FapSequence(np.linspace(0, 1, frames, dtype=np.float32)[:, None] * vec[None], fps=25)
+
+
+def test_worker_face_renders_like_the_parent(sample_face):
+    vecs = _ramp(5).frames
+    got = list(pool.ordered_map(pool.render_face, ((v, True) for v in vecs), 2, window=2,
+                                initializer=pool.init_face,
+                                initargs=pool.face_args(sample_face)))
+    assert len(got) == 5
+    for v, img in zip(vecs, got, strict=True):
+        assert np.array_equal(img, sample_face.render(v))
+
+
+@pytest.fixture(scope="module")
+def odd_face():
+    """The sample cut to an odd width and height (the video pads one column and row)."""
+    from editor.core import Face, load_image
+
+    return Face.from_image(np.ascontiguousarray(load_image(SAMPLE_FACE)[:509, :507]))
+
+
+@pytest.mark.parametrize("name", ["frames", "a.mp4", "a.avi", "odd.mp4"])
+def test_parallel_export_is_the_serial_export(sample_face, odd_face, tmp_path, name):
+    seq = _ramp(7)
+    face = odd_face if name.startswith("odd") else sample_face
+    a = export_sequence(face, seq, tmp_path / "serial" / name, jobs=1)
+    b = export_sequence(face, seq, tmp_path / "pool" / name, jobs=2)
+    assert a.frames == b.frames == 7 and not b.cancelled
+    if name == "frames":
+        files = sorted(p.name for p in a.path.iterdir())
+        assert files == sorted(p.name for p in b.path.iterdir()) and len(files) == 7
+        for f in files:
+            assert (a.path / f).read_bytes() == (b.path / f).read_bytes(), f
+    else:
+        import av
+
+        def frames(p):
+            with av.open(str(p)) as c:
+                return [f.to_ndarray(format="rgb24") for f in c.decode(c.streams.video[0])]
+
+        fa, fb = frames(a.path), frames(b.path)
+        assert len(fa) == len(fb) == 7
+        assert fa[0].shape[:2] == (face.image.shape[0] + face.image.shape[0] % 2,
+                                   face.image.shape[1] + face.image.shape[1] % 2)
+        assert all(np.array_equal(x, y) for x, y in zip(fa, fb, strict=True))
+
+
+def test_parallel_export_cancel_and_errors_leave_nothing(sample_face, tmp_path):
+    res = export_sequence(sample_face, _ramp(9), tmp_path / "c.mp4", jobs=2,
+                          progress=lambda d, n: d < 3)
+    assert res.cancelled and res.frames == 3
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ordered_map_order_and_worker_error():
+    assert list(pool.ordered_map(abs, [-3, 1, -2, 5, -4], 2, window=2)) == [3, 1, 2, 5, 4]
+    with pytest.raises(TypeError):
+        list(pool.ordered_map(abs, [1, "x", 2], 2))
+
+
+def test_animate_jobs_option(cli, tmp_path):
+    from editor.formats.fapfile import write_fap
+
+    fap = tmp_path / "r.fap"
+    write_fap(_ramp(4), fap)
+    r = cli("animate", SAMPLE_FACE, fap, "-q", "--jobs", "0", "-o", tmp_path / "x")
+    code, err = r.returncode, r.stderr
+    assert code == 2 and "--jobs" in err
+    r = cli("animate", SAMPLE_FACE, fap, "-q", "-j", "2", "-o", tmp_path / "y")
+    code, err = r.returncode, r.stderr
+    assert code == 0 and len(list((tmp_path / "y").iterdir())) == 4, err
+
+
+def test_parallel_stimuli_are_the_serial_stimuli(tmp_path):
+    import cv2
+
+    from editor.study.stimuli import encode_png, render_stimuli
+
+    img = cv2.imread(str(SAMPLE_FACE))
+    faces = [SAMPLE_FACE, tmp_path / "mirror.png", tmp_path / "small.png"]
+    cv2.imwrite(str(faces[1]), img[:, ::-1])
+    cv2.imwrite(str(faces[2]), cv2.resize(img, None, fx=0.8, fy=0.8))
+    seen: list[tuple[int, int]] = []
+    args = (faces, ["joy", "anger"], [0.5, 1.0])
+    serial = render_stimuli(*args, jobs=1)
+    par = render_stimuli(*args, jobs=2, progress=lambda d, t: seen.append((d, t)))
+    assert len(serial) == len(par) == 12
+    assert [r[:3] for r in serial] == [r[:3] for r in par]
+    assert [encode_png(r[3]) for r in serial] == [encode_png(r[3]) for r in par]
+    assert seen == [(5, 15), (10, 15), (15, 15)]
+
+
+def test_parallel_stimuli_error_is_the_serial_error(tmp_path):
+    from editor.errors import FapStudioError
+    from editor.study.stimuli import render_stimuli
+
+    bad = tmp_path / "blank.png"
+    import cv2
+
+    cv2.imwrite(str(bad), np.full((200, 200, 3), 128, np.uint8))
+    errs = []
+    for jobs in (1, 2):
+        with pytest.raises(FapStudioError) as e:
+            render_stimuli([SAMPLE_FACE, bad, SAMPLE_FACE], ["joy"], [1.0], jobs=jobs)
+        errs.append(str(e.value))
+    assert errs[0] == errs[1] and "blank.png" in errs[0]
+
+
+# ---------------------------------------------------------------- fap info, streamed
+def _old_info(data: bytes) -> str:
+    from editor.errors import FapFileError
+    from editor.formats.fapfile import fap_info, read_fap
+
+    try:
+        return fap_info(read_fap(data, label="t.fap"))
+    except FapFileError as e:
+        return f"error: {e}"
+
+
+def _new_info(data: bytes, rng: np.random.Generator) -> str:
+    from editor.errors import FapFileError
+    from editor.formats.fapfile import _InfoStream, _stream_lines
+
+    cuts = np.sort(rng.integers(0, len(data) + 1, int(rng.integers(0, 12))))
+    chunks = [data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)], strict=True)]
+    try:
+        return _InfoStream("t.fap").run(_stream_lines(iter(chunks), "t.fap"))
+    except FapFileError as e:
+        return f"error: {e}"
+
+
+def _fap_samples() -> list[bytes]:
+    from editor.formats.fapfile import ExpressionField, VisemeField, format_fap
+
+    vec = np.eye(68)[2] * 300 + np.eye(68)[40] * 200
+    ramp = _ramp(5)
+    xf = FapSequence(np.zeros((3, 68)), visemes=[VisemeField(1, 2, 30), None, None],
+                     expressions=[None, ExpressionField(1, 40, 3, 20), None])
+    mask = " ".join(["0", "0", "1"] + ["0"] * 65)
+    return [format_fap(FapSequence.single(vec, frames=3)).encode(),
+            format_fap(ramp).encode(), format_fap(xf, high_level="xface").encode(),
+            b"\xef\xbb\xbf# greta\r\n2.0 a b c 12.5 2\r\n" + (" ".join(["0"] * 68 + ["1"])).encode()
+            + b"\r\n0\r\n" + (" ".join(["1"] * 68)).encode() + b"\r\n1 "
+            + b" ".join([b"1"] * 66) + b" 2 3\r\n",
+            f"2.1 t 25 3\n# c\n{mask}\n1 10.6\n\n{mask}\n2\t-3\r{mask}\n3 +4\n".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5\n{mask}\n1 {2**24 + 1}\n".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5\n{mask}\n".encode(),
+            f"2.1 t 25 1\n{mask}\n0 5\n{mask}\n0 5\n".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5\n{mask}\n7 5\n\x00".encode(),
+            f"2.1 t 25 2\n{mask}\n0 5 6\n{mask}\n\xe9 5\n".encode("latin-1"),
+            b"", b"\n# only\n", b"2.2 x 25 1\n"]
+
+
+def test_fap_info_stream_is_fap_info_of_read_fap():
+    samples = _fap_samples()
+    rng = np.random.default_rng(15)
+    for data in samples:
+        old = _old_info(data)
+        for _ in range(4):  # chunked at random places (CR LF, UTF-8, BOM across chunks)
+            assert _new_info(data, rng) == old, data[:80]
+    assert sum(_old_info(d).startswith("error:") for d in samples) >= 8  # malformed ones too
+
+
+def test_fap_info_stream_fuzz():
+    from tests.test_robustness import _mutate
+
+    rng = np.random.default_rng(1515)
+    base = _fap_samples()[:6]
+    errors = 0
+    for k in range(300):
+        data = base[k % len(base)]
+        for _ in range(int(rng.integers(1, 4))):
+            data = _mutate(rng, data)
+        old = _old_info(data)
+        errors += old.startswith("error:")
+        assert _new_info(data, rng) == old, (k, data[:200])
+    assert 50 < errors < 300
+
+
+def test_fap_info_cli_streams_a_file(cli, tmp_path):
+    from editor.formats.fapfile import fap_info, read_fap, write_fap
+
+    p = tmp_path / "r.fap"
+    write_fap(_ramp(9), p)
+    r = cli("fap", "info", p)
+    assert r.returncode == 0 and r.stdout == fap_info(read_fap(p)) + "\n"
+    p.write_bytes(p.read_bytes()[:-30])
+    r = cli("fap", "info", p)
+    with pytest.raises(Exception) as e:
+        read_fap(p)
+    assert r.returncode == 2 and r.stderr == f"fap-studio: error: {e.value}\n"
+
+
+@pytest.mark.parametrize("name", ["a.mp4", "frames"])
+def test_ctrl_c_during_parallel_animate_leaves_nothing(tmp_path, name):
+    """tests/test_robustness.py case 6 with render workers (--jobs 2; the default is the
+    cores but one, so 1 on a 2-core machine)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from editor.formats.fapfile import write_fap
+    from tests.test_robustness import ENV, only
+
+    fap = tmp_path / "long.fap"
+    write_fap(FapSequence.single(np.eye(68)[2] * 300, frames=3000), fap)
+    out = tmp_path / "out"
+    out.mkdir()
+    p = subprocess.Popen([sys.executable, "-m", "editor", "animate", str(SAMPLE_FACE), str(fap),
+                          "--jobs", "2", "-o", str(out / name)], env=ENV,
+                         stderr=subprocess.PIPE, text=True, bufsize=1)
+    seen, deadline = "", time.monotonic() + 60
+    while time.monotonic() < deadline:  # until a few frames were written
+        ch = p.stderr.read(1)
+        if not ch:
+            break
+        seen += ch
+        if seen.endswith("/3000") and seen.count("/3000") >= 5:
+            break
+    p.send_signal(signal.SIGINT)
+    err = seen + p.stderr.read()
+    p.wait(60)
+    assert p.returncode == 130, err
+    assert err.rstrip().endswith("fap-studio: interrupted") and "Traceback" not in err, err
+    only(out)
+
+
+def test_worker_error_is_one_line_and_leaves_nothing(cli, tmp_path, monkeypatch):
+    """An error in a render worker: one line, exit 2, nothing partial (case 5 with workers)."""
+    from editor.formats.fapfile import write_fap
+
+    fap = tmp_path / "r.fap"
+    write_fap(_ramp(6), fap)
+    out = tmp_path / "out"
+    out.mkdir()
+    from editor.formats import video
+
+    monkeypatch.setattr(video, "render_face", _failing_render)  # runs in the workers
+    r = cli("animate", SAMPLE_FACE, fap, "-q", "--jobs", "2", "-o", out / "a.mp4")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "worker says no" in r.stderr and "Traceback" not in r.stderr
+    assert list(out.iterdir()) == []
+
+
+def _failing_render(task):
+    from editor.errors import FapStudioError
+
+    raise FapStudioError("worker says no")

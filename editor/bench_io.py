@@ -7,7 +7,7 @@
   ``encode_only_fps``: the H.264 encoder alone (x264 preset medium, CRF 18, as shipped) on
   50 pre-rendered frames, the ceiling whatever renders the frames; target >= 80 frames/s;
 * ``fap_info``: ``fap-studio fap info`` on a 1 000 000-frame file, as a process (wall time and
-  that child's own peak RSS from ``os.wait4``; ``peak_rss_mb_tenth``: the same on a
+  that child's own peak RSS (VmHWM); ``peak_rss_mb_tenth``: the same on a
   100 000-frame file, so flatness shows in one run); target <= 10 s;
 * ``study_create``: the stimuli of 4 faces x 6 presets (``render_stimuli``: fit + render +
   crop; 1024-1536 px photos of the sample), in worker processes (a new pool each time, as
@@ -18,7 +18,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -146,20 +145,29 @@ def write_long_fap(path: Path, frames: int) -> None:
             k += n
 
 
+#: The child of ``fap_info``: the CLI in a fresh process, then its own peak RSS (VmHWM, KiB) as
+#: the last line on stderr (``ru_maxrss`` of a child keeps the parent's peak across exec).
+_FAP_INFO_CHILD = """
+import sys
+from editor.cli import main
+code = main(["fap", "info", sys.argv[1]])
+with open("/proc/self/status") as f:
+    peak = next(int(x.split()[1]) for x in f if x.startswith("VmHWM:"))
+print(f"VmHWM {peak}", file=sys.stderr)
+sys.exit(code)
+"""
+
+
 def _fap_info_run(path: Path) -> tuple[subprocess.CompletedProcess, float, int]:
-    """``fap-studio fap info path`` as a process: (result, seconds, that child's own peak RSS
-    KiB, from ``os.wait4``: not the largest of all children, as ``RUSAGE_CHILDREN`` is)."""
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        t0 = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, "-m", "editor", "fap", "info", str(path)],
-                                stdout=out, stderr=err, text=True)
-        _, status, usage = os.wait4(proc.pid, 0)
-        seconds = time.perf_counter() - t0
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        r = subprocess.CompletedProcess(proc.args, proc.returncode, out.read(), err.read())
-    return r, seconds, usage.ru_maxrss
+    """``fap-studio fap info path`` as a process: (result, seconds, its own peak RSS KiB)."""
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-c", _FAP_INFO_CHILD, str(path)],
+                       capture_output=True, text=True, check=False)
+    seconds = time.perf_counter() - t0
+    lines = r.stderr.strip().splitlines()
+    peak = int(lines[-1].split()[1]) if lines and lines[-1].startswith("VmHWM ") else -1
+    r.stderr = "\n".join(lines[:-1]) if peak >= 0 else r.stderr
+    return r, seconds, peak
 
 
 def fap_info_bench(frames: int = 1_000_000, goal_s: float = 10.0) -> None:

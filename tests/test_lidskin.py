@@ -54,3 +54,26 @@ def test_lid_skin_leaves_rest_and_compression_alone(sample_neutral, sample_face,
     vec = apply_preset("anger", 1.0)
     assert np.array_equal(_render(sample_neutral, vec, True, monkeypatch),
                           _render(sample_neutral, vec, False, monkeypatch))
+
+
+def test_closing_lids_leave_the_brow_where_it_is(sample_neutral, monkeypatch):
+    """A blink (upper lids down, brows still) unfolds the lid's own skin: just under the brow
+    the column shows the photo's skin at the same depth below the brow (closer than the plain,
+    uniformly stretched warp), so the brow's lower edge stays put. Taking the stretch under the
+    brow, as for raised brows, dragged the brow's lower edge over the eye into an "M"."""
+    f = sample_neutral
+    vec = {"close_t_l_eyelid": 960, "close_t_r_eyelid": 960,
+           "close_b_l_eyelid": 64, "close_b_r_eyelid": 64}
+    v = f.frame.to_frame(f.deform(vec).astype(np.float64))
+    v0 = f.frame.to_frame(f.vertices.astype(np.float64))
+    new, plain = (_render(f, vec, k, monkeypatch) for k in (True, False))
+    n = f.mesh.index
+    for side in "lr":
+        mid, brow = n(f"eye_{side}_u3"), n(f"brow_{side}_d2")
+        assert abs(v[brow, 1] - v0[brow, 1]) < 0.05  # the brow itself does not move
+        hs = v0[mid, 1] - v0[brow, 1]
+        ds = -np.linspace(0.5, 0.4 * hs, 12)  # below the brow (negative heights above it)
+        src = _profile(f.image, f, v0[brow, 0], v0[brow, 1], ds)
+        e_new = np.abs(_profile(new, f, v[brow, 0], v[brow, 1], ds) - src).mean()
+        e_plain = np.abs(_profile(plain, f, v[brow, 0], v[brow, 1], ds) - src).mean()
+        assert e_new < 0.7 * e_plain, (side, e_new, e_plain)

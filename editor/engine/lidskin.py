@@ -131,8 +131,13 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     ex = Hd - Hs
     fade = (_smooth01((u - x_lo) / (END_FADE * (x_hi - x_lo)))
             * _smooth01((x_hi - u) / (END_FADE * (x_hi - x_lo))))
-    m = fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
-    live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m > 0)
+    # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (m > 0:
+    # rigid at the lid); a closing lid unfolds the lid's own skin (m < 0: rigid at the brow,
+    # whose lower edge would otherwise be dragged down over the eye into an "M")
+    brow_up, lid_down = brow_s - brow_y, lid_y - lid_s
+    pull = np.clip((brow_up - lid_down) / (np.abs(brow_up) + np.abs(lid_down) + 1e-6), -1.0, 1.0)
+    m = pull * fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
+    live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m != 0)
     k = np.where(live, m * ex * Hd / np.maximum(Hs, 1e-6), 0.0)
     tab_all = np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k], 1)
     jobs = []  # per stretched strip: box, table, its first frame x

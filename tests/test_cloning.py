@@ -316,3 +316,12 @@ def test_jaffe_real_source(jaffe_ka, sample_face):
             assert e < nothing, (k, method, e, nothing)
             s = signed_areas(res.vertices.astype(np.float64), sample_face.triangles)
             assert (s > 0).all()
+
+
+def test_clone_cli_takes_the_sample_keyword(cli, tmp_path):
+    """``sample`` works for every photo option of ``clone`` (as for every other command)."""
+    out = tmp_path / "c.png"
+    r = cli("clone", "--source-neutral", "sample", "--source", "sample", "--target", "sample",
+            "-o", out)
+    assert r.returncode == 0, r.stderr
+    assert out.is_file()

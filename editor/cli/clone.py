@@ -23,7 +23,7 @@ import numpy as np
 from editor.errors import FapStudioError
 from editor.resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
-from .util import ProgressBar, detector_option, guarded
+from .util import ProgressBar, detector_option, guarded, photo_arg
 
 SAMPLE = SAMPLE_FACE
 
@@ -123,9 +123,12 @@ def add_clone_parser(sub) -> None:
     """Register ``clone``, ``track`` and ``clone-eval`` on an argparse subparsers object."""
     s = sub.add_parser("clone", help="clone a performer's expression (neutral + expression "
                        "photo) onto another photo")
-    s.add_argument("--source-neutral", required=True, metavar="A", help="performer, neutral")
-    s.add_argument("--source", required=True, metavar="B", help="performer, expression")
-    s.add_argument("--target", required=True, metavar="C", help="photo to animate")
+    s.add_argument("--source-neutral", required=True, metavar="A", type=photo_arg,
+                   help="performer, neutral (a photo, or 'sample')")
+    s.add_argument("--source", required=True, metavar="B", type=photo_arg,
+                   help="performer, expression (a photo, or 'sample')")
+    s.add_argument("--target", required=True, metavar="C", type=photo_arg,
+                   help="photo to animate (or 'sample', the bundled face)")
     s.add_argument("--method", choices=("fap", "laplacian"), default="fap",
                    help="fap: estimated FAPs rendered on C (default); laplacian: landmark "
                    "motion transferred by Laplacian mesh deformation")

@@ -325,3 +325,22 @@ def test_sequence_validation():
         VisemeField(15, 0, 0)
     seq = FapSequence(np.ones((2, 68)), masks=np.zeros((2, 68), bool))
     assert not seq.frames.any()  # unmasked values are 0
+
+
+def test_writer_refuses_a_file_the_readers_would_refuse(monkeypatch, tmp_path, cli):
+    """``fap export --frames N`` never writes a .fap larger than the readers accept (it wrote a
+    290 MB file that ``fap info`` and ``animate`` then refused); the size is counted exactly."""
+    from editor.formats import fapfile
+    from editor.formats.presets import apply_preset
+
+    seq = fapfile.FapSequence.single(apply_preset("joy"), frames=100, name="joy")
+    text = fapfile.format_fap(seq)
+    monkeypatch.setattr(fapfile, "MAX_FILE_BYTES", len(text.encode()))
+    assert fapfile.format_fap(seq) == text  # exactly at the limit: written
+    monkeypatch.setattr(fapfile, "MAX_FILE_BYTES", len(text.encode()) - 1)
+    with pytest.raises(fapfile.FapFileError, match="readers accept at most"):
+        fapfile.format_fap(seq)
+    out = tmp_path / "big.fap"
+    r = cli("fap", "export", "--preset", "joy", "--frames", "100", "-o", out)
+    assert r.returncode == 2 and "readers accept at most" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not out.exists()

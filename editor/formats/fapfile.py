@@ -409,6 +409,17 @@ def fps_text(fps: float) -> str:
     return str(int(fps)) if float(fps).is_integer() else repr(float(fps))
 
 
+def _text_bytes(values: np.ndarray, masks: np.ndarray) -> int:
+    """Bytes of the mask and data lines of integer ``values`` (F, 68) under ``masks`` (without
+    FAP 1/2 tokens, a few bytes a frame): the size :func:`format_fap` writes, from counts."""
+    v = np.abs(values[:, 2:])
+    digits = np.where(v > 0, np.floor(np.log10(np.maximum(v, 1))) + 1, 1) + (values[:, 2:] < 0)
+    m = np.asarray(masks)[:, 2:]
+    frame_no = np.floor(np.log10(np.maximum(np.arange(len(values)), 1))) + 1
+    per_frame = 2 * masks.shape[1] + frame_no + (digits * m).sum(1) + m.sum(1) + 1
+    return int(per_frame.sum())
+
+
 def format_fap(seq: FapSequence, *, high_level: str = "expand") -> str:
     """The file text of ``seq``. ``high_level="expand"``: FAP 1/2 fields become low-level FAPs
     (shipped presets); ``"xface"``: written as Xface 4/6-token fields (Greta/VREng can't read).
@@ -420,6 +431,11 @@ def format_fap(seq: FapSequence, *, high_level: str = "expand") -> str:
     name = "_".join(seq.name.split()) or "fap-studio"
     out = [f"2.1 {name} {fps_text(seq.fps)} {seq.n_frames}"]
     values = round_half_away(seq.frames).astype(np.int64)
+    size = _text_bytes(values, seq.masks) + len(out[0].encode()) + 1  # + the header line's newline
+    if size > MAX_FILE_BYTES:  # a file no reader (ours included) would open
+        raise FapFileError(f"{seq.n_frames} frames would make a {size / 2**20:.0f} MiB .fap "
+                           f"file; readers accept at most {MAX_FILE_BYTES // 2**20} MiB: "
+                           "write fewer frames or FAPs")
     for k in range(seq.n_frames):
         m = seq.masks[k].copy()
         vis, expr = seq.visemes[k], seq.expressions[k]

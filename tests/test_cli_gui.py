@@ -40,3 +40,15 @@ def test_a_missing_photo_or_project_is_named_before_the_window(cli, monkeypatch,
         assert r.returncode == 2
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and "no such file" in lines[0], r.stderr
+
+
+def test_render_says_when_it_clamps_a_fap(cli, tmp_path):
+    """A value outside the FAP's range is clamped (as the renderer does) and said so in one line;
+    values inside say nothing of the kind."""
+    out = tmp_path / "x.png"
+    r = cli("render", "sample", "--fap", "open_jaw=999999", "--fap", "head_roll=-500", "-o", out)
+    assert r.returncode == 0 and out.is_file()
+    notes = [ln for ln in r.stderr.splitlines() if "clamped" in ln]
+    assert notes == ["fap-studio: note: outside their range, clamped: open_jaw 999999 -> 1080 MNS"]
+    r = cli("render", "sample", "--fap", "open_jaw=500", "-o", out)
+    assert "clamped" not in r.stderr

@@ -125,10 +125,17 @@ def _requested_vector(a: argparse.Namespace):
     from .facs import au_vector
 
     try:
-        return (preset_vector(a.preset) + au_vector(getattr(a, "au", None))
-                + FAPS.vector(_fap_pairs(a.fap)))
+        vec = (preset_vector(a.preset) + au_vector(getattr(a, "au", None))
+               + FAPS.vector(_fap_pairs(a.fap)))
     except ValueError as e:
         raise FapStudioError(str(e)) from e
+    clamped = FAPS.clamp(vec)
+    out = [n for n in range(3, 69) if clamped[n - 1] != vec[n - 1]]
+    if out:  # the renderer clamps to the table's ranges: say so (one line)
+        print("fap-studio: note: outside their range, clamped: " + ", ".join(
+            f"{FAPS[n].name} {vec[n - 1]:g} -> {clamped[n - 1]:g} {FAPS[n].unit}" for n in out),
+            file=sys.stderr)
+    return vec
 
 
 def cmd_render(a: argparse.Namespace) -> int:

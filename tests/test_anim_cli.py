@@ -87,3 +87,17 @@ def test_entry_point_in_a_real_process(tmp_path, sample_face):
         pytest.skip("the fap-studio script is not installed (pip install -e .)")
     r = subprocess.run([script, "--version"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and r.stdout.startswith("fap-studio "), (r.stdout, r.stderr)
+
+
+def test_animate_refuses_a_video_suffix_it_does_not_write(cli, tmp_path):
+    """``-o a.mkv`` was written as a folder of PNG frames named a.mkv; now one line, exit 2."""
+    from editor.formats.fapfile import FapSequence, write_fap
+    from editor.formats.presets import apply_preset
+
+    fap = write_fap(FapSequence.single(apply_preset("joy"), frames=2), tmp_path / "a.fap")
+    for name in ("a.mkv", "a.gif"):
+        r = cli("animate", "sample", fap, "-o", tmp_path / name)
+        assert r.returncode == 2 and "is not written here" in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / name).exists()
+    r = cli("animate", "sample", fap, "-o", tmp_path / "frames.v2")  # a dotted folder name
+    assert r.returncode == 0 and len(list((tmp_path / "frames.v2").glob("*.png"))) == 2

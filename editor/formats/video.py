@@ -33,6 +33,11 @@ from editor.safeio import atomic_dir, atomic_file, quiet_stderr
 
 from .fapfile import expand_high_level
 
+#: Video and image suffixes that are not written (anything else without a codec is a folder of
+#: PNG frames, so ``out.mkv`` would silently become a folder): refused with one line.
+NOT_WRITTEN = frozenset({".mkv", ".webm", ".gif", ".mpg", ".mpeg", ".wmv", ".flv", ".m4v",
+                         ".ogv", ".3gp", ".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"})
+
 #: suffix -> (FFmpeg encoder, pixel format, container options)
 VIDEO_SUFFIXES: dict[str, tuple[str, str, dict[str, str]]] = {
     ".mp4": ("libx264", "yuv420p", {"movflags": "+faststart"}),
@@ -122,6 +127,9 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
         raise FapStudioError("the sequence has no frames")
     p = Path(out)
     codec = VIDEO_SUFFIXES.get(p.suffix.lower())
+    if codec is None and p.suffix.lower() in NOT_WRITTEN:  # would silently become a folder
+        raise FapStudioError(f"{p.name}: {p.suffix} is not written here; use .mp4 or .mov "
+                             "(H.264), .avi (Motion JPEG), or a folder name for PNG frames")
     try:
         # staged next to the target, moved there only when complete (issue 16)
         with (atomic_file if codec else atomic_dir)(p) as tmp:

@@ -264,3 +264,10 @@ def test_analyse_keeps_unrated_stimuli_and_empty_groups() -> None:
     assert "G" in rep.faces and math.isnan(rep.per_face["G"].naturalness)
     text = format_report(rep)
     assert "fear" in text and "-" in _section(text, "Table 5:")[1]
+
+
+def test_report_of_an_unrated_study_has_no_nan_kappa():
+    """With no stimulus rated by two raters the report says why kappa is missing (not 'nan')."""
+    text = format_report(analyse([], EXPRESSIONS))
+    line = next(x for x in text.splitlines() if x.startswith("Fleiss' kappa"))
+    assert "nan" not in line and "at least two raters" in line

@@ -392,9 +392,11 @@ def format_report(report: StudyReport, title: str = "") -> str:
         [row, *(f"{cm.counts[i, j]} ({_pct(cm.normalised[i, j])})" for j in range(len(cm.columns)))]
         for i, row in enumerate(cm.rows)))
     k = report.kappa
-    out += ["", f"Fleiss' kappa (labels incl. '{CANNOT_TELL}'): {k.kappa:.3f} "
-            f"(P_bar {k.p_bar:.3f}, P_e {k.p_e:.3f}; {k.n_subjects} stimuli, "
-            f"{k.n_ratings} ratings)", "", "Raters (r: Pearson with mean of the other raters; "
+    kappa = (f"Fleiss' kappa (labels incl. '{CANNOT_TELL}'): {k.kappa:.3f} "
+             f"(P_bar {k.p_bar:.3f}, P_e {k.p_e:.3f}; {k.n_subjects} stimuli, "
+             f"{k.n_ratings} ratings)") if math.isfinite(k.kappa) else (
+        "Fleiss' kappa: not available yet, it needs stimuli rated by at least two raters")
+    out += ["", kappa, "", "Raters (r: Pearson with mean of the other raters; "
             "BT.500 screening on naturalness)"]
     out += _table(["rater", "n", "recog %", "mean nat", "r panel", "P", "Q", "screening"], (
         [r.rater, str(r.n), _pct(r.accuracy), f"{r.mean_naturalness:.2f}",

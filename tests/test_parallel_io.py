@@ -212,34 +212,13 @@ def test_fap_info_cli_streams_a_file(cli, tmp_path):
 def test_ctrl_c_during_parallel_animate_leaves_nothing(tmp_path, name):
     """tests/test_robustness.py case 6 with render workers (--jobs 2; the default is the
     cores but one, so 1 on a 2-core machine)."""
-    import signal
-    import subprocess
-    import sys
-    import time
+    from tests.test_robustness import interrupt_animate, only
 
-    from editor.formats.fapfile import write_fap
-    from tests.test_robustness import ENV, only
-
-    fap = tmp_path / "long.fap"
-    write_fap(FapSequence.single(np.eye(68)[2] * 300, frames=3000), fap)
     out = tmp_path / "out"
     out.mkdir()
-    p = subprocess.Popen([sys.executable, "-m", "editor", "animate", str(SAMPLE_FACE), str(fap),
-                          "--jobs", "2", "-o", str(out / name)], env=ENV,
-                         stderr=subprocess.PIPE, text=True, bufsize=1)
-    seen, deadline = "", time.monotonic() + 60
-    while time.monotonic() < deadline:  # until a few frames were written
-        ch = p.stderr.read(1)
-        if not ch:
-            break
-        seen += ch
-        if seen.endswith("/3000") and seen.count("/3000") >= 5:
-            break
-    p.send_signal(signal.SIGINT)
-    err = seen + p.stderr.read()
-    p.wait(60)
-    assert p.returncode == 130, err
-    assert err.rstrip().endswith("fap-studio: interrupted") and "Traceback" not in err, err
+    r = interrupt_animate(tmp_path, out / name, "--jobs", "2")
+    assert r.returncode == 130, r.stderr
+    assert r.stderr.rstrip().endswith("fap-studio: interrupted") and "Traceback" not in r.stderr
     only(out)
 
 

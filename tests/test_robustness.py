@@ -300,12 +300,13 @@ def test_case05_real_full_disk(capfd, tmp_path, small_disk):
 
 
 # ------------------------------------------------------------------------------ case 6
-def _interrupt_animate(tmp_path: Path, out: Path) -> subprocess.CompletedProcess:
+def interrupt_animate(tmp_path: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    """``fap-studio animate`` of a long .fap (options ``extra``), Ctrl-C after a few frames."""
     fap = tmp_path / "long.fap"
     if not fap.exists():
         write_fap(FapSequence.single(np.eye(68)[2] * 300, frames=3000), fap)
     p = subprocess.Popen([sys.executable, "-m", "editor", "animate", str(SAMPLE), str(fap),
-                          "-o", str(out)], env=ENV, stderr=subprocess.PIPE, text=True,
+                          *extra, "-o", str(out)], env=ENV, stderr=subprocess.PIPE, text=True,
                          bufsize=1)
     seen = ""
     deadline = time.monotonic() + 60
@@ -326,7 +327,7 @@ def _interrupt_animate(tmp_path: Path, out: Path) -> subprocess.CompletedProcess
 def test_case06_ctrl_c_during_animate_leaves_nothing(tmp_path, name):
     out = tmp_path / "out"
     out.mkdir()
-    r = _interrupt_animate(tmp_path, out / name)
+    r = interrupt_animate(tmp_path, out / name)
     assert r.returncode == 130, r.stderr
     assert r.stderr.rstrip().endswith("fap-studio: interrupted") and "Traceback" not in r.stderr
     only(out)

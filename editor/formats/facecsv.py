@@ -148,16 +148,24 @@ def _check_fps(fps: float | None) -> float | None:
     return fps
 
 
-# ------------------------------------------------------------------ Live Link Face
-def read_live_link(path: str | os.PathLike, fps: float | None = None, *,
-                   label: str | None = None) -> LiveLinkCapture:
-    """Read a Live Link Face CSV (see the module doc); :class:`CsvFormatError` else."""
+def _header_and_rows(path: str | os.PathLike, fps: float | None, label: str | None,
+                     header: str) -> tuple[str, list[tuple[int, list[str]]]]:
+    """The label for messages and the file's rows (line number, cells), at least the header
+    (``header``: what the message says is expected in an empty file); ``fps`` checked."""
     label = label or Path(path).name
     _check_fps(fps)
     rows = _rows(_text(path, label))
     if not rows:
-        raise CsvFormatError(f"{label} line 1: empty file, expected the header "
-                             "'Timecode,BlendShapeCount,EyeBlinkLeft,...'")
+        raise CsvFormatError(f"{label} line 1: empty file, expected the header '{header}'")
+    return label, rows
+
+
+# ------------------------------------------------------------------ Live Link Face
+def read_live_link(path: str | os.PathLike, fps: float | None = None, *,
+                   label: str | None = None) -> LiveLinkCapture:
+    """Read a Live Link Face CSV (see the module doc); :class:`CsvFormatError` else."""
+    label, rows = _header_and_rows(path, fps, label,
+                                   "Timecode,BlendShapeCount,EyeBlinkLeft,...")
     t = arkit_table()
     hline, header = rows[0]
     if header[:2] != ["Timecode", "BlendShapeCount"]:
@@ -305,12 +313,7 @@ def write_live_link(seq: FapSequence, path: str | os.PathLike) -> Path:
 def read_au_csv(path: str | os.PathLike, fps: float | None = None, *,
                 label: str | None = None) -> AuCapture:
     """Read an OpenFace-style AU CSV (see the module doc); :class:`CsvFormatError` else."""
-    label = label or Path(path).name
-    _check_fps(fps)
-    rows = _rows(_text(path, label))
-    if not rows:
-        raise CsvFormatError(f"{label} line 1: empty file, expected the header "
-                             "'frame,timestamp,AU01_r,...'")
+    label, rows = _header_and_rows(path, fps, label, "frame,timestamp,AU01_r,...")
     table = au_table()
     hline, header = rows[0]
     lower = [h.lower() for h in header]

@@ -10,8 +10,11 @@ shadow become a wide, blurred band (a "smear").
 at height ``d`` above the deformed lid (strip height ``Hd``, ``Hs`` in the photo), the pixel
 shows the skin at source height ``f(d) = t Hs + m (Hd - Hs) t (1 - t)`` (``t = d / Hd``): rigid
 at the lid (``f'(0) = 1`` for ``m = 1``), the stretch moving up towards the brow, exact at both
-edges (``f(0) = 0``, ``f(Hd) = Hs``). ``m`` fades to 0 towards the ends of the strip (no seam
-with the warp beside it) and is bounded so that ``f`` stays monotonic. Only columns stretched
+edges (``f(0) = 0``, ``f(Hd) = Hs``). That is for a rising brow; a closing lid (the lid pulled
+down, the brow still) keeps both ends rigid and stretches the middle of the strip, ``f = Hd (s t
++ lam (1 - s) t (1 - t) (1 - 2 t))`` (``s = Hs / Hd``). ``m`` and ``lam`` fade to 0 towards
+the ends of the strip (no seam with the warp beside it) and are bounded so that ``f`` stays
+monotonic. Only columns stretched
 by more than a tenth of a pixel are touched: at rest, on the photo's own expression and where
 the brow comes down (compression) the warp is left exactly as it is. One ``cv2.remap`` of a
 small box per eye; it runs between the warp and the layers (the lash line is drawn after it).
@@ -131,15 +134,26 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     ex = Hd - Hs
     fade = (_smooth01((u - x_lo) / (END_FADE * (x_hi - x_lo)))
             * _smooth01((x_hi - u) / (END_FADE * (x_hi - x_lo))))
-    # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (m > 0:
-    # rigid at the lid); a closing lid unfolds the lid's own skin (m < 0: rigid at the brow,
-    # whose lower edge would otherwise be dragged down over the eye into an "M")
+    # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (rigid at
+    # the lid); a closing lid unfolds the lid's own skin between its margin and the brow
+    # (rigid at both ends: the lashes stay a thin line on the lid's edge, and the brow's lower
+    # edge is not dragged down over the eye into an "M"; rigid at the brow alone froze the
+    # lid's edge row, and the lashes smeared into a dark band over the closed eye)
     brow_up, lid_down = brow_s - brow_y, lid_y - lid_s
     pull = np.clip((brow_up - lid_down) / (np.abs(brow_up) + np.abs(lid_down) + 1e-6), -1.0, 1.0)
-    m = pull * fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
-    live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m != 0)
-    k = np.where(live, m * ex * Hd / np.maximum(Hs, 1e-6), 0.0)
-    tab_all = np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k], 1)
+    hs = np.maximum(Hs, 1e-6)
+    # rising brow: f = t Hs + m ex t (1 - t), rigid at the lid
+    m = np.maximum(pull, 0.0) * fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
+    # closing lid: rigid at both ends, f' = s + lam (1 - s) (1 - 6 t (1 - t)) (s = Hs / Hd the
+    # mean slope), f = Hd (s t + lam (1 - s) t (1 - t) (1 - 2 t)); lam <= 2 s / (1 - s) keeps
+    # it monotonic (f' >= 0 at t = 1/2)
+    s_bar = Hs / np.maximum(Hd, 1e-6)
+    lam = np.maximum(-pull, 0.0) * fade * np.clip(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6),
+                                                  0.0, 1.0)
+    live = (ex > _MIN_STRETCH) & (Hs > 0.5) & ((m != 0) | (lam != 0))
+    k = np.where(live, m * ex * Hd / hs, 0.0)
+    k2 = np.where(live, lam * ex * Hd / hs, 0.0)
+    tab_all = np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k, k2], 1)
     jobs = []  # per stretched strip: box, table, its first frame x
     for cd, a, b in zip(cand, np.cumsum([0, *n_u[:-1]]).tolist(), np.cumsum(n_u).tolist(),
                         strict=True):
@@ -150,14 +164,14 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # the boxes side by side: per column its image x, first row, table row and first frame x
     hmax = max(b[3] - b[1] for b, _, _ in jobs)
     n_tab = max(len(t) for _, t, _ in jobs)
-    # (a 4th, unused channel: OpenCV resamples 4-channel float tables about twice as fast;
-    # one more row, a copy of the last, which the rows' exact integer positions weigh by 0:
-    # without it every pixel of the last strip takes OpenCV's slow border path)
+    # (4 channels: lid line, 1 / Hd, k, k2; one more row, a copy of the last, which the rows'
+    # exact integer positions weigh by 0: without it every pixel of the last strip takes
+    # OpenCV's slow border path)
     table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
     xs, y0s, rows, los = [], [], [], []
     for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
-        table[j, :len(tab), :3] = tab
-        table[j, len(tab):, :3] = tab[-1]
+        table[j, :len(tab)] = tab
+        table[j, len(tab):] = tab[-1]
         w = x1 - x0
         xs.append(np.arange(x0, x1, dtype=np.float64))
         y0s.append(np.full(w, y0, np.float64))
@@ -172,12 +186,14 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
     ty = np.repeat(np.concatenate(rows)[None, :], hmax, 0)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    ly, inv_hd, kk, _ = cv2.split(got)
+    ly, inv_hd, kk, kk2 = cv2.split(got)
     ly -= ((xc - org[0]) * R[0, 1] + (y0c - org[1]) * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
     t = ly
     t *= inv_hd
     np.clip(t, 0.0, 1.0, out=t)
+    kk2 *= 1.0 - 2.0 * t
+    kk += kk2  # k + k2 (1 - 2 t)
     t -= t * t  # t (1 - t)
     t *= kk
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t

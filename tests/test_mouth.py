@@ -237,3 +237,23 @@ def test_drawn_teeth_read_as_teeth_at_jaffe_size(jaffe_faces):
             row.append(L[r[1:3], x].mean())
         rel = min(row) / float(np.median(row))
         assert float(np.median(row)) > 0.95 and 0.6 < rel < 0.95, (f.source, row)
+
+
+def test_lips_pushed_forward_shade_the_teeth(sample_face):
+    """A rounded u (lips pushed forward, FAPs 16/17) puts the opening in front of the teeth:
+    they show dim and warm in a dark hole (the photo's bright incisors filled it before),
+    while the same opening with the lips not pushed keeps them lit."""
+    f = sample_face
+    u = apply_preset("viseme_u", 1.0)
+    flat = u.copy()
+    flat[[15, 16]] = 0  # push_b_lip, push_t_lip
+    lit = []
+    for vec in (u, flat):
+        img, m = f.render(vec), _opening(f, f.deform(vec), f.image.shape)
+        m = cv2.erode(m.astype(np.uint8), np.ones((3, 1), np.uint8)).astype(bool)
+        assert m.sum() > 10
+        lit.append(np.percentile(_lum(img)[m], 90))
+        if vec is u:
+            rgb = img[m].astype(np.float32).mean(0)
+            assert rgb[0] >= rgb[2], rgb  # warm, not blue-grey
+    assert lit[0] < 0.8 * lit[1], lit

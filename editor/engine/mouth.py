@@ -161,6 +161,8 @@ class MouthPlan:
     gum: np.ndarray  # (3,) tinted gum colour
     tip_up: float = 0.0  # neutral px below y(9.3) of the upper incisors' edge (frame y)
     low_off: float = 0.0  # lower incisors' edge minus the eq. 8 anchor, neutral px
+    mns: float = 0.0  # px per MNS unit (FAPs 16/17 push the lips forward by f * mns)
+    bounce: np.ndarray | None = None  # (3,) the skin's hue (colour / luminance): bounced light
     # the photo's own interior (attach_own)
     own_off: np.ndarray | None = None  # (2,) image position of own[0, 0]
     own: np.ndarray | None = None  # (h, w, 2) float32: photo interior following skull / jaw
@@ -250,7 +252,10 @@ class MouthPlan:
                    mouth_nose=float(D), mw=float(mw), tex=tex, size=size, anchor0=anchor0,
                    cavity=cavity.astype(np.float32), tongue_basis=tongue_basis,
                    tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs, gap0=gap0,
-                   gum=gum_rgb.astype(np.float32), tip_up=float(tip_up), low_off=float(low_off))
+                   gum=gum_rgb.astype(np.float32), tip_up=float(tip_up), low_off=float(low_off),
+                   mns=float(plan.fapu["MNS"]),
+                   bounce=(np.asarray(skin, np.float32) / max(float(_lum(skin)), 1.0)
+                           if skin is not None else np.ones(3, np.float32)))
 
     # ------------------------------------------------------------------ per frame
     def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
@@ -383,8 +388,31 @@ class MouthPlan:
                     a_lo /= np.maximum(rest, 1e-6)
                 out = out + (p_lo - out) * cv2.merge([a_lo, a_lo, a_lo])
         if alpha is not None:
-            out = _thin_gap(out, cav, alpha, D)
+            light = self._aperture_light(faps, hw, hh, sc)
+            out = _thin_gap(out, cav, alpha, D, self._shadow_gain(light) if light < 1.0 else None)
         return out
+
+    def _shadow_gain(self, light: float) -> np.ndarray:
+        """(3,) per-channel gain of what lies behind the lips in their shadow: ``light`` times
+        the skin's hue to the power ``1 - light`` (the light that still gets in has bounced
+        off lips and cheeks: shadowed teeth turn a warm grey, not a cold blue-grey)."""
+        b = self.bounce if self.bounce is not None else np.ones(3, np.float32)
+        return (light * np.power(b, 1.0 - light)).astype(np.float32)
+
+    def _aperture_light(self, faps: np.ndarray, hw: float, hh: float, sc: float) -> float:
+        """How much light reaches the teeth and tongue through lips pushed forward.
+
+        Protruded lips (FAPs 16/17, e.g. the rounded u/o) put the opening a distance ``z`` in
+        front of the teeth: through an aperture of half-size ``a`` (the opening's smaller
+        half-axis) the light falls off as ``a / sqrt(a^2 + z^2)``. A small rounded opening
+        then shows dim teeth in a dark hole, not a bright block of them; lips that are not
+        pushed forward (smiles, open jaws) change nothing.
+        """
+        z = max(float(faps[15]), float(faps[16]), 0.0) * self.mns * sc
+        if z <= 0.0:
+            return 1.0
+        a = max(min(hw, hh), 0.5)
+        return a / math.sqrt(a * a + z * z)
 
     @cached_property
     def _exy(self) -> np.ndarray:
@@ -465,14 +493,16 @@ class MouthPlan:
         return Qx - num_x / den, Qy - num_y / den
 
 
-def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> np.ndarray:
+def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
+              gain: np.ndarray | None = None) -> np.ndarray:
     """Teeth and tongue fade into the lips' shadow where the opening is a thin gap.
 
     Light barely enters a slit of a pixel or two: whatever lies behind it (the photo's teeth,
     the drawn ones) reads as a dark line, not as a run of bright teeth. The local height of
     the opening is its coverage summed over a short vertical window (3 columns averaged):
     up to ``lo`` = max(1 px, 0.05 D) nothing but the shadow shows, from ``lo`` + max(1.5
-    px, 0.08 D) everything.
+    px, 0.08 D) everything. ``gain`` (3,), when given, darkens what shows (lips pushed
+    forward: :meth:`MouthPlan._aperture_light`, :meth:`MouthPlan._shadow_gain`).
     """
     lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
     k = 2 * math.ceil(lo + ramp) + 3
@@ -482,6 +512,8 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float) -> 
     h -= lo
     h /= ramp
     vis = _smoothstep(h).astype(np.float32, copy=False)
+    if gain is not None:  # in shadow: darker and warmer (not greyed towards the cavity)
+        out = out * gain
     res = out - cav
     res *= cv2.merge([vis, vis, vis])
     res += cav

@@ -13,10 +13,13 @@ that layout). Errors are in % of the inter-ocular distance (Stasm's two pupils, 
   dlib: the centre of :func:`editor.engine.landmarks.locate_iris`'s circle, found on visible
   pixels). ``pupils (circle centre)`` measures the full circles' centres instead;
 * chin: point to point (iBUG 8 against Stasm 6), on all photos and on open mouths only (inner
-  lips more than 0.1 IOD apart in Stasm's points);
+  lips more than 0.1 IOD apart in Stasm's points: 64 of the 213);
 * lids and inner lips: each Stasm contour point's distance to the detector's contour, a polyline
   through its points (MediaPipe: the mesh's dense lid and inner-lip contours, 9 and 11 points a
-  side; dlib: its 4 points per lid and 5 per inner lip, corners included).
+  side; dlib: its 4 points per lid and 5 per inner lip, corners included); inner lips also on
+  closed and open mouths apart. On open mouths Stasm's lower inner lip lies 5-7 % IOD above
+  both detectors' (on wide-open ones inside the mouth's cavity) and dlib's 5-point polylines
+  cut across towards it.
 
 Prints one row per measure (mean over images and points) with both detectors side by side;
 ``--json`` prints ``{detector: {measure: mean %}}`` instead. Detectors that are not installed
@@ -41,8 +44,8 @@ from editor.errors import FapStudioError  # noqa: E402
 from editor.resources import checkout_jaffe_dir  # noqa: E402
 
 MEASURES = ("eye corners", "mouth corners", "pupils", "pupils (circle centre)", "upper lids",
-            "lower lids",
-            "inner lips", "chin", "chin (open mouths)")
+            "lower lids", "inner lips", "inner lips (closed mouths)", "inner lips (open mouths)",
+            "chin", "chin (open mouths)")
 
 # Stasm-77 indices (image-left = the subject's right eye)
 _S_EYE_CORNERS = [34, 30, 40, 44]  # image-left outer, inner; image-right inner, outer
@@ -100,6 +103,8 @@ def errors(lm: Landmarks, stasm: np.ndarray) -> dict[str, float]:
     res = {k: 100.0 * float(v.mean()) / iod for k, v in out.items()}
     opened = float(np.linalg.norm(s[70] - s[67])) > 0.1 * iod  # inner lip middles apart
     res["chin (open mouths)"] = res["chin"] if opened else float("nan")
+    res["inner lips (open mouths)"] = res["inner lips"] if opened else float("nan")
+    res["inner lips (closed mouths)"] = float("nan") if opened else res["inner lips"]
     return res
 
 

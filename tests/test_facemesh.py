@@ -113,6 +113,9 @@ def test_mirrored_photo_gives_mirrored_points(sample_rgb, sample_lm):
     d = (sample_lm.points - back)[17:]  # inner points (the jaw line slides along the cheeks)
     assert abs(d[:, 0].mean()) < 0.8 and np.linalg.norm(d, axis=1).mean() < 1.2, d.round(1)
     assert abs(sample_lm.iris_left.cx - (w - 1 - b.iris_right.cx)) < 0.5
+    # the visible irises' centres mirror too (the lids' frame does not depend on the side)
+    mx, my = b.pupils()["3.6"]
+    np.testing.assert_allclose(sample_lm.pupils()["3.5"], (w - 1 - mx, my), atol=0.6)
 
 
 def test_rolled_and_enlarged_photos(sample_rgb, sample_lm):

@@ -17,9 +17,9 @@ that layout). Errors are in % of the inter-ocular distance (Stasm's two pupils, 
 * lids and inner lips: each Stasm contour point's distance to the detector's contour, a polyline
   through its points (MediaPipe: the mesh's dense lid and inner-lip contours, 9 and 11 points a
   side; dlib: its 4 points per lid and 5 per inner lip, corners included); inner lips also on
-  closed and open mouths apart. On open mouths Stasm's lower inner lip lies 5-7 % IOD above
-  both detectors' (on wide-open ones inside the mouth's cavity) and dlib's 5-point polylines
-  cut across towards it.
+  closed and open mouths apart. On open mouths Stasm's lower inner-lip middle lies 5.5 % IOD
+  above dlib's and about 8 % above the mesh's (on wide-open mouths inside the cavity), and
+  dlib's 5-point polylines cut across towards it.
 
 Prints one row per measure (mean over images and points) with both detectors side by side;
 ``--json`` prints ``{detector: {measure: mean %}}`` instead. Detectors that are not installed

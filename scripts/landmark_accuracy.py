@@ -6,13 +6,20 @@ For every JAFFE photo (213, 256x256 grey) each detector's landmarks are compared
 independent Stasm-77 points of ``landmarks_stasm77/`` (see editor/synthesis/bilinear_data.py for
 that layout). Errors are in % of the inter-ocular distance (Stasm's two pupils, 38 and 39):
 
-* eye corners, mouth corners, pupils: point to point (a pupil is the iris centre: the iris model
-  for MediaPipe, :func:`editor.engine.landmarks.locate_iris` for dlib);
+* eye corners, mouth corners, pupils: point to point. Stasm's pupil is the centre of the iris's
+  visible part (below the circle's centre when the upper lid covers the iris's top: the model
+  circle's centre minus Stasm's pupil follows the lids' cover with a slope near 1), so a pupil
+  is :meth:`Landmarks.pupils` (MediaPipe: the iris model's circle clipped by the mesh's lids;
+  dlib: the centre of :func:`editor.engine.landmarks.locate_iris`'s circle, found on visible
+  pixels). ``pupils (circle centre)`` measures the full circles' centres instead;
 * chin: point to point (iBUG 8 against Stasm 6), on all photos and on open mouths only (inner
-  lips more than 0.1 IOD apart in Stasm's points);
+  lips more than 0.1 IOD apart in Stasm's points: 64 of the 213);
 * lids and inner lips: each Stasm contour point's distance to the detector's contour, a polyline
   through its points (MediaPipe: the mesh's dense lid and inner-lip contours, 9 and 11 points a
-  side; dlib: its 4 points per lid and 5 per inner lip, corners included).
+  side; dlib: its 4 points per lid and 5 per inner lip, corners included); inner lips also on
+  closed and open mouths apart. On open mouths Stasm's lower inner-lip middle lies 5.5 % IOD
+  above dlib's and about 8 % above the mesh's (on wide-open mouths inside the cavity), and
+  dlib's 5-point polylines cut across towards it.
 
 Prints one row per measure (mean over images and points) with both detectors side by side;
 ``--json`` prints ``{detector: {measure: mean %}}`` instead. Detectors that are not installed
@@ -36,8 +43,9 @@ from editor.engine.landmarks import Landmarks, detect_landmarks, get_detector  #
 from editor.errors import FapStudioError  # noqa: E402
 from editor.resources import checkout_jaffe_dir  # noqa: E402
 
-MEASURES = ("eye corners", "mouth corners", "pupils", "upper lids", "lower lids",
-            "inner lips", "chin", "chin (open mouths)")
+MEASURES = ("eye corners", "mouth corners", "pupils", "pupils (circle centre)", "upper lids",
+            "lower lids", "inner lips", "inner lips (closed mouths)", "inner lips (open mouths)",
+            "chin", "chin (open mouths)")
 
 # Stasm-77 indices (image-left = the subject's right eye)
 _S_EYE_CORNERS = [34, 30, 40, 44]  # image-left outer, inner; image-right inner, outer
@@ -76,11 +84,14 @@ def errors(lm: Landmarks, stasm: np.ndarray) -> dict[str, float]:
     s = np.asarray(stasm, np.float64)
     iod = float(np.linalg.norm(s[38] - s[39]))
     p = lm.points.astype(np.float64)
-    pupils = np.array([[lm.iris_right.cx, lm.iris_right.cy], [lm.iris_left.cx, lm.iris_left.cy]])
+    circles = np.array([[lm.iris_right.cx, lm.iris_right.cy],
+                        [lm.iris_left.cx, lm.iris_left.cy]])
+    pupils = np.array([lm.pupils()["3.6"], lm.pupils()["3.5"]])
     out = {
         "eye corners": np.linalg.norm(p[[36, 39, 42, 45]] - s[_S_EYE_CORNERS], axis=1),
         "mouth corners": np.linalg.norm(p[[48, 54]] - s[_S_MOUTH], axis=1),
         "pupils": np.linalg.norm(pupils - s[_S_PUPILS], axis=1),
+        "pupils (circle centre)": np.linalg.norm(circles - s[_S_PUPILS], axis=1),
     }
     cont = _contours(lm)
     for name, idx in (("upper lids", _S_UPPER_LIDS), ("lower lids", _S_LOWER_LIDS)):
@@ -92,6 +103,8 @@ def errors(lm: Landmarks, stasm: np.ndarray) -> dict[str, float]:
     res = {k: 100.0 * float(v.mean()) / iod for k, v in out.items()}
     opened = float(np.linalg.norm(s[70] - s[67])) > 0.1 * iod  # inner lip middles apart
     res["chin (open mouths)"] = res["chin"] if opened else float("nan")
+    res["inner lips (open mouths)"] = res["inner lips"] if opened else float("nan")
+    res["inner lips (closed mouths)"] = float("nan") if opened else res["inner lips"]
     return res
 
 

@@ -3,8 +3,9 @@
 ``python scripts/landmark_overlay.py PHOTO -o out.png [--zoom 4] [--compare-dlib]``
 
 Lid contours green, inner lips yellow, outer lips, brows and face oval blue, iris circles
-magenta, the 68 iBUG-equivalent points as white crosses; ``--compare-dlib`` adds dlib's 68
-points as red dots (when its extra is installed). The face region is cut out and enlarged with
+magenta with their visible parts' centres (:meth:`Landmarks.pupils`) as magenta dots, the 68
+iBUG-equivalent points as white crosses; ``--compare-dlib`` adds dlib's 68 points as red dots
+(when its extra is installed). The face region is cut out and enlarged with
 bicubic interpolation so that sub-pixel placement can be judged by eye.
 """
 
@@ -50,6 +51,9 @@ def overlay(rgb: np.ndarray, zoom: int = 4, compare_dlib: bool = False) -> np.nd
         c = np.round(px([iris.cx, iris.cy])).astype(int)
         cv2.circle(out, (int(c[0]), int(c[1])), int(round(iris.r * zoom * (1 << sh))),
                    (255, 0, 255), 1, cv2.LINE_AA, sh)
+    for x, y in lm.pupils().values():  # the visible irises' centres: magenta dots
+        c = np.round(px([x, y])).astype(int)
+        cv2.circle(out, (int(c[0]), int(c[1])), 2 * (1 << sh), (255, 0, 255), -1, cv2.LINE_AA, sh)
     if compare_dlib:
         for p in px(detect_landmarks(rgb, get_detector("dlib")).points) / (1 << sh):
             cv2.circle(out, (int(p[0]), int(p[1])), 3, (255, 0, 0), -1)

@@ -12,6 +12,7 @@ from conftest import JAFFE, SAMPLE, jaffe_images
 
 from editor.core import Face, ImageError, NoFaceError, load_image, signed_areas, standard_mesh
 from editor.engine.imageio import MAX_PIXELS
+from editor.engine.landmarks import Iris, visible_iris_centre
 
 # Reference points on the sample face, read by eye off a 6x zoom with a 5-px grid:
 # eye corners, nose tip, mouth corners, chin (x, y) in pixels.
@@ -35,6 +36,32 @@ def test_sample_irises_inside_eyes_and_round(sample_face):
         assert 0.15 * width < iris.r < 0.32 * width
     # checked by eye: iris centres at about (203.5, 100.5) and (246.7, 102.5)
     assert abs(lm.iris_right.cx - 203.5) < 2 and abs(lm.iris_left.cx - 246.7) < 2
+
+
+def test_visible_iris_centre_follows_the_lids():
+    """The pupil where the photo shows it: the centroid of the iris disc inside the opening."""
+    iris = Iris(50.0, 40.0, 6.0)
+    xs = np.linspace(30, 70, 9)
+    open_up, open_lo = np.c_[xs, np.full(9, 20.0)], np.c_[xs, np.full(9, 60.0)]
+    assert visible_iris_centre(iris, open_up, open_lo) == pytest.approx((50, 40), abs=1e-6)
+    # an upper lid through the centre: a half disc, its centroid 4r/(3 pi) below the centre
+    half = np.c_[xs, np.full(9, 40.0)]
+    x, y = visible_iris_centre(iris, half, open_lo)
+    assert x == pytest.approx(50, abs=1e-6) and y == pytest.approx(40 + 8 / np.pi, abs=0.03)
+    # a lower lid over the bottom third moves it up; lids in either order give the same point
+    lo = np.c_[xs, np.full(9, 42.0)]
+    y_lo = visible_iris_centre(iris, open_up, lo)[1]
+    assert y_lo < 40 and visible_iris_centre(iris, open_up[::-1], lo[::-1])[1] == y_lo
+    # a rolled eye: the same half disc turned 30 degrees about the centre
+    a = np.deg2rad(30)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    turned = visible_iris_centre(iris, (half - (50, 40)) @ rot.T + (50, 40),
+                                 (open_lo - (50, 40)) @ rot.T + (50, 40))
+    want = np.array([50, 40]) + rot @ np.array([0, 8 / np.pi])
+    np.testing.assert_allclose(turned, want, atol=0.03)
+    # a closed eye shows nothing: the circle's centre
+    shut = np.c_[xs, np.full(9, 50.0)]
+    assert visible_iris_centre(iris, shut, shut) == (50.0, 40.0)
 
 
 def test_standard_mesh_size_regions_and_holes():

@@ -78,6 +78,8 @@ def cmd_landmarks(a: argparse.Namespace) -> int:
             "points": {str(i): [float(x), float(y)] for i, (x, y) in enumerate(lm.points)},
             "fdp": {k: [round(x, 2), round(y, 2)] for k, (x, y) in lm.fdp_points().items()},
             "iris": {"3.5": lm.iris_left.as_list(), "3.6": lm.iris_right.as_list()},
+            # the centre of each iris's visible part (below the circle's when a lid covers it)
+            "pupils": {k: [round(x, 2), round(y, 2)] for k, (x, y) in lm.pupils().items()},
             "confidence": round(float(lm.confidence), 4),
         }
         if lm.mesh is not None:  # MediaPipe's 468 points (its canonical vertex order)

@@ -18,7 +18,8 @@ right: point 36 is the subject's right eye's outer corner (MPEG-4 FDP 3.12).
 Every detector gives these 68 points (the mesh through the documented table
 :data:`editor.engine.facemesh.MESH_TO_68`, its inner-lip middles then moved onto the visible
 opening: :func:`inner_lips_on_opening_68`). The MediaPipe detector adds the dense 468-point mesh
-(``Landmarks.mesh``) and the iris model's circles. dlib gives no iris (FDP 3.5 / 3.6):
+(``Landmarks.mesh``), the iris model's circles and where each pupil shows (the centre of the
+circle's part inside the lids, :func:`visible_iris_centre`). dlib gives no iris (FDP 3.5 / 3.6):
 :func:`locate_iris` finds the dark disc inside each eye opening (a vectorised circular template
 search, in the spirit of the paper's Canny-edge approach).
 """
@@ -37,7 +38,7 @@ import numpy as np
 
 from editor.errors import FapStudioError, NoFaceError
 
-from .facemesh import FDP_FROM_MESH, MediaPipeDetector, points68_from_mesh
+from .facemesh import CONTOURS, FDP_FROM_MESH, MediaPipeDetector, points68_from_mesh
 
 #: Detection runs on a copy whose longer side is at most this many pixels.
 DETECT_MAX_SIDE = 800
@@ -97,6 +98,10 @@ class Landmarks:
         The MediaPipe face mesh (its canonical vertex order), None from dlib.
     confidence : float
         The detector's face-presence probability (1.0 when it gives none).
+    pupil_left, pupil_right : tuple of float or None
+        The centre of the visible part of each iris (image pixels), below the circle's centre
+        when the upper lid covers the iris's top; None: the circle's centre
+        (:meth:`pupils`).
 
     Examples
     --------
@@ -118,6 +123,17 @@ class Landmarks:
     detector: str = "dlib-68"
     mesh: np.ndarray | None = None
     confidence: float = 1.0
+    pupil_left: tuple[float, float] | None = None
+    pupil_right: tuple[float, float] | None = None
+
+    def pupils(self) -> dict[str, tuple[float, float]]:
+        """Where the photo shows each pupil: the centre of the iris's visible part ("3.5" the
+        subject's left, "3.6" the right). With the MediaPipe detector the iris circle clipped by
+        the lid contours (:func:`visible_iris_centre`); without (dlib, whose circle search
+        scores visible pixels only) the iris circles' centres. The circles themselves (the
+        eyeball's iris, which gaze rendering moves) keep the full circle's centre."""
+        return {"3.5": self.pupil_left or (self.iris_left.cx, self.iris_left.cy),
+                "3.6": self.pupil_right or (self.iris_right.cx, self.iris_right.cy)}
 
     def fdp_points(self) -> dict[str, tuple[float, float]]:
         """MPEG-4 feature points derived directly from the detection (incl. 3.5, 3.6): from the
@@ -361,6 +377,44 @@ def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int,
     return Iris(x0 + xi / s, y0 + yi / s, r / s)
 
 
+def visible_iris_centre(iris: Iris, upper: np.ndarray, lower: np.ndarray,
+                        samples: int = 48) -> tuple[float, float]:
+    """The centroid of the part of the iris circle that lies inside the eye opening.
+
+    ``upper`` and ``lower`` are the lid contours (n, 2) from one eye corner to the other (the
+    same two corners, either order). The disc is cut into ``samples`` vertical strips in the
+    frame of the eye-corner line; each strip's chord is clipped to the span between the lids
+    there, and the strips' areas and centres give the centroid. A lid over the iris's top moves
+    the point down, one over its bottom moves it up; a fully visible iris gives its own centre,
+    and a closed eye (nothing visible) the circle's centre.
+    """
+    up = np.asarray(upper, np.float64).reshape(-1, 2)
+    lo = np.asarray(lower, np.float64).reshape(-1, 2)
+    d = up[-1] - up[0]
+    n = float(np.hypot(*d))
+    if n < 1e-9 or iris.r <= 0:
+        return iris.cx, iris.cy
+    ex = d / n
+    ex = ex if ex[0] >= 0 else -ex  # the eye's x axis points to the image's right
+    ey = np.array([-ex[1], ex[0]])  # and its y axis down
+    rot = np.stack([ex, ey])
+    o = np.array([iris.cx, iris.cy])
+    u_up, u_lo = (up - o) @ rot.T, (lo - o) @ rot.T
+    u_up, u_lo = u_up[np.argsort(u_up[:, 0])], u_lo[np.argsort(u_lo[:, 0])]
+    r = float(iris.r)
+    x = (np.arange(samples) + 0.5) / samples * 2 * r - r
+    half = np.sqrt(np.maximum(r * r - x * x, 0.0))
+    top = np.maximum(-half, np.interp(x, u_up[:, 0], u_up[:, 1], left=np.inf, right=np.inf))
+    bottom = np.minimum(half, np.interp(x, u_lo[:, 0], u_lo[:, 1], left=-np.inf, right=-np.inf))
+    w = np.clip(bottom - top, 0.0, None)
+    area = float(w.sum())
+    if area <= 1e-6 * r:
+        return iris.cx, iris.cy
+    c = np.array([(x * w).sum(), (0.5 * (top + bottom) * w).sum()]) / area
+    p = o + c @ rot
+    return float(p[0]), float(p[1])
+
+
 def inner_lips_on_opening_68(rgb: np.ndarray, points: np.ndarray, detector: str) -> np.ndarray:
     """The 68 points with the inner-lip middles (61-63, 65-67) on the photo's visible mouth
     opening, as iBUG's annotation (and dlib) place them: on a mouth showing teeth the teeth's
@@ -389,8 +443,14 @@ def _from_mesh(det: MediaPipeDetector, found: Any, rgb: np.ndarray) -> Landmarks
     right = locate_iris(rgb, pts68, 0, Iris(*found.iris_image_left))  # subject's right (3.6)
     left = locate_iris(rgb, pts68, 1, Iris(*found.iris_image_right))
     pts = inner_lips_on_opening_68(rgb, pts68, det.name)
+    # the pupils where the photo shows them: the model's circles clipped by the mesh's lids
+    m = found.mesh
+    pupil_r = visible_iris_centre(right, m[list(CONTOURS["eye_r_upper"])],
+                                  m[list(CONTOURS["eye_r_lower"])])
+    pupil_l = visible_iris_centre(left, m[list(CONTOURS["eye_l_upper"])],
+                                  m[list(CONTOURS["eye_l_lower"])])
     return Landmarks(pts, found.box, left, right, det.name, found.mesh,
-                     float(found.confidence))
+                     float(found.confidence), pupil_l, pupil_r)
 
 
 def detect_landmarks(rgb: np.ndarray, detector: LandmarkDetector | None = None) -> Landmarks:

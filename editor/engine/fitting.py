@@ -376,15 +376,31 @@ def _fit_rings(V: Vertices, fr: FaceFrame, image_size: tuple[int, int], iod: flo
         d = np.array([np.cos(phi), np.sin(phi)])
         r_face = 1.0 / np.sqrt((d[0] / half_w) ** 2 + (d[1] / half_h) ** 2)
         r_border = _ray_exit(centre, d, corners_fr)
-        r_m = max(min(1.3 * r_face, 0.85 * r_border), 1.08 * r_face)
+        # below the chin the ring leaves room for the jaw to drop, also when the photo ends
+        # close under the chin: the band would otherwise be squeezed against it, and the fold
+        # guard, holding the vertices of its flattest triangles back, dented the chin into a W
+        down = max(float(d[1]), 0.0)
+        k_m = 1.3 + CHIN_ROOM * down ** 2
+        r_m = max(min(k_m * r_face, (0.85 + 0.1 * down) * r_border), 1.08 * r_face)
         V[f"margin_{k}"] = centre + r_m * d
         phi_b = phi + np.pi / n
         db = np.array([np.cos(phi_b), np.sin(phi_b)])
-        r_b = max(_ray_exit(centre, db, corners_fr), 1.25 * r_m)
+        r_face_b = 1.0 / np.sqrt((db[0] / half_w) ** 2 + (db[1] / half_h) ** 2)
+        # the outer ring: on the image border, or HEAD_BAND face radii beyond the margin when
+        # the border lies further out (a small face in a large photo): a head rotation moves
+        # the margin with the head and stretches only this band; the rest of the photo (body,
+        # background) stays, and the warp does not cover the whole frame
+        r_b = max(min(_ray_exit(centre, db, corners_fr), 1.3 * r_face_b + HEAD_BAND * r_face_b),
+                  1.25 * r_m)
         V[f"border_{k}"] = centre + r_b * db
 
 
 MARGIN_COUNT = 20
+#: extra room of the margin ring straight below the chin (face radii; none sideways)
+CHIN_ROOM = 0.3
+#: width (in face radii, beyond the margin's 1.3) of the band between the margin ring and the
+#: outer ring when the photo extends further
+HEAD_BAND = 1.0
 
 
 def _ray_exit(c: np.ndarray, d: np.ndarray, quad: np.ndarray) -> float:

@@ -145,10 +145,13 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     y1 = int(np.clip(np.ceil(p[:, 1].max()) + 2, 0, h))
     if x1 <= x0 or y1 <= y0:
         return WarpResult(img.copy(), None)
-    if plan.band is not None and min(w, h) >= 4 * BAND_STEP and moved_v[plan.band].any():
+    if (plan.band is not None and min(x1 - x0, y1 - y0) >= 4 * BAND_STEP
+            and moved_v[plan.band].any()):
         inner = _inner_box(plan, dst, moved_t, w, h)
+        inner = (max(inner[0], x0), max(inner[1], y0), min(inner[2], x1), min(inner[3], y1))
         if 2 * _area(inner) < _area((x0, y0, x1, y1)):
-            return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner)
+            return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner,
+                              (x0, y0, x1, y1))
     out = img.copy()
     ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0, y1 - y0)
     out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
@@ -161,7 +164,7 @@ def _area(box: tuple[int, int, int, int]) -> int:
 
 
 #: Node spacing (px) of the coarse backward map of the band (see :func:`_warp_band`)
-BAND_STEP = 8
+BAND_STEP = 4
 
 
 def _inner_box(plan: WarpPlan, dst: np.ndarray, moved_t: np.ndarray, w: int, h: int
@@ -180,57 +183,64 @@ def _inner_box(plan: WarpPlan, dst: np.ndarray, moved_t: np.ndarray, w: int, h: 
 
 def _warp_band(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
                cavity: bool, moved_t: np.ndarray, tri_pts: np.ndarray,
-               inner: tuple[int, int, int, int]) -> WarpResult:
-    """The whole frame when the band (``plan.band``: e.g. the head's margin on a head
-    rotation) moves: its few large triangles stretch smoothly, so their backward map is
-    evaluated exactly on a grid of nodes ``BAND_STEP`` px apart and interpolated bilinearly
-    between them (exact wherever a grid cell lies in one triangle; across a band edge the
-    interpolation differs from the piecewise-affine map by a fraction of a pixel). Inside
-    ``inner`` (the face, its openings and a margin of one cell) the map is the exact per-pixel
-    one of :func:`warp`. One ``cv2.remap`` of the frame."""
+               inner: tuple[int, int, int, int], box: tuple[int, int, int, int]
+               ) -> WarpResult:
+    """The box ``box`` of the moved triangles when the band (``plan.band``: e.g. the head's
+    margin on a head rotation) moves: its few large triangles stretch smoothly, so their
+    backward map is evaluated exactly on a grid of nodes ``BAND_STEP`` px apart and
+    interpolated bilinearly between them (exact wherever a grid cell lies in one triangle;
+    across a band edge the interpolation differs from the piecewise-affine map by a fraction of
+    a pixel). Inside ``inner`` (the face, its openings and a margin of one cell) and along the
+    box's edges the map is the exact per-pixel one of :func:`warp`. One ``cv2.remap`` of the
+    box (the band ends at the mesh's outer ring: outside it the photo does not move)."""
     img = plan.image
-    h, w = img.shape[:2]
+    bx0, by0, bx1, by1 = box
+    w, h = bx1 - bx0, by1 - by0
     s = BAND_STEP
     nx, ny = -(-w // s) + 2, -(-h // s) + 2
     # node k of the grid sits where cv2.resize (x s) puts the centre of coarse pixel k:
-    # full-frame x = k * s - s / 2 - 1 / 2, i.e. pixel x <- resized column x + s
+    # box x = k * s - s / 2 - 1 / 2, i.e. pixel x <- resized column x + s
     o = -0.5 * s - 0.5
     # only the band's triangles matter on the grid: every node of another moved triangle lies
     # in ``inner``, more than a cell inside its edge, and is overwritten there
     bt = plan._band_tri[moved_t]
-    _ids, cx, cy = _maps(plan, dst, layers, moved_t[bt], tri_pts[bt], o, o, nx, ny, s)
-    # nodes outside the frame: extrapolated from the two nearest inside (exact within one
-    # triangle; evaluated there they would fall outside the mesh, on the identity)
+    _ids, cx, cy = _maps(plan, dst, layers, moved_t[bt], tri_pts[bt], bx0 + o, by0 + o, nx, ny,
+                         s)
+    # nodes outside the box: extrapolated from the two nearest inside (exact within one
+    # triangle)
     for c in (cx, cy):
         for ax, n_px in ((1, w), (0, h)):
             v = np.moveaxis(c, ax, 0)
             v[0] = 2.0 * v[1] - v[2]
-            last = int((n_px - 1 - o) // s)  # the last node inside the frame
+            last = int((n_px - 1 - o) // s)  # the last node inside the box
             for k in range(last + 1, v.shape[0]):
                 v[k] = v[last] + (k - last) * (v[last] - v[last - 1])
     size = (nx * s, ny * s)
     map_x = cv2.resize(cx, size, interpolation=cv2.INTER_LINEAR)[s:s + h, s:s + w]
     map_y = cv2.resize(cy, size, interpolation=cv2.INTER_LINEAR)[s:s + h, s:s + w]
-    # exact: the frame's edges (where the extrapolated nodes and the source-box clamp of
-    # :func:`_maps` would differ most) and the inner box
+    # exact: the box's edges (where the extrapolated nodes and the source-box clamp of
+    # :func:`_maps` would differ most) and, last, the inner box
     e = s + 2
-    for bx0, by0, bx1, by1 in ((0, 0, w, e), (0, h - e, w, h), (0, e, e, h - e),
-                               (w - e, e, w, h - e), inner):
-        bx0, by0, bx1, by1 = max(bx0, 0), max(by0, 0), min(bx1, w), min(by1, h)
-        if bx1 > bx0 and by1 > by0:
-            ids, mx, my = _maps(plan, dst, layers, moved_t, tri_pts, bx0, by0, bx1 - bx0,
-                                by1 - by0)
-            map_x[by0:by1, bx0:bx1] = mx
-            map_y[by0:by1, bx0:bx1] = my
-    x0, y0, x1, y1 = inner
-    out = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    ix0, iy0, ix1, iy1 = inner[0] - bx0, inner[1] - by0, inner[2] - bx0, inner[3] - by0
+    ids = None
+    for ex0, ey0, ex1, ey1 in ((0, 0, w, e), (0, h - e, w, h), (0, e, e, h - e),
+                               (w - e, e, w, h - e), (ix0, iy0, ix1, iy1)):
+        ex0, ey0, ex1, ey1 = max(ex0, 0), max(ey0, 0), min(ex1, w), min(ey1, h)
+        if ex1 > ex0 and ey1 > ey0:
+            ids, mx, my = _maps(plan, dst, layers, moved_t, tri_pts, bx0 + ex0, by0 + ey0,
+                                ex1 - ex0, ey1 - ey0)
+            map_x[ey0:ey1, ex0:ex1] = mx
+            map_y[ey0:ey1, ex0:ex1] = my
+    out = img.copy()
+    out[by0:by1, bx0:bx1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
+                                      borderMode=cv2.BORDER_REPLICATE)
     mouth = np.zeros((h, w), bool)
     eyes = np.zeros((h, w), bool)
-    if x1 > x0 and y1 > y0:
+    if ix1 > ix0 and iy1 > iy0 and ids is not None:
         res = _finish(plan, dst, out, ids, mx, my, inner, cavity)
-        mouth[y0:y1, x0:x1] = res.mouth_local
-        eyes[y0:y1, x0:x1] = res.eyes_local
-    return WarpResult(out, (0, 0, w, h), mouth, eyes, (map_x, map_y, (0, 0, w, h)))
+        mouth[iy0:iy1, ix0:ix1] = res.mouth_local
+        eyes[iy0:iy1, ix0:ix1] = res.eyes_local
+    return WarpResult(out, box, mouth, eyes, (map_x, map_y, box))
 
 
 def _maps(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,

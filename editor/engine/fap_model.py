@@ -21,6 +21,17 @@ priors in pixels of each FAP's own motion ``u_k f_k`` (u_k = its FAPU in px): Ti
 left/right symmetry ``symmetry`` (f_l - f_r) and inner = outer lip ``pair`` (on landmarks the two
 FAPs of a lip pair correlate 0.8-0.99; the presets keep them equal).
 
+Signs (issue 21): where a FAP's own feature point (:data:`OWN_LANDMARKS`) clearly moves one way
+(beyond :data:`SIGN_FLOOR_PX`, head motion removed), the FAP is bounded to that side of 0. Without
+this the fit explains an open mouth's corners and lower lip against the jaw: the model's open_jaw
+carries the lower lip 1:1 with the chin and the corners ~0.68:1, while real JAFFE corners follow
+the chin by 0.2-0.9 (median 0.55 over the open-mouthed surprises), so where they follow less the
+least-squares fit added "raise the corners" (59/60, 12/13) to surprise, fear and open smiles, and
+"raise the lower lip" (52, 5) to closed mouths that moved down as a whole (sadness): 69 of 1031
+sign checks on JAFFE opposed the real motion, every one with open_jaw > 100. Bounded, the same
+motion reads as less jaw and lips that follow it, at a small cost in fit (the closed loop's lips
+and jaw error, :mod:`editor.synthesis.closed_loop`, +0.05 % of the inter-ocular distance).
+
 Observable FAPs (:data:`OBSERVABLE`): 3 open_jaw, 15 shift_jaw, 4-13 inner lips, 19-22 eyelids,
 31-38 brows, 41-42 lift cheeks, 51-60 outer lips, 61-62 nose wings. Not estimated: 14/16/17
 (their 2-D approximations are collinear with 3/52/51), 18 (no landmark in its region), 23-30
@@ -58,6 +69,19 @@ ESTIMATE_STABLE_WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5])
 #: 27 not at all (see :data:`ESTIMATE_STABLE`).
 LANDMARK_WEIGHTS = np.select([np.arange(68) < 4, np.arange(68) < 13, np.arange(68) < 17,
                               np.arange(68) == 27], [0.25, 0.5, 0.25, 0.0], 1.0)
+#: Each sign-bounded FAP's own feature point(s) among the iBUG-68 landmarks (the point whose
+#: displacement the FAP names; its direction is taken from the model's own basis).
+OWN_LANDMARKS: dict[int, tuple[int, ...]] = {
+    3: (8,), 5: (66,), 52: (57,), 12: (64,), 13: (60,), 59: (54,), 60: (48,),
+    19: (43, 44), 20: (37, 38), 31: (22,), 32: (21,), 35: (26,), 36: (17,),
+}
+#: Head-free motion of a FAP's own feature point (pixels) beyond which the FAP may not go the
+#: other way: 5x the detector's re-detection noise (MediaPipe, the same JAFFE neutral shifted
+#: by sub-pixel amounts and rescaled by 0.96-1.08: RMS 0.20 px, largest 0.89 px).
+SIGN_FLOOR_PX = 1.0
+#: How far (px) a FAP may move its own point against a motion that is still at rest; the room
+#: shrinks linearly to 0 as the motion reaches :data:`SIGN_FLOOR_PX`.
+SIGN_RAMP_PX = 4.0
 
 
 def remove_head_motion(neutral68: np.ndarray, expr68: np.ndarray
@@ -97,11 +121,14 @@ class FapEstimator:
     bounds : (lo, hi) (68,) arrays, default the FAP table ranges
     renderable : bound open_jaw by what the face's mesh renders without folding
         (:meth:`_jaw_limit`)
+    sign_floor : pixels of motion of a FAP's own feature point beyond which the FAP may not go
+        the other way (:meth:`bounds_for`); ``None`` leaves only the FAP table's ranges
     """
 
     def __init__(self, face, faps=OBSERVABLE, *, reg: float = 0.1, symmetry: float = 0.3,
                  pair: float = 1.0, bounds: tuple[np.ndarray, np.ndarray] | None = None,
-                 landmark_weights: np.ndarray | None = None, renderable: bool = True) -> None:
+                 landmark_weights: np.ndarray | None = None, renderable: bool = True,
+                 sign_floor: float | None = SIGN_FLOOR_PX) -> None:
         self.face = face
         self.neutral = np.asarray(face.landmarks.points, np.float64)
         self.idx = np.array(sorted({int(FAPS.number(k)) for k in faps}), np.int64) - 1
@@ -121,12 +148,58 @@ class FapEstimator:
         self._priors = self._prior_rows(reg, symmetry, pair)
         self.stable, self.stable_w = ESTIMATE_STABLE, ESTIMATE_STABLE_WEIGHTS
         self.renderable = renderable
+        self.sign_floor = sign_floor
+        self._sign_rows()
         # open_jaw no further than the mesh allows: the margin ring under a JAFFE chin is ~0.1
         # IOD away, and beyond that the fold guard scales the *whole* deformation down (brows
         # included: 0.46 on wide-open surprise, jaw at its 1080 bound)
         if renderable and 2 in self.idx:
             k = int(np.flatnonzero(self.idx == 2)[0])
             self.hi[k] = self._jaw_limit(self.lo[k], self.hi[k])
+
+    def _sign_rows(self) -> None:
+        """The sign-bounded FAPs: positions in ``idx``, the (n, 136) rows that project the
+        landmark motion onto each one's own feature point(s) along its own direction in the
+        model (mean over its points), and that motion per unit of the FAP (px)."""
+        pos, rows, gain = [], [], []
+        J = self.J.reshape(68, 2, 68)
+        for k, i in enumerate(self.idx):
+            pts = OWN_LANDMARKS.get(int(i) + 1)
+            if not pts:
+                continue
+            r = np.zeros((68, 2))
+            g = 0.0
+            for lm in pts:
+                v = J[lm, :, i]
+                n = float(np.hypot(*v))
+                if n > 0:
+                    r[lm] = v / (n * len(pts))
+                    g += n / len(pts)
+            if g > 0:
+                pos.append(k)
+                rows.append(r.ravel())
+                gain.append(g)
+        self._sign_pos = np.array(pos, np.int64)
+        self._sign_proj = np.array(rows).reshape(len(pos), 136)
+        self._sign_gain = np.array(gain, np.float64)
+
+    def bounds_for(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the estimated FAPs (``idx`` order) for a head-free motion ``d`` (136,):
+        the FAP table's, and where a FAP's own feature point moves beyond ``sign_floor`` pixels
+        one way, the FAP may not go the other way."""
+        lo, hi = self.lo.copy(), self.hi.copy()
+        if self.sign_floor is None or not len(self._sign_pos):
+            return lo, hi
+        m = self._sign_proj @ d
+        k = self._sign_pos
+        # how far the FAP may move its point against the motion, px: SIGN_RAMP_PX at rest,
+        # shrinking linearly to 0 at the floor (no jump when a tracked point crosses it)
+        room = SIGN_RAMP_PX * np.clip(1.0 - np.abs(m) / self.sign_floor, 0.0, 1.0) \
+            / self._sign_gain
+        up = m > 0
+        lo[k[up]] = np.maximum(lo[k[up]], -room[up])
+        hi[k[~up]] = np.minimum(hi[k[~up]], room[~up])
+        return lo, hi
 
     def _prior_rows(self, reg: float, symmetry: float, pair: float) -> np.ndarray:
         n = len(self.idx)
@@ -212,13 +285,17 @@ class FapEstimator:
         lip-pair pattern of the previous solution; the (68,) vector of least cost."""
         n_prior = len(self._priors)
         b = np.concatenate([self.w * d, np.zeros(n_prior)])
+        lo, hi = self.bounds_for(d)
+        free = lo < hi  # a FAP bounded to [0, 0] stays 0 (lsq_linear wants lo < hi)
         f = np.zeros(68)
         best: tuple[float, np.ndarray] | None = None
         pattern = None
         for _ in range(6):
             J = self._effective_jacobian(f)
             Ab = np.vstack([self.w[:, None] * J[:, self.idx], self._priors])
-            sol = lsq_linear(Ab, b, bounds=(self.lo, self.hi), method="bvls").x
+            sol = np.zeros(len(self.idx))
+            sol[free] = lsq_linear(Ab[:, free], b, bounds=(lo[free], hi[free]),
+                                   method="bvls").x
             f = np.zeros(68)
             f[self.idx] = sol
             r = self.w * (self._effective_jacobian(f) @ f - d)

@@ -153,6 +153,22 @@ def test_estimator_inverts_the_model(sample_neutral):
     assert np.allclose(estimate_faps(f.landmarks.points, pts, f), est.estimate(pts).faps)
 
 
+def test_estimator_keeps_a_fap_on_its_points_side(sample_neutral):
+    """A lower lip rolled in: the inner lip rises 6 px while the outer lip's middle moves 2 px
+    down. The inner = outer lip prior alone would raise the outer lip too (raise_b_midlip_o
+    +68 before the sign bounds); the outer FAP may not go against its own point's motion."""
+    f = sample_neutral
+    ey = f.frame.rot[:, 1]
+    p = f.landmarks.points.astype(np.float64)
+    p[57] += 2.0 * ey
+    p[66] -= 6.0 * ey
+    e = FapEstimator(f).estimate(p).faps
+    assert e[4] > 100  # raise_b_midlip: the inner lower lip up
+    assert e[51] <= 0  # raise_b_midlip_o: not up
+    loose = FapEstimator(f, sign_floor=None).estimate(p).faps
+    assert loose[51] > 30  # what the bound prevents
+
+
 #: Round-trip tolerance (detected landmarks; stated in the issue's closing note): for the
 #: presets whose motion dlib follows (joy, sadness, surprise, fear): cosine >= 0.85 between the
 #: true and recovered motion (FAP x FAPU, pixels), mean error <= 8 % and every observable FAP

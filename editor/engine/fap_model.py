@@ -21,6 +21,19 @@ priors in pixels of each FAP's own motion ``u_k f_k`` (u_k = its FAPU in px): Ti
 left/right symmetry ``symmetry`` (f_l - f_r) and inner = outer lip ``pair`` (on landmarks the two
 FAPs of a lip pair correlate 0.8-0.99; the presets keep them equal).
 
+Signs (issue 21): where a FAP's own feature point (:data:`OWN_LANDMARKS`) clearly moves one way
+(beyond :data:`SIGN_FLOOR_PX`, head motion removed), the FAP is bounded to that side of 0. The lip
+FAPs of the jaw (:data:`JAW_CARRIED`: corners, lower lip) are displacements on top of open_jaw's,
+which carries the lower lip 1:1 with the chin and the corners ~0.68:1, while real JAFFE corners
+follow the chin by 0.2-0.9 (median 0.55 over the open-mouthed surprises): their point's motion is
+taken relative to where the estimated jaw carries it (an open smile's corners may end up below
+the neutral's, yet rise against the jaw: raise_cornerlip > 0). Judged on the absolute motion, 69
+of 1031 JAFFE sign checks looked wrong, every one with open_jaw > 100 (corners of surprise, fear,
+open smiles; lower lips of mouths that moved down as a whole); bounding those on the absolute
+motion made the surprise preset's own motion (open_jaw 520, corners +85) come back with corners
+0, and a real open smile (KA.HA1) lose its corner lift (+111 -> 0). Relative to the jaw, one of
+1303 was wrong (TM.HA1's inner lower lip, pushed up by the lip-pair prior); the bounds fix it.
+
 Observable FAPs (:data:`OBSERVABLE`): 3 open_jaw, 15 shift_jaw, 4-13 inner lips, 19-22 eyelids,
 31-38 brows, 41-42 lift cheeks, 51-60 outer lips, 61-62 nose wings. Not estimated: 14/16/17
 (their 2-D approximations are collinear with 3/52/51), 18 (no landmark in its region), 23-30
@@ -58,6 +71,22 @@ ESTIMATE_STABLE_WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5])
 #: 27 not at all (see :data:`ESTIMATE_STABLE`).
 LANDMARK_WEIGHTS = np.select([np.arange(68) < 4, np.arange(68) < 13, np.arange(68) < 17,
                               np.arange(68) == 27], [0.25, 0.5, 0.25, 0.0], 1.0)
+#: Each sign-bounded FAP's own feature point(s) among the iBUG-68 landmarks (the point whose
+#: displacement the FAP names; its direction is taken from the model's own basis).
+OWN_LANDMARKS: dict[int, tuple[int, ...]] = {
+    3: (8,), 5: (66,), 52: (57,), 12: (64,), 13: (60,), 59: (54,), 60: (48,),
+    19: (43, 44), 20: (37, 38), 31: (22,), 32: (21,), 35: (26,), 36: (17,),
+}
+#: Lip FAPs whose own point open_jaw carries: their sign follows the point's motion relative to
+#: the estimated jaw's carriage.
+JAW_CARRIED: frozenset[int] = frozenset({5, 52, 12, 13, 59, 60})
+#: Head-free motion of a FAP's own feature point (pixels) beyond which the FAP may not go the
+#: other way: 5x the detector's re-detection noise (MediaPipe, the same JAFFE neutral shifted
+#: by sub-pixel amounts and rescaled by 0.96-1.08: RMS 0.20 px, largest 0.89 px).
+SIGN_FLOOR_PX = 1.0
+#: How far (px) a FAP may move its own point against a motion that is still at rest; the room
+#: shrinks linearly to 0 as the motion reaches :data:`SIGN_FLOOR_PX`.
+SIGN_RAMP_PX = 4.0
 
 
 def remove_head_motion(neutral68: np.ndarray, expr68: np.ndarray
@@ -65,6 +94,17 @@ def remove_head_motion(neutral68: np.ndarray, expr68: np.ndarray
     """Expression points mapped into the neutral's pose; returns (aligned (68, 2), M 2x3)."""
     M = similarity(expr68[STABLE_POINTS], neutral68[STABLE_POINTS], STABLE_WEIGHTS)
     return apply_affine(M, expr68), M
+
+
+def landmark_jacobian(face, A=None) -> np.ndarray:
+    """(136, 68): the motion of the face's 68 landmarks (x, y interleaved) per unit of each FAP,
+    pixels, in the linear model (each landmark moves with its triangle of the neutral mesh; the
+    lip pair correction left out). ``A``: the landmark map, when already built."""
+    if A is None:
+        A = landmark_map(face.vertices, face.triangles, face.mesh.names,
+                         np.asarray(face.landmarks.points, np.float64))
+    basis = face.plan.basis.astype(np.float64)[:, :face.plan.n_vertices]  # (68, V, 2)
+    return np.stack([(A @ basis[k]).ravel() for k in range(68)], 1)
 
 
 # ---------------------------------------------------------------------------- estimation
@@ -97,11 +137,14 @@ class FapEstimator:
     bounds : (lo, hi) (68,) arrays, default the FAP table ranges
     renderable : bound open_jaw by what the face's mesh renders without folding
         (:meth:`_jaw_limit`)
+    sign_floor : pixels of motion of a FAP's own feature point beyond which the FAP may not go
+        the other way (:meth:`bounds_for`); ``None`` leaves only the FAP table's ranges
     """
 
     def __init__(self, face, faps=OBSERVABLE, *, reg: float = 0.1, symmetry: float = 0.3,
                  pair: float = 1.0, bounds: tuple[np.ndarray, np.ndarray] | None = None,
-                 landmark_weights: np.ndarray | None = None, renderable: bool = True) -> None:
+                 landmark_weights: np.ndarray | None = None, renderable: bool = True,
+                 sign_floor: float | None = SIGN_FLOOR_PX) -> None:
         self.face = face
         self.neutral = np.asarray(face.landmarks.points, np.float64)
         self.idx = np.array(sorted({int(FAPS.number(k)) for k in faps}), np.int64) - 1
@@ -112,8 +155,7 @@ class FapEstimator:
         self.hi = np.asarray(hi, np.float64)[self.idx]
         V = face.plan.n_vertices
         A = landmark_map(face.vertices, face.triangles, face.mesh.names, self.neutral)
-        basis = face.plan.basis.astype(np.float64)[:, :V]  # (68, V, 2)
-        self.J = np.stack([(A @ basis[k]).ravel() for k in range(68)], 1)  # (136, 68)
+        self.J = landmark_jacobian(face, A)
         pb = face.plan.pair_basis.reshape(len(LIP_PAIRS), -1, 2)[:, :V]
         self.P = np.stack([(A @ pb[k]).ravel() for k in range(len(LIP_PAIRS))], 1)  # (136, 10)
         lw = LANDMARK_WEIGHTS if landmark_weights is None else np.asarray(landmark_weights)
@@ -121,12 +163,71 @@ class FapEstimator:
         self._priors = self._prior_rows(reg, symmetry, pair)
         self.stable, self.stable_w = ESTIMATE_STABLE, ESTIMATE_STABLE_WEIGHTS
         self.renderable = renderable
+        self.sign_floor = sign_floor
+        self._sign_rows()
         # open_jaw no further than the mesh allows: the margin ring under a JAFFE chin is ~0.1
         # IOD away, and beyond that the fold guard scales the *whole* deformation down (brows
         # included: 0.46 on wide-open surprise, jaw at its 1080 bound)
         if renderable and 2 in self.idx:
             k = int(np.flatnonzero(self.idx == 2)[0])
             self.hi[k] = self._jaw_limit(self.lo[k], self.hi[k])
+
+    def _sign_rows(self) -> None:
+        """The sign-bounded FAPs: positions in ``idx``, the (n, 136) rows that project the
+        landmark motion onto each one's own feature point(s) along its own direction in the
+        model (mean over its points), and that motion per unit of the FAP (px)."""
+        pos, rows, gain = [], [], []
+        J = self.J.reshape(68, 2, 68)
+        for k, i in enumerate(self.idx):
+            pts = OWN_LANDMARKS.get(int(i) + 1)
+            if not pts:
+                continue
+            r = np.zeros((68, 2))
+            g = 0.0
+            for lm in pts:
+                v = J[lm, :, i]
+                n = float(np.hypot(*v))
+                if n > 0:
+                    r[lm] = v / (n * len(pts))
+                    g += n / len(pts)
+            if g > 0:
+                pos.append(k)
+                rows.append(r.ravel())
+                gain.append(g)
+        self._sign_pos = np.array(pos, np.int64)
+        self._sign_proj = np.array(rows).reshape(len(pos), 136)
+        self._sign_gain = np.array(gain, np.float64)
+        carried = np.array([int(self.idx[k]) + 1 in JAW_CARRIED for k in pos], bool)
+        # the motion open_jaw gives each carried row's point, px per unit (0 for the others)
+        self._sign_jaw = np.where(carried, self._sign_proj @ self.J[:, 2], 0.0)
+        self._sign_carried = carried
+
+    def bounds_for(self, d: np.ndarray, faps: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the estimated FAPs (``idx`` order) for a head-free motion ``d`` (136,):
+        the FAP table's, and where a FAP's own feature point moves beyond ``sign_floor`` pixels
+        one way, the FAP may not go the other way. The :data:`JAW_CARRIED` FAPs are bounded on
+        their point's motion relative to the carriage of the (68,) vector ``faps``'s open_jaw,
+        and not at all without ``faps``."""
+        lo, hi = self.lo.copy(), self.hi.copy()
+        if self.sign_floor is None or not len(self._sign_pos):
+            return lo, hi
+        m = self._sign_proj @ d
+        k = self._sign_pos
+        if faps is None:
+            keep = ~self._sign_carried
+            m, k = m[keep], k[keep]
+            gain = self._sign_gain[keep]
+        else:
+            m = m - self._sign_jaw * float(faps[2])
+            gain = self._sign_gain
+        # how far the FAP may move its point against the motion, px: SIGN_RAMP_PX at rest,
+        # shrinking linearly to 0 at the floor (no jump when a tracked point crosses it)
+        room = SIGN_RAMP_PX * np.clip(1.0 - np.abs(m) / self.sign_floor, 0.0, 1.0) / gain
+        up = m > 0
+        lo[k[up]] = np.maximum(lo[k[up]], -room[up])
+        hi[k[~up]] = np.minimum(hi[k[~up]], room[~up])
+        return lo, hi
 
     def _prior_rows(self, reg: float, symmetry: float, pair: float) -> np.ndarray:
         n = len(self.idx)
@@ -206,19 +307,37 @@ class FapEstimator:
         return max(a, lo + 1.0)
 
     def _solve(self, d: np.ndarray) -> np.ndarray:
+        """Bounded least squares for a head-free landmark motion ``d`` (136,), re-solved at the
+        lip-pair pattern of the previous solution; the (68,) vector of least cost. Solved first
+        with the sign bounds that do not depend on the jaw, then again while a jaw-carried lip
+        FAP goes against its point's motion relative to the solution's jaw."""
+        f = self._solve_bounded(d, *self.bounds_for(d))
+        if self.sign_floor is None:
+            return f
+        for _ in range(3):
+            lo, hi = self.bounds_for(d, f)
+            sol = f[self.idx]
+            if ((sol >= lo - 1e-6) & (sol <= hi + 1e-6)).all():
+                break
+            f = self._solve_bounded(d, lo, hi)
+        return f
+
+    def _solve_bounded(self, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """:meth:`_solve` within the bounds ``lo``, ``hi`` (``idx`` order)."""
         from scipy.optimize import lsq_linear  # scipy on first use: a quick start (issue 15)
 
-        """Bounded least squares for a head-free landmark motion ``d`` (136,), re-solved at the
-        lip-pair pattern of the previous solution; the (68,) vector of least cost."""
         n_prior = len(self._priors)
         b = np.concatenate([self.w * d, np.zeros(n_prior)])
+        free = lo < hi  # a FAP bounded to [0, 0] stays 0 (lsq_linear wants lo < hi)
         f = np.zeros(68)
         best: tuple[float, np.ndarray] | None = None
         pattern = None
         for _ in range(6):
             J = self._effective_jacobian(f)
             Ab = np.vstack([self.w[:, None] * J[:, self.idx], self._priors])
-            sol = lsq_linear(Ab, b, bounds=(self.lo, self.hi), method="bvls").x
+            sol = np.zeros(len(self.idx))
+            sol[free] = lsq_linear(Ab[:, free], b, bounds=(lo[free], hi[free]),
+                                   method="bvls").x
             f = np.zeros(68)
             f[self.idx] = sol
             r = self.w * (self._effective_jacobian(f) @ f - d)

@@ -7,11 +7,18 @@ and compare them with the real photo's landmarks (moved into the neutral's head 
 error is in % of the inter-ocular distance, per region:
 
 * ``brows`` 17-26, ``lids`` 36-47 (eye contours), ``lips`` 48-67, ``jaw`` 5-11 (chin part of
-  the contour; dlib places the sides loosely), ``inner`` 17-67 (everything but the contour).
+  the contour; detectors place the sides loosely), ``inner`` 17-67 (all but the contour).
 
 "Do nothing" (the neutral's own landmarks) is the baseline every region must beat. Signs: for
 each FAP, the sign of the estimate is compared with the sign of the real motion of the feature
-point it drives (in the FAP's own axis), where that motion is above the noise floor.
+point it drives (in the FAP's own axis), where that motion is above the noise floor (1.5 px:
+MediaPipe re-detecting the same neutral photo shifted by sub-pixel amounts or rescaled by
+0.96-1.08 moves these points by 0.20 px RMS, 0.89 px at most; two neutral photos of the same
+woman differ by 0.53 px RMS). A FAP estimated as exactly 0 is not checked. The lip FAPs that
+open_jaw carries (:data:`~editor.engine.fap_model.JAW_CARRIED`: corners, lower lip) are
+displacements on top of the jaw's: their point's motion is taken relative to where the estimated
+open_jaw carries it in the model (an open smile's corners may end up below the neutral's while
+rising against the jaw).
 
 JAFFE is research-only: it is read from disk at run time, nothing derived from it is stored.
 """
@@ -27,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from editor.engine.face import Face
+from editor.engine.fap_model import JAW_CARRIED, landmark_jacobian
 from editor.engine.imageio import load_image
 from editor.engine.landmarks import detect_landmarks
 from editor.errors import NoFaceError
@@ -97,6 +105,9 @@ SIGN_CHECKS: tuple[tuple[int, int, str, float], ...] = (
     (35, 26, "y", -1.0), (36, 17, "y", -1.0),  # raise outer brows
     (59, 54, "y", -1.0), (60, 48, "y", -1.0),  # raise corner lips (outer)
     (52, 57, "y", -1.0),    # raise_b_midlip_o: lower lip up
+    # their inner-lip partners
+    (12, 64, "y", -1.0), (13, 60, "y", -1.0),  # raise corner lips (inner)
+    (5, 66, "y", -1.0),     # raise_b_midlip: inner lower lip up
 )
 
 
@@ -107,19 +118,20 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
 
     ``estimator_factory(face)`` returns an object with ``estimate(points68).faps`` (default
     :class:`~editor.synthesis.fap_estimate.FapEstimator`). ``noise_px``: real landmark motion below
-    this is not sign-checked (dlib's integer points on 256 px faces).
+    this is not sign-checked (see the module docstring for the detector's measured noise).
     """
     files = jaffe_files(images)
     who = [p for p in (people or sorted(files)) if "NE" in files.get(p, {})]
     make = estimator_factory or FapEstimator
     out = ClosedLoop()
     jobs = [(p, c, f) for p in who for c in JAFFE_EMOTIONS for f in files[p].get(c, [])]
-    faces: dict[str, tuple[Face, Any]] = {}  # Any: whatever estimator_factory makes
+    # Any: whatever estimator_factory makes; the landmarks' motion per unit of open_jaw
+    faces: dict[str, tuple[Face, Any, np.ndarray]] = {}
     for k, (p, code, path) in enumerate(jobs):
         if p not in faces:
             face = Face.from_image(files[p]["NE"][0], own_expression=False)
-            faces[p] = (face, make(face))
-        face, est = faces[p]
+            faces[p] = (face, make(face), landmark_jacobian(face)[:, 2].reshape(68, 2))
+        face, est, jaw = faces[p]
         neutral = face.landmarks.points.astype(np.float64)
         iod = face.interocular
         try:
@@ -139,7 +151,10 @@ def closed_loop(images: Path, people: Sequence[str] | None = None, *,
                          **_errors(neutral, want, iod)})
         rot = face.frame.rot
         for fap, lm, axis, sgn in SIGN_CHECKS:
-            m = (want[lm] - neutral[lm]) @ rot[:, 0 if axis == "x" else 1] * sgn
+            move = want[lm] - neutral[lm]
+            if fap in JAW_CARRIED:
+                move = move - jaw[lm] * f[2]
+            m = move @ rot[:, 0 if axis == "x" else 1] * sgn
             if abs(m) >= noise_px and abs(f[fap - 1]) > 1e-6:
                 out.signs.append((p, code, fap, float(f[fap - 1]), float(m)))
         if progress:

@@ -637,44 +637,56 @@ _TURN = np.array([-1.0, 1.0])
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 
-def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_splat2` with both point sets in one array (the first ``n1`` points go to the
-    first canvas): one floor, one cast, the same corner-major summation order."""
-    h, wd = shape
-    P0 = np.floor(P)
-    F = P - P0  # (fx, fy)
-    ip = P0.astype(np.int64)
-    base = ip[:, 1] * wd + ip[:, 0]
-    base[n1:] += h * wd  # the second canvas follows the first
-    # corner-major (all top-left weights, then top-right, bottom-left, bottom-right)
-    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    ws = _bilinear_weights(F, W)
-    acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
-    return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
-
-
 def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Darken the folds of the deformed mesh ``vertices`` into ``res.image`` (in place).
 
     Returns ``res`` unchanged when no fold is compressed (e.g. a zero FAP vector), else a
     result whose ``bbox`` also covers every pixel written.
+
+    Every canvas of the frame (the unfold bands, each fold group's line and ridge) depends on
+    the mesh only: they are laid out first and splatted together (:func:`_splat_many`), then
+    drawn in the same order as one at a time (the unfold bands, then the folds).
     """
     sp = _spacing(face, vertices)
     s = fold_strength(face, vertices, sp)
     un = unfold_strength(face, vertices, sp)
-    if not np.count_nonzero(s > _MIN_STRENGTH) and not np.count_nonzero(un > _MIN_UNFOLD):
+    any_fold = bool(np.count_nonzero(s > _MIN_STRENGTH))
+    any_unfold = bool(np.count_nonzero(un > _MIN_UNFOLD))
+    if not any_fold and not any_unfold:
         return res
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
-    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
-    if np.count_nonzero(un > _MIN_UNFOLD):
-        bbox = _unfold(face, out, V, un, bbox, res.maps)
+    canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray]] = []
+    unfolds = _unfold_layout(face, V, un, (H, W), res.maps, canvases) if any_unfold else []
+    folds = _fold_layout(face, V, s, (H, W), canvases)
+    if not canvases:
+        return res
+    drawn = _splat_many(canvases)
+    if unfolds:
+        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps)
+    for g, box, k in folds:
+        bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox)
+    if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
+        return res
+    return _rebox(res, bbox, {})
+
+
+def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int],
+                 canvases: list) -> list[tuple[int, tuple[int, int, int, int], int]]:
+    """Each fold group with a sample above :data:`_MIN_STRENGTH`: its box and two canvases
+    (the dark line's samples, then the ridge's beside it) appended to ``canvases``. Returns
+    ``(group, box, index of its first canvas)`` per group."""
+    fa = _fast(face)
+    H, W = shape
     live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
+    if not np.count_nonzero(live):
+        return []
+    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
+    jobs = []
     for g, (g0, g1) in enumerate(fa.seg_rng):
         if not np.count_nonzero(live[g0:g1]):
             continue
@@ -691,36 +703,82 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         sa, sb = s[ia], s[ib]
         w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
         nrm = d[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]  # (-dy, dx) / L
-        # the line's samples, then the ridge's beside it (one array: one box, one splat)
-        both = np.concatenate([pts, pts + np.repeat(nrm * fa.off[g], K, 0)])
+        ridge = pts + np.repeat(nrm * fa.off[g], K, 0)  # the ridge's samples beside the line
         pad = 3.0 * sig_r + 2.0
-        bx, by = both[:, 0], both[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
-        x0, y0 = max(int(bx.min() - pad), 0), max(int(by.min() - pad), 0)
-        x1, y1 = min(int(bx.max() + pad) + 1, W), min(int(by.max() + pad) + 1, H)
+        # the box of both (per column: reducing (n, 2) over axis 0 is slow)
+        bx0, bx1 = min(float(pts[:, 0].min()), float(ridge[:, 0].min())), \
+            max(float(pts[:, 0].max()), float(ridge[:, 0].max()))
+        by0, by1 = min(float(pts[:, 1].min()), float(ridge[:, 1].min())), \
+            max(float(pts[:, 1].max()), float(ridge[:, 1].max()))
+        x0, y0 = max(int(bx0 - pad), 0), max(int(by0 - pad), 0)
+        x1, y1 = min(int(bx1 + pad) + 1, W), min(int(by1 + pad) + 1, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        dark, light = _splat_cat((y1 - y0 + 1, x1 - x0 + 1), both - (x0, y0),
-                                 np.concatenate([w, w * fa.ridge[g]]), len(pts))
-        dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
-        light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r), np.float32)
-        view = out[y0:y1, x0:x1]
-        patch = view.astype(np.float32)
-        # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
-        # small 3-channel boxes numpy's broadcasting over the channels costs more than the math)
-        dif = cv2.transform(patch, fa.skin_shift[g])  # patch - skin
-        wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
-        wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
-        wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
-        np.clip(wskin, 0.0, 1.0, out=wskin)
-        # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
-        light *= wskin
-        dark *= wskin
-        gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
-        cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
-        bbox = _union(bbox, (x0, y0, x1, y1))
-    if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
-        return res
-    return _rebox(res, bbox, {})
+        o = np.array([x0, y0], np.float64)
+        cs = (y1 - y0 + 1, x1 - x0 + 1)
+        jobs.append((g, (x0, y0, x1, y1), len(canvases)))
+        canvases.append((cs, pts - o, w))
+        canvases.append((cs, ridge - o, w * fa.ridge[g]))
+    return jobs
+
+
+def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int],
+               dark: np.ndarray, light: np.ndarray, bbox: tuple[int, int, int, int] | None
+               ) -> tuple[int, int, int, int] | None:
+    """Darken group ``g``'s fold line (and lighten its ridge) over ``box`` of ``out`` from
+    its splatted canvases (in place); returns ``bbox`` grown by the box."""
+    x0, y0, x1, y1 = box
+    sig = float(fa.sig[g])
+    dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
+    light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), 1.6 * sig), np.float32)
+    view = out[y0:y1, x0:x1]
+    patch = view.astype(np.float32)
+    # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
+    # small 3-channel boxes numpy's broadcasting over the channels costs more than the math)
+    dif = cv2.transform(patch, fa.skin_shift[g])  # patch - skin
+    wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
+    wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
+    wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
+    np.clip(wskin, 0.0, 1.0, out=wskin)
+    # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
+    light *= wskin
+    dark *= wskin
+    gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
+    cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+    return _union(bbox, box)
+
+
+_CORNER_X = np.array([0, 1, 0, 1], np.int64)[:, None]
+_CORNER_Y = np.array([0, 0, 1, 1], np.int64)[:, None]
+
+
+def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray]]
+                ) -> list[np.ndarray]:
+    """float32 canvases ``(h, w)`` with weights ``w`` (n,) added at sub-pixel positions
+    ``xy`` (n, 2) (bilinear), all in one ``bincount``: the same sums, in the same order per
+    pixel, as one bincount per canvas of its points' four corners (corner-major); what
+    falls outside a canvas is dropped."""
+    sizes = [h * wd for (h, wd), _, _ in canvases]
+    n = [len(w) for _, _, w in canvases]
+    total = sum(sizes)
+    xy = np.concatenate([c[1] for c in canvases])
+    ww = np.concatenate([c[2] for c in canvases])
+    row = np.repeat(np.array([wd for (_, wd), _, _ in canvases], np.int64), n)
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    loc = (ip[:, 1] * row + ip[:, 0])[None, :] + _CORNER_X + _CORNER_Y * row[None, :]
+    lim = np.repeat(np.array(sizes, np.int64), n)
+    idx = np.where((loc >= 0) & (loc < lim), loc + np.repeat(np.cumsum([0, *sizes[:-1]]), n),
+                   total)
+    acc = np.bincount(idx.ravel(), _bilinear_weights(F, ww), minlength=total + 1)
+    acc = acc[:total].astype(np.float32)
+    got = []
+    k = 0
+    for ((h, wd), _, _), m in zip(canvases, sizes, strict=True):
+        got.append(acc[k:k + m].reshape(h, wd))
+        k += m
+    return got
 
 
 #: below this share a photo's own fold is left as it is
@@ -829,10 +887,46 @@ def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
     return (k / k.sum()).astype(np.float32)
 
 
-def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
-            bbox: tuple[int, int, int, int] | None,
-            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
-            ) -> tuple[int, int, int, int] | None:
+def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, int],
+                   maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
+                   canvases: list) -> list[tuple]:
+    """The bands of :func:`_unfold_draw`: per group with a live own fold, its band's canvas
+    appended to ``canvases`` and ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``."""
+    fa = _fast(face)
+    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
+    H, W = shape
+    live = np.maximum(un[fa.seg_a], un[fa.seg_b]) > _MIN_UNFOLD
+    jobs = []
+    for g, (g0, g1) in enumerate(fa.seg_rng):
+        if not np.count_nonzero(live[g0:g1]):
+            continue
+        ia = fa.seg_a[g0:g1]
+        sig = float(fa.sig[g])
+        sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
+        got = None if maps is None else _photo_gain(face, g)
+        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
+        f = 1 if got is None else max(1, int(sb / 1.5))
+        pts, w, d, L, K = _band_samples(pos, ia, un, 0.5 * f)
+        # the box that is written (the band)
+        px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
+        x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
+        x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            continue
+        jobs.append((g, f, got, pts, w, d, L, K, len(ia), (x0, y0, x1, y1), len(canvases)))
+        if f == 1:
+            canvases.append(((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w))
+        else:
+            hc, wc = -(-(y1 - y0) // f), -(-(x1 - x0) // f)
+            canvases.append(((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w))
+    return jobs
+
+
+def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
+                 bbox: tuple[int, int, int, int] | None,
+                 maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
+                 ) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -850,36 +944,17 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
     drawn. Without ``maps`` they are computed on ``out``.
     """
     fa = _fast(face)
-    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
-    V = np.asarray(vertices, np.float64)
-    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
-    H, W = out.shape[:2]
-    live = np.maximum(un[fa.seg_a], un[fa.seg_b]) > _MIN_UNFOLD
-    for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not np.count_nonzero(live[g0:g1]):
-            continue
-        ia = fa.seg_a[g0:g1]
+    for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
-        sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
-        got = None if maps is None else _photo_gain(face, g)
-        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
-        f = 1 if got is None else max(1, int(sb / 1.5))
-        pts, w, d, L, K = _band_samples(pos, ia, un, 0.5 * f)
-        # the box that is written (the band)
-        px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
-        x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
-        x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
-        if x1 - x0 < 4 or y1 - y0 < 4:
-            continue
+        sb = max(2.5 * sig, 1.0)
         # flat across the valley, falling off over the band's edge
         k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
+        band = drawn[ci]
         if f == 1:
-            band = _splat1((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w)
             band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
         else:
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            band = _splat1((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w)
             band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb / f)
             band = np.asarray(cv2.resize(band, (wc * f, hc * f),
                                          interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
@@ -887,7 +962,7 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         np.minimum(band, 1.0, out=band)
         view = out[y0:y1, x0:x1]
         if got is None or maps is None:
-            S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
+            S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, M, (x0, y0, x1, y1))
             band *= c4[..., 3]
             gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
         else:
@@ -922,18 +997,6 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         cv2.multiply(view, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
-
-
-def _splat1(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """A float32 canvas with weights ``w`` added at sub-pixel positions ``xy`` (bilinear)."""
-    h, wd = shape
-    P0 = np.floor(xy)
-    F = xy - P0
-    ip = P0.astype(np.int64)
-    base = ip[:, 1] * wd + ip[:, 0]
-    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    ws = _bilinear_weights(F, w)
-    return np.bincount(idx, ws, minlength=h * wd)[: h * wd].astype(np.float32).reshape(h, wd)
 
 
 def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:

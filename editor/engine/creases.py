@@ -606,6 +606,33 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
     return _smooth_taper(face, u[p.fold], own=True)
 
 
+def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fold_strength` and :func:`unfold_strength` of ``vertices`` together (one
+    :func:`_spacing`, the per-face constants looked up once): the same values."""
+    p = crease_plan(face)
+    fa = _fast(face)
+    sp = _spacing(face, vertices)
+    starts = p.start[:-1]
+    edge = fa.edge
+    # fold_strength
+    c = 1.0 - sp
+    c[c < _C_TOL] = 0.0
+    cmax = np.maximum.reduceat(c, starts)[p.fold]
+    c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
+    s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
+    s = np.where(edge, s, np.convolve(s, _SMOOTH, mode="same")) * p.taper
+    if fa.own_gap is None or fa.own_w is None or fa.own_sum is None:
+        return s, np.zeros(len(fa.depth))
+    # unfold_strength
+    e = np.log(np.maximum(sp, 1e-6))
+    e[e < _C_TOL] = 0.0
+    esum = np.add.reduceat(e * fa.own_w, starts)
+    u = np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1)
+    u = (u * np.clip((fa.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0))[p.fold]
+    u = np.where(edge, u, np.convolve(u, _SMOOTH, mode="same")) * p.utaper
+    return s, u
+
+
 #: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
 #: (JAFFE neutral photos: up to 0.07 from the estimate's noise; the sample's smile: 0.15-0.27)
 _OWN_MIN = 0.07
@@ -647,9 +674,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     the mesh only: they are laid out first and splatted together (:func:`_splat_many`), then
     drawn in the same order as one at a time (the unfold bands, then the folds).
     """
-    sp = _spacing(face, vertices)
-    s = fold_strength(face, vertices, sp)
-    un = unfold_strength(face, vertices, sp)
+    s, un = _strengths(face, vertices)
     any_fold = bool(np.count_nonzero(s > _MIN_STRENGTH))
     any_unfold = bool(np.count_nonzero(un > _MIN_UNFOLD))
     if not any_fold and not any_unfold:
@@ -659,7 +684,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
-    canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray]] = []
+    canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]] = []
     unfolds = _unfold_layout(face, V, un, (H, W), res.maps, canvases) if any_unfold else []
     folds = _fold_layout(face, V, s, (H, W), canvases)
     if not canvases:
@@ -681,44 +706,53 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
     ``(group, box, index of its first canvas)`` per group."""
     fa = _fast(face)
     H, W = shape
-    live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
-    if not np.count_nonzero(live):
+    sa, sb = s[fa.seg_a], s[fa.seg_b]
+    live = np.maximum(sa, sb) > _MIN_STRENGTH
+    groups = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
+              if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    if not groups:
         return []
     (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
     pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
-    jobs = []
-    for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not np.count_nonzero(live[g0:g1]):
-            continue
-        ia, ib = fa.seg_a[g0:g1], fa.seg_b[g0:g1]
-        a = pos[ia]
-        d = pos[ib] - a
-        dx, dy = d[:, 0], d[:, 1]
-        L = np.sqrt(dx * dx + dy * dy)
+    # every segment at once: start, direction, length, normal (-dy, dx) / L
+    a_all = pos[fa.seg_a]
+    d_all = pos[fa.seg_b] - a_all
+    dx, dy = d_all[:, 0], d_all[:, 1]
+    L_all = np.sqrt(dx * dx + dy * dy)
+    n_all = d_all[:, ::-1] * _TURN / np.maximum(L_all, 1e-9)[:, None]
+    lines = []
+    for g, g0, g1 in groups:
+        a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
         sig = float(fa.sig[g])
-        sig_r = 1.6 * sig
         K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        sa, sb = s[ia], s[ib]
-        w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        nrm = d[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]  # (-dy, dx) / L
-        ridge = pts + np.repeat(nrm * fa.off[g], K, 0)  # the ridge's samples beside the line
-        pad = 3.0 * sig_r + 2.0
-        # the box of both (per column: reducing (n, 2) over axis 0 is slow)
-        bx0, bx1 = min(float(pts[:, 0].min()), float(ridge[:, 0].min())), \
-            max(float(pts[:, 0].max()), float(ridge[:, 0].max()))
-        by0, by1 = min(float(pts[:, 1].min()), float(ridge[:, 1].min())), \
-            max(float(pts[:, 1].max()), float(ridge[:, 1].max()))
-        x0, y0 = max(int(bx0 - pad), 0), max(int(by0 - pad), 0)
-        x1, y1 = min(int(bx1 + pad) + 1, W), min(int(by1 + pad) + 1, H)
+        ga, gb = sa[g0:g1], sb[g0:g1]
+        w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+        ridge = pts + np.repeat(n_all[g0:g1] * fa.off[g], K, 0)  # the ridge beside the line
+        lines += [pts, ridge]
+        lines.append(w)
+    # the extent of each line and ridge in one pass
+    pr = [x for i, x in enumerate(lines) if i % 3 != 2]
+    cut = np.cumsum([0, *[len(x) for x in pr[:-1]]])
+    both = np.concatenate(pr)
+    lo, hi = np.minimum.reduceat(both, cut).tolist(), np.maximum.reduceat(both, cut).tolist()
+    jobs = []
+    for j, (g, _, _) in enumerate(groups):
+        pts, ridge, w = lines[3 * j:3 * j + 3]
+        (lx, ly), (rx, ry) = lo[2 * j], lo[2 * j + 1]
+        (hx, hy), (sx, sy) = hi[2 * j], hi[2 * j + 1]
+        pad = 3.0 * (1.6 * float(fa.sig[g])) + 2.0
+        x0, y0 = max(int(min(lx, rx) - pad), 0), max(int(min(ly, ry) - pad), 0)
+        x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
         o = np.array([x0, y0], np.float64)
         cs = (y1 - y0 + 1, x1 - x0 + 1)
         jobs.append((g, (x0, y0, x1, y1), len(canvases)))
-        canvases.append((cs, pts - o, w))
-        canvases.append((cs, ridge - o, w * fa.ridge[g]))
+        safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (pad >= 2 px around the points)
+        canvases.append((cs, pts - o, w, safe))
+        canvases.append((cs, ridge - o, w * fa.ridge[g], safe))
     return jobs
 
 
@@ -748,35 +782,47 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     return _union(bbox, box)
 
 
-_CORNER_X = np.array([0, 1, 0, 1], np.int64)[:, None]
-_CORNER_Y = np.array([0, 0, 1, 1], np.int64)[:, None]
-
-
-def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray]]
+def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]]
                 ) -> list[np.ndarray]:
     """float32 canvases ``(h, w)`` with weights ``w`` (n,) added at sub-pixel positions
     ``xy`` (n, 2) (bilinear), all in one ``bincount``: the same sums, in the same order per
-    pixel, as one bincount per canvas of its points' four corners (corner-major); what
-    falls outside a canvas is dropped."""
-    sizes = [h * wd for (h, wd), _, _ in canvases]
-    n = [len(w) for _, _, w in canvases]
-    total = sum(sizes)
+    pixel, as one bincount per canvas of its points' four corners (corner-major). The 4th
+    item of each canvas says that every point lies at least a pixel inside it (its box was
+    not clipped by the image's edge).
+
+    The canvases are stacked vertically in one array as wide as the widest (each a view of
+    it). When a point's corners would leave its canvas (only possible where a box was clipped
+    by the image's edge), canvas by canvas instead (what leaves one is dropped; a corner past
+    a row's end wraps into the next row, as on a canvas of its own).
+    """
+    n = [len(w) for _, _, w, _ in canvases]
     xy = np.concatenate([c[1] for c in canvases])
     ww = np.concatenate([c[2] for c in canvases])
-    row = np.repeat(np.array([wd for (_, wd), _, _ in canvases], np.int64), n)
     P0 = np.floor(xy)
     F = xy - P0
     ip = P0.astype(np.int64)
-    loc = (ip[:, 1] * row + ip[:, 0])[None, :] + _CORNER_X + _CORNER_Y * row[None, :]
-    lim = np.repeat(np.array(sizes, np.int64), n)
-    idx = np.where((loc >= 0) & (loc < lim), loc + np.repeat(np.cumsum([0, *sizes[:-1]]), n),
-                   total)
-    acc = np.bincount(idx.ravel(), _bilinear_weights(F, ww), minlength=total + 1)
-    acc = acc[:total].astype(np.float32)
+    ws = _bilinear_weights(F, ww)
+    wide = max(wd for (_, wd), _, _, _ in canvases)
+    rows = [h for (h, _), _, _, _ in canvases]
+    # every point's corners inside its canvas: its box was not clipped by the image's edge
+    inside = all(c[3] for c in canvases)
+    if inside:
+        top = np.cumsum([0, *rows[:-1]])
+        base = ip[:, 1] * wide + ip[:, 0] + np.repeat(top * wide, n)
+        idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
+        total = int(sum(rows)) * wide
+        acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
+        acc = acc.reshape(-1, wide)
+        return [acc[t:t + h, :wd] for t, ((h, wd), _, _, _) in zip(top.tolist(), canvases,
+                                                                 strict=True)]
     got = []
     k = 0
-    for ((h, wd), _, _), m in zip(canvases, sizes, strict=True):
-        got.append(acc[k:k + m].reshape(h, wd))
+    for ((h, wd), _, _, _), m in zip(canvases, n, strict=True):
+        base = ip[k:k + m, 1] * wd + ip[k:k + m, 0]
+        idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
+        w4 = ws.reshape(4, -1)[:, k:k + m].ravel()
+        got.append(np.bincount(idx, w4, minlength=h * wd)[: h * wd].astype(np.float32)
+                   .reshape(h, wd))
         k += m
     return got
 
@@ -891,35 +937,53 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
                    maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
                    canvases: list) -> list[tuple]:
     """The bands of :func:`_unfold_draw`: per group with a live own fold, its band's canvas
-    appended to ``canvases`` and ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``."""
+    appended to ``canvases`` and ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``
+    (:func:`_band_samples` of the group's segments, all segments measured at once)."""
     fa = _fast(face)
+    H, W = shape
+    ua, ub = un[fa.seg_a], un[fa.seg_b]
+    live = np.maximum(ua, ub) > _MIN_UNFOLD
+    groups = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
+              if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    if not groups:
+        return []
     (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
     pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
-    H, W = shape
-    live = np.maximum(un[fa.seg_a], un[fa.seg_b]) > _MIN_UNFOLD
-    jobs = []
-    for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not np.count_nonzero(live[g0:g1]):
-            continue
-        ia = fa.seg_a[g0:g1]
-        sig = float(fa.sig[g])
-        sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
+    a_all = pos[fa.seg_a]
+    d_all = pos[fa.seg_b] - a_all
+    L_all = np.sqrt((d_all * d_all).sum(1))
+    bands = []
+    for g, g0, g1 in groups:
+        sb = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
         got = None if maps is None else _photo_gain(face, g)
         # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
         f = 1 if got is None else max(1, int(sb / 1.5))
-        pts, w, d, L, K = _band_samples(pos, ia, un, 0.5 * f)
-        # the box that is written (the band)
-        px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
-        x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
-        x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
+        a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
+        K = int(min(max(np.ceil(L.max() / (0.5 * f)), 1), 64))
+        u = (np.arange(K) + 0.5) / K
+        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
+        ga, gb = ua[g0:g1], ub[g0:g1]
+        w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+        bands.append((g, sb, got, f, pts, w, d, L, K, g1 - g0))
+    # the box that is written (each band's), in one pass
+    cut = np.cumsum([0, *[len(b[4]) for b in bands[:-1]]])
+    P = np.concatenate([b[4] for b in bands])
+    lo, hi = np.minimum.reduceat(P, cut).tolist(), np.maximum.reduceat(P, cut).tolist()
+    jobs = []
+    for (g, sb, got, f, pts, w, d, L, K, M), (lx, ly), (hx, hy) in zip(bands, lo, hi,
+                                                                         strict=True):
+        x0, y0 = max(int(lx - 3.0 * sb), 0), max(int(ly - 3.0 * sb), 0)
+        x1, y1 = min(int(hx + 3.0 * sb) + 1, W), min(int(hy + 3.0 * sb) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        jobs.append((g, f, got, pts, w, d, L, K, len(ia), (x0, y0, x1, y1), len(canvases)))
+        jobs.append((g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), len(canvases)))
+        safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (3 sb >= 1.5 f px around them)
         if f == 1:
-            canvases.append(((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w))
+            canvases.append(((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w, safe))
         else:
             hc, wc = -(-(y1 - y0) // f), -(-(x1 - x0) // f)
-            canvases.append(((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w))
+            canvases.append(((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w,
+                             safe))
     return jobs
 
 

@@ -116,9 +116,12 @@ def _opening_index(mesh) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(loops), cuts
 
 
-def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
+def _box_of(lo: list[float], hi: list[float], shape: tuple[int, ...], pad: int = 2
+            ) -> tuple[int, int, int, int]:
+    """The pixel box of an outline whose extent is ``lo`` .. ``hi`` (x, y), ``pad`` px more,
+    inside the image."""
     h, w = shape[:2]
-    (lx, ly), (hx, hy) = poly.min(0).tolist(), poly.max(0).tolist()
+    (lx, ly), (hx, hy) = lo, hi
     x0 = min(max(math.floor(lx) - pad, 0), w)
     y0 = min(max(math.floor(ly) - pad, 0), h)
     x1 = min(max(math.ceil(hx) + pad + 1, 0), w)
@@ -133,6 +136,16 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     q = np.rint((np.asarray(poly, np.float32) - np.array([x0, y0], np.float32)) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
     return m.view(bool)  # 0 / 1 bytes
+
+
+@lru_cache(maxsize=8)
+def _next_in_loop(ends: tuple[int, ...]) -> np.ndarray:
+    """Index of the next vertex along each loop of concatenated loops ending at ``ends``."""
+    nxt = np.arange(ends[-1]) + 1
+    starts = (0, *ends[:-1])
+    for a, b in zip(starts, ends, strict=True):
+        nxt[b - 1] = a
+    return nxt
 
 
 _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -276,8 +289,14 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     lp = layer_plan(face)
     bbox = res.bbox
     drawn: dict[str, tuple[tuple[int, int, int, int], np.ndarray]] = {}
+    # the three openings' extents at once (as :func:`_box` of each loop)
+    lo_all = np.minimum.reduceat(polys, cuts).tolist()
+    hi_all = np.maximum.reduceat(polys, cuts).tolist()
+    slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
+    closure = None
     for kind, name, poly, tf, active, moved in jobs:
-        box = _box(poly, out.shape, 4 if kind == "mouth" else 2)
+        k_open = slot[name]
+        box = _box_of(lo_all[k_open], hi_all[k_open], out.shape, 4 if kind == "mouth" else 2)
         if box[2] <= box[0] or box[3] <= box[1]:
             continue
         hole = _raster(poly, box)
@@ -307,17 +326,27 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 shift = ep.gaze_shift(extra[k], tf)
             else:
                 r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-            lids = ep.lid_frame(poly, tf)
+            inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
+            lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
         _composite(out, box, alpha, hole, interior, lip_shade)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, fade_in)
         else:
-            lash = lp.eyes[name].lash_line(box, poly)
+            # (the lash line is drawn from a closure above 0.6: checked for both eyes at once,
+            # with a margin, before its exact test in lash_line)
+            if closure is None:
+                e = polys[:ends[2]].astype(np.float64)
+                x, y = e[:, 0], e[:, 1]
+                nx = _next_in_loop((ends[1], ends[2]))
+                cross = x * y[nx] - y * x[nx]
+                closure = 1.0 - 0.5 * np.abs(np.add.reduceat(cross, cuts[:2])) \
+                    / np.maximum([lp.eyes["eye_l"].area0, lp.eyes["eye_r"].area0], 1e-6)
+            lash = lp.eyes[name].lash_line(box, poly) if closure[k_open] > 0.59 else None
             if lash is not None:  # a closing eye: one clean lash line where the lids meet
                 la, col = lash
                 x0, y0, x1, y1 = box

@@ -294,8 +294,10 @@ class MouthPlan:
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
         cym = 0.5 * (lo_v + hi_v)
         side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        side2 = side * side
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
-        shade = ((1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)).astype(np.float32)
+        corner = 1.0 - 0.35 * side2  # the darker corners
+        shade = ((1.0 - 0.3 * lip_sh) * corner).astype(np.float32)
         # (per-pixel weights are spread over the 3 channels with cv2.merge / cv2.transform:
         # numpy's broadcasting of (h, w, 1) over 3 channels is several times slower here)
         cav_rgb = self.cavity.reshape(3, 1)
@@ -308,7 +310,7 @@ class MouthPlan:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
             g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))
-            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)
+            back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
             deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
             out = 0.45 * np.asarray(rim, np.float32) - deep
             out *= cv2.merge([g, g, g])
@@ -367,7 +369,7 @@ class MouthPlan:
             # layers' darker corners
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            k = (1.0 - EXT_LIP_SHADOW * lip_sh) * (1.0 - 0.35 * side * side)
+            k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
             m = (1.0 - e * (1.0 - k.astype(np.float32))).astype(np.float32)
             p_up = p_up * cv2.merge([m, m, m])
         if a_up is not None or a_lo is not None:

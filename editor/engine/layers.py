@@ -218,7 +218,15 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
 def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
     """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
     OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
-    cv2.add(res, np.zeros_like(res), dst=dst, dtype=cv2.CV_8U)
+    cv2.add(res, _zeros32(res.shape), dst=dst, dtype=cv2.CV_8U)
+
+
+@lru_cache(maxsize=32)
+def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only float32 array of zeros (kept: a box's shape recurs from frame to frame)."""
+    z = np.zeros(shape, np.float32)
+    z.setflags(write=False)
+    return z
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,

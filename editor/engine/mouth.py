@@ -274,8 +274,11 @@ class MouthPlan:
         xs = np.arange(x0, x1, dtype=np.float64)[None, :]
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
         O = v[self.i93].astype(np.float64)
-        Qx = (xs - O[0]) * ex[0] + (ys - O[1]) * ex[1]
-        Qy = (xs - O[0]) * ey[0] + (ys - O[1]) * ey[1]
+        # (one row plus one column each: the layer frame is affine in x and y; the textures
+        # below are sampled from these parts too)
+        Q = ((xs - O[0]) * ex[0], (ys - O[1]) * ex[1], (xs - O[0]) * ey[0], (ys - O[1]) * ey[1])
+        Qx = Q[0] + Q[1]
+        Qy = Q[2] + Q[3]
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
@@ -332,14 +335,13 @@ class MouthPlan:
         top_l = y_lb + self.low_off * sc
         # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
         top_t = top_l - TONGUE_RISE * D
-        tq_x, tq_y = Qx, Qy
+        tq: tuple = Q
         dlt = self._tongue_shift(faps, ex, ey)
         if dlt is not None:
-            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
-        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
+            tq = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
+        out = self._over(out, "tongue", tq, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
         if not self.photo_lower:
-            out = self._over(out, "lower_teeth", Qx, Qy, q21[0] - 0.5 * wl, top_l, wl, hl,
-                             shade)
+            out = self._over(out, "lower_teeth", Q, q21[0] - 0.5 * wl, top_l, wl, hl, shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
         # where each pixel samples the photo's own interior (its patch's pixels): skull part
@@ -353,7 +355,7 @@ class MouthPlan:
         tj = anchor - (L @ self.anchor0 + S[:, 2])
         tjs = Si[:, :2] @ tj
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
-            out = self._over(out, "upper_teeth", Qx, Qy, -0.5 * wu, self.tip_up * sc - hu, wu,
+            out = self._over(out, "upper_teeth", Q, -0.5 * wu, self.tip_up * sc - hu, wu,
                              hu, shade, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
@@ -404,11 +406,21 @@ class MouthPlan:
         """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
         return np.concatenate([[self.i21, self.i23], self.upper_lip, self.hole]).astype(np.intp)
 
-    def _over(self, out, name, qx, qy, left, top, ww, hh, shade, gum=False):
+    def _over(self, out, name, q, left, top, ww, hh, shade, gum=False):
+        """``out`` under texture ``name`` placed at ``left``, ``top`` (``ww`` x ``hh``) in the
+        layer frame; ``q``: the pixels' frame coordinates (x, y), or their parts
+        (x row, x column, y row, y column) whose sums they are."""
         t = self.tex[name]
         th, tw = t.shape[:2]
-        mx = ((qx - left) * (tw / ww) - 0.5).astype(np.float32)
-        my = ((qy - top) * (th / hh) - 0.5).astype(np.float32)
+        kx, ky = tw / ww, th / hh
+        if len(q) == 4:  # (affine: scaled and shifted as a row plus a column)
+            xr, xc, yr, yc = q
+            mx = (((xr - left) * kx - 0.5) + xc * kx).astype(np.float32)
+            my = (((yr - top) * ky - 0.5) + yc * ky).astype(np.float32)
+        else:
+            qx, qy = q
+            mx = ((qx - left) * kx - 0.5).astype(np.float32)
+            my = ((qy - top) * ky - 0.5).astype(np.float32)
         if gum:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,

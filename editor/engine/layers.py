@@ -174,20 +174,22 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     """
     x0, y0, x1, y1 = box
     face = out[y0:y1, x0:x1]
-    inside = hole.astype(np.uint8)
+    # (``hole`` is a 0/1 byte mask viewed as bool: its bytes are the uint8 mask itself)
+    inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
     depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
     labels = cast("npt.NDArray[np.int32]", labels)  # the stubs say int or float: int32 labels
-    lips = face[~hole]  # labels number the zero pixels row by row
-    rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip").astype(np.float32) \
+    lips = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
+    rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip") \
         if len(lips) else np.zeros(face.shape, np.float32)
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = min(max(0.03 * D, 0.7), 1.5)
-    spread = cv2.GaussianBlur(alpha, (0, 0), s)
-    shade = 1.0 - 0.35 * strength * _clamp(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
-    return rim, depth, shade.astype(np.float32)
+    spread = cv2.GaussianBlur(alpha, (0, 0), s)  # >= 0 (positive weights): clamped above only
+    spread *= np.float32(1.6)
+    shade = 1.0 - 0.35 * strength * np.minimum(spread, 1.0) * (1.0 - alpha)
+    return rim, depth, shade.astype(np.float32, copy=False)
 
 
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,
@@ -565,9 +567,8 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     else:
         k = 2 * dilate * ss + 1
         big = cv2.dilate(big, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)
-    small *= np.float32(1.0 / 255.0)
-    return small
+    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA)
+    return np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)
 
 
 def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],

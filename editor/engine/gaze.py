@@ -495,7 +495,11 @@ class EyePlan:
         # at rest the white is the photo itself (the composite is then exactly the photo); it
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))
+        # (a plate weight below 1e-18, i.e. a change under 1e-9 px such as the radius rescaled
+        # to the refined one with a rounding error of 1e-16 px: the photo, without a blend)
         t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
+        if t < 1e-18:
+            t = 0.0
         plate = self.plate if t >= 1.0 else self.photo if t <= 0.0 else \
             self.photo + t * (self.plate - self.photo)
         white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

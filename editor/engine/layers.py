@@ -116,6 +116,18 @@ def _opening_index(mesh) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(loops), cuts
 
 
+_REST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _rest_loops(face: Face) -> np.ndarray:
+    """The openings' loops (:func:`_opening_index`) on the photo's mesh (once per face)."""
+    got = _REST.get(face)
+    if got is None:
+        got = face.vertices[_opening_index(face.mesh)[0]]
+        _REST[face] = got
+    return got
+
+
 def _box_of(lo: list[float], hi: list[float], shape: tuple[int, ...], pad: int = 2
             ) -> tuple[int, int, int, int]:
     """The pixel box of an outline whose extent is ``lo`` .. ``hi`` (x, y), ``pad`` px more,
@@ -270,7 +282,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     # how far each opening's outline moved (one gather for the three) and the irises
     idx_all, cuts = _opening_index(face.mesh)
     polys = v[idx_all]
-    far = np.maximum.reduceat(np.abs(polys - face.vertices[idx_all]).max(1), cuts).tolist()
+    far = np.maximum.reduceat(np.abs(polys - _rest_loops(face)).max(1), cuts).tolist()
     V = face.plan.n_vertices
     iris_far = np.abs(extra[:2] - face.plan.neutral[V:V + 2]).max(1).tolist()  # 3.5, 3.6
     ends = [*cuts.tolist(), len(idx_all)]

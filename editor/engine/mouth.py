@@ -326,9 +326,8 @@ class MouthPlan:
         cav = out
         # lower teeth and tongue (jaw), upper teeth (skull)
         y_lb = 0.25 * q21[1] + 0.75 * q23[1]
-        wl, hl = (s * sc for s in self.size["lower_teeth"])
-        wu, hu = (s * sc for s in self.size["upper_teeth"])
-        wt, ht = (s * sc for s in self.size["tongue"])
+        (wl, hl), (wu, hu), (wt, ht) = self._sizes
+        wl, hl, wu, hu, wt, ht = wl * sc, hl * sc, wu * sc, hu * sc, wt * sc, ht * sc
         # eq. 8's anchor moves the lower teeth with the jaw; at rest their tips sit just above
         # the lip line behind the upper teeth (eq. 8's own rest height varies with the chin:
         # 0.2 D above the lip line on JAFFE faces, below the lower lip on the sample)
@@ -389,6 +388,12 @@ class MouthPlan:
         if alpha is not None:
             out = _thin_gap(out, cav, alpha, D)
         return out
+
+    @cached_property
+    def _sizes(self) -> tuple[tuple[float, float], ...]:
+        """(width, height) of the lower teeth, upper teeth and tongue at the neutral scale."""
+        return tuple((float(w), float(h)) for w, h in
+                     (self.size[k] for k in ("lower_teeth", "upper_teeth", "tongue")))
 
     @cached_property
     def _exy(self) -> np.ndarray:

@@ -198,7 +198,7 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = min(max(0.03 * D, 0.7), 1.5)
-    spread = cv2.GaussianBlur(alpha, (0, 0), s)  # >= 0 (positive weights): clamped above only
+    spread: np.ndarray = cv2.GaussianBlur(alpha, (0, 0), s)  # >= 0: clamped above only
     spread *= np.float32(1.6)
     shade = 1.0 - 0.35 * strength * np.minimum(spread, 1.0) * (1.0 - alpha)
     return rim, depth, shade.astype(np.float32, copy=False)

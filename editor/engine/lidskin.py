@@ -123,16 +123,16 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
     cand = []
-    for st, (sl_lid, sl_brow), (lx, ly), (hx, hy) in zip(strips, parts, c_lo, c_hi,
-                                                          strict=True):
+    for st, (sl_lid, sl_brow), (ix0, iy0), (ix1, iy1) in zip(strips, parts, c_lo, c_hi,
+                                                              strict=True):
         L, B = P[sl_lid], P[sl_brow]
         x_lo = max(L[0, 0], B[0, 0])
         x_hi = min(L[-1, 0], B[-1, 0])
         if x_hi - x_lo < 2.0:
             continue
         # image box of the strip
-        x0, y0 = max(math.floor(lx) - 1, 0), max(math.floor(ly) - 1, 0)
-        x1, y1 = min(math.ceil(hx) + 2, W), min(math.ceil(hy) + 2, H)
+        x0, y0 = max(math.floor(ix0) - 1, 0), max(math.floor(iy0) - 1, 0)
+        x1, y1 = min(math.ceil(ix1) + 2, W), min(math.ceil(iy1) + 2, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
         # the frame's x over the box (its extremes are at the box's corners)

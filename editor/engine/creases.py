@@ -26,7 +26,7 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
   into every expression. Where the target spreads the skin across a fold relative to the
   photo's mesh, by the share of what the photo's neutral mesh spreads it
   (:func:`unfold_strength`), the fold's valley is lifted to the skin level either side of it
-  (:func:`_unfold`: a closing of the image smoothed along the fold, as a per-channel gain >= 1,
+  (:func:`_unfold_draw`: a closing of the image smoothed along the fold, as a per-channel gain >= 1,
   so the skin's grain and colour stay and nothing darkens), in a band centred on the valley the
   photo actually shows near the laid-out line (:func:`_own_valleys`, found once per face); the
   photo's own expression is left exactly as it is.
@@ -1202,7 +1202,7 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
                  closing: bool = True, n_dir: int = _N_DIR
                  ) -> tuple[np.ndarray, np.ndarray | None]:
     """``S`` (h, w, 3) and ``C`` with the skin-likeness of that lifted level (h, w, 4), float32
-    over ``box`` of ``img`` (see :func:`_unfold`; the gain is ``C / S``), for the valley
+    over ``box`` of ``img`` (see :func:`_unfold_draw`; the gain is ``C / S``), for the valley
     sub-sampled at ``pts`` (weights ``w``; ``M`` segments ``d`` of lengths ``L``, ``K``
     sub-samples each). ``closing=False``: ``S`` only (the second is None). ``n_dir``: the
     directions of the along-fold smoothing.

@@ -411,3 +411,59 @@ def test_own_fold_lift_carried_from_the_photo_matches_the_frame(sample_face):
         lift = np.abs(b.astype(int) - base.image.astype(int))
         assert lift.sum() > 0
         assert d.sum() < 0.22 * lift.sum() and (d > 3).mean() < 0.001 and d.max() <= 32
+
+
+@pytest.mark.parametrize("emotion", ["joy", "surprise", "anger"])
+def test_strengths_together_equal_the_separate_ones(sample_face, emotion):
+    """The per-frame path measures the skin's spacing once for the folds and the photo's own
+    folds (creases._strengths): the same values as fold_strength and unfold_strength."""
+    from editor.engine.creases import _strengths, unfold_strength
+
+    v = sample_face.deform(apply_preset(emotion, 1.2))
+    s, un = _strengths(sample_face, v)
+    assert np.array_equal(s, fold_strength(sample_face, v))
+    assert np.array_equal(un, unfold_strength(sample_face, v))
+    assert s.max() > _MIN_STRENGTH  # each vector draws a fold
+
+
+def test_splat_of_many_canvases_equals_one_canvas_at_a_time():
+    """All of a frame's crease canvases are splatted in one bincount (stacked, or canvas by
+    canvas when a box was clipped by the image's edge): per canvas, the bilinear splat of its
+    own points, bit for bit, whatever else is splatted with it; weight off a canvas is dropped
+    on the fallback path."""
+    from editor.engine.creases import _splat_many
+
+    rng = np.random.default_rng(5)
+
+    def alone(shape, xy, w):  # one canvas, the four corners in corner-major order
+        h, wd = shape
+        p0 = np.floor(xy)
+        fx, fy = (xy - p0).T
+        ip = p0.astype(np.int64)
+        base = ip[:, 1] * wd + ip[:, 0]
+        idx = np.concatenate([base, base + 1, base + wd, base + wd + 1])
+        ws = np.concatenate([(1 - fy) * w * (1 - fx), (1 - fy) * w * fx, fy * w * (1 - fx),
+                             fy * w * fx])
+        keep = (idx >= 0) & (idx < h * wd)
+        return np.bincount(idx[keep], ws[keep], minlength=h * wd).astype(np.float32) \
+            .reshape(h, wd)
+
+    shapes = [(12, 30), (25, 9), (7, 41)]
+    cans = []
+    for h, wd in shapes:
+        n = int(rng.integers(20, 200))
+        xy = np.stack([rng.uniform(1, wd - 2.01, n), rng.uniform(1, h - 2.01, n)], 1)
+        cans.append(((h, wd), xy, rng.uniform(0, 1, n), True))
+    stacked = _splat_many(cans)
+    fallback = _splat_many([c[:3] + (False,) for c in cans])
+    for (shape, xy, w, _), a, b in zip(cans, stacked, fallback, strict=True):
+        ref = alone(shape, xy, w)
+        assert a.shape == b.shape == shape
+        assert np.array_equal(a, ref) and np.array_equal(b, ref)
+        assert ref.sum() > 0
+    # a point beyond its canvas's last row: its weight is dropped, the others' stay
+    (h, wd), xy, w, _ = cans[0]
+    out = np.vstack([xy, [[3.5, h + 4.0]]])
+    got = _splat_many([((h, wd), out, np.append(w, 1.0), False), cans[1][:3] + (False,)])
+    assert np.array_equal(got[0], alone((h, wd), xy, w))
+    assert np.array_equal(got[1], alone(*cans[1][:3]))

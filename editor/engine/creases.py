@@ -26,7 +26,7 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
   into every expression. Where the target spreads the skin across a fold relative to the
   photo's mesh, by the share of what the photo's neutral mesh spreads it
   (:func:`unfold_strength`), the fold's valley is lifted to the skin level either side of it
-  (:func:`_unfold`: a closing of the image smoothed along the fold, as a per-channel gain >= 1,
+  (:func:`_unfold_draw`: a closing of the image smoothed along the fold, as a per-channel gain >= 1,
   so the skin's grain and colour stay and nothing darkens), in a band centred on the valley the
   photo actually shows near the laid-out line (:func:`_own_valleys`, found once per face); the
   photo's own expression is left exactly as it is.
@@ -606,6 +606,33 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
     return _smooth_taper(face, u[p.fold], own=True)
 
 
+def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fold_strength` and :func:`unfold_strength` of ``vertices`` together (one
+    :func:`_spacing`, the per-face constants looked up once): the same values."""
+    p = crease_plan(face)
+    fa = _fast(face)
+    sp = _spacing(face, vertices)
+    starts = p.start[:-1]
+    edge = fa.edge
+    # fold_strength
+    c = 1.0 - sp
+    c[c < _C_TOL] = 0.0
+    cmax = np.maximum.reduceat(c, starts)[p.fold]
+    c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
+    s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
+    s = np.where(edge, s, np.convolve(s, _SMOOTH, mode="same")) * p.taper
+    if fa.own_gap is None or fa.own_w is None or fa.own_sum is None:
+        return s, np.zeros(len(fa.depth))
+    # unfold_strength
+    e = np.log(np.maximum(sp, 1e-6))
+    e[e < _C_TOL] = 0.0
+    esum = np.add.reduceat(e * fa.own_w, starts)
+    u = np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1)
+    u = (u * np.clip((fa.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0))[p.fold]
+    u = np.where(edge, u, np.convolve(u, _SMOOTH, mode="same")) * p.utaper
+    return s, u
+
+
 #: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
 #: (JAFFE neutral photos: up to 0.07 from the estimate's noise; the sample's smile: 0.15-0.27)
 _OWN_MIN = 0.07
@@ -637,90 +664,167 @@ _TURN = np.array([-1.0, 1.0])
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 
-def _splat_cat(shape: tuple[int, int], P: np.ndarray, W: np.ndarray, n1: int
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_splat2` with both point sets in one array (the first ``n1`` points go to the
-    first canvas): one floor, one cast, the same corner-major summation order."""
-    h, wd = shape
-    P0 = np.floor(P)
-    F = P - P0  # (fx, fy)
-    ip = P0.astype(np.int64)
-    base = ip[:, 1] * wd + ip[:, 0]
-    base[n1:] += h * wd  # the second canvas follows the first
-    # corner-major (all top-left weights, then top-right, bottom-left, bottom-right)
-    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    ws = _bilinear_weights(F, W)
-    acc = np.bincount(idx, ws, minlength=2 * h * wd)[: 2 * h * wd].astype(np.float32)
-    return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
-
-
 def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Darken the folds of the deformed mesh ``vertices`` into ``res.image`` (in place).
 
     Returns ``res`` unchanged when no fold is compressed (e.g. a zero FAP vector), else a
     result whose ``bbox`` also covers every pixel written.
+
+    Every canvas of the frame (the unfold bands, each fold group's line and ridge) depends on
+    the mesh only: they are laid out first and splatted together (:func:`_splat_many`), then
+    drawn in the same order as one at a time (the unfold bands, then the folds).
     """
-    sp = _spacing(face, vertices)
-    s = fold_strength(face, vertices, sp)
-    un = unfold_strength(face, vertices, sp)
-    if not np.count_nonzero(s > _MIN_STRENGTH) and not np.count_nonzero(un > _MIN_UNFOLD):
+    s, un = _strengths(face, vertices)
+    any_fold = bool(np.count_nonzero(s > _MIN_STRENGTH))
+    any_unfold = bool(np.count_nonzero(un > _MIN_UNFOLD))
+    if not any_fold and not any_unfold:
         return res
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
-    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
     out = res.image
     H, W = out.shape[:2]
     bbox = res.bbox
-    if np.count_nonzero(un > _MIN_UNFOLD):
-        bbox = _unfold(face, out, V, un, bbox, res.maps)
-    live = np.maximum(s[fa.seg_a], s[fa.seg_b]) > _MIN_STRENGTH
-    for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not np.count_nonzero(live[g0:g1]):
-            continue
-        ia, ib = fa.seg_a[g0:g1], fa.seg_b[g0:g1]
-        a = pos[ia]
-        d = pos[ib] - a
-        dx, dy = d[:, 0], d[:, 1]
-        L = np.sqrt(dx * dx + dy * dy)
-        sig = float(fa.sig[g])
-        sig_r = 1.6 * sig
-        K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
-        u = (np.arange(K) + 0.5) / K
-        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        sa, sb = s[ia], s[ib]
-        w = ((sa[:, None] + (sb - sa)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        nrm = d[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]  # (-dy, dx) / L
-        # the line's samples, then the ridge's beside it (one array: one box, one splat)
-        both = np.concatenate([pts, pts + np.repeat(nrm * fa.off[g], K, 0)])
-        pad = 3.0 * sig_r + 2.0
-        bx, by = both[:, 0], both[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
-        x0, y0 = max(int(bx.min() - pad), 0), max(int(by.min() - pad), 0)
-        x1, y1 = min(int(bx.max() + pad) + 1, W), min(int(by.max() + pad) + 1, H)
-        if x1 - x0 < 2 or y1 - y0 < 2:
-            continue
-        dark, light = _splat_cat((y1 - y0 + 1, x1 - x0 + 1), both - (x0, y0),
-                                 np.concatenate([w, w * fa.ridge[g]]), len(pts))
-        dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
-        light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), sig_r), np.float32)
-        view = out[y0:y1, x0:x1]
-        patch = view.astype(np.float32)
-        # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
-        # small 3-channel boxes numpy's broadcasting over the channels costs more than the math)
-        dif = cv2.transform(patch, fa.skin_shift[g])  # patch - skin
-        wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
-        wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
-        wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
-        np.clip(wskin, 0.0, 1.0, out=wskin)
-        # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
-        light *= wskin
-        dark *= wskin
-        gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
-        cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
-        bbox = _union(bbox, (x0, y0, x1, y1))
+    canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]] = []
+    unfolds = _unfold_layout(face, V, un, (H, W), res.maps, canvases) if any_unfold else []
+    folds = _fold_layout(face, V, s, (H, W), canvases)
+    if not canvases:
+        return res
+    drawn = _splat_many(canvases)
+    if unfolds:
+        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps)
+    for g, box, k in folds:
+        bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox)
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, {})
+
+
+def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int],
+                 canvases: list) -> list[tuple[int, tuple[int, int, int, int], int]]:
+    """Each fold group with a sample above :data:`_MIN_STRENGTH`: its box and two canvases
+    (the dark line's samples, then the ridge's beside it) appended to ``canvases``. Returns
+    ``(group, box, index of its first canvas)`` per group."""
+    fa = _fast(face)
+    H, W = shape
+    sa, sb = s[fa.seg_a], s[fa.seg_b]
+    live = np.maximum(sa, sb) > _MIN_STRENGTH
+    groups = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
+              if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    if not groups:
+        return []
+    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
+    # every segment at once: start, direction, length, normal (-dy, dx) / L
+    a_all = pos[fa.seg_a]
+    d_all = pos[fa.seg_b] - a_all
+    dx, dy = d_all[:, 0], d_all[:, 1]
+    L_all = np.sqrt(dx * dx + dy * dy)
+    n_all = d_all[:, ::-1] * _TURN / np.maximum(L_all, 1e-9)[:, None]
+    lines = []
+    for g, g0, g1 in groups:
+        a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
+        sig = float(fa.sig[g])
+        K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
+        u = (np.arange(K) + 0.5) / K
+        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
+        ga, gb = sa[g0:g1], sb[g0:g1]
+        w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+        ridge = pts + np.repeat(n_all[g0:g1] * fa.off[g], K, 0)  # the ridge beside the line
+        lines += [pts, ridge]
+        lines.append(w)
+    # the extent of each line and ridge in one pass
+    pr = [x for i, x in enumerate(lines) if i % 3 != 2]
+    cut = np.cumsum([0, *[len(x) for x in pr[:-1]]])
+    both = np.concatenate(pr)
+    lo, hi = np.minimum.reduceat(both, cut).tolist(), np.maximum.reduceat(both, cut).tolist()
+    jobs = []
+    for j, (g, _, _) in enumerate(groups):
+        pts, ridge, w = lines[3 * j:3 * j + 3]
+        (lx, ly), (rx, ry) = lo[2 * j], lo[2 * j + 1]
+        (hx, hy), (sx, sy) = hi[2 * j], hi[2 * j + 1]
+        pad = 3.0 * (1.6 * float(fa.sig[g])) + 2.0
+        x0, y0 = max(int(min(lx, rx) - pad), 0), max(int(min(ly, ry) - pad), 0)
+        x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            continue
+        o = np.array([x0, y0], np.float64)
+        cs = (y1 - y0 + 1, x1 - x0 + 1)
+        jobs.append((g, (x0, y0, x1, y1), len(canvases)))
+        safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (pad >= 2 px around the points)
+        canvases.append((cs, pts - o, w, safe))
+        canvases.append((cs, ridge - o, w * fa.ridge[g], safe))
+    return jobs
+
+
+def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int],
+               dark: np.ndarray, light: np.ndarray, bbox: tuple[int, int, int, int] | None
+               ) -> tuple[int, int, int, int] | None:
+    """Darken group ``g``'s fold line (and lighten its ridge) over ``box`` of ``out`` from
+    its splatted canvases (in place); returns ``bbox`` grown by the box."""
+    x0, y0, x1, y1 = box
+    sig = float(fa.sig[g])
+    dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
+    light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), 1.6 * sig), np.float32)
+    view = out[y0:y1, x0:x1]
+    patch = view.astype(np.float32)
+    # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
+    # small 3-channel boxes numpy's broadcasting over the channels costs more than the math)
+    dif = cv2.transform(patch, fa.skin_shift[g])  # patch - skin
+    wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
+    wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
+    wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
+    np.clip(wskin, 0.0, 1.0, out=wskin)
+    # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
+    light *= wskin
+    dark *= wskin
+    gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
+    cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+    return _union(bbox, box)
+
+
+def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]]
+                ) -> list[np.ndarray]:
+    """float32 canvases ``(h, w)`` with weights ``w`` (n,) added at sub-pixel positions
+    ``xy`` (n, 2) (bilinear), all in one ``bincount``: the same sums, in the same order per
+    pixel, as one bincount per canvas of its points' four corners (corner-major). The 4th
+    item of each canvas says that every point lies at least a pixel inside it (its box was
+    not clipped by the image's edge).
+
+    The canvases are stacked vertically in one array as wide as the widest (each a view of
+    it). When a point's corners would leave its canvas (only possible where a box was clipped
+    by the image's edge), canvas by canvas instead (what leaves one is dropped; a corner past
+    a row's end wraps into the next row, as on a canvas of its own).
+    """
+    n = [len(w) for _, _, w, _ in canvases]
+    xy = np.concatenate([c[1] for c in canvases])
+    ww = np.concatenate([c[2] for c in canvases])
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    ws = _bilinear_weights(F, ww)
+    wide = max(wd for (_, wd), _, _, _ in canvases)
+    rows = [h for (h, _), _, _, _ in canvases]
+    # every point's corners inside its canvas: its box was not clipped by the image's edge
+    inside = all(c[3] for c in canvases)
+    if inside:
+        top = np.cumsum([0, *rows[:-1]])
+        base = ip[:, 1] * wide + ip[:, 0] + np.repeat(top * wide, n)
+        idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
+        total = int(sum(rows)) * wide
+        acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
+        acc = acc.reshape(-1, wide)
+        return [acc[t:t + h, :wd] for t, ((h, wd), _, _, _) in zip(top.tolist(), canvases,
+                                                                 strict=True)]
+    got = []
+    k = 0
+    for ((h, wd), _, _, _), m in zip(canvases, n, strict=True):
+        base = ip[k:k + m, 1] * wd + ip[k:k + m, 0]
+        idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
+        w4 = ws.reshape(4, -1)[:, k:k + m].ravel()
+        got.append(np.bincount(idx, w4, minlength=h * wd)[: h * wd].astype(np.float32)
+                   .reshape(h, wd))
+        k += m
+    return got
 
 
 #: below this share a photo's own fold is left as it is
@@ -829,10 +933,64 @@ def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
     return (k / k.sum()).astype(np.float32)
 
 
-def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
-            bbox: tuple[int, int, int, int] | None,
-            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
-            ) -> tuple[int, int, int, int] | None:
+def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, int],
+                   maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
+                   canvases: list) -> list[tuple]:
+    """The bands of :func:`_unfold_draw`: per group with a live own fold, its band's canvas
+    appended to ``canvases`` and ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``
+    (:func:`_band_samples` of the group's segments, all segments measured at once)."""
+    fa = _fast(face)
+    H, W = shape
+    ua, ub = un[fa.seg_a], un[fa.seg_b]
+    live = np.maximum(ua, ub) > _MIN_UNFOLD
+    groups = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
+              if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    if not groups:
+        return []
+    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
+    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
+    a_all = pos[fa.seg_a]
+    d_all = pos[fa.seg_b] - a_all
+    L_all = np.sqrt((d_all * d_all).sum(1))
+    bands = []
+    for g, g0, g1 in groups:
+        sb = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
+        got = None if maps is None else _photo_gain(face, g)
+        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
+        f = 1 if got is None else max(1, int(sb / 1.5))
+        a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
+        K = int(min(max(np.ceil(L.max() / (0.5 * f)), 1), 64))
+        u = (np.arange(K) + 0.5) / K
+        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
+        ga, gb = ua[g0:g1], ub[g0:g1]
+        w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
+        bands.append((g, sb, got, f, pts, w, d, L, K, g1 - g0))
+    # the box that is written (each band's), in one pass
+    cut = np.cumsum([0, *[len(b[4]) for b in bands[:-1]]])
+    P = np.concatenate([b[4] for b in bands])
+    lo, hi = np.minimum.reduceat(P, cut).tolist(), np.maximum.reduceat(P, cut).tolist()
+    jobs = []
+    for (g, sb, got, f, pts, w, d, L, K, M), (lx, ly), (hx, hy) in zip(bands, lo, hi,
+                                                                         strict=True):
+        x0, y0 = max(int(lx - 3.0 * sb), 0), max(int(ly - 3.0 * sb), 0)
+        x1, y1 = min(int(hx + 3.0 * sb) + 1, W), min(int(hy + 3.0 * sb) + 1, H)
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            continue
+        jobs.append((g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), len(canvases)))
+        safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (3 sb >= 1.5 f px around them)
+        if f == 1:
+            canvases.append(((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w, safe))
+        else:
+            hc, wc = -(-(y1 - y0) // f), -(-(x1 - x0) // f)
+            canvases.append(((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w,
+                             safe))
+    return jobs
+
+
+def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
+                 bbox: tuple[int, int, int, int] | None,
+                 maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
+                 ) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -850,36 +1008,17 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
     drawn. Without ``maps`` they are computed on ``out``.
     """
     fa = _fast(face)
-    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
-    V = np.asarray(vertices, np.float64)
-    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
-    H, W = out.shape[:2]
-    live = np.maximum(un[fa.seg_a], un[fa.seg_b]) > _MIN_UNFOLD
-    for g, (g0, g1) in enumerate(fa.seg_rng):
-        if not np.count_nonzero(live[g0:g1]):
-            continue
-        ia = fa.seg_a[g0:g1]
+    for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
-        sb = max(2.5 * sig, 1.0)  # half-width of the band that is lifted
-        got = None if maps is None else _photo_gain(face, g)
-        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
-        f = 1 if got is None else max(1, int(sb / 1.5))
-        pts, w, d, L, K = _band_samples(pos, ia, un, 0.5 * f)
-        # the box that is written (the band)
-        px, py = pts[:, 0], pts[:, 1]  # per column (reducing (n, 2) over axis 0 is slow)
-        x0, y0 = max(int(px.min() - 3.0 * sb), 0), max(int(py.min() - 3.0 * sb), 0)
-        x1, y1 = min(int(px.max() + 3.0 * sb) + 1, W), min(int(py.max() + 3.0 * sb) + 1, H)
-        if x1 - x0 < 4 or y1 - y0 < 4:
-            continue
+        sb = max(2.5 * sig, 1.0)
         # flat across the valley, falling off over the band's edge
         k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
+        band = drawn[ci]
         if f == 1:
-            band = _splat1((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w)
             band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
         else:
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            band = _splat1((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w)
             band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb / f)
             band = np.asarray(cv2.resize(band, (wc * f, hc * f),
                                          interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
@@ -887,7 +1026,7 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         np.minimum(band, 1.0, out=band)
         view = out[y0:y1, x0:x1]
         if got is None or maps is None:
-            S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, len(ia), (x0, y0, x1, y1))
+            S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, M, (x0, y0, x1, y1))
             band *= c4[..., 3]
             gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, 4.0)
         else:
@@ -922,18 +1061,6 @@ def _unfold(face: Face, out: np.ndarray, vertices: np.ndarray, un: np.ndarray,
         cv2.multiply(view, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
-
-
-def _splat1(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """A float32 canvas with weights ``w`` added at sub-pixel positions ``xy`` (bilinear)."""
-    h, wd = shape
-    P0 = np.floor(xy)
-    F = xy - P0
-    ip = P0.astype(np.int64)
-    base = ip[:, 1] * wd + ip[:, 0]
-    idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
-    ws = _bilinear_weights(F, w)
-    return np.bincount(idx, ws, minlength=h * wd)[: h * wd].astype(np.float32).reshape(h, wd)
 
 
 def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -1075,7 +1202,7 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
                  closing: bool = True, n_dir: int = _N_DIR
                  ) -> tuple[np.ndarray, np.ndarray | None]:
     """``S`` (h, w, 3) and ``C`` with the skin-likeness of that lifted level (h, w, 4), float32
-    over ``box`` of ``img`` (see :func:`_unfold`; the gain is ``C / S``), for the valley
+    over ``box`` of ``img`` (see :func:`_unfold_draw`; the gain is ``C / S``), for the valley
     sub-sampled at ``pts`` (weights ``w``; ``M`` segments ``d`` of lengths ``L``, ``K``
     sub-samples each). ``closing=False``: ``S`` only (the second is None). ``n_dir``: the
     directions of the along-fold smoothing.

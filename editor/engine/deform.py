@@ -339,6 +339,17 @@ def _tri_columns(plan: DeformPlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return cols
 
 
+def _fold_limits(plan: DeformPlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(1, T) sign of each neutral triangle's area, its solve limit (EPS_SOLVE of its area) and
+    the tolerance of :func:`_folds_none` (once per plan)."""
+    got = plan.__dict__.get("_fold_limits")
+    if got is None:
+        c0 = plan.neutral_sigma[None, :]
+        got = (np.sign(c0), EPS_SOLVE * np.abs(c0), 1e-7 * np.abs(c0) + 1e-9)
+        object.__setattr__(plan, "_fold_limits", got)
+    return got
+
+
 def _tau(plan: DeformPlan, D: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
     """First t in (0, 1] where a triangle's area reaches EPS_SOLVE of its neutral area. (B, T).
 
@@ -404,18 +415,17 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     w = XC - X[:, t1]
     ux, uy, dux, duy = u[..., 0], u[..., 1], u[..., 2], u[..., 3]
     wx, wy, dwx, dwy = w[..., 0], w[..., 1], w[..., 2], w[..., 3]
-    c0 = plan.neutral_sigma[None, :]
-    sg = np.sign(c0)
-    lim = EPS_SOLVE * np.abs(c0)
+    sg, lim, tol = _fold_limits(plan)
     a2 = sg * (dux * dwy - duy * dwx)
     a1 = sg * (ux * dwy - uy * dwx + dux * wy - duy * wx)
     a0 = sg * (ux * wy - uy * wx) - lim
-    tol = 1e-7 * np.abs(c0) + 1e-9
     p1 = a0 + a1 + a2
     # the parabola's minimum inside (0, 1) (convex, vertex -a1 / (2 a2) there): a0 - a1^2/(4 a2)
+    # (divided only there: a2 > 0, so no division warning to silence)
     inner = (a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        low = np.where(inner, a0 - a1 * a1 / (4.0 * a2), np.inf)
+    low = np.full(a0.shape, np.inf)
+    np.subtract(a0, np.divide(a1 * a1, 4.0 * a2, where=inner, out=np.zeros_like(a0)),
+                out=low, where=inner)
     ok = (a0 <= 0) | ((p1 > tol) & (low > tol))
     return bool(ok.all())
 

@@ -243,12 +243,18 @@ class Face:
         """How much of the photo's own expression f0 a FAP vector holds, in [0, 1]: its
         projection on f0 (FAP motion in pixels, FAPU x value). 1 at f0, 0 at the neutral and
         for expressions that do not go the photo's way (a smiling photo's sadness)."""
-        f0 = self.expression.astype(np.float64)
-        u = self._fap_px ** 2
-        den = float((u * f0) @ f0)
+        u, f0, den = self._own_projection
         if den <= 0:
             return 0.0
-        return float(np.clip((u * np.asarray(vec, np.float64)) @ f0 / den, 0.0, 1.0))
+        return min(max(float((u * np.asarray(vec, np.float64)) @ f0) / den, 0.0), 1.0)
+
+    @cached_property
+    def _own_projection(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """:meth:`own_share`'s weights (FAPU ** 2 per FAP), f0 and f0's squared norm in them
+        (once per face: f0 is read-only)."""
+        f0 = self.expression.astype(np.float64)
+        u = self._fap_px ** 2
+        return u, f0, float((u * f0) @ f0)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -378,12 +384,13 @@ class Face:
         # that opens wider is not closed by the photo's offset; f0 still gives the photo)
         if self._offset is None:
             return deform_points(self.plan, vec)
-        own = self.own_share(vec)
+        f = np.asarray(vec, np.float64)
+        own = self.own_share(f)
         off = own * self._offset
         lip = self._lip_gap
         if lip is not None:
             up, lo, G, Gc, g0, d = lip
-            s = np.clip(_fap_gap(G, Gc, vec) / g0, 0.0, 1.0)
+            s = np.minimum(np.maximum(_fap_gap(G, Gc, f) / g0, 0.0), 1.0)
             corr = (own - s)[:, None] * d
             off[up] += corr
             off[lo] -= corr

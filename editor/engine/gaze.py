@@ -417,10 +417,13 @@ class EyePlan:
             du = max(du, min(0.0, self.lim_l))
         return np.array([du, dw])
 
-    def lid_frame(self, poly: np.ndarray, sim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def lid_frame(self, poly: np.ndarray, sim: np.ndarray, inv: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
         """Deformed opening ``poly`` (output px) as upper / lower lid lines (7, 2) in the
-        neutral eye's frame (iris-centred), through the inverse of ``sim``."""
-        inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
+        neutral eye's frame (iris-centred), through the inverse of ``sim`` (``inv`` when the
+        caller has it already)."""
+        if inv is None:
+            inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
         f = n @ self._exy
         return f[_UP], f[_LOW]
@@ -436,7 +439,8 @@ class EyePlan:
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,
-               lids: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+               lids: tuple[np.ndarray, np.ndarray] | None = None,
+               inv: np.ndarray | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
 
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
@@ -446,12 +450,14 @@ class EyePlan:
         photo's shadow band along that lid is replaced by it as well (the shadow travels with
         the lid; the iris keeps its own pixels and catch-lights) and the raised upper lid casts
         a soft shadow on what it uncovers. Each column fades in over its lid's first
-        pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known.
+        pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known,
+        ``inv`` the inverse of ``sim``.
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
         x0, y0, x1, y1 = box
-        inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
+        if inv is None:
+            inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         xs = np.arange(x0, x1, dtype=np.float64)
         ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
@@ -461,9 +467,10 @@ class EyePlan:
         U = (cu[0, 0] * xs + c0[0])[None, :] + (cu[0, 1] * ys)[:, None]
         W = (cu[1, 0] * xs + c0[1])[None, :] + (cu[1, 1] * ys)[:, None]
         du, dw = float(shift[0]), float(shift[1])
-        # the white: stretch / translate horizontally
-        Us, Ws = U, W
+        ox = self.centre[0] - self.off[0]
+        oy = self.centre[1] - self.off[1]
         if abs(du) > 1e-6:
+            # the white: stretch / translate horizontally
             p, q = self.split_r if du > 0 else self.split_l
             corner = self.corner_l if du > 0 else self.corner_r
             bound = _line_u(p, q, W) + du
@@ -475,14 +482,24 @@ class EyePlan:
             Wa = A[1, 0] * U + A[1, 1] * W + A[1, 2]
             Us = np.where(moved, U - du, Ua)
             Ws = np.where(moved, W, Wa)
-        ox = self.centre[0] - self.off[0]
-        oy = self.centre[1] - self.off[1]
-        mx = (ox + Us * ex[0] + Ws * ey[0]).astype(np.float32)
-        my = (oy + Us * ex[1] + Ws * ey[1]).astype(np.float32)
+            mx = (ox + Us * ex[0] + Ws * ey[0]).astype(np.float32)
+            my = (oy + Us * ex[1] + Ws * ey[1]).astype(np.float32)
+        else:
+            # unmoved white: the photo patch through the inverse similarity (ex, ey are
+            # orthonormal: centre + U ex + W ey is the inverse-mapped pixel), one row plus
+            # one column per coordinate
+            mx = ((inv[0, 0] * xs + (inv[0, 2] - self.off[0]))[None, :]
+                  + (inv[0, 1] * ys)[:, None]).astype(np.float32)
+            my = ((inv[1, 0] * xs + (inv[1, 2] - self.off[1]))[None, :]
+                  + (inv[1, 1] * ys)[:, None]).astype(np.float32)
         # at rest the white is the photo itself (the composite is then exactly the photo); it
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))
+        # (a plate weight below 1e-18, i.e. a change under 1e-9 px such as the radius rescaled
+        # to the refined one with a rounding error of 1e-16 px: the photo, without a blend)
         t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
+        if t < 1e-18:
+            t = 0.0
         plate = self.plate if t >= 1.0 else self.photo if t <= 0.0 else \
             self.photo + t * (self.plate - self.photo)
         white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -490,7 +507,7 @@ class EyePlan:
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep, shadow = None, None
         if poly is not None:
-            up, low = self.lid_frame(poly, sim) if lids is None else lids
+            up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
             w_up = np.interp(U, up[:, 0], up[:, 1])
             w_up0 = np.interp(U, su[:, 0], su[:, 1])
@@ -519,8 +536,8 @@ class EyePlan:
                     shadow = (1.0 - LID_SHADOW * s_up
                               * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
-        Di = U - du
-        Dw = W - dw
+        Di = U - du if du else U
+        Dw = W - dw if dw else W
         rho = np.sqrt(Di * Di + Dw * Dw)
         a = _clamp(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
         if not np.count_nonzero(a):

@@ -116,9 +116,24 @@ def _opening_index(mesh) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(loops), cuts
 
 
-def _box(poly: np.ndarray, shape: tuple[int, ...], pad: int = 2) -> tuple[int, int, int, int]:
+_REST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _rest_loops(face: Face) -> np.ndarray:
+    """The openings' loops (:func:`_opening_index`) on the photo's mesh (once per face)."""
+    got = _REST.get(face)
+    if got is None:
+        got = face.vertices[_opening_index(face.mesh)[0]]
+        _REST[face] = got
+    return got
+
+
+def _box_of(lo: list[float], hi: list[float], shape: tuple[int, ...], pad: int = 2
+            ) -> tuple[int, int, int, int]:
+    """The pixel box of an outline whose extent is ``lo`` .. ``hi`` (x, y), ``pad`` px more,
+    inside the image."""
     h, w = shape[:2]
-    (lx, ly), (hx, hy) = poly.min(0).tolist(), poly.max(0).tolist()
+    (lx, ly), (hx, hy) = lo, hi
     x0 = min(max(math.floor(lx) - pad, 0), w)
     y0 = min(max(math.floor(ly) - pad, 0), h)
     x1 = min(max(math.ceil(hx) + pad + 1, 0), w)
@@ -133,6 +148,16 @@ def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     q = np.rint((np.asarray(poly, np.float32) - np.array([x0, y0], np.float32)) * (1 << _SHIFT))
     cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
     return m.view(bool)  # 0 / 1 bytes
+
+
+@lru_cache(maxsize=8)
+def _next_in_loop(ends: tuple[int, ...]) -> np.ndarray:
+    """Index of the next vertex along each loop of concatenated loops ending at ``ends``."""
+    nxt = np.arange(ends[-1]) + 1
+    starts = (0, *ends[:-1])
+    for a, b in zip(starts, ends, strict=True):
+        nxt[b - 1] = a
+    return nxt
 
 
 _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -161,20 +186,22 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     """
     x0, y0, x1, y1 = box
     face = out[y0:y1, x0:x1]
-    inside = hole.astype(np.uint8)
+    # (``hole`` is a 0/1 byte mask viewed as bool: its bytes are the uint8 mask itself)
+    inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
     depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
     labels = cast("npt.NDArray[np.int32]", labels)  # the stubs say int or float: int32 labels
-    lips = face[~hole]  # labels number the zero pixels row by row
-    rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip").astype(np.float32) \
+    lips = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
+    rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip") \
         if len(lips) else np.zeros(face.shape, np.float32)
     rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = min(max(0.03 * D, 0.7), 1.5)
-    spread = cv2.GaussianBlur(alpha, (0, 0), s)
-    shade = 1.0 - 0.35 * strength * _clamp(1.6 * spread, 0.0, 1.0) * (1.0 - alpha)
-    return rim, depth, shade.astype(np.float32)
+    spread: np.ndarray = cv2.GaussianBlur(alpha, (0, 0), s)  # >= 0: clamped above only
+    spread *= np.float32(1.6)
+    shade = 1.0 - 0.35 * strength * np.minimum(spread, 1.0) * (1.0 - alpha)
+    return rim, depth, shade.astype(np.float32, copy=False)
 
 
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,
@@ -205,7 +232,15 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
 def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
     """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
     OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
-    cv2.add(res, np.zeros_like(res), dst=dst, dtype=cv2.CV_8U)
+    cv2.add(res, _zeros32(res.shape), dst=dst, dtype=cv2.CV_8U)
+
+
+@lru_cache(maxsize=32)
+def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only float32 array of zeros (kept: a box's shape recurs from frame to frame)."""
+    z = np.zeros(shape, np.float32)
+    z.setflags(write=False)
+    return z
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
@@ -247,7 +282,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     # how far each opening's outline moved (one gather for the three) and the irises
     idx_all, cuts = _opening_index(face.mesh)
     polys = v[idx_all]
-    far = np.maximum.reduceat(np.abs(polys - face.vertices[idx_all]).max(1), cuts).tolist()
+    far = np.maximum.reduceat(np.abs(polys - _rest_loops(face)).max(1), cuts).tolist()
     V = face.plan.n_vertices
     iris_far = np.abs(extra[:2] - face.plan.neutral[V:V + 2]).max(1).tolist()  # 3.5, 3.6
     ends = [*cuts.tolist(), len(idx_all)]
@@ -276,8 +311,14 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     lp = layer_plan(face)
     bbox = res.bbox
     drawn: dict[str, tuple[tuple[int, int, int, int], np.ndarray]] = {}
+    # the three openings' extents at once (as :func:`_box` of each loop)
+    lo_all = np.minimum.reduceat(polys, cuts).tolist()
+    hi_all = np.maximum.reduceat(polys, cuts).tolist()
+    slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
+    closure = None
     for kind, name, poly, tf, active, moved in jobs:
-        box = _box(poly, out.shape, 4 if kind == "mouth" else 2)
+        k_open = slot[name]
+        box = _box_of(lo_all[k_open], hi_all[k_open], out.shape, 4 if kind == "mouth" else 2)
         if box[2] <= box[0] or box[3] <= box[1]:
             continue
         hole = _raster(poly, box)
@@ -307,17 +348,27 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 shift = ep.gaze_shift(extra[k], tf)
             else:
                 r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-            lids = ep.lid_frame(poly, tf)
+            inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
+            lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
         _composite(out, box, alpha, hole, interior, lip_shade)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, fade_in)
         else:
-            lash = lp.eyes[name].lash_line(box, poly)
+            # (the lash line is drawn from a closure above 0.6: checked for both eyes at once,
+            # with a margin, before its exact test in lash_line)
+            if closure is None:
+                e = polys[:ends[2]].astype(np.float64)
+                x, y = e[:, 0], e[:, 1]
+                nx = _next_in_loop((ends[1], ends[2]))
+                cross = x * y[nx] - y * x[nx]
+                closure = 1.0 - 0.5 * np.abs(np.add.reduceat(cross, cuts[:2])) \
+                    / np.maximum([lp.eyes["eye_l"].area0, lp.eyes["eye_r"].area0], 1e-6)
+            lash = lp.eyes[name].lash_line(box, poly) if closure[k_open] > 0.59 else None
             if lash is not None:  # a closing eye: one clean lash line where the lids meet
                 la, col = lash
                 x0, y0, x1, y1 = box
@@ -528,9 +579,8 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     else:
         k = 2 * dilate * ss + 1
         big = cv2.dilate(big, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)
-    small *= np.float32(1.0 / 255.0)
-    return small
+    small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA)
+    return np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)
 
 
 def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],

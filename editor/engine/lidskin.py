@@ -73,6 +73,25 @@ def _strips(face: Face) -> list[_Strip]:
     return out
 
 
+_INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, slice]]]:
+    """Every strip's lid and brow vertices concatenated, and each strip's two slices of it."""
+    got = _INDEX.get(strips[0]) if strips else None
+    if got is None:
+        idx, parts, k = [], [], 0
+        for st in strips:
+            n, m = len(st.lid), len(st.brow)
+            idx += [st.lid, st.brow]
+            parts.append((slice(k, k + n), slice(k + n, k + n + m)))
+            k += n + m
+        got = (np.concatenate(idx) if idx else np.zeros(0, np.intp), parts)
+        if strips:
+            _INDEX[strips[0]] = got
+    return got
+
+
 def _smooth01(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
@@ -91,7 +110,15 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     set of arrays (one table lookup, one resampling of the frame).
     """
     fr = face.frame
-    V = fr.to_frame(np.asarray(vertices, np.float64))
+    strips = _strips(face)
+    # only the strips' vertices in the frame (row by row: the same values as all of them)
+    idx, parts = _strip_index(strips)
+    P = fr.to_frame(np.asarray(vertices, np.float64)[idx])
+    # each strip's image box from its points mapped back (one mapping, one reduction each)
+    C = fr.to_image(P)
+    starts = [a.start for a, _ in parts]
+    c_lo = np.minimum.reduceat(C, starts).tolist() if starts else []
+    c_hi = np.maximum.reduceat(C, starts).tolist() if starts else []
     img = res.image
     H, W = img.shape[:2]
     R, org = fr.rot, fr.origin
@@ -99,17 +126,16 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
     cand = []
-    for st in _strips(face):
-        L, B = V[st.lid], V[st.brow]
+    for st, (sl_lid, sl_brow), (ix0, iy0), (ix1, iy1) in zip(strips, parts, c_lo, c_hi,
+                                                              strict=True):
+        L, B = P[sl_lid], P[sl_brow]
         x_lo = max(L[0, 0], B[0, 0])
         x_hi = min(L[-1, 0], B[-1, 0])
         if x_hi - x_lo < 2.0:
             continue
         # image box of the strip
-        corners = fr.to_image(np.concatenate([L, B]))
-        cx, cy = corners[:, 0], corners[:, 1]
-        x0, y0 = max(math.floor(cx.min()) - 1, 0), max(math.floor(cy.min()) - 1, 0)
-        x1, y1 = min(math.ceil(cx.max()) + 2, W), min(math.ceil(cy.max()) + 2, H)
+        x0, y0 = max(math.floor(ix0) - 1, 0), max(math.floor(iy0) - 1, 0)
+        x1, y1 = min(math.ceil(ix1) + 2, W), min(math.ceil(iy1) + 2, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
         # the frame's x over the box (its extremes are at the box's corners)

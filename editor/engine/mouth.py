@@ -279,8 +279,11 @@ class MouthPlan:
         xs = np.arange(x0, x1, dtype=np.float64)[None, :]
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
         O = v[self.i93].astype(np.float64)
-        Qx = (xs - O[0]) * ex[0] + (ys - O[1]) * ex[1]
-        Qy = (xs - O[0]) * ey[0] + (ys - O[1]) * ey[1]
+        # (one row plus one column each: the layer frame is affine in x and y; the textures
+        # below are sampled from these parts too)
+        Q = ((xs - O[0]) * ex[0], (ys - O[1]) * ex[1], (xs - O[0]) * ey[0], (ys - O[1]) * ey[1])
+        Qx = Q[0] + Q[1]
+        Qy = Q[2] + Q[3]
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
@@ -299,8 +302,10 @@ class MouthPlan:
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
         cym = 0.5 * (lo_v + hi_v)
         side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        side2 = side * side
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
-        shade = ((1.0 - 0.3 * lip_sh) * (1.0 - 0.35 * side * side)).astype(np.float32)
+        corner = 1.0 - 0.35 * side2  # the darker corners
+        shade = ((1.0 - 0.3 * lip_sh) * corner).astype(np.float32)
         # (per-pixel weights are spread over the 3 channels with cv2.merge / cv2.transform:
         # numpy's broadcasting of (h, w, 1) over 3 channels is several times slower here)
         cav_rgb = self.cavity.reshape(3, 1)
@@ -313,7 +318,7 @@ class MouthPlan:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
             g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))
-            back = (0.5 * (1.0 - 0.4 * side * side)).astype(np.float32)
+            back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
             deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
             out = 0.45 * np.asarray(rim, np.float32) - deep
             out *= cv2.merge([g, g, g])
@@ -326,23 +331,21 @@ class MouthPlan:
         cav = out
         # lower teeth and tongue (jaw), upper teeth (skull)
         y_lb = 0.25 * q21[1] + 0.75 * q23[1]
-        wl, hl = (s * sc for s in self.size["lower_teeth"])
-        wu, hu = (s * sc for s in self.size["upper_teeth"])
-        wt, ht = (s * sc for s in self.size["tongue"])
+        (wl, hl), (wu, hu), (wt, ht) = self._sizes
+        wl, hl, wu, hu, wt, ht = wl * sc, hl * sc, wu * sc, hu * sc, wt * sc, ht * sc
         # eq. 8's anchor moves the lower teeth with the jaw; at rest their tips sit just above
         # the lip line behind the upper teeth (eq. 8's own rest height varies with the chin:
         # 0.2 D above the lip line on JAFFE faces, below the lower lip on the sample)
         top_l = y_lb + self.low_off * sc
         # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
         top_t = top_l - TONGUE_RISE * D
-        tq_x, tq_y = Qx, Qy
+        tq: tuple = Q
         dlt = self._tongue_shift(faps, ex, ey)
         if dlt is not None:
-            tq_x, tq_y = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
-        out = self._over(out, "tongue", tq_x, tq_y, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
+            tq = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
+        out = self._over(out, "tongue", tq, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
         if not self.photo_lower:
-            out = self._over(out, "lower_teeth", Qx, Qy, q21[0] - 0.5 * wl, top_l, wl, hl,
-                             shade)
+            out = self._over(out, "lower_teeth", Q, q21[0] - 0.5 * wl, top_l, wl, hl, shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
         # where each pixel samples the photo's own interior (its patch's pixels): skull part
@@ -356,7 +359,7 @@ class MouthPlan:
         tj = anchor - (L @ self.anchor0 + S[:, 2])
         tjs = Si[:, :2] @ tj
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
-            out = self._over(out, "upper_teeth", Qx, Qy, -0.5 * wu, self.tip_up * sc - hu, wu,
+            out = self._over(out, "upper_teeth", Q, -0.5 * wu, self.tip_up * sc - hu, wu,
                              hu, shade, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
@@ -372,7 +375,7 @@ class MouthPlan:
             # layers' darker corners
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            k = (1.0 - EXT_LIP_SHADOW * lip_sh) * (1.0 - 0.35 * side * side)
+            k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
             m = (1.0 - e * (1.0 - k.astype(np.float32))).astype(np.float32)
             p_up = p_up * cv2.merge([m, m, m])
         if a_up is not None or a_lo is not None:
@@ -415,6 +418,12 @@ class MouthPlan:
         return a / math.sqrt(a * a + z * z)
 
     @cached_property
+    def _sizes(self) -> tuple[tuple[float, float], ...]:
+        """(width, height) of the lower teeth, upper teeth and tongue at the neutral scale."""
+        return tuple((float(w), float(h)) for w, h in
+                     (self.size[k] for k in ("lower_teeth", "upper_teeth", "tongue")))
+
+    @cached_property
     def _exy(self) -> np.ndarray:
         """(2, 2) the neutral frame axes ex, ey as columns."""
         return np.stack([self.ex, self.ey], 1).astype(np.float64)
@@ -430,11 +439,21 @@ class MouthPlan:
         """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
         return np.concatenate([[self.i21, self.i23], self.upper_lip, self.hole]).astype(np.intp)
 
-    def _over(self, out, name, qx, qy, left, top, ww, hh, shade, gum=False):
+    def _over(self, out, name, q, left, top, ww, hh, shade, gum=False):
+        """``out`` under texture ``name`` placed at ``left``, ``top`` (``ww`` x ``hh``) in the
+        layer frame; ``q``: the pixels' frame coordinates (x, y), or their parts
+        (x row, x column, y row, y column) whose sums they are."""
         t = self.tex[name]
         th, tw = t.shape[:2]
-        mx = ((qx - left) * (tw / ww) - 0.5).astype(np.float32)
-        my = ((qy - top) * (th / hh) - 0.5).astype(np.float32)
+        kx, ky = tw / ww, th / hh
+        if len(q) == 4:  # (affine: scaled and shifted as a row plus a column)
+            xr, xc, yr, yc = q
+            mx = (((xr - left) * kx - 0.5) + xc * kx).astype(np.float32)
+            my = (((yr - top) * ky - 0.5) + yc * ky).astype(np.float32)
+        else:
+            qx, qy = q
+            mx = ((qx - left) * kx - 0.5).astype(np.float32)
+            my = ((qy - top) * ky - 0.5).astype(np.float32)
         if gum:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,

@@ -89,20 +89,49 @@ def _sat(rgb: np.ndarray) -> float:
     return float((c.max() - c.min()) / max(c.max(), 1e-6))
 
 
-def _tint(rgba: np.ndarray, sat: float, gain: np.ndarray) -> np.ndarray:
-    """Desaturate to ``sat`` and scale per channel; returns premultiplied RGBA."""
-    c = rgba[..., :3]
-    lum = _lum(c)[..., None]
-    c = (lum + sat * (c - lum)) * gain[None, None, :]
-    c = np.clip(c, 0, 255) * rgba[..., 3:4]
-    return np.dstack([c, rgba[..., 3:4]]).astype(np.float32)
+@lru_cache(maxsize=1)
+def _texture_parts() -> dict[str, tuple[np.ndarray, ...]]:
+    """Per texture, what :func:`_tint` and :func:`_opaque_mean` take from it whatever the
+    photo: the luminance ``lum`` (h, w, 1), the chroma ``c - lum`` (h, w, 3), the alpha
+    (h, w, 1), and over the opaque pixels (alpha > 0.9) their luminance (n, 1) and chroma
+    (n, 3) (the same values as computed from the texture on every call)."""
+    out = {}
+    for name, rgba in load_textures().items():
+        c = rgba[..., :3]
+        lum = _lum(c)[..., None]
+        a = rgba[..., 3] > 0.9
+        co = c[a]
+        lum_o = _lum(co)[:, None]
+        out[name] = (lum, c - lum, rgba[..., 3:4], lum_o, co - lum_o)
+    return out
 
 
-def _opaque_mean(rgba: np.ndarray, sat: float) -> np.ndarray:
-    a = rgba[..., 3] > 0.9
-    c = rgba[..., :3][a]
-    lum = _lum(c)[:, None]
-    return (lum + sat * (c - lum)).mean(0)
+def _tint(rgba: np.ndarray | str, sat: float, gain: np.ndarray) -> np.ndarray:
+    """Desaturate to ``sat`` and scale per channel; returns premultiplied RGBA. ``rgba``: an
+    image, or the name of one of the :func:`load_textures` (its photo-independent parts
+    then come from a cache)."""
+    if isinstance(rgba, str):
+        lum, chroma, alpha = _texture_parts()[rgba][:3]
+    else:
+        c = rgba[..., :3]
+        lum = _lum(c)[..., None]
+        chroma, alpha = c - lum, rgba[..., 3:4]
+    c = (lum + sat * chroma) * gain[None, None, :]
+    c = np.clip(c, 0, 255) * alpha
+    return np.dstack([c, alpha]).astype(np.float32)
+
+
+def _opaque_mean(rgba: np.ndarray | str, sat: float) -> np.ndarray:
+    """Mean colour of the opaque pixels desaturated to ``sat`` (``rgba``: as for
+    :func:`_tint`)."""
+    if isinstance(rgba, str):
+        lum, chroma = _texture_parts()[rgba][3:]
+    else:
+        a = rgba[..., 3] > 0.9
+        c = rgba[..., :3][a]
+        lum = _lum(c)[:, None]
+        chroma = c - lum
+    return (lum + sat * chroma).mean(0)
 
 
 def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | None
@@ -219,19 +248,19 @@ class MouthPlan:
             size[name] = (H * tw / th, H)
         th, tw = raw["tongue"].shape[:2]
         size["tongue"] = (mw, mw * th / tw)
-        ivory = _opaque_mean(raw["upper_teeth"], sat)
+        ivory = _opaque_mean("upper_teeth", sat)
         target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
-        tongue_mean = _opaque_mean(raw["tongue"], sat)
+        tongue_mean = _opaque_mean("tongue", sat)
         gain_g = np.full(3, TONGUE_L * skin_l / max(float(_lum(tongue_mean)), 1.0), np.float32)
-        tex = {}
+        tex, tinted = {}, {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0),
                                   ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
-            t = _tint(raw[name], sat, gain * shade)
+            t = tinted[name] = _tint(name, sat, gain * shade)
             wpx, hpx = size[name]
             tw_, th_ = max(int(round(wpx)), 2), max(int(round(hpx)), 2)
             tex[name] = cv2.resize(t, (tw_, th_), interpolation=cv2.INTER_AREA)
-        t = _tint(raw["upper_teeth"], sat, gain_t)
+        t = tinted["upper_teeth"]  # (its gain is gain_t: times a shade of 1.0 is the same)
         gum = t[: max(1, t.shape[0] // 8)].reshape(-1, 4)
         gum = gum[gum[:, 3] > 0.5]
         gum_rgb = (gum[:, :3] / gum[:, 3:4]).mean(0) if len(gum) else 0.6 * target

@@ -314,20 +314,87 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     """Triangle index and barycentric coordinates of each point (nearest triangle outside).
 
     Per point, the barycentric coordinates in every triangle; the triangle whose smallest one
-    is largest (>= 0 inside). In blocks of points (the (points, triangles) arrays stay in
-    the cache), each coordinate a contiguous array."""
+    is largest (>= 0 inside; the first such triangle on a tie). A point inside the mesh is
+    only tested against the triangles whose box holds it (and the degenerate ones): every
+    triangle that can give it a coordinate triple >= 0 is among them, so the winner and its
+    coordinates are those of the test against every triangle; the points outside the mesh are
+    tested against every triangle (:func:`_locate_all`)."""
     points = np.asarray(points, np.float64)
     a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
     e1, e2 = b - a, c - a
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+    n, T = len(points), len(tris)
+    ti = np.zeros(n, np.int64)
+    bary = np.zeros((n, 3))
+    if n == 0 or T == 0:
+        return ti.astype(np.int32), bary
+    # candidate (point, triangle) pairs: the points in each triangle's x range (points sorted
+    # by x), then kept where y is in its range too (boxes grown by 1e-3 px: rounding)
+    lo = np.minimum(np.minimum(a, b), c) - 1e-3
+    hi = np.maximum(np.maximum(a, b), c) + 1e-3
+    order = np.argsort(points[:, 0], kind="stable")
+    xs = points[order, 0]
+    r0 = np.searchsorted(xs, lo[:, 0], "left")
+    cnt = np.searchsorted(xs, hi[:, 0], "right") - r0
+    cnt[np.abs(det) < 1.0] = 0  # (degenerate: added to every point below)
+    pt_t = np.repeat(np.arange(T), cnt)
+    pt_p = order[np.arange(len(pt_t)) - np.repeat(np.cumsum(cnt) - cnt - r0, cnt)]
+    py = points[pt_p, 1]
+    keep = (py >= lo[pt_t, 1]) & (py <= hi[pt_t, 1])
+    pt_t, pt_p = pt_t[keep], pt_p[keep]
+    thin = np.flatnonzero(np.abs(det) < 1.0)
+    if len(thin):
+        pt_t = np.concatenate([pt_t, np.repeat(thin, n)])
+        pt_p = np.concatenate([pt_p, np.tile(np.arange(n), len(thin))])
+    srt = np.lexsort((pt_t, pt_p))  # by point, then triangle
+    pt_t, pt_p = pt_t[srt], pt_p[srt]
+    # the same arithmetic as _locate_all, pair by pair
+    dx = points[pt_p, 0] - a[pt_t, 0]
+    dy = points[pt_p, 1] - a[pt_t, 1]
+    dt = det[pt_t]
+    l1 = dx * e2[pt_t, 1]
+    l1 -= dy * e2[pt_t, 0]
+    l1 /= dt
+    l2 = e1[pt_t, 0] * dy
+    l2 -= e1[pt_t, 1] * dx
+    l2 /= dt
+    l0 = 1.0 - l1
+    l0 -= l2
+    worst = np.minimum(l0, l1)
+    np.minimum(worst, l2, out=worst)
+    done = np.zeros(n, bool)
+    if len(pt_p):
+        starts = np.flatnonzero(np.r_[True, pt_p[1:] != pt_p[:-1]])
+        best = np.maximum.reduceat(worst, starts)
+        sizes = np.diff(np.r_[starts, len(pt_p)])
+        hit = np.flatnonzero(worst == np.repeat(best, sizes))
+        first = hit[np.r_[True, pt_p[hit[1:]] != pt_p[hit[:-1]]]]  # first hit per point
+        inside = worst[first] >= 0.0
+        first = first[inside]
+        pts = pt_p[first]
+        ti[pts] = pt_t[first]
+        bary[pts] = np.stack([l0[first], l1[first], l2[first]], 1)
+        done[pts] = True
+    rest = np.flatnonzero(~done)
+    if len(rest):
+        t_r, b_r = _locate_all(points[rest], a, e1, e2, det)
+        ti[rest], bary[rest] = t_r, b_r
+    return ti.astype(np.int32), bary
+
+
+def _locate_all(points: np.ndarray, a: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+                det: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_locate` against every triangle (corner ``a``, edges ``e1``, ``e2``, their
+    ``det``). In blocks of points (the (points, triangles) arrays stay in the cache), each
+    coordinate a contiguous array."""
     ax, ay = np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1])
     e1x, e1y = np.ascontiguousarray(e1[:, 0]), np.ascontiguousarray(e1[:, 1])
     e2x, e2y = np.ascontiguousarray(e2[:, 0]), np.ascontiguousarray(e2[:, 1])
     n = len(points)
     ti = np.zeros(n, np.int64)
     bary = np.zeros((n, 3))
-    step = max(1, 32768 // max(len(tris), 1))
+    step = max(1, 32768 // max(len(a), 1))
     for i in range(0, n, step):
         px = points[i:i + step, 0:1]
         py = points[i:i + step, 1:2]
@@ -347,7 +414,16 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
         r = np.arange(len(k))
         ti[i:i + step] = k
         bary[i:i + step] = np.stack([l0[r, k], l1[r, k], l2[r, k]], 1)
-    return ti.astype(np.int32), bary
+    return ti, bary
+
+
+def _is_grey(img: np.ndarray) -> bool:
+    """Whether the three channels of ``img`` (h, w, 3) are equal everywhere. A colour photo
+    is told by a sparse sample of its pixels first (the whole image only when they agree)."""
+    for a in (img[::7, ::7], img):
+        if not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 1], a[..., 2])):
+            return False
+    return True
 
 
 def _build_plan(face: Face) -> CreasePlan:
@@ -413,8 +489,7 @@ def _build_plan(face: Face) -> CreasePlan:
     inv = np.stack([np.stack([E[:, 1, 1], -E[:, 0, 1]], 1),
                     np.stack([-E[:, 1, 0], E[:, 0, 0]], 1)], 1) / det[:, None, None]
     img = face.image
-    grey = bool(np.array_equal(img[..., 0], img[..., 1]) and np.array_equal(img[..., 1],
-                                                                          img[..., 2]))
+    grey = _is_grey(img)
     tint = np.ones(3) if grey else np.array([0.8, 1.0, 1.12])
     fold = np.repeat(np.arange(len(kinds)), np.diff(starts))
     tri = np.concatenate(all_tri)

@@ -114,17 +114,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
                           cv2.INPAINT_TELEA).astype(np.float32)
         d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
-        rows = tel.copy()
-        wrow = np.zeros(opening.shape, np.float32)
-        cols = np.arange(opening.shape[1])
-        for i in np.flatnonzero(disc.any(1)):
-            k = np.flatnonzero(known[i])
-            f = np.flatnonzero(disc[i])
-            if len(k) == 0 or k.min() > f.min() or k.max() < f.max():
-                continue  # white on both sides of the disc only
-            for ch in range(3):
-                rows[i, f, ch] = np.interp(cols[f], k, out[i, k, ch])
-            wrow[i, f] = 1.0
+        rows, wrow = _row_interp(tel, out, known, disc)
         wv = (np.clip((d_lid - 0.5) / 2.0, 0.0, 1.0) * wrow)[..., None]
         fill = wv * rows + (1.0 - wv) * tel
         fill = cv2.GaussianBlur(fill, (0, 0), max(0.6, 0.25 * radius))
@@ -142,18 +132,47 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         near = lab[margin] - 1
         out[margin] = out[iy[near], ix[near]]
     ph, pw = opening.shape
-    for j in range(pw):
-        r_in = np.flatnonzero(opening[:, j])
-        if len(r_in) == 0:
-            continue
-        out[: r_in[0], j] = out[r_in[0], j]
-        out[r_in[-1] + 1:, j] = out[r_in[-1], j]
-    empty = ~opening.any(0)
-    if empty.any() and (~empty).any():
-        full = np.flatnonzero(~empty)
-        for e in np.flatnonzero(empty):
-            out[:, e] = out[:, full[np.argmin(np.abs(full - e))]]
+    full = np.flatnonzero(opening.any(0))
+    if len(full):
+        # each column above / below its opening repeats its first / last row inside, a column
+        # without opening the nearest column with one (the smaller on a tie)
+        top = np.argmax(opening, 0)
+        bot = ph - 1 - np.argmax(opening[::-1], 0)
+        src = full[np.abs(np.arange(pw)[:, None] - full[None, :]).argmin(1)]
+        yy = np.arange(ph)[:, None]
+        out = out[np.clip(yy, top[src][None, :], bot[src][None, :]), src[None, :]]
     return out
+
+
+def _row_interp(tel: np.ndarray, out: np.ndarray, known: np.ndarray, disc: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``tel`` (h, w, 3) with, in each row whose disc pixels have known pixels on both sides,
+    the disc interpolated linearly between its nearest known pixels of ``out`` left and
+    right (``np.interp``'s arithmetic, float64, stored as float32), and the weight (h, w)
+    that is 1 there. All rows at once: the nearest known column either side of each pixel is
+    a running max / min along the row."""
+    h, w = disc.shape
+    rows = tel.copy()
+    wrow = np.zeros((h, w), np.float32)
+    cols = np.arange(w)
+    left = np.maximum.accumulate(np.where(known, cols, -1), axis=1)
+    right = np.minimum.accumulate(np.where(known, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    # rows whose disc lies between known pixels (np.interp would else hold the end values)
+    dmin = np.where(disc, cols, w).min(1)
+    dmax = np.where(disc, cols, -1).max(1)
+    kmin = np.where(known, cols, w).min(1)
+    kmax = np.where(known, cols, -1).max(1)
+    ok = disc.any(1) & (kmin <= dmin) & (kmax >= dmax)
+    iy, ix = np.nonzero(disc & ok[:, None])
+    if len(iy):
+        kl, kr = left[iy, ix], right[iy, ix]  # kl < ix < kr: the disc is not known
+        yl = out[iy, kl].astype(np.float64)
+        yr = out[iy, kr].astype(np.float64)
+        x, xl, xr = ix.astype(np.float64), kl.astype(np.float64), kr.astype(np.float64)
+        slope = (yr - yl) / (xr - xl)[:, None]
+        rows[iy, ix] = slope * (x - xl)[:, None] + yl
+        wrow[iy, ix] = 1.0
+    return rows, wrow
 
 def _column_percentile(vals: np.ndarray, valid: np.ndarray, q: float) -> np.ndarray:
     """Per column, the ``q``-th percentile of ``vals[valid]`` (h, w) -> (w,): the values of

@@ -193,10 +193,11 @@ def _column_percentile(vals: np.ndarray, valid: np.ndarray, q: float) -> np.ndar
     prev[low], nxt[low] = 0, 0
     a = np.take_along_axis(s, prev[None], 0)[0]
     b = np.take_along_axis(s, nxt[None], 0)[0]
-    d = b - a
-    out = a + d * gamma.astype(vals.dtype)
-    hi = gamma >= 0.5
-    out[hi] = (b - d * (1.0 - gamma).astype(vals.dtype))[hi]
+    with np.errstate(invalid="ignore"):  # (inf - inf in a column without valid values)
+        d = b - a
+        out = a + d * gamma.astype(vals.dtype)
+        hi = gamma >= 0.5
+        out[hi] = (b - d * (1.0 - gamma).astype(vals.dtype))[hi]
     out[n == 0] = np.nan
     return out
 

@@ -157,3 +157,14 @@ def test_texture_tint_and_mean_are_the_pixel_formulas(name):
         ref_mean = (lo + sat * (co - lo)).mean(0)
         got = mouth._opaque_mean(name, sat)
         assert got.dtype == ref_mean.dtype and np.array_equal(got, ref_mean)
+
+
+def test_fold_normals_are_the_gradients_turned():
+    rng = np.random.default_rng(9)
+    for n in (2, 3, 10, 28, 40):
+        pts = rng.normal(0, 50, (n, 2)).cumsum(0)
+        pts[n // 2] = pts[n // 2 - 1]  # a repeated point: a zero tangent there at most
+        tang = np.gradient(pts, axis=0)
+        tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-9)
+        ref = np.stack([-tang[:, 1], tang[:, 0]], 1)
+        assert np.array_equal(creases._normals(pts), ref)

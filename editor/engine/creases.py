@@ -1205,14 +1205,16 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     along = round(max(1.5 * sig, 1.0), 2)
     for j in np.flatnonzero(np.bincount(k.ravel(), minlength=nd)):
         m = k == j
+        ker = _line_kernel(int(j) * math.pi / nd, along, 0.35)
+        kh = min(ker.shape[0] // 2, h)  # how far the kernel reaches (h: the margin of sub)
         # filtered only over the rows/columns where this direction is used (+ the kernel)
         rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
         r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
         sy0, sx0 = cy + r0, cx + c0
-        part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
-        oy, ox = min(sy0, h), min(sx0, h)
-        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / nd, along, 0.35),
-                            borderType=cv2.BORDER_REPLICATE)
+        part = sub[max(sy0 - kh, 0):sy0 + (r1 - r0) + kh,
+                   max(sx0 - kh, 0):sx0 + (c1 - c0) + kh]
+        oy, ox = min(sy0, kh), min(sx0, kh)
+        filt = cv2.filter2D(part, -1, ker, borderType=cv2.BORDER_REPLICATE)
         np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
                   where=m[r0:r1, c0:c1, None])
     # the skin level either side of the valley; blurred so that between shoulders of

@@ -254,11 +254,12 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     d_b = np.maximum(yy - ref_b[None, :], 0.0)
     shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
     shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
-    above = (yy < ref_t[None, :])[..., None]
-    below = (yy > ref_b[None, :])[..., None]
-    out = np.where(above, c_t[None] * shade_t, out)
-    out = np.where(below, c_b[None] * shade_b, out)
-    return out.astype(np.float32)
+    # (the float64 colours written only where they go, rounded to float32 as before)
+    for side, c, shade in ((yy < ref_t[None, :], c_t, shade_t),
+                           (yy > ref_b[None, :], c_b, shade_b)):
+        iy, ix = np.nonzero(side)
+        out[iy, ix] = c[ix] * shade[iy, ix]
+    return out
 
 
 def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.ndarray,

@@ -117,10 +117,7 @@ def _tint(name: str, sat: float, gain: np.ndarray) -> np.ndarray:
     c *= np.asarray(gain, np.float32)[:, None, None]
     np.clip(c, 0, 255, out=c)
     c *= alpha
-    out = np.empty(lum.shape + (4,), np.float32)
-    out[..., :3] = c.transpose(1, 2, 0)
-    out[..., 3] = alpha
-    return out
+    return np.asarray(cv2.merge([c[0], c[1], c[2], alpha]), np.float32)
 
 
 def _opaque_mean(name: str, sat: float) -> np.ndarray:

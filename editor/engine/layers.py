@@ -334,8 +334,11 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
 # ---------------------------------------------------------------------------- photo analysis
 def _bright(patch: np.ndarray, skin_l: float) -> np.ndarray:
     """Teeth-like pixels: at least 0.8 of the skin's luminance, weakly coloured."""
-    mx = patch.max(2)
-    return (_lum(patch) >= 0.8 * skin_l) & ((mx - patch.min(2)) < 0.35 * np.maximum(mx, 1.0))
+    # (the channels' max / min pairwise: a reduction over an axis of 3 is several times slower)
+    r, g, b = patch[..., 0], patch[..., 1], patch[..., 2]
+    mx = np.maximum(np.maximum(r, g), b)
+    mn = np.minimum(np.minimum(r, g), b)
+    return (_lum(patch) >= 0.8 * skin_l) & ((mx - mn) < 0.35 * np.maximum(mx, 1.0))
 
 
 def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray | None:

@@ -332,10 +332,11 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
     n, T = len(points), len(tris)
+    if n * T <= 40_000:  # few points: testing every triangle costs less than the pairing
+        ti, bary = _locate_all(points, a, e1, e2, det)
+        return ti.astype(np.int32), bary
     ti = np.zeros(n, np.int64)
     bary = np.zeros((n, 3))
-    if n == 0 or T == 0:
-        return ti.astype(np.int32), bary
     # candidate (point, triangle) pairs: the points in each triangle's x range (points sorted
     # by x), then kept where y is in its range too (boxes grown by 1e-3 px: rounding)
     lo = np.minimum(np.minimum(a, b), c) - 1e-3
@@ -424,6 +425,16 @@ def _locate_all(points: np.ndarray, a: np.ndarray, e1: np.ndarray, e2: np.ndarra
     return ti, bary
 
 
+@functools.lru_cache(maxsize=4)
+def _skin_triangles(mesh) -> np.ndarray:
+    """Indices of the triangles that carry folds: the skin, not the margin/border rings (per
+    mesh; read-only)."""
+    ok = ~np.isin(mesh.regions[mesh.triangles], ("margin", "border")).any(1)
+    cand = np.flatnonzero(ok)
+    cand.flags.writeable = False
+    return cand
+
+
 def _is_grey(img: np.ndarray) -> bool:
     """Whether the three channels of ``img`` (h, w, 3) are equal everywhere. A colour photo
     is told by a sparse sample of its pixels first (the whole image only when they agree)."""
@@ -439,8 +450,7 @@ def _build_plan(face: Face) -> CreasePlan:
     fr = face.frame
     iod = float(face.interocular)
     # only skin triangles carry folds (not the margin/border rings)
-    ok = ~np.isin(mesh.regions[mesh.triangles], ("margin", "border")).any(1)
-    cand = np.flatnonzero(ok)
+    cand = _skin_triangles(mesh)
     tris = mesh.triangles[cand]
     kinds, groups, gnames, starts = [], [], [], [0]
     all_tri, all_bary, all_probe, all_n, all_taper = [], [], [], [], []
@@ -846,8 +856,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
-    ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)
-    cand = np.flatnonzero(ok)
+    cand = _skin_triangles(face.mesh)
     for f in range(p.n_folds):
         a, b = int(p.start[f]), int(p.start[f + 1])
         if fa.own_gap is None or fa.own_gap[f] < _OWN_MIN or not p.utaper[a:b].any():

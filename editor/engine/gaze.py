@@ -380,8 +380,8 @@ class EyePlan:
                      cv2.LINE_8, 4)
         cx, cy, r = _iris_edges(patch, opening, cx - x0, cy - y0, r, ex, ey)
         cx, cy = cx + x0, cy + y0
-        yy, xx = np.mgrid[0:ph, 0:pw].astype(np.float64)
-        rho = np.hypot(xx + x0 - cx, yy + y0 - cy)
+        rho = np.hypot((np.arange(pw, dtype=np.float64) + x0 - cx)[None, :],
+                       (np.arange(ph, dtype=np.float64) + y0 - cy)[:, None])
         r_fill = r + max(1.5, 0.3 * r)  # the limbus and its blur go too (no ring remnant)
         plate = _white_plate(patch, opening > 0, rho, r_fill, r)
         # iris sprite: visible = inside the opening, one pixel clear of the lid edge

@@ -304,9 +304,16 @@ def _fold_lines(face: Face) -> list[_Line]:
 
 def _normals(pts: np.ndarray) -> np.ndarray:
     """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
-    tang = np.gradient(pts, axis=0)
-    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-9)
-    return np.stack([-tang[:, 1], tang[:, 0]], 1)
+    # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
+    # central differences inside, one-sided at the ends)
+    p = np.asarray(pts, np.float64)
+    tang = np.empty_like(p)
+    tang[1:-1] = (p[2:] - p[:-2]) / 2.0
+    tang[0] = p[1] - p[0]
+    tang[-1] = p[-1] - p[-2]
+    tx, ty = tang[:, 0], tang[:, 1]
+    n = np.maximum(np.sqrt(tx * tx + ty * ty), 1e-9)
+    return np.stack([-ty / n, tx / n], 1)
 
 
 def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
@@ -314,20 +321,88 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     """Triangle index and barycentric coordinates of each point (nearest triangle outside).
 
     Per point, the barycentric coordinates in every triangle; the triangle whose smallest one
-    is largest (>= 0 inside). In blocks of points (the (points, triangles) arrays stay in
-    the cache), each coordinate a contiguous array."""
+    is largest (>= 0 inside; the first such triangle on a tie). A point inside the mesh is
+    only tested against the triangles whose box holds it (and the degenerate ones): every
+    triangle that can give it a coordinate triple >= 0 is among them, so the winner and its
+    coordinates are those of the test against every triangle; the points outside the mesh are
+    tested against every triangle (:func:`_locate_all`)."""
     points = np.asarray(points, np.float64)
     a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
     e1, e2 = b - a, c - a
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+    n, T = len(points), len(tris)
+    if n * T <= 40_000:  # few points: testing every triangle costs less than the pairing
+        ti, bary = _locate_all(points, a, e1, e2, det)
+        return ti.astype(np.int32), bary
+    ti = np.zeros(n, np.int64)
+    bary = np.zeros((n, 3))
+    # candidate (point, triangle) pairs: the points in each triangle's x range (points sorted
+    # by x), then kept where y is in its range too (boxes grown by 1e-3 px: rounding)
+    lo = np.minimum(np.minimum(a, b), c) - 1e-3
+    hi = np.maximum(np.maximum(a, b), c) + 1e-3
+    order = np.argsort(points[:, 0], kind="stable")
+    xs = points[order, 0]
+    r0 = np.searchsorted(xs, lo[:, 0], "left")
+    cnt = np.searchsorted(xs, hi[:, 0], "right") - r0
+    cnt[np.abs(det) < 1.0] = 0  # (degenerate: added to every point below)
+    pt_t = np.repeat(np.arange(T), cnt)
+    pt_p = order[np.arange(len(pt_t)) - np.repeat(np.cumsum(cnt) - cnt - r0, cnt)]
+    py = points[pt_p, 1]
+    keep = (py >= lo[pt_t, 1]) & (py <= hi[pt_t, 1])
+    pt_t, pt_p = pt_t[keep], pt_p[keep]
+    thin = np.flatnonzero(np.abs(det) < 1.0)
+    if len(thin):
+        pt_t = np.concatenate([pt_t, np.repeat(thin, n)])
+        pt_p = np.concatenate([pt_p, np.tile(np.arange(n), len(thin))])
+    srt = np.lexsort((pt_t, pt_p))  # by point, then triangle
+    pt_t, pt_p = pt_t[srt], pt_p[srt]
+    # the same arithmetic as _locate_all, pair by pair
+    dx = points[pt_p, 0] - a[pt_t, 0]
+    dy = points[pt_p, 1] - a[pt_t, 1]
+    dt = det[pt_t]
+    l1 = dx * e2[pt_t, 1]
+    l1 -= dy * e2[pt_t, 0]
+    l1 /= dt
+    l2 = e1[pt_t, 0] * dy
+    l2 -= e1[pt_t, 1] * dx
+    l2 /= dt
+    l0 = 1.0 - l1
+    l0 -= l2
+    worst = np.minimum(l0, l1)
+    np.minimum(worst, l2, out=worst)
+    done = np.zeros(n, bool)
+    if len(pt_p):
+        starts = np.flatnonzero(np.r_[True, pt_p[1:] != pt_p[:-1]])
+        best = np.maximum.reduceat(worst, starts)
+        sizes = np.diff(np.r_[starts, len(pt_p)])
+        hit = np.flatnonzero(worst == np.repeat(best, sizes))
+        first = hit[np.r_[True, pt_p[hit[1:]] != pt_p[hit[:-1]]]]  # first hit per point
+        inside = worst[first] >= 0.0
+        first = first[inside]
+        pts = pt_p[first]
+        ti[pts] = pt_t[first]
+        bary[pts] = np.stack([l0[first], l1[first], l2[first]], 1)
+        done[pts] = True
+    rest = np.flatnonzero(~done)
+    if len(rest):
+        t_r, b_r = _locate_all(points[rest], a, e1, e2, det)
+        ti[rest], bary[rest] = t_r, b_r
+    return ti.astype(np.int32), bary
+
+
+def _locate_all(points: np.ndarray, a: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+                det: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_locate` against every triangle (corner ``a``, edges ``e1``, ``e2``, their
+    ``det``). In blocks of points (the (points, triangles) arrays stay in the cache), each
+    coordinate a contiguous array."""
     ax, ay = np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1])
     e1x, e1y = np.ascontiguousarray(e1[:, 0]), np.ascontiguousarray(e1[:, 1])
     e2x, e2y = np.ascontiguousarray(e2[:, 0]), np.ascontiguousarray(e2[:, 1])
     n = len(points)
     ti = np.zeros(n, np.int64)
     bary = np.zeros((n, 3))
-    step = max(1, 32768 // max(len(tris), 1))
+    step = max(1, 32768 // max(len(a), 1))
     for i in range(0, n, step):
         px = points[i:i + step, 0:1]
         py = points[i:i + step, 1:2]
@@ -347,7 +422,26 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
         r = np.arange(len(k))
         ti[i:i + step] = k
         bary[i:i + step] = np.stack([l0[r, k], l1[r, k], l2[r, k]], 1)
-    return ti.astype(np.int32), bary
+    return ti, bary
+
+
+@functools.lru_cache(maxsize=4)
+def _skin_triangles(mesh) -> np.ndarray:
+    """Indices of the triangles that carry folds: the skin, not the margin/border rings (per
+    mesh; read-only)."""
+    ok = ~np.isin(mesh.regions[mesh.triangles], ("margin", "border")).any(1)
+    cand = np.flatnonzero(ok)
+    cand.flags.writeable = False
+    return cand
+
+
+def _is_grey(img: np.ndarray) -> bool:
+    """Whether the three channels of ``img`` (h, w, 3) are equal everywhere. A colour photo
+    is told by a sparse sample of its pixels first (the whole image only when they agree)."""
+    for a in (img[::7, ::7], img):
+        if not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 1], a[..., 2])):
+            return False
+    return True
 
 
 def _build_plan(face: Face) -> CreasePlan:
@@ -356,8 +450,7 @@ def _build_plan(face: Face) -> CreasePlan:
     fr = face.frame
     iod = float(face.interocular)
     # only skin triangles carry folds (not the margin/border rings)
-    ok = ~np.isin(mesh.regions[mesh.triangles], ("margin", "border")).any(1)
-    cand = np.flatnonzero(ok)
+    cand = _skin_triangles(mesh)
     tris = mesh.triangles[cand]
     kinds, groups, gnames, starts = [], [], [], [0]
     all_tri, all_bary, all_probe, all_n, all_taper = [], [], [], [], []
@@ -413,8 +506,7 @@ def _build_plan(face: Face) -> CreasePlan:
     inv = np.stack([np.stack([E[:, 1, 1], -E[:, 0, 1]], 1),
                     np.stack([-E[:, 1, 0], E[:, 0, 0]], 1)], 1) / det[:, None, None]
     img = face.image
-    grey = bool(np.array_equal(img[..., 0], img[..., 1]) and np.array_equal(img[..., 1],
-                                                                          img[..., 2]))
+    grey = _is_grey(img)
     tint = np.ones(3) if grey else np.array([0.8, 1.0, 1.12])
     fold = np.repeat(np.arange(len(kinds)), np.diff(starts))
     tri = np.concatenate(all_tri)
@@ -868,8 +960,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
-    ok = ~np.isin(face.mesh.regions[face.mesh.triangles], ("margin", "border")).any(1)
-    cand = np.flatnonzero(ok)
+    cand = _skin_triangles(face.mesh)
     for f in range(p.n_folds):
         a, b = int(p.start[f]), int(p.start[f + 1])
         if fa.own_gap is None or fa.own_gap[f] < _OWN_MIN or not p.utaper[a:b].any():
@@ -1250,14 +1341,16 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     along = round(max(1.5 * sig, 1.0), 2)
     for j in np.flatnonzero(np.bincount(k.ravel(), minlength=nd)):
         m = k == j
+        ker = _line_kernel(int(j) * math.pi / nd, along, 0.35)
+        kh = min(ker.shape[0] // 2, h)  # how far the kernel reaches (h: the margin of sub)
         # filtered only over the rows/columns where this direction is used (+ the kernel)
         rows, cols = np.flatnonzero(m.any(1)), np.flatnonzero(m.any(0))
         r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
         sy0, sx0 = cy + r0, cx + c0
-        part = sub[max(sy0 - h, 0):sy0 + (r1 - r0) + h, max(sx0 - h, 0):sx0 + (c1 - c0) + h]
-        oy, ox = min(sy0, h), min(sx0, h)
-        filt = cv2.filter2D(part, -1, _line_kernel(int(j) * math.pi / nd, along, 0.35),
-                            borderType=cv2.BORDER_REPLICATE)
+        part = sub[max(sy0 - kh, 0):sy0 + (r1 - r0) + kh,
+                   max(sx0 - kh, 0):sx0 + (c1 - c0) + kh]
+        oy, ox = min(sy0, kh), min(sx0, kh)
+        filt = cv2.filter2D(part, -1, ker, borderType=cv2.BORDER_REPLICATE)
         np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
                   where=m[r0:r1, c0:c1, None])
     # the skin level either side of the valley; blurred so that between shoulders of

@@ -114,17 +114,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
                           cv2.INPAINT_TELEA).astype(np.float32)
         d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
-        rows = tel.copy()
-        wrow = np.zeros(opening.shape, np.float32)
-        cols = np.arange(opening.shape[1])
-        for i in np.flatnonzero(disc.any(1)):
-            k = np.flatnonzero(known[i])
-            f = np.flatnonzero(disc[i])
-            if len(k) == 0 or k.min() > f.min() or k.max() < f.max():
-                continue  # white on both sides of the disc only
-            for ch in range(3):
-                rows[i, f, ch] = np.interp(cols[f], k, out[i, k, ch])
-            wrow[i, f] = 1.0
+        rows, wrow = _row_interp(tel, out, known, disc)
         wv = (np.clip((d_lid - 0.5) / 2.0, 0.0, 1.0) * wrow)[..., None]
         fill = wv * rows + (1.0 - wv) * tel
         fill = cv2.GaussianBlur(fill, (0, 0), max(0.6, 0.25 * radius))
@@ -142,18 +132,75 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         near = lab[margin] - 1
         out[margin] = out[iy[near], ix[near]]
     ph, pw = opening.shape
-    for j in range(pw):
-        r_in = np.flatnonzero(opening[:, j])
-        if len(r_in) == 0:
-            continue
-        out[: r_in[0], j] = out[r_in[0], j]
-        out[r_in[-1] + 1:, j] = out[r_in[-1], j]
-    empty = ~opening.any(0)
-    if empty.any() and (~empty).any():
-        full = np.flatnonzero(~empty)
-        for e in np.flatnonzero(empty):
-            out[:, e] = out[:, full[np.argmin(np.abs(full - e))]]
+    full = np.flatnonzero(opening.any(0))
+    if len(full):
+        # each column above / below its opening repeats its first / last row inside, a column
+        # without opening the nearest column with one (the smaller on a tie)
+        top = np.argmax(opening, 0)
+        bot = ph - 1 - np.argmax(opening[::-1], 0)
+        src = full[np.abs(np.arange(pw)[:, None] - full[None, :]).argmin(1)]
+        yy = np.arange(ph)[:, None]
+        out = out[np.clip(yy, top[src][None, :], bot[src][None, :]), src[None, :]]
     return out
+
+
+def _row_interp(tel: np.ndarray, out: np.ndarray, known: np.ndarray, disc: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``tel`` (h, w, 3) with, in each row whose disc pixels have known pixels on both sides,
+    the disc interpolated linearly between its nearest known pixels of ``out`` left and
+    right (``np.interp``'s arithmetic, float64, stored as float32), and the weight (h, w)
+    that is 1 there. All rows at once: the nearest known column either side of each pixel is
+    a running max / min along the row."""
+    h, w = disc.shape
+    rows = tel.copy()
+    wrow = np.zeros((h, w), np.float32)
+    cols = np.arange(w)
+    left = np.maximum.accumulate(np.where(known, cols, -1), axis=1)
+    right = np.minimum.accumulate(np.where(known, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    # rows whose disc lies between known pixels (np.interp would else hold the end values)
+    dmin = np.where(disc, cols, w).min(1)
+    dmax = np.where(disc, cols, -1).max(1)
+    kmin = np.where(known, cols, w).min(1)
+    kmax = np.where(known, cols, -1).max(1)
+    ok = disc.any(1) & (kmin <= dmin) & (kmax >= dmax)
+    iy, ix = np.nonzero(disc & ok[:, None])
+    if len(iy):
+        kl, kr = left[iy, ix], right[iy, ix]  # kl < ix < kr: the disc is not known
+        yl = out[iy, kl].astype(np.float64)
+        yr = out[iy, kr].astype(np.float64)
+        x, xl, xr = ix.astype(np.float64), kl.astype(np.float64), kr.astype(np.float64)
+        slope = (yr - yl) / (xr - xl)[:, None]
+        rows[iy, ix] = slope * (x - xl)[:, None] + yl
+        wrow[iy, ix] = 1.0
+    return rows, wrow
+
+def _column_percentile(vals: np.ndarray, valid: np.ndarray, q: float) -> np.ndarray:
+    """Per column, the ``q``-th percentile of ``vals[valid]`` (h, w) -> (w,): the values of
+    ``np.nanpercentile(np.where(valid, vals, nan), q, axis=0)`` bit for bit (its linear
+    interpolation, in the same order and precision), with one sort for all columns instead of
+    one call per column. A column without valid values gives NaN."""
+    n = valid.sum(0)
+    s = np.sort(np.where(valid, vals, np.inf), axis=0)  # the invalid ones last
+    vi = (n - 1) * np.true_divide(q, 100)
+    prev_f = np.floor(vi)
+    gamma = vi - prev_f
+    prev = prev_f.astype(np.intp)
+    nxt = prev + 1
+    last = np.maximum(n - 1, 0)
+    top = vi >= n - 1
+    prev[top], nxt[top] = last[top], last[top]
+    low = vi < 0
+    prev[low], nxt[low] = 0, 0
+    a = np.take_along_axis(s, prev[None], 0)[0]
+    b = np.take_along_axis(s, nxt[None], 0)[0]
+    with np.errstate(invalid="ignore"):  # (inf - inf in a column without valid values)
+        d = b - a
+        out = a + d * gamma.astype(vals.dtype)
+        hi = gamma >= 0.5
+        out[hi] = (b - d * (1.0 - gamma).astype(vals.dtype))[hi]
+    out[n == 0] = np.nan
+    return out
+
 
 #: How much darker the white gets far above / below the lids' bands (a lit ball's top)
 BALL_SHADE = 0.05
@@ -190,9 +237,7 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     mid_rows = opening & (yy >= ref_t[None, :]) & (yy <= ref_b[None, :])
     mid_rows |= opening & ~mid_rows.any(0)[None, :]
     lum = plate @ np.array([0.299, 0.587, 0.114], np.float32)
-    lum_m = np.where(mid_rows, lum, np.nan)
-    with np.errstate(all="ignore"):
-        thr = np.nanpercentile(lum_m[:, cols], 80, axis=0)
+    thr = _column_percentile(lum[:, cols], mid_rows[:, cols], 80)
     sel = np.zeros_like(opening)
     sel[:, cols] = mid_rows[:, cols] & (lum[:, cols] >= thr[None, :] - 1e-3)
     cnt = sel.sum(0)
@@ -209,11 +254,12 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     d_b = np.maximum(yy - ref_b[None, :], 0.0)
     shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
     shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
-    above = (yy < ref_t[None, :])[..., None]
-    below = (yy > ref_b[None, :])[..., None]
-    out = np.where(above, c_t[None] * shade_t, out)
-    out = np.where(below, c_b[None] * shade_b, out)
-    return out.astype(np.float32)
+    # (the float64 colours written only where they go, rounded to float32 as before)
+    for side, c, shade in ((yy < ref_t[None, :], c_t, shade_t),
+                           (yy > ref_b[None, :], c_b, shade_b)):
+        iy, ix = np.nonzero(side)
+        out[iy, ix] = c[ix] * shade[iy, ix]
+    return out
 
 
 def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.ndarray,
@@ -334,8 +380,8 @@ class EyePlan:
                      cv2.LINE_8, 4)
         cx, cy, r = _iris_edges(patch, opening, cx - x0, cy - y0, r, ex, ey)
         cx, cy = cx + x0, cy + y0
-        yy, xx = np.mgrid[0:ph, 0:pw].astype(np.float64)
-        rho = np.hypot(xx + x0 - cx, yy + y0 - cy)
+        rho = np.hypot((np.arange(pw, dtype=np.float64) + x0 - cx)[None, :],
+                       (np.arange(ph, dtype=np.float64) + y0 - cy)[:, None])
         r_fill = r + max(1.5, 0.3 * r)  # the limbus and its blur go too (no ring remnant)
         plate = _white_plate(patch, opening > 0, rho, r_fill, r)
         # iris sprite: visible = inside the opening, one pixel clear of the lid edge

@@ -385,8 +385,11 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
 # ---------------------------------------------------------------------------- photo analysis
 def _bright(patch: np.ndarray, skin_l: float) -> np.ndarray:
     """Teeth-like pixels: at least 0.8 of the skin's luminance, weakly coloured."""
-    mx = patch.max(2)
-    return (_lum(patch) >= 0.8 * skin_l) & ((mx - patch.min(2)) < 0.35 * np.maximum(mx, 1.0))
+    # (the channels' max / min pairwise: a reduction over an axis of 3 is several times slower)
+    r, g, b = patch[..., 0], patch[..., 1], patch[..., 2]
+    mx = np.maximum(np.maximum(r, g), b)
+    mn = np.minimum(np.minimum(r, g), b)
+    return (_lum(patch) >= 0.8 * skin_l) & ((mx - mn) < 0.35 * np.maximum(mx, 1.0))
 
 
 def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray | None:
@@ -427,33 +430,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     binary = _poly_mask((ph, pw), poly, off) > 0
     cov = _coverage(poly, (x0, y0, x1, y1), dilate=1)
     bright = binary & _bright(patch, skin_l)
-    split = np.full(pw, np.nan)
-    weight = np.zeros(pw)
-    first = np.full(pw, -1)
-    gap = np.zeros(pw, bool)
-    col_top = np.zeros(pw, np.int64)
-    sliver = np.zeros(pw, bool)
-    for j in np.flatnonzero(binary.any(0)):
-        rows = np.flatnonzero(binary[:, j])
-        top, bot = int(rows[0]), int(rows[-1])
-        weight[j] = 1.0
-        sliver[j] = bot - top < 2
-        col_top[j] = top
-        b = bright[top:bot + 1, j].copy()
-        if b.any():
-            b[1:-1] |= b[:-2] & b[2:]  # bridge one-pixel dips
-            f = int(np.argmax(b))
-            e = f
-            while e + 1 < len(b) and b[e + 1]:
-                e += 1
-            # the skull part ends with the teeth (their tips), also where they reach the
-            # lower lip: the lip's darker inner edge rides with the jaw, not with the teeth
-            split[j] = top + e + 0.5
-            gap[j] = top + e + 1 <= bot
-            if f <= 1:
-                first[j] = top + f
-        else:
-            split[j] = 0.5 * (top + bot)
+    split, weight, first, gap, col_top, sliver = _teeth_columns(binary, bright)
     ok = np.flatnonzero(~np.isnan(split))
     kern = np.ones(5) / 5.0
     if len(ok):
@@ -488,12 +465,14 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         mid = span[np.abs(span - 0.5 * (span[0] + span[-1])) <= max(0.15 * len(span), 1.0)]
         seen = float(np.median(split[mid] - col_top[mid])) if len(mid) else 0.0
         hidden = max(CROWN * D - seen, 0.0)
-        for j, jn in zip(span, near, strict=True):
-            top = col_top[j]  # first row of the opening in this column
-            g = _smoothstep((top - np.arange(top) - hidden) / fade)[:, None]
-            rgb_up[:top, j] = (1.0 - g) * patch[first[jn], jn] + g * gum
-            own_up[:top, j] = np.maximum(own_up[:top, j], ext_w[j])
-            ext_mask[:top, j] = 1.0
+        # (all columns at once: the rows above each column's opening)
+        top = col_top[span]  # first row of the opening in each column
+        yi, ji = np.nonzero(np.arange(ph)[:, None] < top[None, :])
+        j = span[ji]
+        g = _smoothstep((top[ji] - yi - hidden) / fade)[:, None]
+        rgb_up[yi, j] = (1.0 - g) * patch[first[near[ji]], near[ji]] + g * gum
+        own_up[yi, j] = np.maximum(own_up[yi, j], ext_w[j])
+        ext_mask[yi, j] = 1.0
     below = ys >= split[None, :]
     has_low = int((bright & below & gap[None, :]).sum()) >= 12
     if not has_low:
@@ -512,6 +491,39 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
             has_low, sliver.astype(np.float32), ext_mask)
 
 
+
+
+def _teeth_columns(binary: np.ndarray, bright: np.ndarray):
+    """Per column of the mouth opening ``binary`` (h, w) with teeth-like pixels ``bright``
+    (inside it): ``split`` (w,) the row between the skull and jaw parts (NaN without
+    opening), ``weight`` 1 where the column has opening, ``first`` the row where teeth start
+    at the opening's top (at most a pixel below it; else -1), ``gap`` whether opening is left
+    below the teeth, the opening's first row ``col_top`` and whether it is a ``sliver`` (at
+    most two pixels). All columns at once (see :func:`_own_interior`)."""
+    ph, pw = binary.shape
+    has = binary.any(0)
+    top = np.argmax(binary, 0)
+    bot = ph - 1 - np.argmax(binary[::-1], 0)
+    weight = has.astype(np.float64)
+    sliver = has & (bot - top < 2)
+    col_top = np.where(has, top, 0).astype(np.int64)
+    # bridge one-pixel dips of the teeth inside each column's opening (``bright`` is within
+    # it, so a dip's two neighbours are too)
+    b = bright.copy()
+    b[1:-1] |= bright[:-2] & bright[2:]
+    teeth = has & b.any(0)
+    f = np.argmax(b, 0)  # first teeth row
+    # the first run of teeth ends before the first non-teeth row below its start
+    yy = np.arange(ph)[:, None]
+    after = np.vstack([~b & (yy > f[None, :]), np.ones((1, pw), bool)])
+    e = np.argmax(after, 0) - 1  # the run's last row
+    # the skull part ends with the teeth (their tips), also where they reach the lower lip:
+    # the lip's darker inner edge rides with the jaw, not with the teeth
+    split = np.where(teeth, e + 0.5, 0.5 * (top + bot))
+    split[~has] = np.nan
+    gap = teeth & (e + 1 <= bot)
+    first = np.where(teeth & (f - top <= 1), f, -1)
+    return split, weight, first, gap, col_top, sliver
 
 
 def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray,

@@ -89,20 +89,45 @@ def _sat(rgb: np.ndarray) -> float:
     return float((c.max() - c.min()) / max(c.max(), 1e-6))
 
 
-def _tint(rgba: np.ndarray, sat: float, gain: np.ndarray) -> np.ndarray:
-    """Desaturate to ``sat`` and scale per channel; returns premultiplied RGBA."""
-    c = rgba[..., :3]
-    lum = _lum(c)[..., None]
-    c = (lum + sat * (c - lum)) * gain[None, None, :]
-    c = np.clip(c, 0, 255) * rgba[..., 3:4]
-    return np.dstack([c, rgba[..., 3:4]]).astype(np.float32)
+@lru_cache(maxsize=1)
+def _texture_parts() -> dict[str, tuple[np.ndarray, ...]]:
+    """Per texture, what :func:`_tint` and :func:`_opaque_mean` take from it whatever the
+    photo, in channel planes: the luminance (h, w), the chroma ``colour - luminance``
+    (3, h, w) and the alpha (h, w); over the opaque pixels (alpha > 0.9) their luminance (n,)
+    and chroma (3, n). (The same values as computed on the (h, w, 3) colours; planes, because
+    numpy is several times slower spreading an (h, w, 1) array over 3 channels.)"""
+    out = {}
+    for name, rgba in load_textures().items():
+        c = rgba[..., :3]
+        lum = _lum(c)[..., None]
+        co = c[rgba[..., 3] > 0.9]
+        lum_o = _lum(co)[:, None]
+        out[name] = tuple(np.ascontiguousarray(x) for x in (
+            lum[..., 0], (c - lum).transpose(2, 0, 1), rgba[..., 3], lum_o[:, 0],
+            (co - lum_o).T))
+    return out
 
 
-def _opaque_mean(rgba: np.ndarray, sat: float) -> np.ndarray:
-    a = rgba[..., 3] > 0.9
-    c = rgba[..., :3][a]
-    lum = _lum(c)[:, None]
-    return (lum + sat * (c - lum)).mean(0)
+def _tint(name: str, sat: float, gain: np.ndarray) -> np.ndarray:
+    """Texture ``name`` desaturated to ``sat`` and scaled per channel: premultiplied RGBA
+    (h, w, 4) float32, ``clip((lum + sat (c - lum)) gain, 0, 255) alpha`` per channel."""
+    lum, chroma, alpha = _texture_parts()[name][:3]
+    c = sat * chroma
+    c += lum
+    c *= np.asarray(gain, np.float32)[:, None, None]
+    np.clip(c, 0, 255, out=c)
+    c *= alpha
+    return np.asarray(cv2.merge([c[0], c[1], c[2], alpha]), np.float32)
+
+
+def _opaque_mean(name: str, sat: float) -> np.ndarray:
+    """Mean colour (3,) float32 of texture ``name``'s opaque pixels desaturated to ``sat``:
+    the values of ``(lum + sat (c - lum)).mean(0)`` over the (n, 3) pixels, whose float32
+    sums run through the pixels in order (here a cumulative sum per channel plane)."""
+    lum, chroma = _texture_parts()[name][3:]
+    x = sat * chroma
+    x += lum
+    return np.true_divide(np.cumsum(x, axis=1)[:, -1], len(lum))
 
 
 def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | None
@@ -221,19 +246,19 @@ class MouthPlan:
             size[name] = (H * tw / th, H)
         th, tw = raw["tongue"].shape[:2]
         size["tongue"] = (mw, mw * th / tw)
-        ivory = _opaque_mean(raw["upper_teeth"], sat)
+        ivory = _opaque_mean("upper_teeth", sat)
         target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
-        tongue_mean = _opaque_mean(raw["tongue"], sat)
+        tongue_mean = _opaque_mean("tongue", sat)
         gain_g = np.full(3, TONGUE_L * skin_l / max(float(_lum(tongue_mean)), 1.0), np.float32)
-        tex = {}
+        tex, tinted = {}, {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0),
                                   ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
-            t = _tint(raw[name], sat, gain * shade)
+            t = tinted[name] = _tint(name, sat, gain * shade)
             wpx, hpx = size[name]
             tw_, th_ = max(int(round(wpx)), 2), max(int(round(hpx)), 2)
             tex[name] = cv2.resize(t, (tw_, th_), interpolation=cv2.INTER_AREA)
-        t = _tint(raw["upper_teeth"], sat, gain_t)
+        t = tinted["upper_teeth"]  # (its gain is gain_t: times a shade of 1.0 is the same)
         gum = t[: max(1, t.shape[0] // 8)].reshape(-1, 4)
         gum = gum[gum[:, 3] > 0.5]
         gum_rgb = (gum[:, :3] / gum[:, 3:4]).mean(0) if len(gum) else 0.6 * target

@@ -1,0 +1,170 @@
+"""The per-face plan build (the first render's photo analysis) computes vectorised what it
+used to compute row by row, column by column or triangle by triangle: each vectorised helper
+gives the same values, bit for bit, as the straightforward computation it replaces (kept here as
+the reference), on random inputs and on the sample's mesh."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from editor.engine import creases, gaze, layers, mouth
+
+
+def _random_masks(rng, n, max_h=50, max_w=40):
+    for trial in range(n):
+        h, w = int(rng.integers(1, max_h)), int(rng.integers(1, max_w))
+        yield trial, h, w, rng.random((h, w)) < rng.random()
+
+
+def test_column_percentile_is_nanpercentile():
+    rng = np.random.default_rng(5)
+    for trial, h, w, valid in _random_masks(rng, 1500):
+        dt = (np.float32, np.float64)[trial % 2]
+        vals = (rng.random((h, w)) * rng.choice([1.0, 255.0, 1e4])).astype(dt)
+        if trial % 3 == 0:
+            vals = np.round(vals)  # ties
+        if trial % 5:
+            valid[rng.integers(0, h)] = True  # (else some columns have no valid value)
+        q = (80, 20, 25, 90, 50)[trial % 5]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns
+            ref = np.nanpercentile(np.where(valid, vals, np.nan), q, axis=0)
+        got = gaze._column_percentile(vals, valid, q)
+        assert got.dtype == ref.dtype
+        assert np.array_equal(got, ref, equal_nan=True), (trial, q)
+
+
+def _row_interp_reference(tel, out, known, disc):
+    rows = tel.copy()
+    wrow = np.zeros(disc.shape, np.float32)
+    cols = np.arange(disc.shape[1])
+    for i in np.flatnonzero(disc.any(1)):
+        k = np.flatnonzero(known[i])
+        f = np.flatnonzero(disc[i])
+        if len(k) == 0 or k.min() > f.min() or k.max() < f.max():
+            continue
+        for ch in range(3):
+            rows[i, f, ch] = np.interp(cols[f], k, out[i, k, ch])
+        wrow[i, f] = 1.0
+    return rows, wrow
+
+
+def test_row_interp_is_np_interp_per_row():
+    rng = np.random.default_rng(6)
+    for trial, h, w, m in _random_masks(rng, 400):
+        disc = m & (rng.random((h, w)) < 0.5)
+        known = m & ~disc  # disjoint, as the white and the iris disc
+        tel = (rng.random((h, w, 3)) * 255).astype(np.float32)
+        out = (rng.random((h, w, 3)) * 255).astype(np.float32)
+        rows, wrow = gaze._row_interp(tel, out, known, disc)
+        ref_rows, ref_w = _row_interp_reference(tel, out, known, disc)
+        assert np.array_equal(rows, ref_rows) and np.array_equal(wrow, ref_w), trial
+
+
+def _teeth_columns_reference(binary, bright):
+    ph, pw = binary.shape
+    split = np.full(pw, np.nan)
+    weight = np.zeros(pw)
+    first = np.full(pw, -1)
+    gap = np.zeros(pw, bool)
+    col_top = np.zeros(pw, np.int64)
+    sliver = np.zeros(pw, bool)
+    for j in np.flatnonzero(binary.any(0)):
+        rows = np.flatnonzero(binary[:, j])
+        top, bot = int(rows[0]), int(rows[-1])
+        weight[j] = 1.0
+        sliver[j] = bot - top < 2
+        col_top[j] = top
+        b = bright[top:bot + 1, j].copy()
+        if b.any():
+            b[1:-1] |= b[:-2] & b[2:]
+            f = int(np.argmax(b))
+            e = f
+            while e + 1 < len(b) and b[e + 1]:
+                e += 1
+            split[j] = top + e + 0.5
+            gap[j] = top + e + 1 <= bot
+            if f <= 1:
+                first[j] = top + f
+        else:
+            split[j] = 0.5 * (top + bot)
+    return split, weight, first, gap, col_top, sliver
+
+
+def test_teeth_columns_is_the_column_loop():
+    rng = np.random.default_rng(7)
+    for trial, h, w, binary in _random_masks(rng, 600, 30, 30):
+        if trial % 2:  # (openings as they are: one run per column, a few gaps)
+            top = rng.integers(0, h, w)
+            binary = (np.arange(h)[:, None] >= top) & (np.arange(h)[:, None] <= top
+                                                        + rng.integers(0, h, w))
+            binary &= rng.random((h, w)) < 0.95
+        bright = binary & (rng.random((h, w)) < rng.random())
+        got = layers._teeth_columns(binary, bright)
+        ref = _teeth_columns_reference(binary, bright)
+        for g, r in zip(got, ref, strict=True):
+            assert g.dtype == r.dtype and np.array_equal(g, r, equal_nan=True), trial
+
+
+def test_locate_is_the_test_against_every_triangle(sample_face):
+    V = sample_face.vertices.astype(np.float64)
+    tris = sample_face.mesh.triangles
+    a, b, c = (V[tris[:, k]] for k in range(3))
+    e1, e2 = b - a, c - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+    rng = np.random.default_rng(8)
+    lo, hi = V.min(0), V.max(0)
+    sets = [lo - 20 + rng.random((800, 2)) * (hi - lo + 40),  # inside and outside the mesh
+            V[rng.integers(0, len(V), 400)],  # on vertices
+            0.5 * (V[tris[:, 0]] + V[tris[:, 1]]),  # on edges
+            V[rng.integers(0, len(V), 400)] + rng.normal(0, 0.3, (400, 2))]
+    for pts in sets:
+        ti, bary = creases._locate(pts, V, tris)
+        ref_t, ref_b = creases._locate_all(pts, a, e1, e2, det)
+        assert np.array_equal(ti, ref_t.astype(np.int32))
+        assert np.array_equal(bary, ref_b)
+
+
+def test_is_grey():
+    img = np.full((60, 80, 3), 120, np.uint8)
+    img[..., 0] = np.arange(80, dtype=np.uint8)[None, :]
+    img[..., 1] = img[..., 0]
+    img[..., 2] = img[..., 0]
+    assert creases._is_grey(img)
+    img[3, 5, 2] += 1  # one pixel off the sparse sample's grid
+    assert not creases._is_grey(img)
+    img[3, 5, 2] -= 1
+    img[7, 14, 1] += 1  # one on it
+    assert not creases._is_grey(img)
+
+
+@pytest.mark.parametrize("name", mouth.NAMES)
+def test_texture_tint_and_mean_are_the_pixel_formulas(name):
+    rgba = mouth.load_textures()[name]
+    c = rgba[..., :3]
+    for sat, gain in ((0.0, (1.0, 1.0, 1.0)), (0.37, (1.3, 0.9, 0.7)), (1.0, (2.5, 2.4, 2.6))):
+        g = np.array(gain, np.float32)
+        lum = mouth._lum(c)[..., None]
+        t = np.clip((lum + sat * (c - lum)) * g[None, None, :], 0, 255) * rgba[..., 3:4]
+        ref = np.dstack([t, rgba[..., 3:4]]).astype(np.float32)
+        assert np.array_equal(mouth._tint(name, sat, g), ref)
+        co = c[rgba[..., 3] > 0.9]
+        lo = mouth._lum(co)[:, None]
+        ref_mean = (lo + sat * (co - lo)).mean(0)
+        got = mouth._opaque_mean(name, sat)
+        assert got.dtype == ref_mean.dtype and np.array_equal(got, ref_mean)
+
+
+def test_fold_normals_are_the_gradients_turned():
+    rng = np.random.default_rng(9)
+    for n in (2, 3, 10, 28, 40):
+        pts = rng.normal(0, 50, (n, 2)).cumsum(0)
+        pts[n // 2] = pts[n // 2 - 1]  # a repeated point: a zero tangent there at most
+        tang = np.gradient(pts, axis=0)
+        tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-9)
+        ref = np.stack([-tang[:, 1], tang[:, 0]], 1)
+        assert np.array_equal(creases._normals(pts), ref)

@@ -85,11 +85,11 @@ def test_creases_false_is_the_old_render(sample_neutral):
     V = f.plan.n_vertices
     v = pts[:V]
     tf = f.layer_transforms(v)
-    from editor.engine.jawband import apply_jawband
+    from editor.engine.jawband import jaw_map
     from editor.engine.lidskin import apply_lid_skin
 
-    # (the jaw band and the lid skin are part of the warp)
-    base = apply_lid_skin(f, apply_jawband(f, warp(f.warp_plan, v, tf, cavity=False), v), v)
+    # (the jaw band's map and the lid skin are part of the warp)
+    base = apply_lid_skin(f, warp(f.warp_plan, v, tf, cavity=False, hook=jaw_map(f, v)), v)
     old = render_layers(f, base, v, pts[V:], vec, tf).image
     assert np.array_equal(f.render(vec, creases=False), old)
     assert not np.array_equal(f.render(vec), old)

@@ -43,7 +43,7 @@ from .faps import FAPS
 from .fapu import measure_fapu
 from .fitting import CLOSED_LIPS_MW, TEETH_RATIO, FaceFrame, fit_vertices, snap_inner_lips
 from .imageio import as_rgb8, load_image
-from .jawband import apply_jawband
+from .jawband import jaw_map
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
@@ -512,7 +512,7 @@ class Face:
         if extra is None:
             extra = self._deform(vec)[self.plan.n_vertices:]
         tf = self.layer_transforms(v)
-        w = apply_jawband(self, warp(self.warp_plan, v, tf, cavity=False), v)
+        w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v))
         w = apply_lid_skin(self, w, v)
         res = render_layers(self, w, v, extra, vec, tf)
         return apply_creases(self, res, v) if creases else res

@@ -6,30 +6,29 @@ squeezes that band between the lowered chin and the static ring: the neck's shad
 collar's edge shrink into thin, kinked lines that follow the band's triangles (a zig-zag seam
 under the chin), and the collar is dragged along.
 
-A real chin moves *over* the neck, which does not move. :func:`apply_jawband` puts the photo
-back on the band when the jaw moved outward (down or sideways, over what surrounds the face, by
-more than :data:`_OUT` px somewhere, and nowhere inward by more than a fraction of that): its
-pixels show the photo as it is, the chin ends on the deformed jaw line. All of the band or none
-of it: a band partly still and partly warped would tear along the triangle edge between the two
-(a head roll moves one side of the jaw in, the other out). The weight is the band's coverage
-(its outline filled anti-aliased), so at the jaw line's pixels the warped chin and the photo's
-neck blend. Where the jaw moves inward (a neutralised open mouth's chin comes up) the band keeps
-stretching as before: what the chin uncovers is not in the photo. The band's outer edge (the
-margin ring) does not move, so the photo meets the warp there without a seam.
+A real chin moves *over* the neck, which does not move, and carries its own underside (with
+its shadow). When the jaw moved outward (down or sideways, over what surrounds the face, by
+more than :data:`_OUT` px somewhere, and nowhere inward by more than a fraction of that),
+:func:`jaw_map` gives the warp a different backward map for the band's pixels: a strip just
+below the jaw line rides with the chin, then the photo fades back to itself (the neck, the
+collar). All of the band or none of it: a band partly remapped and partly warped would tear
+along the triangle edge between the two (a head roll moves one side of the jaw in, the other
+out). Where the jaw moves inward (a neutralised open mouth's chin comes up) the band keeps
+stretching as before: what the chin uncovers is not in the photo. The map is continuous with
+the chin's on the jaw line and with the still photo beyond the fade, so it needs no blending:
+one map, one resampling (the warp's own).
 """
 
 from __future__ import annotations
 
 import math
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-
-from .layers import _rebox, _to_uint8, _union
-from .warp import WarpResult
 
 if TYPE_CHECKING:
     from .face import Face
@@ -40,6 +39,8 @@ if TYPE_CHECKING:
 _OUT, _IN_SHARE = 0.25, 0.1
 #: the strip below the jaw line that rides with the chin (its underside, its shadow), IOD
 TAU = 0.08
+#: spacing (frame px) of the jaw line's table along the frame's x
+_STEP = 0.25
 
 
 @dataclass(eq=False)
@@ -48,7 +49,8 @@ class _Band:
     idx: np.ndarray  # (k,) the jaw contour's vertex indices
     normal: np.ndarray  # (k, 2) their outward unit normals on the photo's mesh
     rest: np.ndarray  # (k, 2) their positions on the photo's mesh
-    loop: np.ndarray | None  # the outline of all the band's triangles (vertex indices)
+    lut: np.ndarray  # (T + 4,) bool: a warp triangle id is one of the band's
+    ring: np.ndarray  # the band's outer vertices (the margin ring below the jaw)
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -72,32 +74,12 @@ def _band(face: Face) -> _Band:
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
     centre = face.vertices.astype(np.float64)[~ring].mean(0)
     nrm *= np.where(((p - centre) * nrm).sum(1) < 0, -1.0, 1.0)[:, None]
-    b = _Band(np.flatnonzero(sel), idx, nrm, p, _outline(tri[sel]))
+    lut = np.zeros(len(tri) + 4, bool)  # ids: triangles, the identity row, the 3 openings
+    lut[np.flatnonzero(sel)] = True
+    ring_v = np.unique(tri[sel][ring[tri[sel]]])
+    b = _Band(np.flatnonzero(sel), idx, nrm, p, lut, ring_v)
     _PLANS[face] = b
     return b
-
-
-def _outline(tris: np.ndarray) -> np.ndarray | None:
-    """The boundary of a set of triangles as one closed vertex loop, or None when it is not a
-    single simple loop."""
-    e = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), 1)
-    u, n = np.unique(e, axis=0, return_counts=True)
-    edges = u[n == 1]
-    nxt: dict[int, list[int]] = {}
-    for a, c in edges.tolist():
-        nxt.setdefault(a, []).append(c)
-        nxt.setdefault(c, []).append(a)
-    if not edges.size or any(len(x) != 2 for x in nxt.values()):
-        return None
-    loop, prev = [int(edges[0, 0])], -1
-    while True:
-        a, c = nxt[loop[-1]]
-        step = c if a == prev else a
-        prev = loop[-1]
-        if step == loop[0]:
-            break
-        loop.append(step)
-    return np.array(loop) if len(loop) == len(nxt) else None
 
 
 def still_triangles(face: Face, vertices: np.ndarray) -> np.ndarray | None:
@@ -112,67 +94,81 @@ def still_triangles(face: Face, vertices: np.ndarray) -> np.ndarray | None:
     return b.tris
 
 
-def apply_jawband(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
-    """The warp ``res`` with the photo put back under a jaw that moved outward (in place).
+def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
+    """A hook for :func:`~editor.engine.warp.warp` that gives the band's pixels the chin's
+    map, or None when the jaw did not move outward (see :func:`still_triangles`).
 
     Per column of the face frame (the jaw line is a function of the frame's x), a pixel at
     height ``d`` below the deformed jaw line shows the photo at ``d`` below the photo's jaw
-    line for ``d <= TAU`` (the jaw's underside and its shadow ride with the chin), then the
-    shift fades (smoothstep over ``R`` >= 1.5 x the largest drop, so the map stays monotonic)
-    into the photo itself (the neck, the collar).
+    line for ``d <= TAU`` (the jaw's underside and its shadow ride with the chin); then the
+    shift fades (smoothstep over 1.5 x the largest drop: the neck squeezed by at most about 2)
+    into the photo itself (the neck, the collar). Strip and fade fit into the room down to the
+    margin ring (a photo cropped close under the chin), so the map meets the photo there. On
+    the jaw line this is the chin's own map (both take the photo's jaw line, linear between its
+    vertices), so the two meet without a seam.
     """
     still = still_triangles(face, vertices)
     if still is None:
-        return res
-    img = res.image
-    H, W = img.shape[:2]
-    v = np.asarray(vertices, np.float64)
-    tri = v[face.mesh.triangles[still]]  # (n, 3, 2)
-    lo, hi = tri.reshape(-1, 2).min(0), tri.reshape(-1, 2).max(0)
-    x0, y0 = max(math.floor(lo[0]) - 1, 0), max(math.floor(lo[1]) - 1, 0)
-    x1, y1 = min(math.ceil(hi[0]) + 2, W), min(math.ceil(hi[1]) + 2, H)
-    if x1 <= x0 or y1 <= y0:
-        return res
-    h, w = y1 - y0, x1 - x0
+        return None
     b = _band(face)
-    if b.loop is not None:  # the band's outline in one anti-aliased fill
-        cov = np.zeros((h, w), np.uint8)
-        q = np.rint((v[b.loop] - (x0, y0)) * 16.0)
-        cv2.fillPoly(cov, [q.astype(np.int32)], 255, cv2.LINE_AA, 4)
-    else:  # each triangle filled on a 4 x 4 supersampled canvas (no cracks between them)
-        canvas = np.zeros((h * 4, w * 4), np.uint8)
-        # sample (i, j) of pixel (x, y) sits at x + (i + 0.5) / 4 - 0.5; 4 fractional bits
-        q = np.rint(((tri - (x0, y0) + 0.5) * 4 - 0.5) * 16.0)
-        for t in q.astype(np.int32):
-            cv2.fillConvexPoly(canvas, t, 255, cv2.LINE_8, 4)
-        cov = cv2.resize(canvas, (w, h), interpolation=cv2.INTER_AREA)
-    if not cov.any():
-        return res
-    # the jaw line now and in the photo, in the face frame, by x
+    v = np.asarray(vertices, np.float64)
+    tri = v[face.mesh.triangles[still]]
+    lo, hi = tri.reshape(-1, 2).min(0), tri.reshape(-1, 2).max(0)
     fr = face.frame
     new, old = fr.to_frame(v[b.idx]), fr.to_frame(b.rest)
-    order = np.argsort(old[:, 0])
+    order = np.argsort(new[:, 0])
     drop = new[:, 1] - old[:, 1]
+    ring = fr.to_frame(v[b.ring])
+    ring = ring[np.argsort(ring[:, 0])]
     tau = TAU * face.interocular
     ramp = max(1.5 * float(drop.max()), 2.0)
-    R, org = fr.rot, fr.origin
-    xs = np.arange(x0, x1, dtype=np.float64)[None, :] - org[0]
-    ys = np.arange(y0, y1, dtype=np.float64)[:, None] - org[1]
-    X = xs * R[0, 0] + ys * R[1, 0]  # frame coordinates of the box's pixels
-    Y = xs * R[0, 1] + ys * R[1, 1]
-    dy = np.interp(X, new[order, 0], drop[order])  # how far the jaw line dropped here
-    d = Y - np.interp(X, new[order, 0], new[order, 1])  # height below the new jaw line
-    u = np.clip((d - tau) / ramp, 0.0, 1.0)
-    shift = dy * (1.0 - u * u * (3.0 - 2.0 * u))  # the chin's drop, then none
-    mx = (X * R[0, 0] + (Y - shift) * R[0, 1] + org[0]).astype(np.float32)
-    my = (X * R[1, 0] + (Y - shift) * R[1, 1] + org[1]).astype(np.float32)
-    photo = cv2.remap(face.image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    a = cov.astype(np.float32) * np.float32(1.0 / 255.0)
-    view = img[y0:y1, x0:x1]
-    warped = view.astype(np.float32)
-    out = photo.astype(np.float32) - warped
-    out *= cv2.merge([a, a, a])
-    out += warped
-    _to_uint8(out, view)
-    bbox = _union(res.bbox, (x0, y0, x1, y1))
-    return res if bbox == res.bbox else _rebox(res, bbox, {})
+    lut = b.lut
+
+    def hook(ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
+             box: tuple[int, int, int, int]) -> None:
+        bx0, by0, bx1, by1 = box
+        x0, y0 = max(math.floor(lo[0]) - 1, bx0), max(math.floor(lo[1]) - 1, by0)
+        x1, y1 = min(math.ceil(hi[0]) + 2, bx1), min(math.ceil(hi[1]) + 2, by1)
+        if x1 <= x0 or y1 <= y0:
+            return
+        sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
+        sel = lut[ids[sub]]  # the band's pixels (as the warp's rasterizer gave them)
+        if not sel.any():
+            return
+        R, org = fr.rot, fr.origin
+        # the jaw line now and its drop along the frame's x, tabulated every _STEP px and
+        # read per pixel with one cv2.remap (np.interp per pixel costs several times more)
+        cx = np.array([x0, x1 - 1, x0, x1 - 1], np.float64) - org[0]
+        cy = np.array([y0, y0, y1 - 1, y1 - 1], np.float64) - org[1]
+        bx = cx * R[0, 0] + cy * R[1, 0]
+        lo_x = float(bx.min())
+        u = lo_x + _STEP * np.arange(int(np.ceil((float(bx.max()) - lo_x) / _STEP)) + 2)
+        table = np.empty((2, len(u), 4), np.float32)  # 2 rows: no border path on the last
+        table[:, :, 0] = np.interp(u, new[order, 0], new[order, 1])
+        table[:, :, 1] = np.interp(u, new[order, 0], drop[order])
+        # the room below the jaw line down to the margin ring: the strip and the fade fit in
+        # it, so that the map is the photo's own where the band meets the ring
+        room = np.maximum(np.interp(u, ring[:, 0], ring[:, 1]) - table[0, :, 0], 1.0)
+        t_strip = np.minimum(tau, 0.3 * room)
+        table[:, :, 2] = t_strip
+        table[:, :, 3] = np.maximum(np.minimum(ramp, room - t_strip), 0.5)
+        xs = (np.arange(x0, x1, dtype=np.float32) - np.float32(org[0]))[None, :]
+        ys = (np.arange(y0, y1, dtype=np.float32) - np.float32(org[1]))[:, None]
+        tx = (xs * np.float32(R[0, 0] / _STEP) - np.float32(lo_x / _STEP)) \
+            + ys * np.float32(R[1, 0] / _STEP)  # the pixel's frame x, in table steps
+        got = cv2.remap(table, tx, np.zeros_like(tx), cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REPLICATE)
+        d = xs * np.float32(R[0, 1]) + ys * np.float32(R[1, 1])  # the pixel's frame y ...
+        d -= got[..., 0]  # ... below the new jaw line
+        d -= got[..., 2]  # past the strip
+        d /= got[..., 3]  # over the fade
+        np.clip(d, 0.0, 1.0, out=d)
+        shift = (np.float32(3.0) - np.float32(2.0) * d) * d * d  # smoothstep
+        np.subtract(1.0, shift, out=shift)
+        shift *= got[..., 1]  # the chin's drop over its underside, then none
+        mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(R[0, 1])
+        my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(R[1, 1])
+        np.copyto(map_x[sub], mx, where=sel)
+        np.copyto(map_y[sub], my, where=sel)
+
+    return hook

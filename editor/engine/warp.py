@@ -17,6 +17,7 @@ interior of SPEC §3.1 draws over it when available). The openings are returned 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
@@ -118,7 +119,8 @@ _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None = None,
-         tol: float = 1e-3, cavity: bool = True) -> WarpResult:
+         tol: float = 1e-3, cavity: bool = True, hook: Callable[..., None] | None = None
+         ) -> WarpResult:
     """Warp the photo so that the neutral mesh ``plan.src`` lands on ``dst`` (V, 2).
 
     Only triangles with a vertex that moved by more than ``tol`` pixels are re-filled.
@@ -126,7 +128,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     affine map (source -> destination) of what lies behind it: the eyeball follows its eye's
     corners, the mouth interior follows the skull. Without it the openings are static.
     ``cavity=False`` skips the flat dark cavity (the caller composites its own mouth interior,
-    see :mod:`layers`).
+    see :mod:`layers`). ``hook(ids, map_x, map_y, box)``, when given, may change the backward
+    map of the box in place before it is applied (e.g. :func:`jawband.jaw_map`); the band path
+    of a moving margin (head rotation) does not call it.
     """
     img = plan.image
     h, w = img.shape[:2]
@@ -154,6 +158,8 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
                               (x0, y0, x1, y1))
     out = img.copy()
     ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0, y1 - y0)
+    if hook is not None:
+        hook(ids, map_x, map_y, (x0, y0, x1, y1))
     out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
                                   borderMode=cv2.BORDER_REPLICATE)
     return _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)

@@ -4,7 +4,7 @@
   canvas to H.264 MP4 with ``export_sequence`` (what ``fap-studio animate`` runs) with the
   default ``jobs`` (the cores but one; pool start-up included), against the serial path
   (``jobs`` = 1, ``fps_serial``) and a worker per core (``fps_jobsN``) in the same run;
-  ``encode_only_fps``: the H.264 encoder alone (x264 preset medium, CRF 18, as shipped) on
+  ``encode_only_fps``: the H.264 encoder alone (x264 preset veryfast, CRF 16, as shipped) on
   50 pre-rendered frames, the ceiling whatever renders the frames; target >= 80 frames/s;
 * ``fap_info``: ``fap-studio fap info`` on a 1 000 000-frame file, as a process (wall time and
   that child's own peak RSS (VmHWM); ``peak_rss_mb_tenth``: the same on a

@@ -791,6 +791,12 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     return _rebox(res, bbox, {})
 
 
+def _live_groups(fa, live: np.ndarray) -> list[tuple[int, int, int]]:
+    """``(group, first segment, end)`` of every fold group with a ``live`` segment."""
+    return [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
+            if g1 > g0 and np.count_nonzero(live[g0:g1])]
+
+
 def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int],
                  canvases: list) -> list[tuple[int, tuple[int, int, int, int], int]]:
     """Each fold group with a sample above :data:`_MIN_STRENGTH`: its box and two canvases
@@ -799,9 +805,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
     fa = _fast(face)
     H, W = shape
     sa, sb = s[fa.seg_a], s[fa.seg_b]
-    live = np.maximum(sa, sb) > _MIN_STRENGTH
-    groups = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
-              if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    groups = _live_groups(fa, np.maximum(sa, sb) > _MIN_STRENGTH)
     if not groups:
         return []
     (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
@@ -1033,9 +1037,7 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
     fa = _fast(face)
     H, W = shape
     ua, ub = un[fa.seg_a], un[fa.seg_b]
-    live = np.maximum(ua, ub) > _MIN_UNFOLD
-    groups = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
-              if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    groups = _live_groups(fa, np.maximum(ua, ub) > _MIN_UNFOLD)
     if not groups:
         return []
     (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)

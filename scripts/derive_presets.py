@@ -169,6 +169,11 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "b_mid": (-190, "AU16 lower lip depressor (disgust prototype): median -162 (outer -122) "
                         "MNS, p10 -411 (outer -336)"),
         "nose": (20, "AU9 widens the nose wings a little (median 10/-3, p90 24/34)"),
+        "brow_i": (-95, "AU4 brow lowerer, with AU9 the brows come down in JAFFE disgust "
+                        "(median -75/-57 ENS, p10 -115/-145): the fitted median read as a "
+                        "snarl without them; towards p10, as for anger; 150 % stays above "
+                        "the real min (-147 on the left)"),
+        "brow_m": (-100, "as brow_i (median -92/-66, p10 -145/-178, min -158 on the left)"),
     },
 }
 

@@ -41,6 +41,8 @@ _OUT, _IN_SHARE = 0.25, 0.1
 TAU = 0.08
 #: spacing (frame px) of the jaw line's table along the frame's x
 _STEP = 0.25
+#: node spacing (px) of the band's shift on a band box larger than _COARSE_AREA pixels
+_COARSE, _COARSE_AREA = 4, 60_000
 
 
 @dataclass(eq=False)
@@ -152,20 +154,29 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
         t_strip = np.minimum(tau, 0.3 * room)
         table[:, :, 2] = t_strip
         table[:, :, 3] = np.maximum(np.minimum(ramp, room - t_strip), 0.5)
-        xs = (np.arange(x0, x1, dtype=np.float32) - np.float32(org[0]))[None, :]
-        ys = (np.arange(y0, y1, dtype=np.float32) - np.float32(org[1]))[:, None]
+        w, h = x1 - x0, y1 - y0
+        # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
+        # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
+        # than a tenth of a pixel); on a small one at every pixel
+        s = _COARSE if w * h > _COARSE_AREA else 1
+        nw, nh = (-(-w // s) + 1, -(-h // s) + 1) if s > 1 else (w, h)
+        off = 0.5 * s - 0.5
+        xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(org[0]))[None, :]
+        ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(org[1]))[:, None]
         tx = (xs * np.float32(R[0, 0] / _STEP) - np.float32(lo_x / _STEP)) \
             + ys * np.float32(R[1, 0] / _STEP)  # the pixel's frame x, in table steps
-        got = cv2.remap(table, tx, np.zeros_like(tx), cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
+        got = cv2.split(cv2.remap(table, tx, np.zeros_like(tx), cv2.INTER_LINEAR,
+                                  borderMode=cv2.BORDER_REPLICATE))
         d = xs * np.float32(R[0, 1]) + ys * np.float32(R[1, 1])  # the pixel's frame y ...
-        d -= got[..., 0]  # ... below the new jaw line
-        d -= got[..., 2]  # past the strip
-        d /= got[..., 3]  # over the fade
+        d -= got[0]  # ... below the new jaw line
+        d -= got[2]  # past the strip
+        d /= got[3]  # over the fade
         np.clip(d, 0.0, 1.0, out=d)
         shift = (np.float32(3.0) - np.float32(2.0) * d) * d * d  # smoothstep
         np.subtract(1.0, shift, out=shift)
-        shift *= got[..., 1]  # the chin's drop over its underside, then none
+        shift *= got[1]  # the chin's drop over its underside, then none
+        if s > 1:
+            shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
         mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(R[0, 1])
         my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(R[1, 1])
         np.copyto(map_x[sub], mx, where=sel)

@@ -41,8 +41,9 @@ _OUT, _IN_SHARE = 0.25, 0.1
 TAU = 0.08
 #: spacing (frame px) of the jaw line's table along the frame's x
 _STEP = 0.25
-#: node spacing (px) of the band's shift on a band box larger than _COARSE_AREA pixels
-_COARSE, _COARSE_AREA = 4, 60_000
+#: node spacing (px) of the band's shift on a band box larger than _COARSE_AREA pixels (a
+#: 1080p face and up; the sample's and JAFFE's boxes are smaller: every pixel)
+_COARSE, _COARSE_AREA = 4, 20_000
 
 
 @dataclass(eq=False)

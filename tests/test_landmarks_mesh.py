@@ -179,6 +179,11 @@ def test_bad_inputs(tmp_path):
     (tmp_path / "huge.png").write_bytes(bytes(head) + data[33:])
     with pytest.raises(ImageError, match="megapixels"):
         load_image(tmp_path / "huge.png")
+    # a PNG signature whose first chunk is not IHDR (two signatures, then the file): corrupt,
+    # not "13 x 1229472850 pixels" (the chunk's length and type read as a size)
+    (tmp_path / "twice.png").write_bytes(data[:8] + data[:5000])
+    with pytest.raises(ImageError, match="not an image, or a corrupt or truncated one"):
+        load_image(tmp_path / "twice.png")
     cv2.imwrite(str(tmp_path / "flat.png"), np.full((300, 300, 3), 127, np.uint8))
     with pytest.raises(NoFaceError):
         Face.from_image(tmp_path / "flat.png")

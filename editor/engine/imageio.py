@@ -31,6 +31,8 @@ import cv2  # noqa: E402  (after the environment variable above)
 def _header_size(data: bytes) -> tuple[int, int] | None:
     """Width and height from a PNG or JPEG header without decoding; None if unknown."""
     if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
+        if data[12:16] != b"IHDR":  # not a PNG's first chunk: the decoder will refuse it
+            return None
         w, h = struct.unpack(">II", data[16:24])
         return int(w), int(h)
     if data[:2] == b"\xff\xd8":

@@ -348,11 +348,23 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="exit with code 1 (naming the rows) when any row misses its goal "
                         "(\"ok\": false); for people, not CI: timings are noisy")
     parser.add_argument("--only", metavar="ROW[,ROW...]",
-                        help="run just the named rows of the core benchmarks (e.g. "
-                        "render_vs_engine; the env row always)")
+                        help="run just the named rows of the core benchmarks (the env row "
+                        "always): " + ", ".join(ROWS))
     args = parser.parse_args(argv)
     args.only = set(args.only.split(",")) if args.only else None
+    if args.only and args.only - set(ROWS):
+        parser.error(f"unknown row: {', '.join(sorted(args.only - set(ROWS)))}; the rows: "
+                     + ", ".join(ROWS))
     return args
+
+
+#: the core rows ``--only`` selects
+ROWS = ("cli_help_s", "gui_ready_s", "imread", "open_fit_render", "fap_reject_huge_header",
+        "facs_fit", "photo_to_landmarks", "fap_info", "animate_fps", "study_create",
+        "face_from_image", "fap_to_image", "remap_full_frame", "ratio_fap_to_image_vs_remap",
+        "deform_warp_no_layers", "ratio_deform_warp_vs_remap", "layers_cost",
+        "render_vs_engine", "creases_cost", "skimage_piecewise_affine", "speedup_vs_skimage",
+        "fap_to_image_head_rotation", "warp_plan_build", "deform_batch100")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -74,3 +74,15 @@ def test_bench_only_selects_the_named_rows():
     assert _parse_args(["--only", "render_vs_engine"]).only == {"render_vs_engine"}
     assert _parse_args(["--only=render_vs_engine,creases_cost"]).only == {"render_vs_engine",
                                                                            "creases_cost"}
+
+
+def test_bench_only_refuses_an_unknown_row(capsys):
+    """A mistyped row is named with the list of rows (it ran nothing before: no output)."""
+    from editor.bench import ROWS, _parse_args
+
+    with pytest.raises(SystemExit) as e:
+        _parse_args(["--only", "render_vs_engin"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "unknown row: render_vs_engin" in err and "render_vs_engine" in err
+    assert {"render_vs_engine", "warp_plan_build", "animate_fps"} <= set(ROWS)

@@ -6,6 +6,7 @@ No timings here: the speed targets live in ``python -m editor.bench`` (``render_
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from editor.engine.deform import _topology
 from editor.engine.laplacian import _closest_on_triangles, landmark_map

@@ -302,6 +302,10 @@ def _eye_polygon(points: np.ndarray, eye: int) -> np.ndarray:
     return points[36 + 6 * eye : 42 + 6 * eye]
 
 
+#: The largest eye width (px) :func:`locate_iris` searches at; wider eyes are downsampled to it.
+IRIS_WORK_WIDTH = 100.0
+
+
 def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int,
                 near: Iris | None = None) -> Iris:
     """Find the iris circle of one eye (``eye`` 0 = image left = subject's right).
@@ -325,14 +329,19 @@ def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int,
     fallback = near or Iris(float(centre[0]), float(centre[1]), 0.21 * max(width, 1.0))
     if width < 8:
         return fallback
-    s = max(1.0, 40.0 / width)  # work at >= 40 px eye width
+    # work at an eye width of 40-100 px: small eyes upsampled, large ones (a 24 MP portrait's
+    # are ~400 px wide) downsampled, where the disc filters cost ~ width^4 and the dark disc's
+    # edge is as well found (the radii searched are the same fractions of the eye)
+    s = max(1.0, 40.0 / width) if width <= IRIS_WORK_WIDTH else IRIS_WORK_WIDTH / width
     pad = int(0.5 * width) + 2
     x0, y0 = int(max(0, poly[:, 0].min() - pad)), int(max(0, poly[:, 1].min() - pad))
     x1 = int(min(rgb.shape[1], poly[:, 0].max() + pad))
     y1 = int(min(rgb.shape[0], poly[:, 1].max() + pad))
     roi: np.ndarray = cv2.cvtColor(rgb[y0:y1, x0:x1], cv2.COLOR_RGB2GRAY).astype(np.float32)
-    if s != 1.0:
+    if s > 1.0:
         roi = cv2.resize(roi, None, fx=s, fy=s, interpolation=cv2.INTER_CUBIC)
+    elif s < 1.0:
+        roi = cv2.resize(roi, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
     mask = np.zeros(roi.shape, np.uint8)
     cv2.fillPoly(mask, [np.round((poly - (x0, y0)) * s * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
     if mask.sum() < 20:

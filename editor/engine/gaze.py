@@ -163,8 +163,8 @@ def _telea(patch: np.ndarray, disc: np.ndarray, radius: float) -> np.ndarray:
     ph, pw = disc.shape
     sw, sh = max(1, round(pw * f)), max(1, round(ph * f))
     small = cv2.resize(patch, (sw, sh), interpolation=cv2.INTER_AREA)
-    sdisc = cv2.resize(disc.astype(np.float32), (sw, sh), interpolation=cv2.INTER_AREA) > 0
-    sdisc = cv2.dilate(sdisc.astype(np.uint8), np.ones((3, 3), np.uint8))
+    cover = cv2.resize(disc.astype(np.float32), (sw, sh), interpolation=cv2.INTER_AREA) > 0
+    sdisc = cv2.dilate(cover.astype(np.uint8), np.ones((3, 3), np.uint8))
     tel_s = cv2.inpaint(small, sdisc, max(2.0, 0.5 * PLATE_WORK_R), cv2.INPAINT_TELEA)
     up = cv2.resize(tel_s.astype(np.float32), (pw, ph), interpolation=cv2.INTER_LINEAR)
     return np.where(disc[..., None], up, patch.astype(np.float32))

@@ -308,23 +308,39 @@ def _maps(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
     M = np.stack([m00, m01, m02, m10, m11, m12], 1)
     table[moved_t[ok]] = M[ok]
     # per-pixel coefficients: a nearest-neighbour remap from a 1 x rows table is the fastest
-    # gather OpenCV/numpy offer (ids are exact integers in float32)
-    fid = ids.astype(np.float32)
-    zero = np.zeros_like(fid)
-    cx = cv2.remap(np.ascontiguousarray(table[None, :, :3]), fid, zero, cv2.INTER_NEAREST)
-    cy = cv2.remap(np.ascontiguousarray(table[None, :, 3:]), fid, zero, cv2.INTER_NEAREST)
+    # gather OpenCV/numpy offer (ids are exact integers in float32); in bands of rows, so the
+    # gathered coefficients (10 floats a pixel) never exist for the whole box (a 24 MP face's
+    # box: ~200 MB of temporaries, each page faulted in on first use)
+    tx = np.ascontiguousarray(table[None, :, :3])
+    ty = np.ascontiguousarray(table[None, :, 3:])
+    tb = np.ascontiguousarray(plan._src_box[None])
     xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
     ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
-    map_x = cx[..., 0] * xs
-    map_x += cx[..., 1] * ys
-    map_x += cx[..., 2]
-    map_y = cy[..., 0] * xs
-    map_y += cy[..., 1] * ys
-    map_y += cy[..., 2]
-    box = cv2.remap(np.ascontiguousarray(plan._src_box[None]), fid, zero, cv2.INTER_NEAREST)
-    np.clip(map_x, box[..., 0], box[..., 2], out=map_x)
-    np.clip(map_y, box[..., 1], box[..., 3], out=map_y)
+    map_x = np.empty((ny, nx), np.float32)
+    map_y = np.empty((ny, nx), np.float32)
+    rows = max(1, _MAP_BAND_PX // max(nx, 1))
+    for r0 in range(0, ny, rows):
+        r1 = min(r0 + rows, ny)
+        fid = ids[r0:r1].astype(np.float32)
+        zero = np.zeros_like(fid)
+        cx = cv2.remap(tx, fid, zero, cv2.INTER_NEAREST)
+        cy = cv2.remap(ty, fid, zero, cv2.INTER_NEAREST)
+        yr = ys[r0:r1]
+        mx, my = map_x[r0:r1], map_y[r0:r1]
+        np.multiply(cx[..., 0], xs, out=mx)
+        mx += cx[..., 1] * yr
+        mx += cx[..., 2]
+        np.multiply(cy[..., 0], xs, out=my)
+        my += cy[..., 1] * yr
+        my += cy[..., 2]
+        box = cv2.remap(tb, fid, zero, cv2.INTER_NEAREST)
+        np.clip(mx, box[..., 0], box[..., 2], out=mx)
+        np.clip(my, box[..., 1], box[..., 3], out=my)
     return ids, map_x, map_y
+
+
+#: Pixels per band of rows in which :func:`_maps` gathers its per-pixel coefficients.
+_MAP_BAND_PX = 1 << 18
 
 
 def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,

@@ -50,8 +50,10 @@ class WarpPlan:
     #: rotation) makes the warp cover the whole frame through a few large triangles; when one
     #: of them moves, :func:`warp` interpolates those triangles' map from a coarse grid
     band: np.ndarray | None = None
-    #: (H, W) bool, photo's own mouth opening (computed by __post_init__)
-    neutral_mouth: np.ndarray = field(init=False)
+    #: bool mask of the photo's own mouth opening over its box, and the box's corner (x, y)
+    #: (computed by __post_init__; :attr:`neutral_mouth` is the whole image's)
+    _mouth_local: np.ndarray = field(init=False, repr=False)
+    _mouth_at: tuple[int, int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.image = np.ascontiguousarray(self.image)
@@ -59,10 +61,16 @@ class WarpPlan:
         self.src = np.asarray(self.src, np.float32)
         self.triangles = np.asarray(self.triangles, np.int32)
         h, w = self.image.shape[:2]
-        m = np.zeros((h, w), np.uint8)
-        poly = np.round(self.src[self.holes["mouth"]] * _ONE).astype(np.int32)
+        # the opening over its box only (no image-sized mask: 24 MB at 24 MP)
+        loop = self.src[self.holes["mouth"]]
+        mx0 = int(np.clip(np.floor(loop[:, 0].min()) - 1, 0, w))
+        my0 = int(np.clip(np.floor(loop[:, 1].min()) - 1, 0, h))
+        mx1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2, mx0, w))
+        my1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2, my0, h))
+        m = np.zeros((my1 - my0, mx1 - mx0), np.uint8)
+        poly = np.round((loop - np.array([mx0, my0], np.float32)) * _ONE).astype(np.int32)
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
-        self.neutral_mouth = m.astype(bool)
+        self._mouth_local, self._mouth_at = m.astype(bool), (mx0, my0)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
         self._band_tri = (np.zeros(len(self.triangles), bool) if self.band is None
                           else np.asarray(self.band, bool)[self.triangles].any(1))
@@ -76,6 +84,23 @@ class WarpPlan:
         hi = self._src_tri.max(1) + 1.0
         full = np.array([[-1.0, -1.0, w + 1.0, h + 1.0]] * (1 + 3))  # identity row + layers
         self._src_box = np.vstack([np.hstack([lo, hi]), full]).astype(np.float32)
+
+    @property
+    def neutral_mouth(self) -> np.ndarray:
+        """(H, W) bool: the photo's own mouth opening (a new array)."""
+        m = np.zeros(self.image.shape[:2], bool)
+        (x0, y0), loc = self._mouth_at, self._mouth_local
+        m[y0:y0 + loc.shape[0], x0:x0 + loc.shape[1]] = loc
+        return m
+
+    def in_neutral_mouth(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """bool per pixel ``(xs, ys)`` (int, inside the image): in the photo's own opening."""
+        (x0, y0), loc = self._mouth_at, self._mouth_local
+        u, v = xs - x0, ys - y0
+        ok = (u >= 0) & (v >= 0) & (u < loc.shape[1]) & (v < loc.shape[0])
+        hit = np.zeros(len(xs), bool)
+        hit[ok] = loc[v[ok], u[ok]]
+        return hit
 
 
 @dataclass
@@ -359,7 +384,7 @@ def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
     if len(yy):
         sx = np.clip(np.rint(map_x[yy, xx]).astype(np.int32), 0, w - 1)
         sy = np.clip(np.rint(map_y[yy, xx]).astype(np.int32), 0, h - 1)
-        dark = ~plan.neutral_mouth[sy, sx]
+        dark = ~plan.in_neutral_mouth(sx, sy)
         if dark.any():
             yy, xx = yy[dark], xx[dark]
             out[y0 + yy, x0 + xx] = _cavity(dst, plan.holes["mouth"], x0 + xx, y0 + yy)

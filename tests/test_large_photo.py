@@ -12,7 +12,6 @@ from editor.engine import creases, facemesh, gaze, landmarks, warp
 from editor.engine.face import Face
 from editor.engine.faps import FAPS
 from editor.engine.imageio import load_image
-
 from editor.resources import SAMPLE_FACE as SAMPLE
 
 #: the sample upscaled so that its inter-ocular distance (~44 px) is ~300 px: fold analyses at

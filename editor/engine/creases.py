@@ -965,6 +965,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     cand = _skin_triangles(face.mesh)
+    wq = _work_factor(p.iod)
     for f in range(p.n_folds):
         a, b = int(p.start[f]), int(p.start[f + 1])
         if fa.own_gap is None or fa.own_gap[f] < _OWN_MIN or not p.utaper[a:b].any():
@@ -975,12 +976,22 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         pad = reach + 2 * r + 3
         x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
         x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
-        # the luminance of this fold's box only (bit for bit the whole photo's, cut)
-        ls = cv2.GaussianBlur(luminance(img[y0:y1, x0:x1]), (0, 0), 0.7 * sig)
+        # the luminance of this fold's box only (bit for bit the whole photo's, cut); on a
+        # large face its wq x wq block means (the valley is then still >= ~3 px wide)
+        if wq == 1:
+            ls = cv2.GaussianBlur(luminance(img[y0:y1, x0:x1]), (0, 0), 0.7 * sig)
+            org: tuple[float, float] = (x0, y0)
+        else:
+            x1, y1 = x0 + (x1 - x0) // wq * wq, y0 + (y1 - y0) // wq * wq
+            ls = cv2.GaussianBlur(_block_mean(luminance(img[y0:y1, x0:x1]), wq), (0, 0),
+                                  0.7 * sig / wq)
+            org = (x0 + 0.5 * (wq - 1), y0 + 0.5 * (wq - 1))
+            r = int(math.ceil(_VALLEY_WIDTH * sig / wq))
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
         hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]
-        xy = (q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - (x0, y0)).astype(np.float32)
+        xy = ((q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - org) / wq
+              ).astype(np.float32)
         prof = cv2.remap(hat, xy[..., 0], xy[..., 1], cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_REPLICATE)
         score = prof * (1.0 - 0.3 * (ds / reach) ** 2)[None]
@@ -1274,34 +1285,101 @@ def _photo_lift(face: Face, g: int
         lo, hi = pts.min(0) - 4.0 * sb - 2.0, pts.max(0) + 4.0 * sb + 2.0
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
-        if x1 - x0 >= 4 and y1 - y0 >= 4:
+        q = _work_factor(p.iod)
+        if x1 - x0 >= 4 and y1 - y0 >= 4 and q == 1:
             got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
                                 n_dir=_N_DIR_PHOTO), (x0, y0))
+        elif x1 - x0 >= 4 and y1 - y0 >= 4:
+            got = (_lift_fields_q(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1), q),
+                   (x0, y0))
     cache[g] = got
     return got
 
 
+def _lift_fields_q(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
+                   d: np.ndarray, L: np.ndarray, K: int, M: int,
+                   box: tuple[int, int, int, int], q: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_lift_fields` of the photo (``closing``, :data:`_N_DIR_PHOTO` directions) run
+    on its ``q x q`` block means around ``box`` and upsampled (bilinear) to ``box``: the
+    fields are smooth at the fold's scale (its line width is ``q`` x the working one), while
+    the filters' cost grows with the area times the kernels' (a 24 MP portrait: ~10 x less)."""
+    H, W = img.shape[:2]
+    x0, y0, x1, y1 = box
+    sig = float(fa.sig[g])
+    pad = 2 * int(math.ceil(_VALLEY_WIDTH * sig * 1.25)) + 2 + 2 * q  # what _lift_fields reads
+    a0, b0 = max(x0 - pad, 0), max(y0 - pad, 0)
+    a1 = a0 + (min(x1 + pad, W) - a0) // q * q
+    b1 = b0 + (min(y1 + pad, H) - b0) // q * q
+    small = _block_mean(img[b0:b1, a0:a1], q)
+    o = np.array([a0 + 0.5 * (q - 1), b0 + 0.5 * (q - 1)])  # small pixel (0, 0)'s centre
+    # the small box: every small pixel whose block meets ``box``
+    sx0, sy0 = (x0 - a0) // q, (y0 - b0) // q
+    sx1 = min(-(-(x1 - a0) // q), small.shape[1])
+    sy1 = min(-(-(y1 - b0) // q), small.shape[0])
+    S, c4 = _lift_fields(fa, g, small, (pts - o) / q, w / q, d / q, L / q, K, M,
+                         (sx0, sy0, sx1, sy1), n_dir=_N_DIR_PHOTO, scale=1.0 / q)
+    return _upsample_box(S, (sx0, sy0), (a0, b0), q, box), _upsample_box(
+        c4, (sx0, sy0), (a0, b0), q, box)
+
+
+#: The inter-ocular distance (px) above which the per-face photo analyses of the folds
+#: (:func:`_own_valleys`, :func:`_photo_lift`) run on block means (``iod // _WORK_IOD`` px
+#: square): a 24 MP portrait's (IOD ~340 px) at half resolution; smaller faces at full.
+_WORK_IOD = 150.0
+
+
+def _work_factor(iod: float) -> int:
+    """The block size of the per-face fold analyses for a face of ``iod`` px (1: full size)."""
+    return max(1, int(iod // _WORK_IOD))
+
+
+def _block_mean(img: np.ndarray, q: int) -> np.ndarray:
+    """float32 means of ``img``'s ``q x q`` blocks (its size a multiple of ``q``)."""
+    h, w = img.shape[:2]
+    return cv2.resize(img.astype(np.float32), (w // q, h // q), interpolation=cv2.INTER_AREA)
+
+
+def _upsample_box(field: np.ndarray, at: tuple[int, int], origin: tuple[int, int], q: int,
+                  box: tuple[int, int, int, int]) -> np.ndarray:
+    """``field``, computed on ``q x q`` block means (its pixel (0, 0) the block at ``at`` of the
+    grid whose first block starts at ``origin``), bilinearly upsampled over ``box`` of the
+    photo (edge values held beyond the field), contiguous float32."""
+    x0, y0, x1, y1 = box
+    sx0, sy0 = at
+    a0, b0 = origin
+    # photo pixel x has block coordinate (x - a0 - (q - 1) / 2) / q
+    gx = (np.arange(x0, x1, dtype=np.float32) - np.float32(a0 + 0.5 * (q - 1))) / q - sx0
+    gy = (np.arange(y0, y1, dtype=np.float32) - np.float32(b0 + 0.5 * (q - 1))) / q - sy0
+    mx = np.broadcast_to(gx[None, :], (y1 - y0, x1 - x0))
+    my = np.broadcast_to(gy[:, None], (y1 - y0, x1 - x0))
+    return np.ascontiguousarray(cv2.remap(field, np.ascontiguousarray(mx),
+                                          np.ascontiguousarray(my), cv2.INTER_LINEAR,
+                                          borderMode=cv2.BORDER_REPLICATE), np.float32)
+
+
 @overload
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: Literal[True] = True, n_dir: int = _N_DIR
+                 closing: Literal[True] = True, n_dir: int = _N_DIR, scale: float = 1.0
                  ) -> tuple[np.ndarray, np.ndarray]: ...
 @overload
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: Literal[False], n_dir: int = _N_DIR) -> tuple[np.ndarray, None]: ...
+                 closing: Literal[False], n_dir: int = _N_DIR, scale: float = 1.0
+                 ) -> tuple[np.ndarray, None]: ...
 def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                  d: np.ndarray, L: np.ndarray, K: int, M: int, box: tuple[int, int, int, int],
-                 closing: bool = True, n_dir: int = _N_DIR
+                 closing: bool = True, n_dir: int = _N_DIR, scale: float = 1.0
                  ) -> tuple[np.ndarray, np.ndarray | None]:
     """``S`` (h, w, 3) and ``C`` with the skin-likeness of that lifted level (h, w, 4), float32
     over ``box`` of ``img`` (see :func:`_unfold_draw`; the gain is ``C / S``), for the valley
     sub-sampled at ``pts`` (weights ``w``; ``M`` segments ``d`` of lengths ``L``, ``K``
     sub-samples each). ``closing=False``: ``S`` only (the second is None). ``n_dir``: the
-    directions of the along-fold smoothing.
+    directions of the along-fold smoothing. ``scale``: ``img`` and the geometry are the
+    photo's scaled by it (the group's line width too).
     """
     H, W = img.shape[:2]
-    sig = float(fa.sig[g])
+    sig = float(fa.sig[g]) * scale
     sb = max(2.5 * sig, 1.0)
     r = int(math.ceil(_VALLEY_WIDTH * sig * 1.25))  # the target may widen the valley
     x0, y0, x1, y1 = box

@@ -293,6 +293,19 @@ def _sigmoid(x: float) -> float:
     return float(1.0 / (1.0 + np.exp(-np.clip(x, -80.0, 80.0))))
 
 
+def _area_down(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``img`` resized down to ``size`` (w, h) by pixel-area averaging. More than 16 x down (a
+    24 MP photo to the detector's 128 px), it first averages ``k x k`` blocks, ``k`` dividing
+    both sides (OpenCV's integer-factor path, ~3 x faster than its general one on the whole
+    photo), then resizes that; otherwise one resize, as before."""
+    h, w = img.shape[:2]
+    most = min(w // size[0], h // size[1]) // 8
+    k = next((k for k in range(most, 1, -1) if w % k == 0 and h % k == 0), 1)
+    if k >= 2:
+        img = cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA)
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+
+
 class MediaPipeDetector:
     """The default landmark detector: BlazeFace, the 468-point face mesh and the iris model.
 
@@ -315,7 +328,7 @@ class MediaPipeDetector:
         win = rgb[max(0, y0):min(h, y0 + side), max(0, x0):min(w, x0 + side)]
         scale = _DET_SIZE / side
         nw, nh = max(1, round(win.shape[1] * scale)), max(1, round(win.shape[0] * scale))
-        small = cv2.resize(win, (nw, nh), interpolation=cv2.INTER_AREA)
+        small = _area_down(win, (nw, nh))
         canvas = np.zeros((_DET_SIZE, _DET_SIZE, 3), np.float32)
         ox = round((max(0, x0) - x0) * scale)
         oy = round((max(0, y0) - y0) * scale)

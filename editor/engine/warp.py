@@ -50,8 +50,10 @@ class WarpPlan:
     #: rotation) makes the warp cover the whole frame through a few large triangles; when one
     #: of them moves, :func:`warp` interpolates those triangles' map from a coarse grid
     band: np.ndarray | None = None
-    #: (H, W) bool, photo's own mouth opening (computed by __post_init__)
-    neutral_mouth: np.ndarray = field(init=False)
+    #: bool mask of the photo's own mouth opening over its box, and the box's corner (x, y)
+    #: (computed by __post_init__; :attr:`neutral_mouth` is the whole image's)
+    _mouth_local: np.ndarray = field(init=False, repr=False)
+    _mouth_at: tuple[int, int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.image = np.ascontiguousarray(self.image)
@@ -59,10 +61,16 @@ class WarpPlan:
         self.src = np.asarray(self.src, np.float32)
         self.triangles = np.asarray(self.triangles, np.int32)
         h, w = self.image.shape[:2]
-        m = np.zeros((h, w), np.uint8)
-        poly = np.round(self.src[self.holes["mouth"]] * _ONE).astype(np.int32)
+        # the opening over its box only (no image-sized mask: 24 MB at 24 MP)
+        loop = self.src[self.holes["mouth"]]
+        mx0 = int(np.clip(np.floor(loop[:, 0].min()) - 1, 0, w))
+        my0 = int(np.clip(np.floor(loop[:, 1].min()) - 1, 0, h))
+        mx1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2, mx0, w))
+        my1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2, my0, h))
+        m = np.zeros((my1 - my0, mx1 - mx0), np.uint8)
+        poly = np.round((loop - np.array([mx0, my0], np.float32)) * _ONE).astype(np.int32)
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
-        self.neutral_mouth = m.astype(bool)
+        self._mouth_local, self._mouth_at = m.astype(bool), (mx0, my0)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
         self._band_tri = (np.zeros(len(self.triangles), bool) if self.band is None
                           else np.asarray(self.band, bool)[self.triangles].any(1))
@@ -76,6 +84,23 @@ class WarpPlan:
         hi = self._src_tri.max(1) + 1.0
         full = np.array([[-1.0, -1.0, w + 1.0, h + 1.0]] * (1 + 3))  # identity row + layers
         self._src_box = np.vstack([np.hstack([lo, hi]), full]).astype(np.float32)
+
+    @property
+    def neutral_mouth(self) -> np.ndarray:
+        """(H, W) bool: the photo's own mouth opening (a new array)."""
+        m = np.zeros(self.image.shape[:2], bool)
+        (x0, y0), loc = self._mouth_at, self._mouth_local
+        m[y0:y0 + loc.shape[0], x0:x0 + loc.shape[1]] = loc
+        return m
+
+    def in_neutral_mouth(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """bool per pixel ``(xs, ys)`` (int, inside the image): in the photo's own opening."""
+        (x0, y0), loc = self._mouth_at, self._mouth_local
+        u, v = xs - x0, ys - y0
+        ok = (u >= 0) & (v >= 0) & (u < loc.shape[1]) & (v < loc.shape[0])
+        hit = np.zeros(len(xs), bool)
+        hit[ok] = loc[v[ok], u[ok]]
+        return hit
 
 
 @dataclass
@@ -308,23 +333,39 @@ def _maps(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
     M = np.stack([m00, m01, m02, m10, m11, m12], 1)
     table[moved_t[ok]] = M[ok]
     # per-pixel coefficients: a nearest-neighbour remap from a 1 x rows table is the fastest
-    # gather OpenCV/numpy offer (ids are exact integers in float32)
-    fid = ids.astype(np.float32)
-    zero = np.zeros_like(fid)
-    cx = cv2.remap(np.ascontiguousarray(table[None, :, :3]), fid, zero, cv2.INTER_NEAREST)
-    cy = cv2.remap(np.ascontiguousarray(table[None, :, 3:]), fid, zero, cv2.INTER_NEAREST)
+    # gather OpenCV/numpy offer (ids are exact integers in float32); in bands of rows, so the
+    # gathered coefficients (10 floats a pixel) never exist for the whole box (a 24 MP face's
+    # box: ~200 MB of temporaries, each page faulted in on first use)
+    tx = np.ascontiguousarray(table[None, :, :3])
+    ty = np.ascontiguousarray(table[None, :, 3:])
+    tb = np.ascontiguousarray(plan._src_box[None])
     xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
     ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
-    map_x = cx[..., 0] * xs
-    map_x += cx[..., 1] * ys
-    map_x += cx[..., 2]
-    map_y = cy[..., 0] * xs
-    map_y += cy[..., 1] * ys
-    map_y += cy[..., 2]
-    box = cv2.remap(np.ascontiguousarray(plan._src_box[None]), fid, zero, cv2.INTER_NEAREST)
-    np.clip(map_x, box[..., 0], box[..., 2], out=map_x)
-    np.clip(map_y, box[..., 1], box[..., 3], out=map_y)
+    map_x = np.empty((ny, nx), np.float32)
+    map_y = np.empty((ny, nx), np.float32)
+    rows = max(1, _MAP_BAND_PX // max(nx, 1))
+    for r0 in range(0, ny, rows):
+        r1 = min(r0 + rows, ny)
+        fid = ids[r0:r1].astype(np.float32)
+        zero = np.zeros_like(fid)
+        cx = cv2.remap(tx, fid, zero, cv2.INTER_NEAREST)
+        cy = cv2.remap(ty, fid, zero, cv2.INTER_NEAREST)
+        yr = ys[r0:r1]
+        mx, my = map_x[r0:r1], map_y[r0:r1]
+        np.multiply(cx[..., 0], xs, out=mx)
+        mx += cx[..., 1] * yr
+        mx += cx[..., 2]
+        np.multiply(cy[..., 0], xs, out=my)
+        my += cy[..., 1] * yr
+        my += cy[..., 2]
+        box = cv2.remap(tb, fid, zero, cv2.INTER_NEAREST)
+        np.clip(mx, box[..., 0], box[..., 2], out=mx)
+        np.clip(my, box[..., 1], box[..., 3], out=my)
     return ids, map_x, map_y
+
+
+#: Pixels per band of rows in which :func:`_maps` gathers its per-pixel coefficients.
+_MAP_BAND_PX = 1 << 18
 
 
 def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
@@ -343,7 +384,7 @@ def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
     if len(yy):
         sx = np.clip(np.rint(map_x[yy, xx]).astype(np.int32), 0, w - 1)
         sy = np.clip(np.rint(map_y[yy, xx]).astype(np.int32), 0, h - 1)
-        dark = ~plan.neutral_mouth[sy, sx]
+        dark = ~plan.in_neutral_mouth(sx, sy)
         if dark.any():
             yy, xx = yy[dark], xx[dark]
             out[y0 + yy, x0 + xx] = _cavity(dst, plan.holes["mouth"], x0 + xx, y0 + yy)

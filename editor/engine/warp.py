@@ -237,25 +237,33 @@ def _warp_band(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | 
     bt = plan._band_tri[moved_t]
     _ids, cx, cy = _maps(plan, dst, layers, moved_t[bt], tri_pts[bt], bx0 + o, by0 + o, nx, ny,
                          s)
-    # nodes outside the box: extrapolated from the two nearest inside (exact within one
-    # triangle)
+    # where the box ends on the photo's edge, the nodes beyond it are extrapolated from the two
+    # nearest inside (exact within one triangle; evaluated there they would fall outside the
+    # mesh, on the identity) and the pixels along that edge take the exact map (where the
+    # extrapolation and the source-box clamp of :func:`_maps` differ most). Elsewhere the box
+    # ends where the moved triangles do: the nodes beyond it are the identity, as the map is
+    H, W = img.shape[:2]
+    at_edge = (bx0 == 0, by0 == 0, bx1 == W, by1 == H)  # left, top, right, bottom
     for c in (cx, cy):
-        for ax, n_px in ((1, w), (0, h)):
+        for ax, n_px, lo_edge, hi_edge in ((1, w, at_edge[0], at_edge[2]),
+                                           (0, h, at_edge[1], at_edge[3])):
             v = np.moveaxis(c, ax, 0)
-            v[0] = 2.0 * v[1] - v[2]
-            last = int((n_px - 1 - o) // s)  # the last node inside the box
-            for k in range(last + 1, v.shape[0]):
-                v[k] = v[last] + (k - last) * (v[last] - v[last - 1])
+            if lo_edge:
+                v[0] = 2.0 * v[1] - v[2]
+            if hi_edge:
+                last = int((n_px - 1 - o) // s)  # the last node inside the box
+                for k in range(last + 1, v.shape[0]):
+                    v[k] = v[last] + (k - last) * (v[last] - v[last - 1])
     size = (nx * s, ny * s)
     map_x = cv2.resize(cx, size, interpolation=cv2.INTER_LINEAR)[s:s + h, s:s + w]
     map_y = cv2.resize(cy, size, interpolation=cv2.INTER_LINEAR)[s:s + h, s:s + w]
-    # exact: the box's edges (where the extrapolated nodes and the source-box clamp of
-    # :func:`_maps` would differ most) and, last, the inner box
+    # exact: the box's edges on the photo's edge and, last, the inner box
     e = s + 2
     ix0, iy0, ix1, iy1 = inner[0] - bx0, inner[1] - by0, inner[2] - bx0, inner[3] - by0
     ids = None
-    for ex0, ey0, ex1, ey1 in ((0, 0, w, e), (0, h - e, w, h), (0, e, e, h - e),
-                               (w - e, e, w, h - e), (ix0, iy0, ix1, iy1)):
+    strips = [b for b, on in zip(((0, e, e, h - e), (0, 0, w, e), (w - e, e, w, h - e),
+                                  (0, h - e, w, h)), at_edge, strict=True) if on]
+    for ex0, ey0, ex1, ey1 in (*strips, (ix0, iy0, ix1, iy1)):
         ex0, ey0, ex1, ey1 = max(ex0, 0), max(ey0, 0), min(ex1, w), min(ey1, h)
         if ex1 > ex0 and ey1 > ey0:
             ids, mx, my = _maps(plan, dst, layers, moved_t, tri_pts, bx0 + ex0, by0 + ey0,

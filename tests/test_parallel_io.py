@@ -63,10 +63,26 @@ def test_parallel_export_is_the_serial_export(sample_face, odd_face, tmp_path, n
 
 
 def test_parallel_export_cancel_and_errors_leave_nothing(sample_face, tmp_path):
+    from pathlib import Path
+
+    shm = Path("/dev/shm")
+    before = set(shm.iterdir()) if shm.is_dir() else set()
     res = export_sequence(sample_face, _ramp(9), tmp_path / "c.mp4", jobs=2,
                           progress=lambda d, n: d < 3)
     assert res.cancelled and res.frames == 3
     assert list(tmp_path.iterdir()) == []
+    # the shared frame buffers are released, also on a cancel
+    assert (set(shm.iterdir()) if shm.is_dir() else set()) <= before
+
+
+def test_shared_frames_are_the_renders(sample_face):
+    """Frames handed back through shared memory, one worker: each is the parent's render
+    while it is current (a ring of buffers, reused only after the caller came back)."""
+    vecs = _ramp(6).frames
+    got = [f.copy() for f in pool.rendered_frames(sample_face, vecs, True, 1)]
+    assert len(got) == 6
+    for v, img in zip(vecs, got, strict=True):
+        assert np.array_equal(img, sample_face.render(v))
 
 
 def test_ordered_map_order_and_worker_error():
@@ -230,9 +246,9 @@ def test_worker_error_is_one_line_and_leaves_nothing(cli, tmp_path, monkeypatch)
     write_fap(_ramp(6), fap)
     out = tmp_path / "out"
     out.mkdir()
-    from editor.formats import video
+    from editor.engine import pool
 
-    monkeypatch.setattr(video, "render_face", _failing_render)  # runs in the workers
+    monkeypatch.setattr(pool, "render_face_into", _failing_render)  # runs in the workers
     r = cli("animate", SAMPLE_FACE, fap, "-q", "--jobs", "2", "-o", out / "a.mp4")
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "worker says no" in r.stderr and "Traceback" not in r.stderr

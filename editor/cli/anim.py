@@ -43,7 +43,6 @@ def preset_vector(specs: list[str] | None) -> np.ndarray:
 
 def cmd_animate(a: argparse.Namespace) -> int:
     from editor.engine.face import Face
-    from editor.engine.pool import default_render_jobs
     from editor.formats.facecsv import read_animation
     from editor.formats.video import export_sequence
     from editor.safeio import finite_in
@@ -51,7 +50,7 @@ def cmd_animate(a: argparse.Namespace) -> int:
     fps = None if a.fps is None else finite_in(a.fps, 0, 1000, "--fps", lo_open=True)
     if a.jobs is not None and not 1 <= a.jobs <= 256:
         raise FapStudioError(f"--jobs: expected 1-256, got {a.jobs}")
-    jobs = default_render_jobs() if a.jobs is None else a.jobs
+    jobs = a.jobs  # None: a worker per core (pool.render_workers)
     seq, kind, notes = read_animation(a.fap_file, fps)
     face = Face.from_image(a.photo)
     for n in notes if kind != "fap" else []:  # what a CSV reader inferred (fps, columns)
@@ -106,8 +105,8 @@ def add_anim_parser(sub) -> None:
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.add_argument("--no-creases", action="store_true", help="geometry only: no skin folds")
     s.add_argument("-j", "--jobs", type=int, metavar="N",
-                   help="render in N worker processes (default: the CPU cores but one, "
-                   "which the encoder uses; 1: in this process); the frames are the same")
+                   help="render in N worker processes (default: one per CPU core while this "
+                   "process encodes; 1: all in this process); the frames are the same")
     detector_option(s)
     s.set_defaults(func=cmd_animate)
 

@@ -11,7 +11,10 @@ Ctrl-C reaches the parent, which cancels what is queued, waits for the few runni
 lets the exception through (the callers' staging then removes everything partial). An
 exception in a worker is raised in the parent when its item's turn comes.
 
-The per-process :data:`FACE` is what :func:`render_face` renders on.
+The per-process :data:`FACE` is what :func:`render_face` renders on. :func:`rendered_frames`
+hands the frames back through shared memory (a ring of frame buffers: a 1080p frame pickled
+through the pool's pipe cost about as much as rendering it), so that on two cores one worker
+renders while this process encodes.
 """
 
 from __future__ import annotations
@@ -20,9 +23,10 @@ import multiprocessing as mp
 import os
 import signal
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from multiprocessing import shared_memory
 from typing import Any, TypeVar
 
 import numpy as np
@@ -49,11 +53,21 @@ def default_jobs() -> int:
 
 
 def default_render_jobs() -> int:
-    """Worker processes for rendering a video or a folder of frames: the cores but one, which
-    the writer (the H.264 encoder, PNG encoding) keeps busy in the parent. On 2 cores that is
-    1, in-process: measured, two render workers beside x264's threads were slower (34-37
-    against 40-42 frames/s at 1080p on an idle 2-core machine)."""
-    return max(1, default_jobs() - 1)
+    """Worker processes for rendering a video or a folder of frames: one per core, beside the
+    writer (the H.264 encoder, PNG encoding) in the parent. Measured on 2 cores (1080p joy
+    ramp to H.264, frames back through shared memory, pool warm): 2 workers 77-78 frames/s,
+    1 worker 73-75, all in one process 64 (callers render in this process on one core: see
+    :func:`render_workers`)."""
+    return default_jobs()
+
+
+def render_workers(jobs: int | None) -> int:
+    """How many worker processes render the frames for a ``jobs`` setting: None (auto) is
+    :func:`default_render_jobs` when there are two cores or more, else 0 (this process); 1 is
+    0; N > 1 is N."""
+    if jobs is None:
+        return default_render_jobs() if default_jobs() >= 2 else 0
+    return jobs if jobs > 1 else 0
 
 
 def _context() -> Any:
@@ -78,7 +92,8 @@ def _worker_init(threads: int, initializer: Callable[..., None] | None,
 def ordered_map(fn: Callable[[T], R], items: Iterable[T], jobs: int, *,
                 window: int | None = None,
                 initializer: Callable[..., None] | None = None,
-                initargs: tuple[Any, ...] = (), threads: int = 1) -> Iterator[R]:
+                initargs: tuple[Any, ...] = (), threads: int = 1
+                ) -> Generator[R, None, None]:
     """``fn(item)`` for every item in ``jobs`` worker processes, yielded in order.
 
     ``fn`` and ``initializer`` must be module-level functions (they are pickled by name).
@@ -134,3 +149,51 @@ def render_face(task: tuple[np.ndarray, bool]) -> np.ndarray:
     """``(vector, creases)`` -> this worker's ``FACE.render(vector, creases=creases)``."""
     vec, creases = task
     return FACE.render(vec, creases=creases)
+
+
+#: the shared-memory frame buffers this worker has opened, by name
+_SLOTS: dict[str, Any] = {}
+
+
+def render_face_into(task: tuple[np.ndarray, bool, str, tuple[int, int, int]]) -> str:
+    """``(vector, creases, buffer name, shape)``: render on this worker's :data:`FACE` into
+    the shared frame buffer; returns its name."""
+    vec, creases, name, shape = task
+    shm = _SLOTS.get(name)
+    if shm is None:
+        shm = _SLOTS[name] = shared_memory.SharedMemory(name=name)
+    out: np.ndarray = np.ndarray(shape, np.uint8, buffer=shm.buf)
+    out[:] = FACE.render(vec, creases=creases)
+    return name
+
+
+def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int) -> Iterator[np.ndarray]:
+    """``face.render(v)`` for each vector, rendered in ``jobs`` worker processes, in order.
+
+    Each frame is a view of a shared buffer, valid until the next one is asked for (a ring of
+    ``window + 1`` buffers: a buffer is handed to a new frame only after the frame it held was
+    yielded and the caller came back). The buffers are released when the generator ends or is
+    closed.
+    """
+    h, w = np.asarray(face.image).shape[:2]
+    shape = (h, w, 3)
+    window = 2 * jobs + 1
+    slots = [shared_memory.SharedMemory(create=True, size=h * w * 3) for _ in range(window + 1)]
+    views: dict[str, np.ndarray] | None = {s.name: np.ndarray(shape, np.uint8, buffer=s.buf)
+                                           for s in slots}
+    tasks = ((v, creases, slots[i % len(slots)].name, shape) for i, v in enumerate(vecs))
+    names = ordered_map(render_face_into, tasks, jobs, window=window, initializer=init_face,
+                        initargs=face_args(face))
+    try:
+        for name in names:
+            assert views is not None
+            yield views[name]
+    finally:
+        names.close()  # the workers stop (and let go of the buffers) first
+        views = None
+        for shm in slots:
+            try:
+                shm.close()
+            except BufferError:  # the caller still holds the last frame: freed with it
+                pass
+            shm.unlink()

@@ -27,7 +27,7 @@ import numpy as np
 
 from editor.engine.faps import FAPS
 from editor.engine.imageio import save_image
-from editor.engine.pool import face_args, init_face, ordered_map, render_face
+from editor.engine.pool import render_workers, rendered_frames
 from editor.errors import FapStudioError
 from editor.safeio import atomic_dir, atomic_file, quiet_stderr
 
@@ -118,12 +118,13 @@ def sequence_vectors(seq) -> np.ndarray:
 
 def export_sequence(face, seq, out: str | os.PathLike[str],
                     progress: Callable[[int, int], bool | None] | None = None,
-                    creases: bool = True, jobs: int = 1) -> ExportResult:
+                    creases: bool = True, jobs: int | None = 1) -> ExportResult:
     """Render ``seq`` on ``face`` into an MP4 file or a folder of PNG frames.
 
     ``jobs`` > 1 renders the frames in that many worker processes (:mod:`editor.engine.pool`:
-    each builds the face once, a bounded window of frames in flight), written in order here:
-    the same frames as ``jobs=1``."""
+    each builds the face once, a bounded window of frames in flight, handed back through
+    shared memory), written in order here: the same frames as ``jobs=1`` (this process).
+    ``None``: a worker per core (:func:`~editor.engine.pool.render_workers`)."""
     vecs = sequence_vectors(seq)
     n = len(vecs)
     if n == 0:
@@ -151,7 +152,7 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
 
 def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
                   progress: Callable[[int, int], bool | None] | None, creases: bool,
-                  jobs: int = 1) -> int:
+                  jobs: int | None = 1) -> int:
     """Render into the video file or folder ``out``; the number of frames written (fewer
     when ``progress`` cancelled). The video is finalised (released) before returning."""
     n = len(vecs)
@@ -163,9 +164,9 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
             writer = VideoWriter(out, (w, h), fps)
     done = 0
     frames: Iterator[np.ndarray]
-    if jobs > 1 and n > 1:
-        frames = ordered_map(render_face, ((v, creases) for v in vecs), min(jobs, n),
-                             initializer=init_face, initargs=face_args(face))
+    workers = min(render_workers(jobs), n - 1)
+    if workers >= 1:
+        frames = rendered_frames(face, vecs, creases, workers)
     else:
         frames = (face.render(v, creases=creases) for v in vecs)
     try:

@@ -33,11 +33,9 @@ class _Worker(QObject):
     def run(self) -> None:
         result, message = None, ""
         try:
-            from editor.engine.pool import default_render_jobs
-
             # frames rendered in worker processes (forkserver: safe beside Qt's threads)
             result = export_sequence(self.face, self.seq, self.out, progress=self._progress,
-                                     jobs=default_render_jobs())
+                                     jobs=None)  # a worker per core
         except FapStudioError as e:
             message = str(e)
         except Exception as e:  # reported, never raised into Qt's event loop

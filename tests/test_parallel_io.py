@@ -18,12 +18,13 @@ def _ramp(frames: int) -> FapSequence:
     return FapSequence(np.linspace(0, 1, frames, dtype=np.float32)[:, None] * vec[None], fps=25)
 
 
-def test_worker_face_renders_like_the_parent(sample_face):
-    vecs = _ramp(5).frames
-    got = list(pool.ordered_map(pool.render_face, ((v, True) for v in vecs), 2, window=2,
-                                initializer=pool.init_face,
-                                initargs=pool.face_args(sample_face)))
-    assert len(got) == 5
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_worker_face_renders_like_the_parent(sample_face, jobs):
+    """Frames handed back through shared memory: each is the parent's render while it is
+    current (a ring of buffers, reused only after the caller came back)."""
+    vecs = _ramp(6).frames
+    got = [f.copy() for f in pool.rendered_frames(sample_face, vecs, True, jobs)]
+    assert len(got) == 6
     for v, img in zip(vecs, got, strict=True):
         assert np.array_equal(img, sample_face.render(v))
 
@@ -73,16 +74,6 @@ def test_parallel_export_cancel_and_errors_leave_nothing(sample_face, tmp_path):
     assert list(tmp_path.iterdir()) == []
     # the shared frame buffers are released, also on a cancel
     assert (set(shm.iterdir()) if shm.is_dir() else set()) <= before
-
-
-def test_shared_frames_are_the_renders(sample_face):
-    """Frames handed back through shared memory, one worker: each is the parent's render
-    while it is current (a ring of buffers, reused only after the caller came back)."""
-    vecs = _ramp(6).frames
-    got = [f.copy() for f in pool.rendered_frames(sample_face, vecs, True, 1)]
-    assert len(got) == 6
-    for v, img in zip(vecs, got, strict=True):
-        assert np.array_equal(img, sample_face.render(v))
 
 
 def test_ordered_map_order_and_worker_error():

@@ -48,7 +48,7 @@ _COARSE, _COARSE_AREA = 4, 20_000
 
 @dataclass(eq=False)
 class _Band:
-    tris: np.ndarray  # (n,) the band's triangles
+    verts: np.ndarray  # the band triangles' vertices (its box)
     idx: np.ndarray  # (k,) the jaw contour's vertex indices
     normal: np.ndarray  # (k, 2) their outward unit normals on the photo's mesh
     rest: np.ndarray  # (k, 2) their positions on the photo's mesh
@@ -80,26 +80,22 @@ def _band(face: Face) -> _Band:
     lut = np.zeros(len(tri) + 4, bool)  # ids: triangles, the identity row, the 3 openings
     lut[np.flatnonzero(sel)] = True
     ring_v = np.unique(tri[sel][ring[tri[sel]]])
-    b = _Band(np.flatnonzero(sel), idx, nrm, p, lut, ring_v)
+    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v)
     _PLANS[face] = b
     return b
 
 
-def still_triangles(face: Face, vertices: np.ndarray) -> np.ndarray | None:
-    """The band's triangles, to keep as the photo for the deformed mesh ``vertices`` (V, 2),
-    or None when the jaw did not move outward anywhere or moved inward somewhere."""
-    b = _band(face)
+def _moved_out(b: _Band, vertices: np.ndarray) -> bool:
+    """Whether the jaw line of ``vertices`` moved outward (somewhere by more than :data:`_OUT`
+    px, nowhere inward by more than a fraction of that)."""
     out = ((np.asarray(vertices, np.float64)[b.idx] - b.rest) * b.normal).sum(1)
-    if not (out > _OUT).any():
-        return None
-    if out.min() < -max(_OUT, _IN_SHARE * out.max()):
-        return None  # partly inward (a head roll, a jaw shifted sideways): none of it
-    return b.tris
+    # partly inward (a head roll, a jaw shifted sideways): none of the band
+    return bool(out.max() > _OUT and out.min() >= -max(_OUT, _IN_SHARE * out.max()))
 
 
 def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     """A hook for :func:`~editor.engine.warp.warp` that gives the band's pixels the chin's
-    map, or None when the jaw did not move outward (see :func:`still_triangles`).
+    map, or None when the jaw did not move outward (see :func:`_moved_out`).
 
     Per column of the face frame (the jaw line is a function of the frame's x), a pixel at
     height ``d`` below the deformed jaw line shows the photo at ``d`` below the photo's jaw
@@ -110,13 +106,11 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     the jaw line this is the chin's own map (both take the photo's jaw line, linear between its
     vertices), so the two meet without a seam.
     """
-    still = still_triangles(face, vertices)
-    if still is None:
-        return None
     b = _band(face)
+    if not _moved_out(b, vertices):
+        return None
     v = np.asarray(vertices, np.float64)
-    tri = v[face.mesh.triangles[still]]
-    lo, hi = tri.reshape(-1, 2).min(0), tri.reshape(-1, 2).max(0)
+    lo, hi = v[b.verts].min(0), v[b.verts].max(0)
     fr = face.frame
     new, old = fr.to_frame(v[b.idx]), fr.to_frame(b.rest)
     order = np.argsort(new[:, 0])

@@ -11,7 +11,7 @@ Ctrl-C reaches the parent, which cancels what is queued, waits for the few runni
 lets the exception through (the callers' staging then removes everything partial). An
 exception in a worker is raised in the parent when its item's turn comes.
 
-The per-process :data:`FACE` is what :func:`render_face` renders on. :func:`rendered_frames`
+The per-process :data:`FACE` is what :func:`render_face_into` renders on. :func:`rendered_frames`
 hands the frames back through shared memory (a ring of frame buffers: a 1080p frame pickled
 through the pool's pipe cost about as much as rendering it), so that on two cores one worker
 renders while this process encodes.
@@ -143,12 +143,6 @@ def init_face(args: tuple[Any, ...], neutral: np.ndarray) -> None:
     FACE = Face(*args)
     if not np.array_equal(FACE.neutral_vertices, neutral):  # pragma: no cover - a bug
         raise FapStudioError("a render worker rebuilt the face differently")
-
-
-def render_face(task: tuple[np.ndarray, bool]) -> np.ndarray:
-    """``(vector, creases)`` -> this worker's ``FACE.render(vector, creases=creases)``."""
-    vec, creases = task
-    return FACE.render(vec, creases=creases)
 
 
 #: the shared-memory frame buffers this worker has opened, by name

@@ -15,8 +15,9 @@ scaled to half the mouth-nose distance, the tongue to the mouth width, SPEC eq. 
   band on the root side (top of the upper teeth, bottom of the lower teeth). Transparent past
   the incisal edges and past the last tooth.
 * tongue: seen from the front as it lies behind the lower teeth: a broad rounded dorsum whose
-  far part (top of the image) is in shadow, darker sides, a median groove, papillae as a
-  fixed-seed speckle, and a soft moist highlight.
+  far part (top of the image) is in shadow, darker sides, a faint median groove, papillae as
+  a fixed-seed speckle, a soft moist highlight, and a soft silhouette (its far edge and
+  sides curve away into the dark).
 """
 
 from __future__ import annotations
@@ -143,14 +144,16 @@ def draw_tongue(size_mm: tuple[float, float] = (40.0, 30.0), seed: int = 6) -> n
     # silhouette: a rounded dorsum, widest at the bottom (hidden behind the lower lip)
     half_w = 0.5 * W - 0.3
     top = 1.0 + 7.0 * (np.abs(X) / half_w) ** 2.2
-    inside = (Y >= top) & (np.abs(X) <= half_w)
+    # its far edge and sides curve away into the mouth's shadow: a soft silhouette (a hard
+    # one reads as a cut-out shape against the dark cavity)
+    inside = _smooth((Y - top) / 2.0) * _smooth((half_w - np.abs(X)) / 1.5)
     u = np.clip(np.abs(X) / half_w, 0, 1)
     depth = np.clip((Y - top) / (0.55 * H), 0, 1)  # 0 at the far edge, 1 towards the tip
     base = np.array([0.80, 0.40, 0.42])
-    light = (0.62 + 0.38 * _smooth(depth)) * (1 - 0.4 * u ** 2.5)
+    light = (0.40 + 0.60 * _smooth(depth)) * (1 - 0.4 * u ** 2.5)
     # median groove, fading towards the tip
     groove = np.exp(-(X / 1.2) ** 2) * (1 - depth) ** 1.5
-    light *= 1 - 0.22 * groove
+    light *= 1 - 0.12 * groove
     rng = np.random.default_rng(seed)
     speck = rng.normal(0, 1, (h // SS + 1, w // SS + 1)).astype(np.float32)
     speck = cv2.GaussianBlur(speck, (0, 0), 0.8)
@@ -159,8 +162,8 @@ def draw_tongue(size_mm: tuple[float, float] = (40.0, 30.0), seed: int = 6) -> n
     # moist highlight on the front of the dorsum
     hl = np.exp(-((X / 7.0) ** 2 + ((Y - 0.55 * H) / 3.0) ** 2))
     col = col * (1 - 0.25 * hl[..., None]) + np.array([0.95, 0.72, 0.72]) * 0.25 * hl[..., None]
-    rgb = np.where(inside[..., None], col, 0.0)
-    return np.dstack([rgb, inside.astype(np.float64)])
+    rgb = np.where(inside[..., None] > 0, col, 0.0)
+    return np.dstack([rgb, inside])
 
 
 def _save(path: Path, rgba: np.ndarray) -> None:

@@ -482,6 +482,11 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         tip = bright & below & (ys < split[None, :] + 1.5)
         own_up[tip] = np.maximum(own_up[tip], (cov * weight[None, :])[tip])
         own_low[tip] = 0.0
+        # a thin run (2 px, 0.08 D) under the upper teeth is the lower lip's inner edge,
+        # which the warp already draws: carried down with the jaw it would show as a bright
+        # line across the opening
+        thin = (own_low > 0.5).sum(0) <= max(2.0, 0.08 * D)
+        own_low[:, thin] = 0.0
     if ext.sum() >= 3:
         own_up, own_low, rgb_up, ext_mask = _extend_sideways(
             own_up, own_low, rgb_up, ext_mask, split, np.flatnonzero(ext))

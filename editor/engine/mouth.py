@@ -53,8 +53,21 @@ TONGUE_L = 0.55
 #: the lower teeth's light relative to the upper ones (below and behind them, under the upper
 #: lip's and teeth's shadow; at 0.8 a wide-open mouth ended in a white block of lower teeth)
 LOWER_SHADE = 0.68
+#: depth behind the lips (units of D) of the teeth: light reaches them through the local gap
+#: g between the lips as g / sqrt(g^2 + z^2) (the narrow corners of an opening stay dark:
+#: real JAFFE fear photos' outer columns 0.22 of the skin, renders 0.38, before 0.56)
+APERTURE_TEETH = 0.1
+#: the tongue seen through a wider opening is its part further back, lit at a more grazing
+#: angle: its light falls as z / sqrt(g^2 + z^2) with the local gap g (z in units of D). Real
+#: JAFFE mouths, lower third of the opening relative to the skin: smiles 0.65, fear 0.48,
+#: wide-open surprise 0.34; renders of the same photos' estimated FAPs: 0.79 / 0.42 / 0.42
+#: (before: 0.97 / 0.55 / 0.50, a tongue as light in a gaping mouth as in a slit)
+TONGUE_RECEDE = 1.2
+#: the dental arch's half-width (units of half the mouth width MW0) and the light its sides
+#: still get (ambient) where they face sideways
+ARCH_W, ARCH_AMBIENT = 0.7, 0.2
 #: teeth luminance relative to the lit skin, and how much of the skin's colour cast they take
-TEETH_L, TEETH_CAST = 0.92, 0.35
+TEETH_L, TEETH_CAST = 1.1, 0.35
 #: the photo's upper teeth continued above its opening: crown height (central incisor,
 #: units of D; the drawn teeth are D/2 tall with their gum band) before they turn into gum,
 #: over a fade of GUM_FADE D; and the upper lip's shadow on them at contact
@@ -93,14 +106,18 @@ def _sat(rgb: np.ndarray) -> float:
 def _texture_parts() -> dict[str, tuple[np.ndarray, ...]]:
     """Per texture, what :func:`_tint` and :func:`_opaque_mean` take from it whatever the
     photo, in channel planes: the luminance (h, w), the chroma ``colour - luminance``
-    (3, h, w) and the alpha (h, w); over the opaque pixels (alpha > 0.9) their luminance (n,)
-    and chroma (3, n). (The same values as computed on the (h, w, 3) colours; planes, because
-    numpy is several times slower spreading an (h, w, 1) array over 3 channels.)"""
+    (3, h, w) and the alpha (h, w); over the opaque pixels (alpha > 0.9; for the teeth, their
+    crowns without the gum) their luminance (n,) and chroma (3, n). (The same values as
+    computed on the (h, w, 3) colours; planes, because numpy is several times slower
+    spreading an (h, w, 1) array over 3 channels.)"""
     out = {}
     for name, rgba in load_textures().items():
         c = rgba[..., :3]
         lum = _lum(c)[..., None]
-        co = c[rgba[..., 3] > 0.9]
+        opaque = rgba[..., 3] > 0.9
+        if name.endswith("_teeth"):  # the crowns only: the pink gum band is not the teeth's
+            opaque &= c[..., 0] - c[..., 1] < 0.15 * 255.0  # colour (it gave them a cyan cast)
+        co = c[opaque]
         lum_o = _lum(co)[:, None]
         out[name] = tuple(np.ascontiguousarray(x) for x in (
             lum[..., 0], (c - lum).transpose(2, 0, 1), rgba[..., 3], lum_o[:, 0],
@@ -182,6 +199,7 @@ class MouthPlan:
     tongue_basis: np.ndarray  # (4 FAPs, 4 points, 2) px per unit, image coords
     tongue_roll: float  # px at full roll, see deform._nonlinear
     lip_pairs: np.ndarray  # (7, 2) inner upper / lower lip vertices
+    lower_lip: np.ndarray  # vertex indices of the inner lower lip, corner to corner
     gap0: np.ndarray  # (7,) their neutral gaps, px
     gum: np.ndarray  # (3,) tinted gum colour
     tip_up: float = 0.0  # neutral px below y(9.3) of the upper incisors' edge (frame y)
@@ -273,10 +291,14 @@ class MouthPlan:
         up_lip = np.concatenate([[mesh.index("lipi_c0")],
                                  [mesh.index(f"lipi_u{k}") for k in range(1, 8)],
                                  [mesh.index("lipi_c1")]])
+        lo_lip = np.concatenate([[mesh.index("lipi_c0")],
+                                 [mesh.index(f"lipi_d{k}") for k in range(1, 8)],
+                                 [mesh.index("lipi_c1")]])
         return cls(hole=hole, i93=i93, i21=i21, i23=i23, upper_lip=up_lip, ex=ex, ey=ey,
                    mouth_nose=float(D), mw=float(mw), tex=tex, size=size, anchor0=anchor0,
                    cavity=cavity.astype(np.float32), tongue_basis=tongue_basis,
-                   tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs, gap0=gap0,
+                   tongue_roll=float(plan.tongue_roll_scale), lip_pairs=lip_pairs,
+                   lower_lip=lo_lip, gap0=gap0,
                    gum=gum_rgb.astype(np.float32), tip_up=float(tip_up), low_off=float(low_off),
                    mns=float(plan.fapu["MNS"]),
                    bounce=(np.asarray(skin, np.float32) / max(float(_lum(skin)), 1.0)
@@ -320,7 +342,17 @@ class MouthPlan:
         lip = fp[2:2 + n_lip]
         lip = lip[np.argsort(lip[:, 0])]
         y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
-        hole = fp[2 + n_lip:]
+        low = fp[2 + n_lip:2 + 2 * n_lip]
+        low = low[np.argsort(low[:, 0])]
+        # light on the teeth through the opening: the local gap between the lips (per column)
+        # against how deep behind them the teeth lie
+        gap = np.maximum(np.interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
+        g2 = gap * gap
+        zt = (APERTURE_TEETH * D) ** 2
+        a_t = (gap / np.sqrt(g2 + zt + 1e-9)).astype(np.float32)
+        zg = TONGUE_RECEDE * D
+        a_g = (zg / np.sqrt(g2 + zg * zg)).astype(np.float32)
+        hole = fp[2 + 2 * n_lip:]
         (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)
         cxm = 0.5 * (lo_h + hi_h)
         hw = max(0.5 * float(hi_h - lo_h), 1.0)
@@ -330,7 +362,12 @@ class MouthPlan:
         side2 = side * side
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
         corner = 1.0 - 0.35 * side2  # the darker corners
-        shade = ((1.0 - 0.3 * lip_sh) * corner).astype(np.float32)
+        shade = (1.0 - 0.3 * lip_sh).astype(np.float32)
+        # the dental arch turns away from the light towards the corners (and into the cheeks'
+        # shadow): lit like the normal of an arch of half-width ARCH_W MW / 2 facing the camera
+        u = Qx * (2.0 / (ARCH_W * self.mw * sc))
+        arch = (ARCH_AMBIENT + (1.0 - ARCH_AMBIENT) * np.sqrt(np.maximum(1.0 - u * u, 0.0))
+                ).astype(np.float32)
         # (per-pixel weights are spread over the 3 channels with cv2.merge / cv2.transform:
         # numpy's broadcasting of (h, w, 1) over 3 channels is several times slower here)
         cav_rgb = self.cavity.reshape(3, 1)
@@ -352,6 +389,10 @@ class MouthPlan:
             # reads as a dark edge, not as a bright sliver
             g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
             shade *= 1.0 - 0.3 * g1
+        shade_g = (a_g * shade) * corner.astype(np.float32)
+        shade_g = cv2.merge([shade_g, shade_g, shade_g])
+        shade *= a_t
+        shade *= arch
         shade = cv2.merge([shade, shade, shade])
         cav = out
         # lower teeth and tongue (jaw), upper teeth (skull)
@@ -368,7 +409,7 @@ class MouthPlan:
         dlt = self._tongue_shift(faps, ex, ey)
         if dlt is not None:
             tq = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
-        out = self._over(out, "tongue", tq, q21[0] - 0.5 * wt, top_t, wt, ht, shade)
+        out = self._over(out, "tongue", tq, q21[0] - 0.5 * wt, top_t, wt, ht, shade_g)
         if not self.photo_lower:
             out = self._over(out, "lower_teeth", Q, q21[0] - 0.5 * wl, top_l, wl, hl, shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
@@ -462,7 +503,8 @@ class MouthPlan:
     @cached_property
     def _frame_idx(self) -> np.ndarray:
         """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
-        return np.concatenate([[self.i21, self.i23], self.upper_lip, self.hole]).astype(np.intp)
+        return np.concatenate([[self.i21, self.i23], self.upper_lip, self.lower_lip,
+                               self.hole]).astype(np.intp)
 
     def _over(self, out, name, q, left, top, ww, hh, shade, gum=False):
         """``out`` under texture ``name`` placed at ``left``, ``top`` (``ww`` x ``hh``) in the

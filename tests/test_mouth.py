@@ -280,3 +280,25 @@ def test_the_corners_of_an_opening_are_in_shadow(jaffe_faces):
     for f in jaffe_faces[:3]:
         r = _sides_over_centre(f, apply_preset("fear", 1.0))
         assert r < 0.5, (f.source, r)
+
+
+def test_lower_lip_edge_does_not_ride_down_with_the_jaw(sample_face):
+    # the sample's opening ends in a one-to-three-pixel run of lower-lip edge under its upper
+    # teeth (3x: 1536 px); carried down with the jaw it drew a bright line across the dark
+    # opening (fear 150 %: 110 pixels of the opening's lower part above 0.85 of the skin; now
+    # 6, the anti-aliased rim of the drawn lower teeth)
+    from editor.engine.imageio import load_image
+
+    img0 = cv2.resize(load_image(sample_face.source), None, fx=3, fy=3,
+                      interpolation=cv2.INTER_CUBIC)
+    big = Face.from_image(img0)
+    faps = apply_preset("fear", 1.5)
+    img, v = big.render(faps), big.deform(faps)
+    inside = cv2.erode(_opening(big, v, img.shape).astype(np.uint8), np.ones((5, 5), np.uint8))
+    L = _lum(img) / _skin(big)
+    bright = 0
+    for x in np.flatnonzero(inside.any(0)):
+        rows = np.flatnonzero(inside[:, x])
+        low = rows[rows > rows.min() + 0.55 * np.ptp(rows)]
+        bright += int((L[low, x] > 0.85).sum())
+    assert bright < 20, bright

@@ -291,14 +291,18 @@ def _fold_lines(face: Face) -> list[_Line]:
     probes = np.array([b + k * (e - b) + 0.8 * k * (n27 - b) for b, e in ((bi_r, ec_r),
                                                                           (bi_l, ec_l))
                        for k in (0.2, 0.27)])
-    for j, f in enumerate((-0.3, 0.0, 0.3)):  # at the root, level with the inner canthi
+    # one main wrinkle at the root and a shorter, fainter one above it, off-centre, tilted
+    # and bowed differently (three evenly spaced concentric arcs read as a drawn ripple)
+    for f, w, k, dx, tilt, bow in ((0.05, 0.11, 1.0, 0.0, 0.03, 0.06),
+                                   (-0.35, 0.07, 0.55, 0.015, -0.05, 0.02)):
         c = n27 + f * (n28 - n27)
-        w = 0.1 + 0.025 * j
         xs_b = np.linspace(-w, w, 12)
-        pts = np.stack([c[0] + xs_b, c[1] + 0.06 * xs_b ** 2 / w], 1)
-        lines.append(_Line("bridge", "bridge", pts,
-                           _fade(np.linspace(0, 1, 12), 0.35, 0.35), (0.0, -1.0), probes,
-                           (0.0, 1.0)))
+        t_b = np.linspace(0, 1, 12)
+        wave = 0.003 * np.sin(2 * np.pi * 1.3 * t_b + rng.uniform(0, 6.3))
+        pts = np.stack([c[0] + dx + xs_b, c[1] + bow * xs_b ** 2 / w + tilt * xs_b + wave], 1)
+        even = k * (1.0 + 0.2 * np.sin(2 * np.pi * 1.1 * t_b + rng.uniform(0, 6.3)))
+        lines.append(_Line("bridge", "bridge", pts, _fade(t_b, 0.35, 0.35) * even,
+                           (0.0, -1.0), probes, (0.0, 1.0)))
     return lines
 
 

@@ -293,14 +293,15 @@ def _fold_lines(face: Face) -> list[_Line]:
                        for k in (0.2, 0.27)])
     # one main wrinkle at the root and a shorter, fainter one above it, off-centre, tilted
     # and bowed differently (three evenly spaced concentric arcs read as a drawn ripple)
-    for f, w, k, dx, tilt, bow in ((0.05, 0.11, 1.0, 0.0, 0.03, 0.06),
-                                   (-0.35, 0.07, 0.55, 0.015, -0.05, 0.02)):
-        c = n27 + f * (n28 - n27)
-        xs_b = np.linspace(-w, w, 12)
+    for at, half_w, k_b, dx, tilt, curve in ((0.05, 0.11, 1.0, 0.0, 0.03, 0.06),
+                                             (-0.35, 0.07, 0.55, 0.015, -0.05, 0.02)):
+        c = n27 + at * (n28 - n27)
+        xs_b = np.linspace(-half_w, half_w, 12)
         t_b = np.linspace(0, 1, 12)
         wave = 0.003 * np.sin(2 * np.pi * 1.3 * t_b + rng.uniform(0, 6.3))
-        pts = np.stack([c[0] + dx + xs_b, c[1] + bow * xs_b ** 2 / w + tilt * xs_b + wave], 1)
-        even = k * (1.0 + 0.2 * np.sin(2 * np.pi * 1.1 * t_b + rng.uniform(0, 6.3)))
+        y_b = c[1] + curve * xs_b ** 2 / half_w + tilt * xs_b + wave
+        pts = np.stack([c[0] + dx + xs_b, y_b], 1)
+        even = k_b * (1.0 + 0.2 * np.sin(2 * np.pi * 1.1 * t_b + rng.uniform(0, 6.3)))
         lines.append(_Line("bridge", "bridge", pts, _fade(t_b, 0.35, 0.35) * even,
                            (0.0, -1.0), probes, (0.0, 1.0)))
     return lines

@@ -46,6 +46,8 @@ import numpy as np
 from editor.errors import FapStudioError, NoFaceError
 from editor.resources import MODELS_DIR
 
+from .lip_edges import refine_inner_lips
+
 #: Faces whose eye centres (midpoints of the eye corners) are closer than this many pixels are
 #: refused: an eye is then under 8 px wide and the iris model's crop under 20 px. Chosen by
 #: measurement, not the issue's suggested 60 px: the bundled sample face has 43 px, JAFFE's
@@ -312,12 +314,18 @@ class MediaPipeDetector:
     ``detect`` satisfies :class:`editor.engine.landmarks.LandmarkDetector` (68 iBUG-equivalent
     points and the box); ``run`` returns the whole :class:`MeshDetection`; ``track`` crops from a
     previous mesh instead of detecting. Thread-safe (one lock around the shared networks).
+
+    ``refine_lips`` (default True): on an open mouth the mesh's inner-lip points are moved onto
+    the photo's inner lip edges (:func:`~editor.engine.lip_edges.refine_inner_lips`; the
+    model's own contour lies on the lips' bodies, the opening too large). False keeps the
+    model's points as they are.
     """
 
     name = "mediapipe-468"
 
-    def __init__(self) -> None:
+    def __init__(self, refine_lips: bool = True) -> None:
         self._lock = threading.Lock()
+        self.refine_lips = refine_lips
 
     # ------------------------------------------------------------------ stages
     def _candidates(self, rgb: np.ndarray, x0: int, y0: int,
@@ -503,5 +511,7 @@ class MediaPipeDetector:
         # % IOD: its corners 2.4 against the mesh's 3.3, its lids 1.4 / 2.0 against 1.3 / 1.3)
         mesh[EYE_CONTOUR_IMAGE_LEFT[[0, 8]]] = lid_r[[0, 8]]
         mesh[EYE_CONTOUR_IMAGE_RIGHT[[0, 8]]] = lid_l[[0, 8]]
+        if self.refine_lips:
+            mesh = refine_inner_lips(rgb, mesh)
         return MeshDetection(mesh.astype(np.float32), z.astype(np.float32),
                              np.asarray(box, np.float32), iris_r, iris_l, presence)

@@ -63,10 +63,14 @@ def test_sample_face_geometry(sample_lm):
     moved = [61, 62, 63, 65, 66, 67]  # the inner-lip middles go onto the visible opening
     keep = np.setdiff1d(np.arange(68), moved)
     np.testing.assert_allclose(raw[keep], lm.points[keep])
-    # the sample's smile shows teeth: the upper inner lip moves down from the lip's own edge
-    # (mesh) to the teeth's top edge, about 2 px, as dlib and iBUG's annotation place it
-    down = (lm.points[[61, 62, 63]] - raw[[61, 62, 63]])[:, 1]
+    # the sample's smile shows teeth: the upper inner lip goes down from the model's contour
+    # (on the upper lip) to the teeth's top edge, about 2 px, as dlib and iBUG's annotation
+    # place it; the mesh's refined contour (lip_edges) is already there (within 0.6 px)
+    model = points68_from_mesh(MediaPipeDetector(refine_lips=False).run(
+        load_image(SAMPLE)).mesh)
+    down = (lm.points[[61, 62, 63]] - model[[61, 62, 63]])[:, 1]
     assert (down > 0.5).all() and (down < 4).all(), down
+    assert np.abs((lm.points - raw)[[61, 62, 63], 1]).max() < 0.6
     for iris, up, lo in ((lm.iris_right, "eye_r_upper", "eye_r_lower"),
                          (lm.iris_left, "eye_l_upper", "eye_l_lower")):
         poly = lm.mesh[list(CONTOURS[up]) + list(CONTOURS[lo])[::-1]].astype(np.float32)
@@ -204,9 +208,11 @@ def test_cli_landmarks_json_and_detector_option(tmp_path):
 def test_jaffe_accuracy_against_stasm():
     """Issue 14's bars on JAFFE (Stasm points, % of the inter-ocular distance): eye corners
     <= 2.8 and mouth corners <= 4.0 (dlib's figures); measured 2.50 / 3.24. Lids closer than
-    dlib's 1.76 / 1.79 (measured 1.30 / 1.30); inner lips near their measured 2.03 (dlib 2.01),
-    on closed mouths closer than dlib's 1.76 (measured 1.48; open mouths: 3.31 against 2.58,
-    where Stasm's lower inner lip sits high, see scripts/landmark_accuracy.py).
+    dlib's 1.76 / 1.79 (measured 1.30 / 1.30); inner lips closer than dlib's 2.01 (measured
+    1.70; the model's own contour 2.03), on closed mouths closer than dlib's 1.76 (measured
+    1.29), on open mouths near dlib's 2.58 (measured 2.64; the model's own contour 3.31, on
+    the lips' bodies: editor/engine/lip_edges.py; Stasm's lower inner lip sits high on wide
+    open mouths, see scripts/landmark_accuracy.py).
     Pupils (the visible irises' centres, Stasm's definition) closer than dlib's 1.87: measured
     1.65; the full circles' centres 2.16 (the lids' cover moves Stasm's pupils down)."""
     r = subprocess.run([sys.executable, str(ROOT / "scripts" / "landmark_accuracy.py"),
@@ -216,6 +222,7 @@ def test_jaffe_accuracy_against_stasm():
     got = json.loads(r.stdout)["mediapipe"]
     assert got["images"] == 213
     assert got["eye corners"] <= 2.8 and got["mouth corners"] <= 4.0, got
-    assert got["upper lids"] < 1.7 and got["lower lids"] < 1.7 and got["inner lips"] < 2.3, got
+    assert got["upper lids"] < 1.7 and got["lower lids"] < 1.7 and got["inner lips"] < 1.9, got
+    assert got["inner lips (open mouths)"] < 2.9, got  # the model's own contour: 3.31
     assert got["pupils"] < 1.8 < got["pupils (circle centre)"], got  # dlib: 1.87
-    assert got["inner lips (closed mouths)"] < 1.65, got  # dlib: 1.76 (measured 1.48)
+    assert got["inner lips (closed mouths)"] < 1.5, got  # dlib: 1.76 (measured 1.29)

@@ -18,10 +18,11 @@ right: point 36 is the subject's right eye's outer corner (MPEG-4 FDP 3.12).
 Every detector gives these 68 points (the mesh through the documented table
 :data:`editor.engine.facemesh.MESH_TO_68`, its inner-lip middles then moved onto the visible
 opening: :func:`inner_lips_on_opening_68`). The MediaPipe detector adds the dense 468-point mesh
-(``Landmarks.mesh``), the iris model's circles and where each pupil shows (the centre of the
-circle's part inside the lids, :func:`visible_iris_centre`). dlib gives no iris (FDP 3.5 / 3.6):
-:func:`locate_iris` finds the dark disc inside each eye opening (a vectorised circular template
-search, in the spirit of the paper's Canny-edge approach).
+(``Landmarks.mesh``; its inner-lip contour on the photo's inner lip edges,
+:mod:`editor.engine.lip_edges`), the iris model's circles and where each pupil shows (the
+centre of the circle's part inside the lids, :func:`visible_iris_centre`). dlib gives no iris
+(FDP 3.5 / 3.6): :func:`locate_iris` finds the dark disc inside each eye opening (a vectorised
+circular template search, in the spirit of the paper's Canny-edge approach).
 """
 
 from __future__ import annotations

@@ -17,9 +17,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-#: BT.601 limited range, RGB in 0..255 -> (Cb, Cr): rows of an affine matrix for cv2.transform
-_CHROMA = np.array([[-37.797, -74.203, 112.0, 128.0 * 255],
-                    [112.0, -93.786, -18.214, 128.0 * 255]]) / 255.0
+#: full-range chroma (JPEG's YCrCb, as cv2.COLOR_RGB2YCrCb gives it) -> limited range (16..240)
+_LIMITED = np.round((np.arange(256) - 128.0) * 224.0 / 255.0 + 128.0).astype(np.uint8)
 
 
 def even_size(h: int, w: int) -> tuple[int, int]:
@@ -45,10 +44,13 @@ def rgb_to_i420(rgb: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
           or not out.flags.c_contiguous):
         raise ValueError(f"I420 buffer of shape {out.shape}, expected {(h * 3 // 2, w)}")
     cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2YUV_I420, dst=out)  # Y (and chroma)
-    half = cv2.resize(rgb, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-    uv = cv2.transform(half, _CHROMA)  # (h/2, w/2, 2): Cb, Cr of each block's mean
+    half = cv2.resize(rgb, (w // 2, h // 2), interpolation=cv2.INTER_AREA)  # 2 x 2 means
+    ycc = cv2.cvtColor(half, cv2.COLOR_RGB2YCrCb)  # BT.601, full range: Y, Cr, Cb
     flat = out.reshape(-1)  # the planes follow each other: Y (h x w), U, V (h/2 x w/2 each)
     n, q = h * w, h * w // 4
-    flat[n:n + q].reshape(h // 2, w // 2)[:] = uv[..., 0]
-    flat[n + q:].reshape(h // 2, w // 2)[:] = uv[..., 1]
+    u = flat[n:n + q].reshape(h // 2, w // 2)
+    v = flat[n + q:].reshape(h // 2, w // 2)
+    cv2.mixChannels([ycc], [u, v], [2, 0, 1, 1])
+    cv2.LUT(u, _LIMITED, dst=u)
+    cv2.LUT(v, _LIMITED, dst=v)
     return out

@@ -9,12 +9,17 @@ process that runs Qt, MediaPipe or OpenCV threads is not safe), else ``spawn``; 
 and its fitted mesh: the per-item messages carry only a FAP vector). Workers ignore SIGINT:
 Ctrl-C reaches the parent, which cancels what is queued, waits for the few running items and
 lets the exception through (the callers' staging then removes everything partial). An
-exception in a worker is raised in the parent when its item's turn comes.
+exception in a worker is raised in the parent when its item's turn comes. A caller that knows
+its process runs no Qt and no other thread (the CLI; :func:`fork_is_safe` checks) may ask for
+``fork`` instead: no server to start, and the workers inherit what this process built.
 
 The per-process :data:`FACE` is what :func:`render_face_into` renders on. :func:`rendered_frames`
 hands the frames back through shared memory (a ring of frame buffers: a 1080p frame pickled
 through the pool's pipe cost about as much as rendering it), so that on two cores one worker
-renders while this process encodes.
+renders while this process encodes; for a video already in the encoder's yuv420p layout (the
+conversion done in the worker: :mod:`editor.engine.yuv`). Forked workers inherit the parent's
+face with its plans built by the first frame, rendered in the parent (OpenCV's thread pool is
+stopped while forking: a child inherits its state but not its threads).
 """
 
 from __future__ import annotations

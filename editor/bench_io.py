@@ -1,12 +1,16 @@
 """Throughput rows of ``python -m editor.bench`` (issue 15), called from :func:`editor.bench.main`.
 
 * ``animate_fps``: a 250-frame ``.fap`` (a joy ramp) rendered on the 1920 x 1080 sample
-  canvas to H.264 MP4 with ``export_sequence`` (what ``fap-studio animate`` runs) with the
+  canvas to H.264 MP4 with ``export_sequence`` as ``fap-studio animate`` runs it: the
   default ``jobs`` (a worker process per core while this process encodes; frames back
-  through shared memory; pool start-up included), against rendering in this process
-  (``jobs`` = 1, ``fps_serial``) and N workers (``fps_jobsN``, N = the cores) in the same run;
-  ``encode_only_fps``: the H.264 encoder alone (x264 preset veryfast, CRF 16, as shipped) on
-  50 pre-rendered frames, the ceiling whatever renders the frames; target >= 80 frames/s;
+  through shared memory already yuv420p; pool start-up included), workers forked from this
+  process (``start``) when :func:`~editor.engine.pool.fork_is_safe`; against rendering in
+  this process (``jobs`` = 1, ``fps_serial``), N workers (``fps_jobsN``, N = the cores) and
+  the editor's way (``fps_forkserver``: workers from a forkserver, each building the face)
+  in the same run; ``cpu_ms_per_frame``: CPU time (this process, its threads and the
+  workers) per frame, steadier than wall time on a shared machine; ``encode_only_fps``: the
+  H.264 encoder alone (x264 preset veryfast, CRF 16, as shipped) on 50 pre-rendered yuv420p
+  frames, the ceiling whatever renders the frames; target >= 80 frames/s;
 * ``fap_info``: ``fap-studio fap info`` on a 1 000 000-frame file, as a process (wall time and
   that child's own peak RSS (VmHWM); ``peak_rss_mb_tenth``: the same on a
   100 000-frame file, so flatness shows in one run); target <= 10 s;
@@ -45,7 +49,7 @@ def main(want: Callable[..., bool], face_at: Callable[[tuple[int, int]], Any]) -
 
 
 def animate_fps_bench(face: Any, frames: int = 250, goal_fps: float = 80.0) -> None:
-    from editor.engine.pool import default_jobs, default_render_jobs
+    from editor.engine.pool import default_jobs, default_render_jobs, fork_is_safe
     from editor.formats.fapfile import FapSequence
     from editor.formats.presets import apply_preset
     from editor.formats.video import export_sequence
@@ -53,28 +57,49 @@ def animate_fps_bench(face: Any, frames: int = 250, goal_fps: float = 80.0) -> N
     vec = apply_preset("joy", 1.0)
     seq = FapSequence(np.outer(np.sin(np.linspace(0, np.pi, frames)) ** 2, vec), fps=25)
     jobs, cores = default_render_jobs(), default_jobs()
+    fork = fork_is_safe()  # as `fap-studio animate` (no Qt, no threads here)
+    runs = {"fps": (None, fork), "fps_serial": (1, False), f"fps_jobs{cores}": (cores, fork),
+            "fps_forkserver": (None, False)}  # the last: the editor's export (Qt: no fork)
     with tempfile.TemporaryDirectory() as d:
-        t: dict[int | None, float] = {}
-        for j in dict.fromkeys((None, 1, cores)):  # the default (workers), this process, all
-            t0 = time.perf_counter()
-            export_sequence(face, seq, Path(d) / f"a{j}.mp4", jobs=j)
-            t[j] = time.perf_counter() - t0
+        t: dict[str, float] = {}
+        cpu: dict[str, float] = {}
+        for key, (j, f) in runs.items():
+            if key != "fps" and (j, f) == runs["fps"]:
+                continue
+            c0, t0 = _cpu_seconds(), time.perf_counter()
+            export_sequence(face, seq, Path(d) / f"{key}.mp4", jobs=j, fork=f)
+            t[key], cpu[key] = time.perf_counter() - t0, _cpu_seconds() - c0
         enc = _encode_only_fps(face, seq.frames[:50], Path(d) / "e.mp4")
-    fps = frames / t[None]
+    t.setdefault(f"fps_jobs{cores}", t["fps"])
+    fps = frames / t["fps"]
     h, w = face.image.shape[:2]
     _emit({"bench": "animate_fps", "size": f"{w}x{h}", "frames": frames, "jobs": jobs,
-           "fps": round(fps, 1), "fps_serial": round(frames / t[1], 1),
-           "speedup": round(t[1] / t[None], 2), f"fps_jobs{cores}": round(frames / t[cores], 1),
+           "start": "fork" if fork else "forkserver", "fps": round(fps, 1),
+           **{k: round(frames / v, 1) for k, v in t.items() if k != "fps"},
+           "speedup": round(t["fps_serial"] / t["fps"], 2),
+           "cpu_ms_per_frame": round(1000 * cpu["fps"] / frames, 1),
+           "cpu_ms_per_frame_serial": round(1000 * cpu["fps_serial"] / frames, 1),
            "encode_only_fps": round(enc, 1),
            "goal": f">= {goal_fps:g} frames/s (H.264, {cores} cores)", "ok": fps >= goal_fps})
 
 
+def _cpu_seconds() -> float:
+    """CPU time of this process, its threads and its finished children (the render workers):
+    the work an export costs, whatever else the machine runs."""
+    import resource
+
+    return sum(r.ru_utime + r.ru_stime for r in (resource.getrusage(resource.RUSAGE_SELF),
+                                                  resource.getrusage(resource.RUSAGE_CHILDREN)))
+
+
 def _encode_only_fps(face: Any, vecs: np.ndarray, out: Path) -> float:
-    """Frames/s of the H.264 encoder alone (the shipped settings) on pre-rendered frames: the
-    ceiling of ``animate_fps`` whatever renders them."""
+    """Frames/s of the H.264 encoder alone (the shipped settings) on pre-rendered frames,
+    already yuv420p (as the render workers hand them over): the ceiling of ``animate_fps``
+    whatever renders them."""
+    from editor.engine.yuv import rgb_to_i420
     from editor.formats.video import VideoWriter
 
-    imgs = [face.render(v) for v in vecs]
+    imgs = [rgb_to_i420(face.render(v)) for v in vecs]
     h, w = face.image.shape[:2]
     t0 = time.perf_counter()
     with VideoWriter(out, (w, h), 25.0) as wr:

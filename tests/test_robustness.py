@@ -239,6 +239,7 @@ class _DroppingWriter:
 
     def __init__(self, path, size, fps):
         self._w = _REAL_VIDEO_WRITER(path, size, fps)
+        self.layout = self._w.layout  # the frames it takes (yuv420p for H.264)
         self.n = 0
 
     def write(self, frame):

@@ -56,8 +56,9 @@ def cmd_animate(a: argparse.Namespace) -> int:
     for n in notes if kind != "fap" else []:  # what a CSV reader inferred (fps, columns)
         print(f"fap-studio: note: {n}", file=sys.stderr)
     with ProgressBar("render", quiet=a.quiet) as bar:
+        # fork: this process runs no Qt (nor other threads): the workers inherit the face
         res = export_sequence(face, seq, a.output, progress=bar, creases=not a.no_creases,
-                              jobs=jobs)
+                              jobs=jobs, fork=True)
     print(f"{res.frames} frames -> {res.path}", file=sys.stderr)
     return 0
 

@@ -9,12 +9,17 @@ process that runs Qt, MediaPipe or OpenCV threads is not safe), else ``spawn``; 
 and its fitted mesh: the per-item messages carry only a FAP vector). Workers ignore SIGINT:
 Ctrl-C reaches the parent, which cancels what is queued, waits for the few running items and
 lets the exception through (the callers' staging then removes everything partial). An
-exception in a worker is raised in the parent when its item's turn comes.
+exception in a worker is raised in the parent when its item's turn comes. A caller that knows
+its process runs no Qt and no other thread (the CLI; :func:`fork_is_safe` checks) may ask for
+``fork`` instead: no server to start, and the workers inherit what this process built.
 
 The per-process :data:`FACE` is what :func:`render_face_into` renders on. :func:`rendered_frames`
 hands the frames back through shared memory (a ring of frame buffers: a 1080p frame pickled
 through the pool's pipe cost about as much as rendering it), so that on two cores one worker
-renders while this process encodes.
+renders while this process encodes; for a video already in the encoder's yuv420p layout (the
+conversion done in the worker: :mod:`editor.engine.yuv`). Forked workers inherit the parent's
+face with its plans built by the first frame, rendered in the parent (OpenCV's thread pool is
+stopped while forking: a child inherits its state but not its threads).
 """
 
 from __future__ import annotations
@@ -22,15 +27,18 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import sys
 from collections import deque
 from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from multiprocessing import shared_memory
 from typing import Any, TypeVar
 
 import numpy as np
 
+from editor.engine.yuv import i420_shape, rgb_to_i420
 from editor.errors import FapStudioError
 
 T = TypeVar("T")
@@ -70,8 +78,20 @@ def render_workers(jobs: int | None) -> int:
     return jobs if jobs > 1 else 0
 
 
-def _context() -> Any:
+def fork_is_safe() -> bool:
+    """Whether worker processes may be started by ``fork`` here: the platform has it, no
+    other Python thread runs and Qt is not loaded (the GUI runs Qt threads: a forked child
+    could inherit a lock one of them held; the CLI never imports Qt)."""
+    import threading
+
+    return ("fork" in mp.get_all_start_methods() and threading.active_count() == 1
+            and not any(m in sys.modules for m in ("PySide6", "PyQt6", "PyQt5")))
+
+
+def _context(fork: bool = False) -> Any:
     methods = mp.get_all_start_methods()
+    if fork and "fork" in methods:
+        return mp.get_context("fork")
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(PRELOAD)
@@ -92,16 +112,19 @@ def _worker_init(threads: int, initializer: Callable[..., None] | None,
 def ordered_map(fn: Callable[[T], R], items: Iterable[T], jobs: int, *,
                 window: int | None = None,
                 initializer: Callable[..., None] | None = None,
-                initargs: tuple[Any, ...] = (), threads: int = 1
+                initargs: tuple[Any, ...] = (), threads: int = 1, fork: bool = False
                 ) -> Generator[R, None, None]:
     """``fn(item)`` for every item in ``jobs`` worker processes, yielded in order.
 
     ``fn`` and ``initializer`` must be module-level functions (they are pickled by name).
     ``window`` (default ``2 * jobs + 1``) bounds the items submitted but not yet yielded.
     Closing the generator early (``break``, an exception) cancels what is queued.
+    ``fork``: start the workers by forking this process (only where :func:`fork_is_safe`
+    says so: the caller's job to ask); they inherit its memory, and ``initargs`` are not
+    pickled. Otherwise ``forkserver`` (``spawn`` where there is none).
     """
     window = max(1, window or 2 * jobs + 1)
-    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=_context(),
+    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=_context(fork),
                              initializer=_worker_init, initargs=(threads, initializer, initargs))
     pending: deque[Future[R]] = deque()
     it = iter(items)
@@ -145,45 +168,89 @@ def init_face(args: tuple[Any, ...], neutral: np.ndarray) -> None:
         raise FapStudioError("a render worker rebuilt the face differently")
 
 
+def _inherit_face(face: Any) -> None:
+    """Worker initializer of a forked pool: this process's :data:`FACE` is the parent's
+    (inherited with its plans and caches; nothing rebuilt or sent)."""
+    global FACE
+    FACE = face
+
+
 #: the shared-memory frame buffers this worker has opened, by name
 _SLOTS: dict[str, Any] = {}
 
+#: frame layouts :func:`rendered_frames` hands back: RGB, or the encoder's I420 (yuv420p)
+LAYOUTS = ("rgb", "i420")
 
-def render_face_into(task: tuple[np.ndarray, bool, str, tuple[int, int, int]]) -> str:
+
+def frame_shape(h: int, w: int, layout: str) -> tuple[int, ...]:
+    """The shape of an ``h x w`` frame in ``layout`` (I420: even sizes, Y then U and V)."""
+    if layout == "i420":
+        return i420_shape(h, w)
+    if layout == "rgb":
+        return (h, w, 3)
+    raise ValueError(f"unknown frame layout {layout!r}; expected one of {LAYOUTS}")
+
+
+def render_face_into(task: tuple[np.ndarray, bool, str, tuple[int, ...]]) -> str:
     """``(vector, creases, buffer name, shape)``: render on this worker's :data:`FACE` into
-    the shared frame buffer; returns its name."""
+    the shared frame buffer (RGB, or I420 when ``shape`` is 2-D: converted here, so that the
+    encoding process only encodes); returns its name."""
     vec, creases, name, shape = task
     shm = _SLOTS.get(name)
     if shm is None:
         shm = _SLOTS[name] = shared_memory.SharedMemory(name=name)
     out: np.ndarray = np.ndarray(shape, np.uint8, buffer=shm.buf)
-    out[:] = FACE.render(vec, creases=creases)
+    render_frame(FACE, vec, creases, out)
     return name
 
 
-def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int) -> Iterator[np.ndarray]:
-    """``face.render(v)`` for each vector, rendered in ``jobs`` worker processes, in order.
+def render_frame(face: Any, vec: np.ndarray, creases: bool, out: np.ndarray) -> np.ndarray:
+    """``face.render(vec)`` into ``out``: RGB ``(H, W, 3)`` or I420 (2-D, :func:`i420_shape`)."""
+    img = face.render(vec, creases=creases)
+    if out.ndim == 2:
+        rgb_to_i420(img, out)
+    else:
+        out[:] = img
+    return out
+
+
+def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int, *,
+                    layout: str = "rgb", fork: bool = False) -> Iterator[np.ndarray]:
+    """``face.render(v)`` for each vector, rendered in ``jobs`` worker processes, in order,
+    in ``layout`` (``"rgb"``, or ``"i420"``: :func:`editor.engine.yuv.rgb_to_i420` of it).
 
     Each frame is a view of a shared buffer, valid until the next one is asked for (a ring of
     ``window + 1`` buffers: a buffer is handed to a new frame only after the frame it held was
     yielded and the caller came back). The buffers are released when the generator ends or is
     closed.
+
+    ``fork`` (where :func:`fork_is_safe`): the first frame is rendered here, so that the
+    face's plans are built once, then the workers are forked and inherit them (no face
+    rebuilt per worker, no forkserver to start). Otherwise each worker builds the face from
+    :func:`face_args` (a ``forkserver`` child: safe beside Qt's threads).
     """
     h, w = np.asarray(face.image).shape[:2]
-    shape = (h, w, 3)
+    shape = frame_shape(h, w, layout)
+    size = int(np.prod(shape))
     window = 2 * jobs + 1
-    slots = [shared_memory.SharedMemory(create=True, size=h * w * 3) for _ in range(window + 1)]
+    slots = [shared_memory.SharedMemory(create=True, size=size) for _ in range(window + 1)]
     views: dict[str, np.ndarray] | None = {s.name: np.ndarray(shape, np.uint8, buffer=s.buf)
                                            for s in slots}
-    tasks = ((v, creases, slots[i % len(slots)].name, shape) for i, v in enumerate(vecs))
-    names = ordered_map(render_face_into, tasks, jobs, window=window, initializer=init_face,
-                        initargs=face_args(face))
+    names: Generator[str, None, None] | None = None
     try:
+        if fork:
+            assert views is not None
+            yield from _forked_frames(face, vecs, creases, jobs, window, slots, views, shape)
+            return
+        tasks = ((v, creases, slots[i % len(slots)].name, shape) for i, v in enumerate(vecs))
+        names = ordered_map(render_face_into, tasks, jobs, window=window,
+                            initializer=init_face, initargs=face_args(face))
         for name in names:
             assert views is not None
             yield views[name]
     finally:
-        names.close()  # the workers stop (and let go of the buffers) first
+        if names is not None:
+            names.close()  # the workers stop (and let go of the buffers) first
         views = None
         for shm in slots:
             try:
@@ -191,3 +258,47 @@ def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int) -> It
             except BufferError:  # the caller still holds the last frame: freed with it
                 pass
             shm.unlink()
+
+
+@contextmanager
+def _single_threaded_cv2() -> Iterator[None]:
+    """OpenCV without its worker threads while this process forks (they are stopped and
+    joined here, then started again as needed): a forked child inherits the thread pool's
+    state but not its threads, and would hang in the first call that wakes or stops them
+    (seen: ``cv2.setNumThreads`` waiting forever on a dead thread's condition variable)."""
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
+
+
+def _forked_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int, window: int,
+                   slots: list[Any], views: dict[str, np.ndarray], shape: tuple[int, ...]
+                   ) -> Generator[np.ndarray, None, None]:
+    """:func:`rendered_frames` with forked workers: frame 0 rendered here (building the plans
+    they inherit), the workers forked before it is handed on (before the caller's encoder
+    starts its threads), then the pool's frames."""
+    if not len(vecs):
+        return
+    first = render_frame(face, vecs[0], creases, views[slots[0].name])
+    tasks = ((v, creases, slots[i % len(slots)].name, shape)
+             for i, v in enumerate(vecs) if i)
+    names = ordered_map(render_face_into, tasks, jobs, window=window,
+                        initializer=_inherit_face, initargs=(face,), fork=True)
+    try:
+        # the first result: the pool started (slots 1..window in use; slot 0 is reused
+        # only once frame 1 has been handed on and the caller came back)
+        with _single_threaded_cv2():
+            name = next(names, None)
+        yield first
+        if name is None:
+            return
+        yield views[name]
+        for name in names:
+            yield views[name]
+    finally:
+        names.close()

@@ -27,7 +27,8 @@ import numpy as np
 
 from editor.engine.faps import FAPS
 from editor.engine.imageio import save_image
-from editor.engine.pool import render_workers, rendered_frames
+from editor.engine.pool import fork_is_safe, render_frame, render_workers, rendered_frames
+from editor.engine.yuv import i420_shape, rgb_to_i420
 from editor.errors import FapStudioError
 from editor.safeio import atomic_dir, atomic_file, quiet_stderr
 
@@ -54,7 +55,10 @@ X264_OPTIONS = {"crf": "16", "preset": "veryfast"}
 class VideoWriter:
     """Frames (RGB uint8, all of one size) into a video file through PyAV; a context manager.
 
-    Odd sizes are padded to even ones (yuv420p halves the chroma resolution)."""
+    Odd sizes are padded to even ones (yuv420p halves the chroma resolution). ``layout`` is
+    the frame layout the encoder takes without a conversion: ``"i420"`` for H.264 (yuv420p:
+    :func:`editor.engine.yuv.rgb_to_i420`, done by whoever renders the frame, e.g. a render
+    worker), else ``"rgb"``. :meth:`write` takes RGB frames or frames in ``layout``."""
 
     def __init__(self, path: Path, size: tuple[int, int], fps: float) -> None:
         try:
@@ -78,12 +82,23 @@ class VideoWriter:
         self.stream = stream
         self.stream.width, self.stream.height = w + self.pad[0], h + self.pad[1]
         self.stream.pix_fmt = self.pix_fmt
+        self.layout = "i420" if self.pix_fmt == "yuv420p" else "rgb"
+        self.size = (w, h)
         self._av = av
 
-    def write(self, rgb: np.ndarray) -> None:
-        if any(self.pad):
-            rgb = cv2.copyMakeBorder(rgb, 0, self.pad[1], 0, self.pad[0], cv2.BORDER_REPLICATE)
-        frame = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb), format="rgb24")
+    def write(self, img: np.ndarray) -> None:
+        """One frame: RGB ``(H, W, 3)``, or a 2-D I420 buffer when :attr:`layout` is i420."""
+        if self.layout == "i420":
+            if img.ndim == 3:
+                img = rgb_to_i420(img)
+            elif img.shape != i420_shape(self.size[1], self.size[0]):
+                raise ValueError(f"I420 frame of shape {img.shape} for a {self.size} video")
+            frame = self._av.VideoFrame.from_ndarray(img, format="yuv420p")
+        else:
+            if any(self.pad):
+                img = cv2.copyMakeBorder(img, 0, self.pad[1], 0, self.pad[0],
+                                         cv2.BORDER_REPLICATE)
+            frame = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")
         for packet in self.stream.encode(frame):
             self.container.mux(packet)
 
@@ -118,13 +133,21 @@ def sequence_vectors(seq) -> np.ndarray:
 
 def export_sequence(face, seq, out: str | os.PathLike[str],
                     progress: Callable[[int, int], bool | None] | None = None,
-                    creases: bool = True, jobs: int | None = 1) -> ExportResult:
+                    creases: bool = True, jobs: int | None = 1,
+                    fork: bool = False) -> ExportResult:
     """Render ``seq`` on ``face`` into an MP4 file or a folder of PNG frames.
 
     ``jobs`` > 1 renders the frames in that many worker processes (:mod:`editor.engine.pool`:
     each builds the face once, a bounded window of frames in flight, handed back through
     shared memory), written in order here: the same frames as ``jobs=1`` (this process).
-    ``None``: a worker per core (:func:`~editor.engine.pool.render_workers`)."""
+    ``None``: a worker per core (:func:`~editor.engine.pool.render_workers`). ``fork``: the
+    workers may be forked from this process (they inherit the face's plans; used only where
+    :func:`~editor.engine.pool.fork_is_safe`: a process without Qt or other threads, e.g. the
+    CLI), else each builds the face in a ``forkserver`` child.
+
+    For H.264 the frames are converted to yuv420p where they are rendered
+    (:func:`editor.engine.yuv.rgb_to_i420`, the same for any ``jobs``), so that this process
+    only encodes."""
     vecs = sequence_vectors(seq)
     n = len(vecs)
     if n == 0:
@@ -137,7 +160,8 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
     try:
         # staged next to the target, moved there only when complete (issue 16)
         with (atomic_file if codec else atomic_dir)(p) as tmp:
-            done = _write_frames(face, vecs, tmp, codec, seq.fps, progress, creases, jobs)
+            done = _write_frames(face, vecs, tmp, codec, seq.fps, progress, creases, jobs,
+                                 fork)
             if done < n:
                 raise _Cancelled(done)
             if codec:
@@ -152,7 +176,7 @@ def export_sequence(face, seq, out: str | os.PathLike[str],
 
 def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
                   progress: Callable[[int, int], bool | None] | None, creases: bool,
-                  jobs: int | None = 1) -> int:
+                  jobs: int | None = 1, fork: bool = False) -> int:
     """Render into the video file or folder ``out``; the number of frames written (fewer
     when ``progress`` cancelled). The video is finalised (released) before returning."""
     n = len(vecs)
@@ -164,9 +188,14 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
             writer = VideoWriter(out, (w, h), fps)
     done = 0
     frames: Iterator[np.ndarray]
+    layout = writer.layout if writer is not None else "rgb"
     workers = min(render_workers(jobs), n - 1)
     if workers >= 1:
-        frames = rendered_frames(face, vecs, creases, workers)
+        frames = rendered_frames(face, vecs, creases, workers, layout=layout,
+                                 fork=fork and fork_is_safe())
+    elif layout == "i420":
+        buf = np.empty(i420_shape(h, w), np.uint8)  # reused: the encoder copies each frame
+        frames = (render_frame(face, v, creases, buf) for v in vecs)
     else:
         frames = (face.render(v, creases=creases) for v in vecs)
     try:

@@ -1,0 +1,141 @@
+"""The deformation plan (built ~17 times while a photo's own expression is estimated) computes
+its eq. 2 weights for all rectangles at once and the face mask per coordinate: the same values,
+bit for bit, as the rectangle-by-rectangle and (N, S, 2) computations (kept here as the
+reference), on random rectangles and on the sample's plan."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from editor.engine import influence
+from editor.engine.influence import Rect
+
+
+def _axis_weight_reference(v, lo, hi, c0, plateau, parabolic):
+    a, b = (c0, c0) if plateau is None else (min(plateau), max(plateau))
+    a, b = max(a, lo + 1e-6), min(b, hi - 1e-6)
+    w = np.zeros_like(v)
+    left = (v > lo) & (v < a)
+    right = (v > b) & (v < hi)
+    mid = (v >= a) & (v <= b)
+    if parabolic:
+        w[left] = 1.0 - ((v[left] - a) / (lo - a)) ** 2
+        w[right] = 1.0 - ((v[right] - b) / (hi - b)) ** 2
+    else:
+        w[left] = (v[left] - lo) / (a - lo)
+        w[right] = (hi - v[right]) / (hi - b)
+    w[mid] = 1.0
+    return w
+
+
+def _weights_reference(rect, p0, pts, sides, movable):
+    x1, x2 = min(rect.x1, rect.x2), max(rect.x1, rect.x2)
+    y1, y2 = min(rect.y1, rect.y2), max(rect.y1, rect.y2)
+    eps = 1e-3
+    x1, x2 = min(x1, p0[0] - eps), max(x2, p0[0] + eps)
+    y1, y2 = min(y1, p0[1] - eps), max(y2, p0[1] + eps)
+    wx = _axis_weight_reference(pts[:, 0], x1, x2, float(p0[0]), rect.px, rect.parabolic_x)
+    wy = _axis_weight_reference(pts[:, 1], y1, y2, float(p0[1]), rect.py, False)
+    w = wx * wy * movable
+    if rect.side is not None:
+        w = w * ~sides[influence._opposite(rect.side)]
+    return w
+
+
+def _inside_distance_reference(poly, pts):
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a
+    ap = pts[:, None, :] - a[None]
+    t = np.clip((ap * ab[None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12)[None], 0.0, 1.0)
+    d = np.linalg.norm(ap - t[..., None] * ab[None], axis=-1).min(1)
+    py, px = pts[:, 1:2], pts[:, 0:1]
+    ay, by, ax, bx = a[None, :, 1], b[None, :, 1], a[None, :, 0], b[None, :, 0]
+    spans = (ay > py) != (by > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = ax + (py - ay) * (bx - ax) / (by - ay)
+    inside = (spans & (px < xc)).sum(1) % 2 == 1
+    return np.where(inside, d, -d)
+
+
+def _random_rect(rng):
+    c = rng.uniform(-50, 50, 4)
+    px = None if rng.random() < 0.5 else tuple(rng.uniform(-60, 60, 2))
+    py = None if rng.random() < 0.5 else tuple(rng.uniform(-60, 60, 2))
+    side = rng.choice([None, "mouth_up", "mouth_low", "eye_l_up", "eye_r_low"])
+    return Rect(*c, px=px, py=py, parabolic_x=bool(rng.random() < 0.3), side=side)
+
+
+def test_weights_many_is_weights_one_by_one():
+    rng = np.random.default_rng(15)
+    for trial in range(300):
+        n = int(rng.integers(1, 80))
+        pts = rng.uniform(-70, 70, (n, 2))
+        if trial % 4 == 0:  # points exactly on the rectangles' sides and plateaus
+            pts = np.round(pts)
+        sides = {k: rng.random(n) < 0.3 for k in ("mouth_up", "mouth_low", "eye_l_up",
+                                                    "eye_l_low", "eye_r_up", "eye_r_low")}
+        movable = rng.random(n) < 0.8
+        rects = [_random_rect(rng) for _ in range(int(rng.integers(1, 12)))]
+        if trial % 4 == 0:
+            rects = [Rect(*np.round([r.x1, r.x2, r.y1, r.y2]), px=r.px, py=r.py,
+                          parabolic_x=r.parabolic_x, side=r.side) for r in rects]
+        p0 = rng.uniform(-40, 40, (len(rects), 2))
+        got = influence.weights_many(rects, p0, pts, sides, movable)
+        for i, r in enumerate(rects):
+            ref = _weights_reference(r, p0[i], pts, sides, movable)
+            assert np.array_equal(got[i], ref), (trial, i)
+            assert np.array_equal(influence.weights(r, p0[i], pts, sides, movable), ref)
+
+
+def test_weights_many_plateau_beyond_the_rectangle():
+    # a plateau past the rectangle's side: the left and right ramps overlap just inside that
+    # side (the right one wins, as it did)
+    pts = np.stack([np.linspace(-1.0, 1.0, 2001), np.zeros(2001)], 1)
+    pts[:, 0] = np.where(np.abs(pts[:, 0] - 0.5) < 1e-6, 0.5 - 5e-7, pts[:, 0])
+    rects = [Rect(-1.0, -1.0, 0.5, 1.0, px=(0.8, 0.9)), Rect(-1.0, -1.0, 0.5, 1.0, px=(-2, -1.5))]
+    sides = {k: np.zeros(len(pts), bool) for k in ("mouth_up", "mouth_low")}
+    p0 = np.array([[0.0, 0.0], [0.0, 0.0]])
+    got = influence.weights_many(rects, p0, pts, sides, np.ones(len(pts), bool))
+    for i, r in enumerate(rects):
+        ref = _weights_reference(r, p0[i], pts, sides, np.ones(len(pts), bool))
+        assert np.array_equal(got[i], ref), i
+
+
+def test_inside_distance_is_the_vector_form():
+    rng = np.random.default_rng(16)
+    for trial in range(200):
+        s = int(rng.integers(3, 50))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, s))
+        poly = np.stack([np.cos(ang), np.sin(ang)], 1) * rng.uniform(10, 60, (s, 1))
+        pts = rng.uniform(-70, 70, (int(rng.integers(1, 300)), 2))
+        if trial % 3 == 0:
+            poly, pts = np.round(poly), np.round(pts)
+            pts[: min(len(pts), s)] = poly[: min(len(pts), s)]  # on the outline
+        assert np.array_equal(influence.inside_distance(poly, pts),
+                              _inside_distance_reference(poly, pts)), trial
+
+
+def test_sample_plan_weights_match_the_reference(sample_face):
+    from editor.engine.deform import EXTRA_POINTS, _topology
+
+    face = sample_face
+    plan = face.plan
+    topo = _topology(face.mesh)
+    P = face.frame.to_frame(plan.neutral.astype(np.float64))
+    byname = {n: P[i] for i, n in enumerate(topo.names)}
+    iod = float(np.linalg.norm(byname["eye_l_u3"] - byname["eye_r_u3"]))
+    rects = influence.rectangles(byname, iod)
+    fdp_pos = {k: P[i] for k, i in face.mesh.fdp.items()}
+    V = plan.n_vertices
+    fdp_pos.update({k: P[V + i] for i, k in enumerate(EXTRA_POINTS)})
+    keys = [k for k in rects if k in fdp_pos]
+    got = influence.weights_many([rects[k] for k in keys], np.array([fdp_pos[k] for k in keys]),
+                                 P, topo.sides, topo.movable_lin)
+    for i, k in enumerate(keys):
+        ref = _weights_reference(rects[k], fdp_pos[k], P, topo.sides, topo.movable_lin)
+        assert np.array_equal(got[i], ref), k
+        assert ref.any(), k  # each rectangle moves something
+    poly = influence.face_polygon(byname)
+    assert np.array_equal(influence.inside_distance(poly, P),
+                          _inside_distance_reference(poly, P))

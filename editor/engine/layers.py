@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
+from .fitting import channel_median
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
 from .mouth import (
     CROWN,
@@ -94,7 +95,7 @@ def layer_plan(face: Face) -> LayerPlan:
         off = np.array([bx0, by0], np.int32) * 16
         for t in q:
             cv2.fillConvexPoly(skin_mask, t - off, 1, cv2.LINE_8, 4)
-        skin = (np.median(img[by0:by1, bx0:bx1][skin_mask > 0], axis=0).astype(np.float32)
+        skin = (channel_median(img[by0:by1, bx0:bx1], skin_mask).astype(np.float32)
                 if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
         skin_l = max(float(_lum(skin)), 20.0)
         sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))

@@ -329,14 +329,18 @@ class Face:
         # FAPU are the neutral's (a smile widens the mouth and changes the mouth-nose
         # distance): the estimate is redone with the motion per unit of the neutral it implies,
         # else f0 renders a fraction of the photo's expression and neutralising leaves the rest
-        for _ in range(OWN_ROUNDS - 1):
+        for k in range(OWN_ROUNDS - 1):
             own = estimate_own(face)
             if not own.faps.any():
                 return base
-            face = base.with_expression(own.faps, own.words)
+            if k < OWN_ROUNDS - 2:
+                face = base.with_expression(own.faps, own.words)
+        # the last estimate's vector as with_expression's face would hold it (that face's
+        # neutral is not built: the face returned neutralises with the estimate's neutral
+        # landmarks instead)
+        f0 = FAPS.clamp(FAPS.vector(base.fap_vector(own.faps)))
         return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source,
-                    face.expression, face.expression_words, own.neutral68,
-                    photo_plan=base._photo_plan())
+                    f0, own.words, own.neutral68, photo_plan=base._photo_plan())
 
     def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
         """A copy with another own expression f0 (None or zeros: the photo is neutral)."""

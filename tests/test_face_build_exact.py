@@ -158,3 +158,20 @@ def test_channel_median_is_np_median():
         ref = np.median(img.reshape(-1, 3) if mask is None else img[mask > 0], axis=0)
         got = channel_median(img, mask)
         assert got.dtype == ref.dtype and np.array_equal(got, ref), trial
+
+
+def test_landmark_jacobian_is_one_product_per_fap(sample_face):
+    from editor.engine.deform import LIP_PAIRS
+    from editor.engine.fap_model import FapEstimator, landmark_jacobian
+    from editor.engine.laplacian import landmark_map
+
+    f = sample_face
+    A = landmark_map(f.vertices, f.triangles, f.mesh.names,
+                     np.asarray(f.landmarks.points, np.float64))
+    V = f.plan.n_vertices
+    basis = f.plan.basis.astype(np.float64)[:, :V]
+    ref = np.stack([(A @ basis[k]).ravel() for k in range(68)], 1)
+    assert np.array_equal(landmark_jacobian(f, A), ref) and np.abs(ref).max() > 0
+    pb = f.plan.pair_basis.reshape(len(LIP_PAIRS), -1, 2)[:, :V]
+    ref_p = np.stack([(A @ pb[k]).ravel() for k in range(len(LIP_PAIRS))], 1)
+    assert np.array_equal(FapEstimator(f).P, ref_p) and np.abs(ref_p).max() > 0

@@ -216,7 +216,10 @@ class Face:
         up, low = np.array([61, 62, 63]), np.array([67, 66, 65])
         N = target.copy()
         mouth_moves = bool(f0[2:13].any() or f0[50:60].any())  # jaw, inner and outer lips
-        for _ in range(rounds):
+        pairs = self.mesh.pairs
+        u, lo = pairs[:, 0], pairs[:, 1]
+        mouth = np.isin(u, self.mesh.holes["mouth"])
+        for k in range(rounds):
             U = x - A @ (linear_positions(plan, f0)[:V] - N[:V])
             if self.neutral_landmarks is not None and mouth_moves:  # the estimate's neutral
                 U[48:] = np.asarray(self.neutral_landmarks, np.float64)[48:]
@@ -224,14 +227,13 @@ class Face:
             # on the skull; the jaw and the lower lip close onto it)
             U[low] -= ((U[low] - U[up]) @ ey)[:, None] * ey
             N[:V] = lap.solve(U)
+            if k == rounds - 1 and mouth.any():
+                break  # (the inner lips are closed below: the plan is built after that)
             fapu, plan = self._build(N[:V].astype(np.float32))
             N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
         # lips and lids of the neutral meet but never cross, and the inner lips are closed
         # (between the landmarks the Laplacian leaves them a little apart); the offset absorbs
         # the difference
-        pairs = self.mesh.pairs
-        u, lo = pairs[:, 0], pairs[:, 1]
-        mouth = np.isin(u, self.mesh.holes["mouth"])
         cross = ((N[lo] - N[u]) @ ey < 0) & ~mouth
         if cross.any():
             mean = 0.5 * (N[u[cross]] + N[lo[cross]])

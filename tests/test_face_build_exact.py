@@ -175,3 +175,73 @@ def test_landmark_jacobian_is_one_product_per_fap(sample_face):
     pb = f.plan.pair_basis.reshape(len(LIP_PAIRS), -1, 2)[:, :V]
     ref_p = np.stack([(A @ pb[k]).ravel() for k in range(len(LIP_PAIRS))], 1)
     assert np.array_equal(FapEstimator(f).P, ref_p) and np.abs(ref_p).max() > 0
+
+
+def _white_plate_reference(patch, opening, rho, r_fill, radius):
+    """gaze._white_plate as it was: the fill made and blurred over the whole patch."""
+    import cv2
+
+    from editor.engine.gaze import _row_interp, _telea
+
+    outside_iris = rho >= r_fill
+    disc = opening & ~outside_iris
+    out = patch.astype(np.float32)
+    if disc.any():
+        tel = _telea(patch, disc, radius)
+        d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
+        known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
+        rows, wrow = _row_interp(tel, out, known, disc)
+        wv = (np.clip((d_lid - 0.5) / 2.0, 0.0, 1.0) * wrow)[..., None]
+        fill = wv * rows + (1.0 - wv) * tel
+        fill = cv2.GaussianBlur(fill, (0, 0), max(0.6, 0.25 * radius))
+        w = (np.clip(r_fill - rho, 0.0, 1.0) * opening)[..., None].astype(np.float32)
+        out = w * fill + (1.0 - w) * out
+    # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
+    # it stays with the lid, so the eyeball's white there continues the nearest white inside
+    # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris)
+    inner = opening & (cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3) > 1.5)
+    margin = opening & ~inner
+    if inner.any() and margin.any():
+        _, lab = cv2.distanceTransformWithLabels((~inner).astype(np.uint8), cv2.DIST_L2, 3,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+        iy, ix = np.nonzero(inner)  # labels number the zero pixels in this (row-major) order
+        near = lab[margin] - 1
+        out[margin] = out[iy[near], ix[near]]
+    ph, pw = opening.shape
+    full = np.flatnonzero(opening.any(0))
+    if len(full):
+        # each column above / below its opening repeats its first / last row inside, a column
+        # without opening the nearest column with one (the smaller on a tie)
+        top = np.argmax(opening, 0)
+        bot = ph - 1 - np.argmax(opening[::-1], 0)
+        src = full[np.abs(np.arange(pw)[:, None] - full[None, :]).argmin(1)]
+        yy = np.arange(ph)[:, None]
+        out = out[np.clip(yy, top[src][None, :], bot[src][None, :]), src[None, :]]
+    return out
+
+
+def test_white_plate_blurs_the_disc_box_only():
+    import cv2
+
+    from editor.engine.gaze import _white_plate
+
+    rng = np.random.default_rng(18)
+    for trial in range(24):
+        r = float(rng.choice([3.0, 7.5, 12.0, 34.0]))
+        h, w = int(rng.integers(int(3 * r), int(5 * r))), int(rng.integers(int(5 * r), int(8 * r)))
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        white = 200.0 - 0.15 * xx - 40.0 * np.exp(-yy / 25.0)
+        patch = np.dstack([white, white * 0.95, white * 0.9]) + rng.normal(0, 6, (h, w, 3))
+        patch = np.clip(patch, 0, 255).astype(np.uint8)
+        # the iris anywhere, also against the patch's edges
+        cx, cy = rng.uniform(0.2 * w, 0.8 * w), rng.uniform(0.0, h)
+        rho = np.hypot(xx - cx, yy - cy).astype(np.float64)
+        patch[rho < r] = (60, 40, 30)
+        opening = np.zeros((h, w), np.uint8)
+        cv2.ellipse(opening, (w // 2, h // 2), (int(0.45 * w), int(rng.uniform(0.2, 0.5) * h)),
+                    0, 0, 360, 1, -1)
+        opening = opening > 0
+        r_fill = r + max(1.5, 0.3 * r)
+        got = _white_plate(patch, opening, rho, r_fill, r)
+        ref = _white_plate_reference(patch, opening, rho, r_fill, r)
+        assert np.array_equal(got, ref), trial

@@ -113,12 +113,22 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         tel = _telea(patch, disc, radius)
         d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
-        rows, wrow = _row_interp(tel, out, known, disc)
-        wv = (np.clip((d_lid - 0.5) / 2.0, 0.0, 1.0) * wrow)[..., None]
-        fill = wv * rows + (1.0 - wv) * tel
-        fill = cv2.GaussianBlur(fill, (0, 0), max(0.6, 0.25 * radius))
-        w = (np.clip(r_fill - rho, 0.0, 1.0) * opening)[..., None].astype(np.float32)
-        out = w * fill + (1.0 - w) * out
+        # only the disc changes (its weight w is 0 elsewhere): the fill is made and blurred
+        # over the disc's box and the blur's reach (the blur's values there are those of the
+        # whole patch's; the rows are interpolated over the whole width)
+        sigma = max(0.6, 0.25 * radius)
+        reach = (int(round(sigma * 4 * 2 + 1)) | 1) // 2 + 1  # OpenCV's float kernel, + 1
+        ys, xs = np.flatnonzero(disc.any(1)), np.flatnonzero(disc.any(0))
+        ph, pw = disc.shape
+        r0, r1 = max(int(ys[0]) - reach, 0), min(int(ys[-1]) + 1 + reach, ph)
+        c0, c1 = max(int(xs[0]) - reach, 0), min(int(xs[-1]) + 1 + reach, pw)
+        rows, wrow = _row_interp(tel[r0:r1], out[r0:r1], known[r0:r1], disc[r0:r1])
+        box = (slice(r0, r1), slice(c0, c1))
+        wv = (np.clip((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
+        fill = wv * rows[:, c0:c1] + (1.0 - wv) * tel[box]
+        fill = cv2.GaussianBlur(fill, (0, 0), sigma)
+        w = (np.clip(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
+        out[box] = w * fill + (1.0 - w) * out[box]
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
     # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris)

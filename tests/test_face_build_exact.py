@@ -245,3 +245,72 @@ def test_white_plate_blurs_the_disc_box_only():
         got = _white_plate(patch, opening, rho, r_fill, r)
         ref = _white_plate_reference(patch, opening, rho, r_fill, r)
         assert np.array_equal(got, ref), trial
+
+
+def _ball_white_reference(plate, opening, r, band_up, band_low):
+    """gaze._ball_white as it was: the shading computed over the whole patch."""
+    import cv2
+
+    from editor.engine.gaze import BALL_SHADE, _column_percentile
+
+    ph, pw = opening.shape
+    cols = np.flatnonzero(opening.any(0))
+    out = plate.copy()
+    if len(cols) == 0:
+        return out
+    top = np.argmax(opening, 0)
+    bot = ph - 1 - np.argmax(opening[::-1], 0)
+    mid = 0.5 * (top + bot)
+    ref_t = np.minimum(np.rint(top + band_up), np.floor(mid)).astype(np.int64)
+    ref_b = np.maximum(np.rint(bot - band_low), np.ceil(mid)).astype(np.int64)
+    ref_t, ref_b = np.clip(ref_t, 0, ph - 1), np.clip(ref_b, 0, ph - 1)
+    jj = np.arange(pw)
+
+    # the white of each column: its brighter part between the lids' shadow bands (the plate
+    # has no iris), as bright as the sclera near the eye's middle
+    yy = np.arange(ph, dtype=np.float32)[:, None]
+    mid_rows = opening & (yy >= ref_t[None, :]) & (yy <= ref_b[None, :])
+    mid_rows |= opening & ~mid_rows.any(0)[None, :]
+    lum = plate @ np.array([0.299, 0.587, 0.114], np.float32)
+    thr = _column_percentile(lum[:, cols], mid_rows[:, cols], 80)
+    sel = np.zeros_like(opening)
+    sel[:, cols] = mid_rows[:, cols] & (lum[:, cols] >= thr[None, :] - 1e-3)
+    cnt = sel.sum(0)
+    ok = cnt > 0
+    ref = np.zeros((pw, 3), np.float32)
+    ref[ok] = (plate * sel[..., None]).sum(0)[ok] / cnt[ok, None]
+    for ch in range(3):
+        ref[:, ch] = np.interp(jj, jj[ok], ref[ok, ch])
+    ref = cv2.GaussianBlur(ref[None], (0, 0), max(0.8, 0.3 * r))[0]
+    c_t, c_b = ref, ref
+    near = cols[np.abs(jj[:, None] - cols[None, :]).argmin(1)]
+    ref_t, ref_b = ref_t[near], ref_b[near]
+    d_t = np.maximum(ref_t[None, :] - yy, 0.0)
+    d_b = np.maximum(yy - ref_b[None, :], 0.0)
+    shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
+    shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
+    # (the float64 colours written only where they go, rounded to float32 as before)
+    for side, c, shade in ((yy < ref_t[None, :], c_t, shade_t),
+                           (yy > ref_b[None, :], c_b, shade_b)):
+        iy, ix = np.nonzero(side)
+        out[iy, ix] = c[ix] * shade[iy, ix]
+    return out
+
+
+def test_ball_white_shades_where_it_writes():
+    import cv2
+
+    from editor.engine.gaze import _ball_white
+
+    rng = np.random.default_rng(19)
+    for trial in range(40):
+        h, w = int(rng.integers(8, 120)), int(rng.integers(8, 200))
+        plate = rng.uniform(120, 240, (h, w, 3)).astype(np.float32)
+        opening = np.zeros((h, w), np.uint8)
+        cv2.ellipse(opening, (w // 2, h // 2), (int(rng.uniform(0.2, 0.5) * w),
+                                                int(rng.uniform(0.1, 0.5) * h)), 0, 0, 360, 1, -1)
+        if trial % 5 == 0:
+            opening[:, : w // 3] = 0  # columns without opening
+        r = float(rng.uniform(2.0, 35.0))
+        args = (plate, opening > 0, r, max(2.5, 0.5 * r), max(1.5, 0.25 * r))
+        assert np.array_equal(_ball_white(*args), _ball_white_reference(*args)), trial

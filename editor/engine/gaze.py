@@ -286,15 +286,15 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     c_t, c_b = ref, ref
     near = cols[np.abs(jj[:, None] - cols[None, :]).argmin(1)]
     ref_t, ref_b = ref_t[near], ref_b[near]
-    d_t = np.maximum(ref_t[None, :] - yy, 0.0)
-    d_b = np.maximum(yy - ref_b[None, :], 0.0)
-    shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
-    shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
-    # (the float64 colours written only where they go, rounded to float32 as before)
-    for side, c, shade in ((yy < ref_t[None, :], c_t, shade_t),
-                           (yy > ref_b[None, :], c_b, shade_b)):
+    # (the float64 colours written only where they go, rounded to float32 as before; the
+    # shading computed there only: the distance to the reference row, float64)
+    for side, c, sign, ref_row in ((yy < ref_t[None, :], c_t, 1, ref_t),
+                                   (yy > ref_b[None, :], c_b, -1, ref_b)):
         iy, ix = np.nonzero(side)
-        out[iy, ix] = c[ix] * shade[iy, ix]
+        y = yy[iy, 0]
+        d = np.maximum(ref_row[ix] - y if sign > 0 else y - ref_row[ix], 0.0)
+        shade = (1.0 - BALL_SHADE * (1.0 - np.exp(-d / max(r, 1.0))))[:, None]
+        out[iy, ix] = c[ix] * shade
     return out
 
 

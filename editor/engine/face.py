@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from dataclasses import InitVar, dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -218,7 +218,7 @@ class Face:
         mouth_moves = bool(f0[2:13].any() or f0[50:60].any())  # jaw, inner and outer lips
         pairs = self.mesh.pairs
         u, lo = pairs[:, 0], pairs[:, 1]
-        mouth = np.isin(u, self.mesh.holes["mouth"])
+        mouth = _mouth_pairs(self.mesh)
         for k in range(rounds):
             U = x - A @ (linear_positions(plan, f0)[:V] - N[:V])
             if self.neutral_landmarks is not None and mouth_moves:  # the estimate's neutral
@@ -617,14 +617,8 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
     """Move the lip vertices of folded triangles (signed area below 10 % of ``sigma0``, the
     photo mesh's) towards the mean of their neighbours: outer lips, and the closed inner lips
     together (the lower one on the upper one); the corners stay."""
-    names = np.array(mesh.names)
-    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
-               | np.char.startswith(names, "lipi_u")) & \
-        ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
-    pairs = mesh.pairs[np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])]
-    e = mesh.edges()
+    movable, pairs, e, deg = _lip_topology(mesh)
     v = np.asarray(verts, np.float64).copy()
-    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
     tri = mesh.triangles
     for _ in range(iters):
         bad = signed_areas(v, tri) * np.sign(sigma0) < 0.1 * np.abs(sigma0)
@@ -639,6 +633,31 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
         v[sel] += 0.5 * (avg[sel] - v[sel])
         v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
     return v
+
+
+@lru_cache(maxsize=4)
+def _mouth_pairs(mesh: StandardMesh) -> np.ndarray:
+    """(P,) bool: which of the mesh's upper/lower pairs are the mouth's inner lips."""
+    m = np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])
+    m.setflags(write=False)
+    return m
+
+
+@lru_cache(maxsize=4)
+def _lip_topology(mesh: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`_unfold_lips` needs of the mesh (once per mesh, not per neutralisation):
+    the lip vertices it may move, the mouth's inner-lip pairs, the edges and the vertex
+    degrees."""
+    names = np.array(mesh.names)
+    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
+               | np.char.startswith(names, "lipi_u")) & \
+        ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
+    pairs = mesh.pairs[_mouth_pairs(mesh)]
+    e = mesh.edges()
+    deg = np.bincount(e.ravel(), minlength=len(names)).astype(np.float64)
+    for a in (movable, pairs, e, deg):
+        a.setflags(write=False)
+    return movable, pairs, e, deg
 
 
 def _neighbour_mean(edges: np.ndarray, v: np.ndarray, deg: np.ndarray) -> np.ndarray:

@@ -143,7 +143,6 @@ CREDITS: list[tuple[str, str, str]] = [
      "Boost Software License 1.0"),
     ("OpenCV (opencv-python-headless)", "https://opencv.org", "Apache-2.0"),
     ("NumPy, SciPy", "https://numpy.org, https://scipy.org", "BSD-3-Clause"),
-    ("threadpoolctl", "https://github.com/joblib/threadpoolctl", "BSD-3-Clause"),
     ("pyqtgraph", "https://www.pyqtgraph.org", "MIT"),
     ("PyAV and FFmpeg's libraries", "https://pyav.org, https://ffmpeg.org",
      "BSD-3-Clause (PyAV); LGPL-2.1+ (FFmpeg as shipped in the av wheels)"),

@@ -341,27 +341,3 @@ def _inner_lip_gaps(face, v: np.ndarray) -> np.ndarray:
     ey = face.frame.rot[:, 1]
     pairs = [(u, lo) for u, lo in face.mesh.pairs if face.mesh.names[u].startswith("lipi")]
     return np.array([(v[lo] - v[u]) @ ey for u, lo in pairs])
-
-
-def test_estimate_solves_on_one_blas_thread_and_restores_the_pool(sample_face, monkeypatch):
-    # the small least-squares solves run on one BLAS thread (on a busy 2-core machine, split
-    # over OpenBLAS's threads they took 10-20 x longer); the process's setting comes back
-    from threadpoolctl import threadpool_info
-
-    from editor.engine import own_expression
-
-    def blas_threads() -> list[int]:
-        return [m["num_threads"] for m in threadpool_info() if m["user_api"] == "blas"]
-
-    before = blas_threads()
-    seen: list[list[int]] = []
-    real = own_expression.lsq_linear
-
-    def solve(*a, **k):
-        seen.append(blas_threads())
-        return real(*a, **k)
-
-    monkeypatch.setattr(own_expression, "lsq_linear", solve)
-    estimate_own(sample_face)
-    assert seen and all(t and set(t) == {1} for t in seen)
-    assert blas_threads() == before

@@ -34,7 +34,6 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import lsq_linear
 from scipy.stats import chi2
-from threadpoolctl import ThreadpoolController
 
 from editor.resources import NEUTRAL_PRIOR
 
@@ -221,20 +220,9 @@ def _group(n: int) -> str:
     return "inner_lip" if n < 14 else "outer_lip"
 
 
-@lru_cache(maxsize=1)
-def _blas() -> ThreadpoolController:
-    """The BLAS libraries loaded in this process (found once, ~5 ms)."""
-    return ThreadpoolController()
-
-
 def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0.02,
                  spread: float = 1.0, significance: float = 0.999) -> OwnExpression:
     """Estimate the expression a photo shows against the neutral prior.
-
-    The bounded least-squares solves are small (about 210 x 50): BLAS runs them on one thread
-    (the same values). Split over OpenBLAS's threads they took 10-20 x longer whenever another
-    process kept a core busy (the threads wait for each other at every step): 300-600 ms
-    instead of ~30 ms on this 2-core machine.
 
     ``min_move``: a FAP group (mouth, each lid pair, each brow) whose joint motion of its
     landmarks stays below this fraction of the inter-ocular distance is set to 0 (below the
@@ -243,12 +231,6 @@ def estimate_own(face, prior: NeutralPrior | None = None, *, min_move: float = 0
     :data:`FAP_SPREAD`, the prior standard deviation of each FAP's motion of its feature point
     (expressions compete with the identity modes on the same footing).
     """
-    with _blas().limit(limits=1, user_api="blas"):
-        return _estimate(face, prior, min_move, spread, significance)
-
-
-def _estimate(face, prior: NeutralPrior | None, min_move: float, spread: float,
-              significance: float) -> OwnExpression:
     pr = prior or default_prior()
     x = np.array(face.landmarks.points, np.float64)  # a copy: the inner lips are moved below
     M = similarity(pr.mean[STABLE_POINTS], x[STABLE_POINTS], STABLE_WEIGHTS)

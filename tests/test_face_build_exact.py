@@ -144,8 +144,10 @@ def test_sample_plan_weights_match_the_reference(sample_face):
 
 def test_channel_median_is_np_median():
     rng = np.random.default_rng(17)
+    hist_path = 0
     for trial in range(400):
-        h, w = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        # (small boxes take np.median itself, from 1024 pixels the histograms)
+        h, w = int(rng.integers(1, 90)), int(rng.integers(1, 90))
         hi = int(rng.choice([2, 5, 256]))  # few levels: many ties
         img = rng.integers(0, hi, (h, w, 3), dtype=np.uint8)
         if trial % 2:
@@ -158,6 +160,9 @@ def test_channel_median_is_np_median():
         ref = np.median(img.reshape(-1, 3) if mask is None else img[mask > 0], axis=0)
         got = channel_median(img, mask)
         assert got.dtype == ref.dtype and np.array_equal(got, ref), trial
+        n = h * w if mask is None else int(mask.sum())
+        hist_path += n >= 1024
+    assert hist_path > 50
 
 
 def test_landmark_jacobian_is_one_product_per_fap(sample_face):

@@ -474,7 +474,7 @@ class EyePlan:
                    pupil=pupil.astype(np.float32), iris_lum=iris_l, name=name,
                    hole=np.asarray(hole), detected=detected, r_det=r_det, centre=c,
                    r0=r, p0=p0, ex=ex, ey=ey, off=np.array([x0, y0], np.float64), plate=plate,
-                   photo=patch.astype(np.float32),
+                   photo=src,  # (the float32 patch: nothing above changes it)
                    iris=out, split_r=split_r, split_l=split_l, corner_l=upf[0],
                    corner_r=upf[-1], lim_r=float(_line_u(cc, dd, 0.0)),
                    lim_l=float(_line_u(a, b, 0.0)))

@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import luminance
+from .fitting import channel_median, luminance
 from .layers import _rebox, _union
 from .warp import WarpResult
 
@@ -442,8 +442,8 @@ def _skin_triangles(mesh) -> np.ndarray:
 
 def _is_grey(img: np.ndarray) -> bool:
     """Whether the three channels of ``img`` (h, w, 3) are equal everywhere. A colour photo
-    is told by a sparse sample of its pixels first (the whole image only when they agree)."""
-    for a in (img[::7, ::7], img):
+    is told by sparse samples of its pixels first (the whole image only when they agree)."""
+    for a in (img[::61, ::61], img[::7, ::7], img):
         if not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 1], a[..., 2])):
             return False
     return True
@@ -526,7 +526,7 @@ def _build_plan(face: Face) -> CreasePlan:
         q = pos[fold == f]
         x0, y0 = np.clip(np.floor(q.min(0) - m).astype(int), 0, [w - 1, h - 1])
         x1, y1 = np.clip(np.ceil(q.max(0) + m).astype(int) + 1, 1, [w, h])
-        skin[f] = np.median(img[y0:y1, x0:x1].reshape(-1, 3), axis=0)
+        skin[f] = channel_median(img[y0:y1, x0:x1])
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),
                       np.concatenate(all_taper), fold, inv, iod, tint, skin,

@@ -20,7 +20,15 @@ import numpy as np
 
 from .faps import FAPS
 from .fitting import FaceFrame
-from .influence import OUTLINE_FDPS, brow_weights, face_mask, rectangles, side_tags, weights
+from .influence import (
+    BROW_FDPS,
+    OUTLINE_FDPS,
+    brow_weights,
+    face_mask,
+    rectangles,
+    side_tags,
+    weights_many,
+)
 from .mesh import StandardMesh, signed_areas
 
 EXTRA_POINTS = ("3.5", "3.6", "6.1", "6.2", "6.3", "6.4")
@@ -40,6 +48,7 @@ _DEPTH = {
 }
 _NONLINEAR = {23, 24, 25, 26, 27, 28, 29, 30, 47, 48, 49, 50}
 _NONLINEAR_IDX = np.array(sorted(x - 1 for x in _NONLINEAR))
+_BROW_FDPS = frozenset(k for v in BROW_FDPS.values() for k in v)
 
 #: Inner/outer lip FAP pairs that drive (almost) the same part of the lips. Alone, each moves
 #: its own point by value x FAPU; together, the part of the face both reach is moved by the
@@ -133,6 +142,48 @@ def _topology(mesh: StandardMesh) -> _Topology:
     return topo
 
 
+@dataclass(frozen=True)
+class _LinearFaps:
+    """The linear FAPs' static table: per FAP row of the basis (``rows``), its unit's name, its
+    direction (frame) and the index (``fdp_of``) of its feature point in ``fdps``: first those
+    with an eq. 2 rectangle (``rect_fdps``), then the brows' and the tongue's; ``outline``:
+    the feature point may move the face outline (:data:`OUTLINE_FDPS`)."""
+
+    rows: np.ndarray
+    units: tuple[str, ...]
+    dirs: np.ndarray
+    fdp_of: np.ndarray
+    fdps: tuple[str, ...]
+    rect_fdps: tuple[str, ...]
+    outline: np.ndarray
+
+
+@lru_cache(maxsize=1)
+def _linear_faps() -> _LinearFaps:
+    rows, units, dirs, fdp_list = [], [], [], []
+    for f in FAPS.values():
+        if f.number < 3 or f.number in _NONLINEAR:
+            continue
+        comps = _DEPTH.get(f.number)
+        if not comps:
+            if f.fdp is None:  # only FAP 1/2 (skipped above) have no feature point
+                raise ValueError(f"FAP {f.number} has no feature point")
+            comps = [(f.fdp, *_DIRS[f.direction])]
+        if len(comps) != 1:
+            raise ValueError(f"FAP {f.number}: one feature point per FAP")
+        fdp, dx, dy = comps[0]
+        rows.append(f.number - 1)
+        units.append(f.unit)
+        dirs.append((dx, dy))
+        fdp_list.append(fdp)
+    special = [k for k in dict.fromkeys(fdp_list) if k.startswith("6.") or k in _BROW_FDPS]
+    rect_fdps = tuple(k for k in dict.fromkeys(fdp_list) if k not in special)
+    fdps = rect_fdps + tuple(special)
+    return _LinearFaps(np.array(rows), tuple(units), np.array(dirs, np.float64),
+                       np.array([fdps.index(k) for k in fdp_list]), fdps, rect_fdps,
+                       np.array([k in OUTLINE_FDPS for k in fdps]))
+
+
 def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
                fapu: dict[str, float], extras: dict[str, np.ndarray]) -> DeformPlan:
     """Precompute the deformation of a personalized mesh.
@@ -157,44 +208,33 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     for i, k in enumerate(EXTRA_POINTS):
         fdp_pos[k] = P[V + i]
     N = len(P)
+    lin = _linear_faps()
+    # eq. 2 weights of every feature point the FAPs drive, all rectangles in one pass
+    rect_w = weights_many([rects[k] for k in lin.rect_fdps],
+                          np.array([fdp_pos[k] for k in lin.rect_fdps]), P, sides, movable_lin)
+    W = np.empty((len(lin.fdps), N))
+    W[:len(lin.rect_fdps)] = rect_w
+    for j, fdp in enumerate(lin.fdps[len(lin.rect_fdps):], len(lin.rect_fdps)):
+        if fdp.startswith("6."):
+            W[j] = 0.0
+            W[j, V + EXTRA_POINTS.index(fdp)] = 1.0
+        else:
+            W[j] = brows[fdp] * movable_lin
+    # the motion stays inside the contour and the hairline (but for OUTLINE_FDPS: x 1)
+    W = W * np.where(lin.outline[:, None], 1.0, on_face[None, :])
+    single_w = W[lin.fdp_of]  # (F, N) the weight of each linear FAP
+    units = np.array([fapu[u] for u in lin.units])
     basis = np.zeros((68, N, 2), np.float64)
-    single_w: dict[int, np.ndarray] = {}
-    point_w: dict[str, np.ndarray] = {}  # eq. 2 weights per feature point (several FAPs each)
-    for f in FAPS.values():
-        if f.number < 3 or f.number in _NONLINEAR:
-            continue
-        comps = _DEPTH.get(f.number)
-        if not comps:
-            if f.fdp is None:  # only FAP 1/2 (skipped above) have no feature point
-                raise ValueError(f"FAP {f.number} has no feature point")
-            comps = [(f.fdp, *_DIRS[f.direction])]
-        unit = fapu[f.unit]
-        for fdp, dx, dy in comps:
-            if fdp.startswith("6."):
-                w = np.zeros(N)
-                w[V + EXTRA_POINTS.index(fdp)] = 1.0
-            elif fdp in brows:
-                w = brows[fdp] * movable_lin
-            else:
-                cached = point_w.get(fdp)
-                if cached is None:
-                    cached = point_w[fdp] = weights(rects[fdp], fdp_pos[fdp], P, sides,
-                                                    movable_lin)
-                w = cached
-            if fdp not in OUTLINE_FDPS:
-                w = w * on_face  # the motion stays inside the contour and the hairline
-            basis[f.number - 1] += unit * w[:, None] * np.array([dx, dy])[None, :]
-            single_w[f.number - 1] = w
+    basis[lin.rows] += units[:, None, None] * single_w[:, :, None] * lin.dirs[:, None, :]
     # tongue points follow the jaw (they sit behind the lower teeth)
     tongue = np.arange(V + 2, N)
     basis[2, tongue] = basis[2, mesh.fdp["2.1"]]
     basis[13, tongue] += basis[13, mesh.fdp["2.1"]]
     basis[14, tongue] = basis[14, mesh.fdp["2.1"]]
-    pair_basis = np.zeros((len(LIP_PAIRS), N, 2))
-    for j, (a, b) in enumerate(LIP_PAIRS):
-        fa = FAPS[int(a) + 1]
-        shared = np.minimum(single_w[int(a)], single_w[int(b)])
-        pair_basis[j] = fapu[fa.unit] * shared[:, None] * np.array(_DIRS[fa.direction])[None, :]
+    row_of = {int(r): i for i, r in enumerate(lin.rows)}
+    ia = np.array([row_of[int(a)] for a in LIP_PAIRS[:, 0]])
+    shared = np.minimum(single_w[ia], single_w[[row_of[int(b)] for b in LIP_PAIRS[:, 1]]])
+    pair_basis = units[ia, None, None] * shared[:, :, None] * lin.dirs[ia, None, :]
     # frame -> image directions
     basis = basis @ frame.rot.T
     pair_basis = pair_basis @ frame.rot.T

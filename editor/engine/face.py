@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from dataclasses import InitVar, dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -216,7 +216,10 @@ class Face:
         up, low = np.array([61, 62, 63]), np.array([67, 66, 65])
         N = target.copy()
         mouth_moves = bool(f0[2:13].any() or f0[50:60].any())  # jaw, inner and outer lips
-        for _ in range(rounds):
+        pairs = self.mesh.pairs
+        u, lo = pairs[:, 0], pairs[:, 1]
+        mouth = _mouth_pairs(self.mesh)
+        for k in range(rounds):
             U = x - A @ (linear_positions(plan, f0)[:V] - N[:V])
             if self.neutral_landmarks is not None and mouth_moves:  # the estimate's neutral
                 U[48:] = np.asarray(self.neutral_landmarks, np.float64)[48:]
@@ -224,14 +227,13 @@ class Face:
             # on the skull; the jaw and the lower lip close onto it)
             U[low] -= ((U[low] - U[up]) @ ey)[:, None] * ey
             N[:V] = lap.solve(U)
+            if k == rounds - 1 and mouth.any():
+                break  # (the inner lips are closed below: the plan is built after that)
             fapu, plan = self._build(N[:V].astype(np.float32))
             N[V:] = plan.neutral[V:]  # extra points are re-derived from the neutral mesh
         # lips and lids of the neutral meet but never cross, and the inner lips are closed
         # (between the landmarks the Laplacian leaves them a little apart); the offset absorbs
         # the difference
-        pairs = self.mesh.pairs
-        u, lo = pairs[:, 0], pairs[:, 1]
-        mouth = np.isin(u, self.mesh.holes["mouth"])
         cross = ((N[lo] - N[u]) @ ey < 0) & ~mouth
         if cross.any():
             mean = 0.5 * (N[u[cross]] + N[lo[cross]])
@@ -329,14 +331,18 @@ class Face:
         # FAPU are the neutral's (a smile widens the mouth and changes the mouth-nose
         # distance): the estimate is redone with the motion per unit of the neutral it implies,
         # else f0 renders a fraction of the photo's expression and neutralising leaves the rest
-        for _ in range(OWN_ROUNDS - 1):
+        for k in range(OWN_ROUNDS - 1):
             own = estimate_own(face)
             if not own.faps.any():
                 return base
-            face = base.with_expression(own.faps, own.words)
+            if k < OWN_ROUNDS - 2:
+                face = base.with_expression(own.faps, own.words)
+        # the last estimate's vector as with_expression's face would hold it (that face's
+        # neutral is not built: the face returned neutralises with the estimate's neutral
+        # landmarks instead)
+        f0 = FAPS.clamp(FAPS.vector(base.fap_vector(own.faps)))
         return Face(self.image, self.landmarks, self.vertices, self.mesh, self.source,
-                    face.expression, face.expression_words, own.neutral68,
-                    photo_plan=base._photo_plan())
+                    f0, own.words, own.neutral68, photo_plan=base._photo_plan())
 
     def with_expression(self, expression: FapInput, words: str | None = None) -> Face:
         """A copy with another own expression f0 (None or zeros: the photo is neutral)."""
@@ -611,14 +617,8 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
     """Move the lip vertices of folded triangles (signed area below 10 % of ``sigma0``, the
     photo mesh's) towards the mean of their neighbours: outer lips, and the closed inner lips
     together (the lower one on the upper one); the corners stay."""
-    names = np.array(mesh.names)
-    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
-               | np.char.startswith(names, "lipi_u")) & \
-        ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
-    pairs = mesh.pairs[np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])]
-    e = mesh.edges()
+    movable, pairs, e, deg = _lip_topology(mesh)
     v = np.asarray(verts, np.float64).copy()
-    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
     tri = mesh.triangles
     for _ in range(iters):
         bad = signed_areas(v, tri) * np.sign(sigma0) < 0.1 * np.abs(sigma0)
@@ -633,6 +633,31 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
         v[sel] += 0.5 * (avg[sel] - v[sel])
         v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
     return v
+
+
+@lru_cache(maxsize=4)
+def _mouth_pairs(mesh: StandardMesh) -> np.ndarray:
+    """(P,) bool: which of the mesh's upper/lower pairs are the mouth's inner lips."""
+    m = np.isin(mesh.pairs[:, 0], mesh.holes["mouth"])
+    m.setflags(write=False)
+    return m
+
+
+@lru_cache(maxsize=4)
+def _lip_topology(mesh: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`_unfold_lips` needs of the mesh (once per mesh, not per neutralisation):
+    the lip vertices it may move, the mouth's inner-lip pairs, the edges and the vertex
+    degrees."""
+    names = np.array(mesh.names)
+    movable = (np.char.startswith(names, "lipo_") | np.char.startswith(names, "lipb_")
+               | np.char.startswith(names, "lipi_u")) & \
+        ~np.isin(np.arange(len(names)), [mesh.fdp[k] for k in ("8.3", "8.4", "2.4", "2.5")])
+    pairs = mesh.pairs[_mouth_pairs(mesh)]
+    e = mesh.edges()
+    deg = np.bincount(e.ravel(), minlength=len(names)).astype(np.float64)
+    for a in (movable, pairs, e, deg):
+        a.setflags(write=False)
+    return movable, pairs, e, deg
 
 
 def _neighbour_mean(edges: np.ndarray, v: np.ndarray, deg: np.ndarray) -> np.ndarray:

@@ -103,8 +103,17 @@ def landmark_jacobian(face, A=None) -> np.ndarray:
     if A is None:
         A = landmark_map(face.vertices, face.triangles, face.mesh.names,
                          np.asarray(face.landmarks.points, np.float64))
-    basis = face.plan.basis.astype(np.float64)[:, :face.plan.n_vertices]  # (68, V, 2)
-    return np.stack([(A @ basis[k]).ravel() for k in range(68)], 1)
+    return _map_columns(A, face.plan.basis[:, :face.plan.n_vertices])
+
+
+def _map_columns(A, basis: np.ndarray) -> np.ndarray:
+    """(136, K): ``(A @ basis[k]).ravel()`` for each of the K (V, 2) motions of ``basis``, as
+    float64; one sparse product for all of them (each value is summed over the same terms in
+    the same order as K products of one motion each)."""
+    K, V = basis.shape[:2]
+    m = np.ascontiguousarray(basis.astype(np.float64).transpose(1, 0, 2).reshape(V, 2 * K))
+    out = A @ m  # (68, K * 2): landmark l, motion k, coordinate c at [l, 2 k + c]
+    return np.ascontiguousarray(out.reshape(-1, K, 2).transpose(0, 2, 1).reshape(-1, K))
 
 
 # ---------------------------------------------------------------------------- estimation
@@ -157,7 +166,7 @@ class FapEstimator:
         A = landmark_map(face.vertices, face.triangles, face.mesh.names, self.neutral)
         self.J = landmark_jacobian(face, A)
         pb = face.plan.pair_basis.reshape(len(LIP_PAIRS), -1, 2)[:, :V]
-        self.P = np.stack([(A @ pb[k]).ravel() for k in range(len(LIP_PAIRS))], 1)  # (136, 10)
+        self.P = _map_columns(A, pb)  # (136, 10)
         lw = LANDMARK_WEIGHTS if landmark_weights is None else np.asarray(landmark_weights)
         self.w = np.repeat(np.asarray(lw, np.float64), 2)
         self._priors = self._prior_rows(reg, symmetry, pair)

@@ -113,12 +113,22 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         tel = _telea(patch, disc, radius)
         d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
-        rows, wrow = _row_interp(tel, out, known, disc)
-        wv = (np.clip((d_lid - 0.5) / 2.0, 0.0, 1.0) * wrow)[..., None]
-        fill = wv * rows + (1.0 - wv) * tel
-        fill = cv2.GaussianBlur(fill, (0, 0), max(0.6, 0.25 * radius))
-        w = (np.clip(r_fill - rho, 0.0, 1.0) * opening)[..., None].astype(np.float32)
-        out = w * fill + (1.0 - w) * out
+        # only the disc changes (its weight w is 0 elsewhere): the fill is made and blurred
+        # over the disc's box and the blur's reach (the blur's values there are those of the
+        # whole patch's; the rows are interpolated over the whole width)
+        sigma = max(0.6, 0.25 * radius)
+        reach = (int(round(sigma * 4 * 2 + 1)) | 1) // 2 + 1  # OpenCV's float kernel, + 1
+        ys, xs = np.flatnonzero(disc.any(1)), np.flatnonzero(disc.any(0))
+        ph, pw = disc.shape
+        r0, r1 = max(int(ys[0]) - reach, 0), min(int(ys[-1]) + 1 + reach, ph)
+        c0, c1 = max(int(xs[0]) - reach, 0), min(int(xs[-1]) + 1 + reach, pw)
+        rows, wrow = _row_interp(tel[r0:r1], out[r0:r1], known[r0:r1], disc[r0:r1])
+        box = (slice(r0, r1), slice(c0, c1))
+        wv = (np.clip((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
+        fill = wv * rows[:, c0:c1] + (1.0 - wv) * tel[box]
+        fill = cv2.GaussianBlur(fill, (0, 0), sigma)
+        w = (np.clip(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
+        out[box] = w * fill + (1.0 - w) * out[box]
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
     # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris)
@@ -276,15 +286,15 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     c_t, c_b = ref, ref
     near = cols[np.abs(jj[:, None] - cols[None, :]).argmin(1)]
     ref_t, ref_b = ref_t[near], ref_b[near]
-    d_t = np.maximum(ref_t[None, :] - yy, 0.0)
-    d_b = np.maximum(yy - ref_b[None, :], 0.0)
-    shade_t = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_t / max(r, 1.0))))[..., None]
-    shade_b = (1.0 - BALL_SHADE * (1.0 - np.exp(-d_b / max(r, 1.0))))[..., None]
-    # (the float64 colours written only where they go, rounded to float32 as before)
-    for side, c, shade in ((yy < ref_t[None, :], c_t, shade_t),
-                           (yy > ref_b[None, :], c_b, shade_b)):
+    # (the float64 colours written only where they go, rounded to float32 as before; the
+    # shading computed there only: the distance to the reference row, float64)
+    for side, c, sign, ref_row in ((yy < ref_t[None, :], c_t, 1, ref_t),
+                                   (yy > ref_b[None, :], c_b, -1, ref_b)):
         iy, ix = np.nonzero(side)
-        out[iy, ix] = c[ix] * shade[iy, ix]
+        y = yy[iy, 0]
+        d = np.maximum(ref_row[ix] - y if sign > 0 else y - ref_row[ix], 0.0)
+        shade = (1.0 - BALL_SHADE * (1.0 - np.exp(-d / max(r, 1.0))))[:, None]
+        out[iy, ix] = c[ix] * shade
     return out
 
 
@@ -464,7 +474,7 @@ class EyePlan:
                    pupil=pupil.astype(np.float32), iris_lum=iris_l, name=name,
                    hole=np.asarray(hole), detected=detected, r_det=r_det, centre=c,
                    r0=r, p0=p0, ex=ex, ey=ey, off=np.array([x0, y0], np.float64), plate=plate,
-                   photo=patch.astype(np.float32),
+                   photo=src,  # (the float32 patch: nothing above changes it)
                    iris=out, split_r=split_r, split_l=split_l, corner_l=upf[0],
                    corner_r=upf[-1], lim_r=float(_line_u(cc, dd, 0.0)),
                    lim_l=float(_line_u(a, b, 0.0)))

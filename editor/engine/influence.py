@@ -19,6 +19,7 @@ upper and lower lip vertices coincide, and only their tags tell them apart.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,39 +39,59 @@ class Rect:
     side: str | None = None  # "mouth_up", "mouth_low", "eye_l_up", "eye_l_low", ...
 
 
-def _axis_weight(v: np.ndarray, lo: float, hi: float, c0: float,
-                 plateau: tuple[float, float] | None, parabolic: bool) -> np.ndarray:
-    a, b = (c0, c0) if plateau is None else (min(plateau), max(plateau))
-    a, b = max(a, lo + 1e-6), min(b, hi - 1e-6)
-    w = np.zeros_like(v)
-    left = (v > lo) & (v < a)
-    right = (v > b) & (v < hi)
-    mid = (v >= a) & (v <= b)
-    if parabolic:
-        w[left] = 1.0 - ((v[left] - a) / (lo - a)) ** 2
-        w[right] = 1.0 - ((v[right] - b) / (hi - b)) ** 2
-    else:
-        w[left] = (v[left] - lo) / (a - lo)
-        w[right] = (hi - v[right]) / (hi - b)
-    w[mid] = 1.0
-    return w
-
-
 def weights(rect: Rect, p0: np.ndarray, pts: np.ndarray, sides: dict[str, np.ndarray],
             movable: np.ndarray) -> np.ndarray:
     """Eq. 2 weights (N,) of the points ``pts`` (N, 2, face frame) for a rectangle around p0."""
-    x1, x2 = min(rect.x1, rect.x2), max(rect.x1, rect.x2)
-    y1, y2 = min(rect.y1, rect.y2), max(rect.y1, rect.y2)
+    return weights_many([rect], np.asarray(p0, np.float64)[None], pts, sides, movable)[0]
+
+
+def weights_many(rects: Sequence[Rect], p0: np.ndarray, pts: np.ndarray,
+                 sides: dict[str, np.ndarray], movable: np.ndarray) -> np.ndarray:
+    """:func:`weights` of several rectangles (R,) around their points ``p0`` (R, 2) at once:
+    (R, N), each row the values :func:`weights` gives (the same float64 operations)."""
+    c = np.array([(r.x1, r.x2, r.y1, r.y2) for r in rects], np.float64).reshape(-1, 4)
+    p0 = np.asarray(p0, np.float64).reshape(-1, 2)
     # p0 must lie strictly inside (SPEC: x1 < x0 < x2, y1 < y0 < y2)
     eps = 1e-3
-    x1, x2 = min(x1, p0[0] - eps), max(x2, p0[0] + eps)
-    y1, y2 = min(y1, p0[1] - eps), max(y2, p0[1] + eps)
-    wx = _axis_weight(pts[:, 0], x1, x2, float(p0[0]), rect.px, rect.parabolic_x)
-    wy = _axis_weight(pts[:, 1], y1, y2, float(p0[1]), rect.py, False)
+    x1 = np.minimum(np.minimum(c[:, 0], c[:, 1]), p0[:, 0] - eps)
+    x2 = np.maximum(np.maximum(c[:, 0], c[:, 1]), p0[:, 0] + eps)
+    y1 = np.minimum(np.minimum(c[:, 2], c[:, 3]), p0[:, 1] - eps)
+    y2 = np.maximum(np.maximum(c[:, 2], c[:, 3]), p0[:, 1] + eps)
+    wx = _axis_weights(pts[:, 0], x1, x2, p0[:, 0], [r.px for r in rects],
+                       np.array([r.parabolic_x for r in rects], bool))
+    wy = _axis_weights(pts[:, 1], y1, y2, p0[:, 1], [r.py for r in rects],
+                       np.zeros(len(rects), bool))
     w = wx * wy * movable
-    if rect.side is not None:
-        w = w * ~sides[_opposite(rect.side)]
+    for i, r in enumerate(rects):
+        if r.side is not None:
+            w[i] = w[i] * ~sides[_opposite(r.side)]
     return w
+
+
+def _axis_weights(v: np.ndarray, lo: np.ndarray, hi: np.ndarray, c0: np.ndarray,
+                  plateaus: Sequence[tuple[float, float] | None], parabolic: np.ndarray
+                  ) -> np.ndarray:
+    """The tents (or plateaus, parabolas) of several rectangles along one axis, (R, N): ramps
+    from ``lo`` and ``hi`` (R,) to 1 on ``[a, b]`` (``c0`` without a plateau), at the points'
+    coordinates ``v`` (N,)."""
+    a, b = c0.astype(np.float64), c0.astype(np.float64)
+    for i, p in enumerate(plateaus):
+        if p is not None:
+            a[i], b[i] = min(p), max(p)
+    a, b = np.maximum(a, lo + 1e-6)[:, None], np.minimum(b, hi - 1e-6)[:, None]
+    lo, hi, x = lo[:, None], hi[:, None], v[None, :]
+    left = (x > lo) & (x < a)
+    right = (x > b) & (x < hi)
+    mid = (x >= a) & (x <= b)
+    with np.errstate(divide="ignore", invalid="ignore"):  # (only the masked values count)
+        wl = (x - lo) / (a - lo)
+        wr = (hi - x) / (hi - b)
+        if parabolic.any():
+            k = np.flatnonzero(parabolic)
+            wl[k] = 1.0 - ((x - a[k]) / (lo[k] - a[k])) ** 2
+            wr[k] = 1.0 - ((x - b[k]) / (hi[k] - b[k])) ** 2
+    # left, then right, then the plateau: the later wins where they overlap
+    return np.where(mid, 1.0, np.where(right, wr, np.where(left, wl, 0.0)))
 
 
 def _opposite(side: str) -> str:
@@ -300,14 +321,19 @@ def face_polygon(P: dict[str, np.ndarray]) -> np.ndarray:
 
 def inside_distance(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Signed distance (N,) of the points to the closed polygon: > 0 inside, < 0 outside."""
+    # per coordinate ((N, S) arrays, not (N, S, 2)): the same float64 operations as the
+    # vector form (a dot product or squared norm of two components is their sum)
     a = poly
     b = np.roll(poly, -1, axis=0)
-    ab = b - a  # (S, 2)
-    ap = pts[:, None, :] - a[None]  # (N, S, 2)
-    t = np.clip((ap * ab[None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12)[None], 0.0, 1.0)
-    d = np.linalg.norm(ap - t[..., None] * ab[None], axis=-1).min(1)
+    ax, ay = a[:, 0], a[:, 1]
+    abx, aby = b[:, 0] - ax, b[:, 1] - ay  # (S,)
+    px, py = pts[:, 0:1], pts[:, 1:2]
+    apx, apy = px - ax[None], py - ay[None]  # (N, S)
+    den = np.maximum(abx * abx + aby * aby, 1e-12)[None]
+    t = np.clip((apx * abx[None] + apy * aby[None]) / den, 0.0, 1.0)
+    ex, ey = apx - t * abx[None], apy - t * aby[None]
+    d = np.sqrt(ex * ex + ey * ey).min(1)
     # even-odd rule: a ray towards +x crosses the edges whose y-span holds the point
-    py, px = pts[:, 1:2], pts[:, 0:1]
     ay, by, ax, bx = a[None, :, 1], b[None, :, 1], a[None, :, 0], b[None, :, 0]
     spans = (ay > py) != (by > py)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
+from .fitting import channel_median
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
 from .mouth import (
     CROWN,
@@ -94,7 +95,7 @@ def layer_plan(face: Face) -> LayerPlan:
         off = np.array([bx0, by0], np.int32) * 16
         for t in q:
             cv2.fillConvexPoly(skin_mask, t - off, 1, cv2.LINE_8, 4)
-        skin = (np.median(img[by0:by1, bx0:bx1][skin_mask > 0], axis=0).astype(np.float32)
+        skin = (channel_median(img[by0:by1, bx0:bx1], skin_mask).astype(np.float32)
                 if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
         skin_l = max(float(_lum(skin)), 20.0)
         sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
@@ -490,10 +491,11 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     if ext.sum() >= 3:
         own_up, own_low, rgb_up, ext_mask = _extend_sideways(
             own_up, own_low, rgb_up, ext_mask, split, np.flatnonzero(ext))
-    own = np.dstack([own_up, own_low]).astype(np.float32)
+    # (stacked straight into float32: no float64 stack, no second copy)
+    own = np.concatenate([own_up[..., None], own_low[..., None]], axis=2, dtype=np.float32)
     sliver = np.convolve(np.pad(sliver.astype(np.float64), 2, mode="edge"), kern, mode="valid")
-    return (off, own, np.dstack([rgb_up, patch]).astype(np.float32), bool(ext.sum() >= 3),
-            has_low, sliver.astype(np.float32), ext_mask)
+    rgb = np.concatenate([rgb_up, patch], axis=2, dtype=np.float32)
+    return (off, own, rgb, bool(ext.sum() >= 3), has_low, sliver.astype(np.float32), ext_mask)
 
 
 
@@ -566,10 +568,13 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
         dy = np.round(split[edge] + slope * d - split[src]).astype(np.int64)
         r = np.clip(rows - dy[None, :], 0, ph - 1)
         dim = (1.0 - 0.35 * _smoothstep(d / max(0.5 * span, 1.0)))[None, :]
-        own_up[:, tgt] = teeth_a[r, src[None, :]]
-        own_low[:, tgt] = 0.0
-        rgb_up[:, tgt] = rgb_up[r, src[None, :]] * dim[..., None]
-        ext_mask[:, tgt] = 1.0
+        cols_t = slice(0, lo) if side < 0 else slice(hi + 1, pw)  # tgt, as a slice
+        own_up[:, cols_t] = teeth_a[r, src[None, :]]
+        own_low[:, cols_t] = 0.0
+        # (float64 products rounded into the float32 colours, without a float64 copy)
+        np.multiply(rgb_up[r, src[None, :]], dim[..., None], out=rgb_up[:, cols_t],
+                    casting="same_kind")
+        ext_mask[:, cols_t] = 1.0
     return own_up, own_low, rgb_up, ext_mask
 
 

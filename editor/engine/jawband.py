@@ -25,6 +25,7 @@ import math
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -54,9 +55,18 @@ class _Band:
     rest: np.ndarray  # (k, 2) their positions on the photo's mesh
     lut: np.ndarray  # (T + 4,) bool: a warp triangle id is one of the band's
     ring: np.ndarray  # the band's outer vertices (the margin ring below the jaw)
+    tau: float  # :data:`TAU` in pixels (the interocular distance is not recomputed per frame)
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@lru_cache(maxsize=8)
+def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only float32 array of zeros (the band's box recurs from frame to frame)."""
+    z = np.zeros(shape, np.float32)
+    z.setflags(write=False)
+    return z
 
 
 def _band(face: Face) -> _Band:
@@ -80,7 +90,7 @@ def _band(face: Face) -> _Band:
     lut = np.zeros(len(tri) + 4, bool)  # ids: triangles, the identity row, the 3 openings
     lut[np.flatnonzero(sel)] = True
     ring_v = np.unique(tri[sel][ring[tri[sel]]])
-    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v)
+    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v, TAU * face.interocular)
     _PLANS[face] = b
     return b
 
@@ -117,7 +127,7 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     drop = new[:, 1] - old[:, 1]
     ring = fr.to_frame(v[b.ring])
     ring = ring[np.argsort(ring[:, 0])]
-    tau = TAU * face.interocular
+    tau = b.tau
     ramp = max(1.5 * float(drop.max()), 2.0)
     lut = b.lut
 
@@ -160,14 +170,17 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
         ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(org[1]))[:, None]
         tx = (xs * np.float32(R[0, 0] / _STEP) - np.float32(lo_x / _STEP)) \
             + ys * np.float32(R[1, 0] / _STEP)  # the pixel's frame x, in table steps
-        got = cv2.split(cv2.remap(table, tx, np.zeros_like(tx), cv2.INTER_LINEAR,
+        got = cv2.split(cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
                                   borderMode=cv2.BORDER_REPLICATE))
         d = xs * np.float32(R[0, 1]) + ys * np.float32(R[1, 1])  # the pixel's frame y ...
         d -= got[0]  # ... below the new jaw line
         d -= got[2]  # past the strip
         d /= got[3]  # over the fade
-        np.clip(d, 0.0, 1.0, out=d)
-        shift = (np.float32(3.0) - np.float32(2.0) * d) * d * d  # smoothstep
+        np.minimum(np.maximum(d, 0.0, out=d), 1.0, out=d)  # (np.clip's wrapper costs more)
+        shift = np.multiply(d, np.float32(-2.0))  # smoothstep (3 - 2 d) d d, in place
+        shift += np.float32(3.0)
+        shift *= d
+        shift *= d
         np.subtract(1.0, shift, out=shift)
         shift *= got[1]  # the chin's drop over its underside, then none
         if s > 1:

@@ -549,6 +549,9 @@ class _Fast:
     own_gap: np.ndarray | None = None  # (F,) photo's own compression per fold (None: neutral)
     own_w: np.ndarray | None = None  # (N,) log-spacing of the neutral mesh per sample (>= 0)
     own_sum: np.ndarray | None = None  # (F,) sum of own_w ** 2 per fold
+    # (F,) the per-frame path's per-fold constants of the unfold share: its divisor and fade-in
+    own_div: np.ndarray | None = None
+    own_fade: np.ndarray | None = None
     # per-face constants of the per-frame path (gathered once, not every frame; set by _fast)
     used_tri: np.ndarray = field(init=False)  # (U, 3) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
@@ -618,6 +621,8 @@ def _fast(face: Face) -> _Fast:
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])
         f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
+        f.own_div = np.maximum(f.own_sum, 1e-9)
+        f.own_fade = np.clip((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
     return f
 
 
@@ -713,14 +718,14 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
     s = np.where(edge, s, np.convolve(s, _SMOOTH, mode="same")) * p.taper
-    if fa.own_gap is None or fa.own_w is None or fa.own_sum is None:
+    if fa.own_w is None or fa.own_div is None or fa.own_fade is None:
         return s, np.zeros(len(fa.depth))
-    # unfold_strength
+    # unfold_strength (its per-fold constants taken once per face)
     e = np.log(np.maximum(sp, 1e-6))
     e[e < _C_TOL] = 0.0
     esum = np.add.reduceat(e * fa.own_w, starts)
-    u = np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1)
-    u = (u * np.clip((fa.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0))[p.fold]
+    esum /= fa.own_div
+    u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade)[p.fold]
     u = np.where(edge, u, np.convolve(u, _SMOOTH, mode="same")) * p.utaper
     return s, u
 

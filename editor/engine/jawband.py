@@ -192,19 +192,20 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
     tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
         + ys * np.float32(r10 / _STEP)  # the pixel's frame x, in table steps
-    got = cv2.split(cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_REPLICATE))
+    # (the four channels read as views: cheaper than splitting them into new arrays)
+    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
     d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
-    d -= got[0]  # ... below the new jaw line
-    d -= got[2]  # past the strip
-    d /= got[3]  # over the fade
+    d -= got[..., 0]  # ... below the new jaw line
+    d -= got[..., 2]  # past the strip
+    d /= got[..., 3]  # over the fade
     np.minimum(np.maximum(d, 0.0, out=d), 1.0, out=d)  # (np.clip's wrapper costs more)
     shift = np.multiply(d, np.float32(-2.0))  # smoothstep (3 - 2 d) d d, in place
     shift += np.float32(3.0)
     shift *= d
     shift *= d
     np.subtract(1.0, shift, out=shift)
-    shift *= got[1]  # the chin's drop over its underside, then none
+    shift *= got[..., 1]  # the chin's drop over its underside, then none
     if s > 1:
         shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
     mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)

@@ -498,7 +498,7 @@ class EyePlan:
             inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
         f = n @ self._exy
-        return f[_UP], f[_LOW]
+        return f.take(_UP, 0), f.take(_LOW, 0)  # (take: fancy indexing of rows costs more)
 
     def lid_opening(self, poly: np.ndarray, sim: np.ndarray,
                     lids: tuple[np.ndarray, np.ndarray] | None = None) -> float:

@@ -309,7 +309,7 @@ class FapTable(Mapping[object, Fap]):
 
     def clamp(self, v: np.ndarray) -> np.ndarray:
         """Clamp a (68,) or (B, 68) vector to the table ranges (FAPs 1-2 are left alone)."""
-        out = np.clip(v, self.lo, self.hi)
+        out = np.minimum(np.maximum(v, self.lo), self.hi)  # (np.clip: the same, slower)
         out[..., :2] = np.asarray(v)[..., :2]
         return out.astype(np.float32)
 

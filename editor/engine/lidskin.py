@@ -164,9 +164,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     lid_y, brow_y, lid_s, brow_s = (np.concatenate([c[5][i] for c in cand]) for i in range(4))
     if len(cand) == 1:
         x_lo, x_hi = cand[0][3], cand[0][4]
-    else:
-        x_lo = np.repeat([c[3] for c in cand], n_u)
-        x_hi = np.repeat([c[4] for c in cand], n_u)
+    else:  # (both rows in one call)
+        x_lo, x_hi = np.repeat(np.array([[c[3] for c in cand], [c[4] for c in cand]]), n_u, 1)
     Hd = lid_y - brow_y
     Hs = lid_s - brow_s
     ex = Hd - Hs
@@ -223,9 +222,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         c += x1 - x0
     table[-1] = table[-2]
     # per column (the boxes side by side): its image x, first row, table row and first frame x
-    xc = np.arange(c, dtype=np.float64) + np.repeat(np.array(shifts, np.float64), widths)
-    y0c = np.repeat(np.array(y0s, np.float64), widths)
-    lo_c = np.repeat(np.array(los, np.float64), widths)
+    sh_c, y0c, lo_c = np.repeat(np.array([shifts, y0s, los], np.float64), widths, 1)
+    xc = np.arange(c, dtype=np.float64) + sh_c
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)
     rows_f = np.arange(hmax, dtype=np.float32)[:, None]

@@ -282,9 +282,10 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     # how far each opening's outline moved (one gather for the three) and the irises
     idx_all, cuts = _opening_index(face.mesh)
     polys = v.take(idx_all, 0)  # (take: fancy indexing of rows costs several us more)
-    far = np.maximum.reduceat(np.abs(polys - _rest_loops(face)).max(1), cuts).tolist()
+    # (over both coordinates of each loop at once: an axis-1 max of (n, 2) costs more)
+    far = np.maximum.reduceat(np.abs(polys - _rest_loops(face)).ravel(), 2 * cuts).tolist()
     V = face.plan.n_vertices
-    iris_far = np.abs(extra[:2] - face.plan.neutral[V:V + 2]).max(1).tolist()  # 3.5, 3.6
+    iris_far = [max(d) for d in np.abs(extra[:2] - face.plan.neutral[V:V + 2]).tolist()]  # 3.5, 3.6
     ends = [*cuts.tolist(), len(idx_all)]
     # ---- eyes
     state = None

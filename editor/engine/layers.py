@@ -255,10 +255,13 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     if shade is not None:
         face *= cv2.merge([shade, shade, shade])
     if np.count_nonzero(hole):
-        keep = (~hole).astype(np.float32)
-        num: np.ndarray = cv2.boxFilter(face * cv2.merge([keep, keep, keep]), -1, (5, 5),
-                                        normalize=False, borderType=cv2.BORDER_REPLICATE)
-        den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
+        # the face without the hole (zeros there: a masked copy, the same values as face times
+        # a 0/1 weight) and the weights' box sums taken straight from the 0/1 byte mask
+        keep = (~hole).view(np.uint8)
+        num: np.ndarray = cv2.boxFilter(cv2.copyTo(face, keep), -1, (5, 5), normalize=False,
+                                        borderType=cv2.BORDER_REPLICATE)
+        den = cv2.boxFilter(keep, cv2.CV_32F, (5, 5), normalize=False,
+                            borderType=cv2.BORDER_REPLICATE)
         fill = hole & (den > 0.5)
         np.maximum(den, 1e-6, out=den)
         num /= cv2.merge([den, den, den])

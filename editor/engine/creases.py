@@ -799,9 +799,22 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
 
 
 def _live_groups(fa, live: np.ndarray) -> list[tuple[int, int, int]]:
-    """``(group, first segment, end)`` of every fold group with a ``live`` segment."""
-    return [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
-            if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    """``(group, first segment, end)`` of every fold group with a ``live`` segment (all groups
+    tested in one ``reduceat``: the non-empty groups' segments are consecutive, in order)."""
+    got = _GROUPS.get(fa)
+    if got is None:
+        nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
+        got = (nonempty, [g0 for _, g0, _ in nonempty])
+        _GROUPS[fa] = got
+    nonempty, starts = got
+    if not nonempty:
+        return []
+    hit = np.logical_or.reduceat(live[:nonempty[-1][2]], starts).tolist()
+    return [grp for grp, h in zip(nonempty, hit, strict=True) if h]
+
+
+#: per fast plan: its non-empty fold groups and their first segments (see _live_groups)
+_GROUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int],

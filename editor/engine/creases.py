@@ -890,7 +890,7 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
     wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
     wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
-    np.minimum(np.maximum(wskin, 0.0, out=wskin), 1.0, out=wskin)  # (np.clip's wrapper costs more)
+    np.clip(wskin, 0.0, 1.0, out=wskin)
     # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
     light *= wskin
     dark *= wskin
@@ -1180,7 +1180,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             np.maximum(S, 1.0, out=S)
             g4 = np.divide(Cw, S, out=S)
             band *= g4[..., 3]
-            np.minimum(np.maximum(g4, 1.0, out=g4), 4.0, out=g4)  # (= np.clip, without its wrapper)
+            np.clip(g4, 1.0, 4.0, out=g4)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         gain -= 1.0
         gain *= cv2.merge([band, band, band])

@@ -200,7 +200,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     d -= got[..., 0]  # ... below the new jaw line
     d -= got[..., 2]  # past the strip
     d /= got[..., 3]  # over the fade
-    np.minimum(np.maximum(d, 0.0, out=d), 1.0, out=d)  # (np.clip's wrapper costs more)
+    np.clip(d, 0.0, 1.0, out=d)
     shift = np.multiply(d, np.float32(-2.0))  # smoothstep (3 - 2 d) d d, in place
     shift += np.float32(3.0)
     shift *= d

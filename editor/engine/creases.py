@@ -48,7 +48,7 @@ import cv2
 import numpy as np
 
 from .fitting import luminance
-from .layers import _rebox, _union
+from .layers import _blur, _rebox, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -880,8 +880,8 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     its splatted canvases (in place); returns ``bbox`` grown by the box."""
     x0, y0, x1, y1 = box
     sig = float(fa.sig[g])
-    dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
-    light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), 1.6 * sig), np.float32)
+    dark = np.asarray(_blur(dark[:-1, :-1], sig), np.float32)
+    light = np.asarray(_blur(light[:-1, :-1], 1.6 * sig), np.float32)
     view = out[y0:y1, x0:x1]
     patch = view.astype(np.float32)
     # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -1142,11 +1142,11 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
         band = drawn[ci]
         if f == 1:
-            band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
+            band = np.asarray(_blur(band[:-1, :-1], sb), np.float32)
         else:
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb / f)
+            band = _blur(band[:-1, :-1], sb / f)
             band = np.asarray(cv2.resize(band, (wc * f, hc * f),
                                          interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
         band *= k

@@ -194,11 +194,11 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     lips = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
     rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip") \
         if len(lips) else np.zeros(face.shape, np.float32)
-    rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
+    rim = _blur(rim, 1.0, 5)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = min(max(0.03 * D, 0.7), 1.5)
-    spread: np.ndarray = cv2.GaussianBlur(alpha, (0, 0), s)  # >= 0: clamped above only
+    spread: np.ndarray = _blur(alpha, s)  # >= 0: clamped above only
     spread *= np.float32(1.6)
     shade = 1.0 - 0.35 * strength * np.minimum(spread, 1.0) * (1.0 - alpha)
     return rim, depth, shade.astype(np.float32, copy=False)
@@ -233,6 +233,26 @@ def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
     """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
     OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
     cv2.add(res, _zeros32(res.shape), dst=dst, dtype=cv2.CV_8U)
+
+
+@lru_cache(maxsize=64)
+def _gauss_kernel(ksize: int, sigma: float) -> np.ndarray:
+    """The float32 Gaussian kernel ``cv2.GaussianBlur`` uses for float images (kept: the
+    sigmas of a face recur from frame to frame)."""
+    k = cv2.getGaussianKernel(ksize, sigma, cv2.CV_32F)
+    k.setflags(write=False)
+    return k
+
+
+def _blur(a: np.ndarray, sigma: float, ksize: int = 0) -> np.ndarray:
+    """``cv2.GaussianBlur(a, (ksize, ksize), sigma)`` of a float32 image (the same values: the
+    same kernel through ``cv2.sepFilter2D``, without GaussianBlur's per-call set-up, which
+    costs as much as the filtering on a layer's box). ``ksize`` 0: OpenCV's size for the
+    sigma of a float image, ``round(8 sigma + 1) | 1``."""
+    if ksize <= 0:
+        ksize = int(round(sigma * 8.0 + 1.0)) | 1
+    k = _gauss_kernel(ksize, float(sigma))
+    return cv2.sepFilter2D(a, -1, k, k)
 
 
 @lru_cache(maxsize=32)
@@ -335,7 +355,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             if kind == "mouth":
                 # a slit a pixel wide on a slant: its box-filtered coverage alternates from
                 # pixel to pixel and the dark line reads dotted; a slightly wider filter
-                cov = cv2.GaussianBlur(cov, (3, 3), 0.6)
+                cov = _blur(cov, 0.6, 3)
             alpha += (t * t * (3.0 - 2.0 * t)) * (cov - alpha)
         lip_shade = None
         if kind == "mouth":

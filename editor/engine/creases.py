@@ -841,7 +841,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
     for g, g0, g1 in groups:
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
         sig = float(fa.sig[g])
-        K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
+        K = int(min(max(math.ceil(max(L.tolist()) / min(0.5, 0.5 * sig)), 1), 64))
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = sa[g0:g1], sb[g0:g1]
@@ -924,7 +924,7 @@ def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bo
     # every point's corners inside its canvas: its box was not clipped by the image's edge
     inside = all(c[3] for c in canvases)
     if inside:
-        top = np.cumsum([0, *rows[:-1]])
+        top = np.array(list(itertools.accumulate([0, *rows[:-1]])))  # (np.cumsum costs more)
         base = ip[:, 1] * wide + ip[:, 0] + np.repeat(top * wide, n)
         idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
         total = int(sum(rows)) * wide
@@ -1086,7 +1086,7 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
         # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
         f = 1 if got is None else max(1, int(sb / 1.5))
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
-        K = int(min(max(np.ceil(L.max() / (0.5 * f)), 1), 64))
+        K = int(min(max(math.ceil(max(L.tolist()) / (0.5 * f)), 1), 64))  # (no ndarray.max)
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = ua[g0:g1], ub[g0:g1]

@@ -105,8 +105,9 @@ def _moved_out(b: _Band, vertices: np.ndarray) -> bool:
     d = np.asarray(vertices).take(b.idx, 0).astype(np.float64) - b.rest
     out = d[:, 0] * b.normal[:, 0] + d[:, 1] * b.normal[:, 1]
     # partly inward (a head roll, a jaw shifted sideways): none of the band
-    hi = float(out.max())
-    return bool(hi > _OUT and float(out.min()) >= -max(_OUT, _IN_SHARE * hi))
+    o = out.tolist()  # (a few values: Python's max and min cost less than ndarray's)
+    hi = max(o)
+    return bool(hi > _OUT and min(o) >= -max(_OUT, _IN_SHARE * hi))
 
 
 def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
@@ -127,9 +128,8 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
         return None
     vv = np.asarray(vertices)
     vb = vv.take(b.verts, 0)
-    # the band's extent (per column: an axis-0 reduction of an (n, 2) array costs more)
-    ext = (float(vb[:, 0].min()), float(vb[:, 1].min()),
-           float(vb[:, 0].max()), float(vb[:, 1].max()))
+    # the band's extent (x0, y0, x1, y1)
+    ext = (*vb.min(0).tolist(), *vb.max(0).tolist())
     fr = face.frame
     new = fr.to_frame(vv.take(b.idx, 0))
     order = np.argsort(new[:, 0])
@@ -137,7 +137,7 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     drop = new[:, 1] - b.rest_frame[:, 1].take(order)
     ring = fr.to_frame(vv.take(b.ring, 0))
     ring = ring.take(np.argsort(ring[:, 0]), 0)
-    ramp = max(1.5 * float(drop.max()), 2.0)
+    ramp = max(1.5 * max(drop.tolist()), 2.0)
     return partial(_hook, fr, b, ext, new, drop, ring, ramp)
 
 
@@ -155,7 +155,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
         return
     sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
     sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
-    if not sel.any():
+    if not np.count_nonzero(sel):
         return
     R, org = fr.rot, fr.origin
     o0, o1 = float(org[0]), float(org[1])

@@ -199,7 +199,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     jobs = []  # per stretched strip: box, table, its first frame x
     a = 0
     for cd, n in zip(cand, n_u, strict=True):
-        if live[a:a + n].any():
+        if np.count_nonzero(live[a:a + n]):
             jobs.append((cd[0], tab_all[a:a + n], cd[1]))
         a += n
     if not jobs:

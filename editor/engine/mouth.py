@@ -299,7 +299,8 @@ class MouthPlan:
         L = S[:, :2]
         sc = math.sqrt(abs(L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])) or 1.0
         E = L @ self._exy  # the frame axes turned with the skull (columns), normalised
-        E /= np.sqrt((E * E).sum(0))
+        E2 = E * E
+        E /= np.sqrt(E2[0] + E2[1])  # (the column norms: an axis-0 sum costs more)
         ex, ey = E[:, 0], E[:, 1]
         xs = np.arange(x0, x1, dtype=np.float64)[None, :]
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
@@ -318,7 +319,7 @@ class MouthPlan:
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
         lip = fp[2:2 + n_lip]
-        lip = lip[np.argsort(lip[:, 0])]
+        lip = lip.take(np.argsort(lip[:, 0]), 0)
         y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
         hole = fp[2 + n_lip:]
         (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)

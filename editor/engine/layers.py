@@ -142,15 +142,6 @@ def _box_of(lo: list[float], hi: list[float], shape: tuple[int, ...], pad: int =
     return x0, y0, x1, y1
 
 
-def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
-    """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
-    x0, y0, x1, y1 = box
-    m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.rint((np.asarray(poly, np.float32) - np.array([x0, y0], np.float32)) * (1 << _SHIFT))
-    cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
-    return m.view(bool)  # 0 / 1 bytes
-
-
 @lru_cache(maxsize=8)
 def _next_in_loop(ends: tuple[int, ...]) -> np.ndarray:
     """Index of the next vertex along each loop of concatenated loops ending at ``ends``."""
@@ -599,8 +590,9 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
 
 def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool]]
                    ) -> list[tuple[np.ndarray, np.ndarray | None]]:
-    """:func:`_raster` and, where asked, :func:`_coverage` of several openings (outline, box,
-    coverage wanted) at once: their boxes side by side on one canvas each, so that one fill,
+    """The pixels ``warp`` gives to each of several openings (outline, box, coverage wanted;
+    the same fill call and rule: bool (h, w) 0 / 1 bytes) and, where asked, their
+    :func:`_coverage`, all at once: their boxes side by side on one canvas each, so that one fill,
     one erosion and one reduction serve all of them. The same values as one call per opening:
     every outline keeps its own fixed-point vertices, moved by whole pixels (whole samples),
     and each box's margin (>= 2 px around its outline) keeps the fills, the erosion and the
@@ -615,7 +607,8 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
     org = np.array([b[:2] for _, b, _ in items])
     shift = np.zeros((len(items), 2), np.int32)
     shift[:, 0] = cols
-    # the pixel sets (as _raster: float32 outline minus box origin, 4 fractional bits)
+    # the pixel sets (as warp fills an opening: float32 outline minus box origin, 4 fractional
+    # bits)
     q = np.rint((P.astype(np.float32) - np.repeat(org.astype(np.float32), lens, 0))
                 * (1 << _SHIFT)).astype(np.int32)
     q += np.repeat(shift << _SHIFT, lens, 0)

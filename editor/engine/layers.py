@@ -602,7 +602,8 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
     hs = [b[3] - b[1] for _, b, _ in items]
     cols = list(itertools.accumulate([0, *ws[:-1]]))
     lens = [len(p) for p, _, _ in items]
-    cuts = list(itertools.accumulate(lens[:-1]))
+    ends = list(itertools.accumulate(lens))
+    parts = list(zip([0, *ends[:-1]], ends, strict=True))  # (slices: np.split costs more)
     P = np.concatenate([p for p, _, _ in items])
     org = np.array([b[:2] for _, b, _ in items])
     shift = np.zeros((len(items), 2), np.int32)
@@ -613,7 +614,7 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
                 * (1 << _SHIFT)).astype(np.int32)
     q += np.repeat(shift << _SHIFT, lens, 0)
     m = np.zeros((max(hs), sum(ws)), np.uint8)
-    cv2.fillPoly(m, np.split(q, cuts), 1, cv2.LINE_8, _SHIFT)
+    cv2.fillPoly(m, [q[a:b] for a, b in parts], 1, cv2.LINE_8, _SHIFT)
     holes = [m[:h, c:c + w].view(bool) for h, w, c in zip(hs, ws, cols, strict=True)]
     if not any(want for _, _, want in items):
         return [(hole, None) for hole in holes]
@@ -623,7 +624,7 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
                  ).astype(np.int32)
     qc += np.repeat(shift * (16 * ss), lens, 0)
     big: np.ndarray = np.zeros((max(hs) * ss, sum(ws) * ss), np.uint8)
-    cv2.fillPoly(big, np.split(qc, cuts), 255, cv2.LINE_8, 4)
+    cv2.fillPoly(big, [qc[a:b] for a, b in parts], 255, cv2.LINE_8, 4)
     big = cv2.erode(big, _CROSS)
     small = cv2.resize(big, (sum(ws), max(hs)), interpolation=cv2.INTER_AREA)
     cov = np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)

@@ -322,7 +322,8 @@ class MouthPlan:
         lip = lip.take(np.argsort(lip[:, 0]), 0)
         y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
         hole = fp[2 + n_lip:]
-        (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)
+        hx, hy = hole[:, 0].tolist(), hole[:, 1].tolist()  # (a few values: Python's min/max)
+        lo_h, lo_v, hi_h, hi_v = min(hx), min(hy), max(hx), max(hy)
         cxm = 0.5 * (lo_h + hi_h)
         hw = max(0.5 * float(hi_h - lo_h), 1.0)
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
@@ -508,7 +509,7 @@ class MouthPlan:
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
         f = np.asarray(faps, np.float64)
-        if not f[42:47].any():  # FAPs 43-47
+        if not np.count_nonzero(f[42:47]):  # FAPs 43-47
             return None
         d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
         lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)

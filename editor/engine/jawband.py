@@ -129,7 +129,8 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     vv = np.asarray(vertices)
     vb = vv.take(b.verts, 0)
     # the band's extent (x0, y0, x1, y1)
-    ext = (*vb.min(0).tolist(), *vb.max(0).tolist())
+    bx, by = vb[:, 0].tolist(), vb[:, 1].tolist()  # (Python's min/max: cheaper here)
+    ext = (min(bx), min(by), max(bx), max(by))
     fr = face.frame
     new = fr.to_frame(vv.take(b.idx, 0))
     order = np.argsort(new[:, 0])

@@ -392,7 +392,7 @@ class MouthPlan:
         # closed mouth's lip line fades out over the first two pixels the lips part
         lp_u, lp_d = self._lip_idx
         gap = (v.take(lp_d, 0) - v.take(lp_u, 0)).astype(np.float64) @ ey
-        fade = 1.0 - _smoothstep1(float((gap - self.gap0).max()) / 2.0)
+        fade = 1.0 - _smoothstep1(max((gap - self.gap0).tolist()) / 2.0)
         a_up, p_up = self._own(mx, my, 0, fade)
         a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
                                (sy - tjs[1]).astype(np.float32), 1, fade)

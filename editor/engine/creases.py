@@ -37,6 +37,7 @@ forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import time
 import weakref
@@ -47,7 +48,7 @@ import cv2
 import numpy as np
 
 from .fitting import channel_median, luminance
-from .layers import _rebox, _union
+from .layers import _blur, _rebox, _union
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -554,6 +555,9 @@ class _Fast:
     own_gap: np.ndarray | None = None  # (F,) photo's own compression per fold (None: neutral)
     own_w: np.ndarray | None = None  # (N,) log-spacing of the neutral mesh per sample (>= 0)
     own_sum: np.ndarray | None = None  # (F,) sum of own_w ** 2 per fold
+    # (F,) the per-frame path's per-fold constants of the unfold share: its divisor and fade-in
+    own_div: np.ndarray | None = None
+    own_fade: np.ndarray | None = None
     # per-face constants of the per-frame path (gathered once, not every frame; set by _fast)
     used_tri: np.ndarray = field(init=False)  # (U, 3) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
@@ -623,6 +627,8 @@ def _fast(face: Face) -> _Fast:
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])
         f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
+        f.own_div = np.maximum(f.own_sum, 1e-9)
+        f.own_fade = np.clip((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
     return f
 
 
@@ -631,7 +637,8 @@ def _spacing(face: Face, vertices: np.ndarray) -> np.ndarray:
     mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes."""
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    T = V[fa.used_tri]
+    # (gathers with take: numpy's fancy indexing of an (n, 2) array costs several us more)
+    T = V.take(fa.used_tri, 0)
     e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges,
     # entry by entry (U,) and then gathered per probe (N, 4)
@@ -639,12 +646,12 @@ def _spacing(face: Face, vertices: np.ndarray) -> np.ndarray:
     e1x, e1y, e2x, e2y = e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1]
     a00, a01 = e1x * i00 + e2x * i10, e1x * i01 + e2x * i11
     a10, a11 = e1y * i00 + e2y * i10, e1y * i01 + e2y * i11
-    det = (a00 * a11 - a01 * a10)[fa.probe]
+    det = (a00 * a11 - a01 * a10).take(fa.probe)
     # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
     # along the fold and stretch along it do not change it
     pr, tx, ty = fa.probe, fa.tx, fa.ty
-    ax = a00[pr] * tx + a01[pr] * ty
-    ay = a10[pr] * tx + a11[pr] * ty
+    ax = a00.take(pr) * tx + a01.take(pr) * ty
+    ay = a10.take(pr) * tx + a11.take(pr) * ty
     r = det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)
     return (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25  # the mean over the 4 probes
 
@@ -714,18 +721,18 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     # fold_strength
     c = 1.0 - sp
     c[c < _C_TOL] = 0.0
-    cmax = np.maximum.reduceat(c, starts)[p.fold]
+    cmax = np.maximum.reduceat(c, starts).take(p.fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
     s = np.where(edge, s, np.convolve(s, _SMOOTH, mode="same")) * p.taper
-    if fa.own_gap is None or fa.own_w is None or fa.own_sum is None:
+    if fa.own_w is None or fa.own_div is None or fa.own_fade is None:
         return s, np.zeros(len(fa.depth))
-    # unfold_strength
+    # unfold_strength (its per-fold constants taken once per face)
     e = np.log(np.maximum(sp, 1e-6))
     e[e < _C_TOL] = 0.0
     esum = np.add.reduceat(e * fa.own_w, starts)
-    u = np.clip(esum / np.maximum(fa.own_sum, 1e-9), 0, 1)
-    u = (u * np.clip((fa.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0))[p.fold]
+    esum /= fa.own_div
+    u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(p.fold)
     u = np.where(edge, u, np.convolve(u, _SMOOTH, mode="same")) * p.utaper
     return s, u
 
@@ -797,9 +804,22 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
 
 
 def _live_groups(fa, live: np.ndarray) -> list[tuple[int, int, int]]:
-    """``(group, first segment, end)`` of every fold group with a ``live`` segment."""
-    return [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng)
-            if g1 > g0 and np.count_nonzero(live[g0:g1])]
+    """``(group, first segment, end)`` of every fold group with a ``live`` segment (all groups
+    tested in one ``reduceat``: the non-empty groups' segments are consecutive, in order)."""
+    got = _GROUPS.get(fa)
+    if got is None:
+        nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
+        got = (nonempty, [g0 for _, g0, _ in nonempty])
+        _GROUPS[fa] = got
+    nonempty, starts = got
+    if not nonempty:
+        return []
+    hit = np.logical_or.reduceat(live[:nonempty[-1][2]], starts).tolist()
+    return [grp for grp, h in zip(nonempty, hit, strict=True) if h]
+
+
+#: per fast plan: its non-empty fold groups and their first segments (see _live_groups)
+_GROUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int],
@@ -809,15 +829,16 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
     ``(group, box, index of its first canvas)`` per group."""
     fa = _fast(face)
     H, W = shape
-    sa, sb = s[fa.seg_a], s[fa.seg_b]
+    sa, sb = s.take(fa.seg_a), s.take(fa.seg_b)
     groups = _live_groups(fa, np.maximum(sa, sb) > _MIN_STRENGTH)
     if not groups:
         return []
     (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
-    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the samples on the deformed mesh
+    # the samples on the deformed mesh (gathered with take: fancy indexing costs more)
+    pos = V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
     # every segment at once: start, direction, length, normal (-dy, dx) / L
-    a_all = pos[fa.seg_a]
-    d_all = pos[fa.seg_b] - a_all
+    a_all = pos.take(fa.seg_a, 0)
+    d_all = pos.take(fa.seg_b, 0) - a_all
     dx, dy = d_all[:, 0], d_all[:, 1]
     L_all = np.sqrt(dx * dx + dy * dy)
     n_all = d_all[:, ::-1] * _TURN / np.maximum(L_all, 1e-9)[:, None]
@@ -825,7 +846,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
     for g, g0, g1 in groups:
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
         sig = float(fa.sig[g])
-        K = int(min(max(math.ceil(float(L.max()) / min(0.5, 0.5 * sig)), 1), 64))
+        K = int(min(max(math.ceil(max(L.tolist()) / min(0.5, 0.5 * sig)), 1), 64))
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = sa[g0:g1], sb[g0:g1]
@@ -835,7 +856,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
         lines.append(w)
     # the extent of each line and ridge in one pass
     pr = [x for i, x in enumerate(lines) if i % 3 != 2]
-    cut = np.cumsum([0, *[len(x) for x in pr[:-1]]])
+    cut = list(itertools.accumulate([0, *[len(x) for x in pr[:-1]]]))  # (np.cumsum costs more)
     both = np.concatenate(pr)
     lo, hi = np.minimum.reduceat(both, cut).tolist(), np.maximum.reduceat(both, cut).tolist()
     jobs = []
@@ -864,8 +885,8 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     its splatted canvases (in place); returns ``bbox`` grown by the box."""
     x0, y0, x1, y1 = box
     sig = float(fa.sig[g])
-    dark = np.asarray(cv2.GaussianBlur(dark[:-1, :-1], (0, 0), sig), np.float32)
-    light = np.asarray(cv2.GaussianBlur(light[:-1, :-1], (0, 0), 1.6 * sig), np.float32)
+    dark = np.asarray(_blur(dark[:-1, :-1], sig), np.float32)
+    light = np.asarray(_blur(light[:-1, :-1], 1.6 * sig), np.float32)
     view = out[y0:y1, x0:x1]
     patch = view.astype(np.float32)
     # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -908,7 +929,7 @@ def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bo
     # every point's corners inside its canvas: its box was not clipped by the image's edge
     inside = all(c[3] for c in canvases)
     if inside:
-        top = np.cumsum([0, *rows[:-1]])
+        top = np.array(list(itertools.accumulate([0, *rows[:-1]])))  # (np.cumsum costs more)
         base = ip[:, 1] * wide + ip[:, 0] + np.repeat(top * wide, n)
         idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
         total = int(sum(rows)) * wide
@@ -1052,15 +1073,17 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
     (:func:`_band_samples` of the group's segments, all segments measured at once)."""
     fa = _fast(face)
     H, W = shape
-    ua, ub = un[fa.seg_a], un[fa.seg_b]
+    ua, ub = un.take(fa.seg_a), un.take(fa.seg_b)
     groups = _live_groups(fa, np.maximum(ua, ub) > _MIN_UNFOLD)
     if not groups:
         return []
     (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
-    pos = V[t0] * b0 + V[t1] * b1 + V[t2] * b2  # the valley's samples on the deformed mesh
-    a_all = pos[fa.seg_a]
-    d_all = pos[fa.seg_b] - a_all
-    L_all = np.sqrt((d_all * d_all).sum(1))
+    # the valley's samples on the deformed mesh (gathered with take: fancy indexing costs more)
+    pos = V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
+    a_all = pos.take(fa.seg_a, 0)
+    d_all = pos.take(fa.seg_b, 0) - a_all
+    dx, dy = d_all[:, 0], d_all[:, 1]
+    L_all = np.sqrt(dx * dx + dy * dy)  # (an axis-1 sum of (n, 2) costs more)
     bands = []
     for g, g0, g1 in groups:
         sb = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
@@ -1068,14 +1091,14 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
         # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
         f = 1 if got is None else max(1, int(sb / 1.5))
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
-        K = int(min(max(np.ceil(L.max() / (0.5 * f)), 1), 64))
+        K = int(min(max(math.ceil(max(L.tolist()) / (0.5 * f)), 1), 64))  # (no ndarray.max)
         u = (np.arange(K) + 0.5) / K
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = ua[g0:g1], ub[g0:g1]
         w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
         bands.append((g, sb, got, f, pts, w, d, L, K, g1 - g0))
-    # the box that is written (each band's), in one pass
-    cut = np.cumsum([0, *[len(b[4]) for b in bands[:-1]]])
+    # the box that is written (each band's), in one pass (cuts: np.cumsum costs more)
+    cut = list(itertools.accumulate([0, *[len(b[4]) for b in bands[:-1]]]))
     P = np.concatenate([b[4] for b in bands])
     lo, hi = np.minimum.reduceat(P, cut).tolist(), np.maximum.reduceat(P, cut).tolist()
     jobs = []
@@ -1124,11 +1147,11 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
         band = drawn[ci]
         if f == 1:
-            band = np.asarray(cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb), np.float32)
+            band = np.asarray(_blur(band[:-1, :-1], sb), np.float32)
         else:
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            band = cv2.GaussianBlur(band[:-1, :-1], (0, 0), sb / f)
+            band = _blur(band[:-1, :-1], sb / f)
             band = np.asarray(cv2.resize(band, (wc * f, hc * f),
                                          interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
         band *= k

@@ -289,7 +289,7 @@ class FapTable(Mapping[object, Fap]):
             if a.shape != (68,):
                 raise ValueError(f"a FAP vector has shape (68,), got {a.shape}")
             bad = ~(np.abs(a) <= MAX_VALUE)  # NaN, infinite or beyond float32
-            if bad.any():
+            if np.count_nonzero(bad):
                 i = int(np.flatnonzero(bad)[0]) + 1
                 raise ValueError(f"FAP {i} ({self[i].name}) is not a finite number within "
                                  f"±{MAX_VALUE:g}")
@@ -309,7 +309,7 @@ class FapTable(Mapping[object, Fap]):
 
     def clamp(self, v: np.ndarray) -> np.ndarray:
         """Clamp a (68,) or (B, 68) vector to the table ranges (FAPs 1-2 are left alone)."""
-        out = np.clip(v, self.lo, self.hi)
+        out = np.minimum(np.maximum(v, self.lo), self.hi)  # (np.clip: the same, slower)
         out[..., :2] = np.asarray(v)[..., :2]
         return out.astype(np.float32)
 

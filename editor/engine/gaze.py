@@ -508,7 +508,7 @@ class EyePlan:
             inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
         f = n @ self._exy
-        return f[_UP], f[_LOW]
+        return f.take(_UP, 0), f.take(_LOW, 0)  # (take: fancy indexing of rows costs more)
 
     def lid_opening(self, poly: np.ndarray, sim: np.ndarray,
                     lids: tuple[np.ndarray, np.ndarray] | None = None) -> float:
@@ -516,8 +516,8 @@ class EyePlan:
         > 0 when an upper lid was raised or a lower lid lowered. ``lids``: the
         :meth:`lid_frame` of ``poly`` and ``sim`` when the caller has it already."""
         up, low = self.lid_frame(poly, sim) if lids is None else lids
-        return float(np.maximum(self.lid_up[1:-1, 1] - up[1:-1, 1],
-                                low[1:-1, 1] - self.lid_low[1:-1, 1]).max())
+        return max(np.maximum(self.lid_up[1:-1, 1] - up[1:-1, 1],
+                              low[1:-1, 1] - self.lid_low[1:-1, 1]).tolist())
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,

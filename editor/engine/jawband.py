@@ -25,6 +25,7 @@ import math
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache, partial
 from typing import TYPE_CHECKING
 
 import cv2
@@ -32,6 +33,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from .face import Face
+    from .fitting import FaceFrame
 
 #: the jaw moved outward when a vertex did by more than this (px), and none moved inward by
 #: more than it or than _IN_SHARE of the largest outward motion (a fraction of a pixel of the
@@ -54,9 +56,19 @@ class _Band:
     rest: np.ndarray  # (k, 2) their positions on the photo's mesh
     lut: np.ndarray  # (T + 4,) bool: a warp triangle id is one of the band's
     ring: np.ndarray  # the band's outer vertices (the margin ring below the jaw)
+    tau: float  # :data:`TAU` in pixels (the interocular distance is not recomputed per frame)
+    rest_frame: np.ndarray  # (k, 2) ``rest`` in the face frame
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@lru_cache(maxsize=8)
+def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only float32 array of zeros (the band's box recurs from frame to frame)."""
+    z = np.zeros(shape, np.float32)
+    z.setflags(write=False)
+    return z
 
 
 def _band(face: Face) -> _Band:
@@ -80,7 +92,8 @@ def _band(face: Face) -> _Band:
     lut = np.zeros(len(tri) + 4, bool)  # ids: triangles, the identity row, the 3 openings
     lut[np.flatnonzero(sel)] = True
     ring_v = np.unique(tri[sel][ring[tri[sel]]])
-    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v)
+    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v, TAU * face.interocular,
+              face.frame.to_frame(p))
     _PLANS[face] = b
     return b
 
@@ -88,9 +101,13 @@ def _band(face: Face) -> _Band:
 def _moved_out(b: _Band, vertices: np.ndarray) -> bool:
     """Whether the jaw line of ``vertices`` moved outward (somewhere by more than :data:`_OUT`
     px, nowhere inward by more than a fraction of that)."""
-    out = ((np.asarray(vertices, np.float64)[b.idx] - b.rest) * b.normal).sum(1)
+    # (rows gathered with take: numpy's fancy indexing of an (n, 2) array costs ~5 us more)
+    d = np.asarray(vertices).take(b.idx, 0).astype(np.float64) - b.rest
+    out = d[:, 0] * b.normal[:, 0] + d[:, 1] * b.normal[:, 1]
     # partly inward (a head roll, a jaw shifted sideways): none of the band
-    return bool(out.max() > _OUT and out.min() >= -max(_OUT, _IN_SHARE * out.max()))
+    o = out.tolist()  # (a few values: Python's max and min cost less than ndarray's)
+    hi = max(o)
+    return bool(hi > _OUT and min(o) >= -max(_OUT, _IN_SHARE * hi))
 
 
 def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
@@ -109,72 +126,91 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     b = _band(face)
     if not _moved_out(b, vertices):
         return None
-    v = np.asarray(vertices, np.float64)
-    lo, hi = v[b.verts].min(0), v[b.verts].max(0)
+    vv = np.asarray(vertices)
+    vb = vv.take(b.verts, 0)
+    # the band's extent (x0, y0, x1, y1)
+    bx, by = vb[:, 0].tolist(), vb[:, 1].tolist()  # (Python's min/max: cheaper here)
+    ext = (min(bx), min(by), max(bx), max(by))
     fr = face.frame
-    new, old = fr.to_frame(v[b.idx]), fr.to_frame(b.rest)
+    new = fr.to_frame(vv.take(b.idx, 0))
     order = np.argsort(new[:, 0])
-    drop = new[:, 1] - old[:, 1]
-    ring = fr.to_frame(v[b.ring])
-    ring = ring[np.argsort(ring[:, 0])]
-    tau = TAU * face.interocular
-    ramp = max(1.5 * float(drop.max()), 2.0)
-    lut = b.lut
+    new = new.take(order, 0)
+    drop = new[:, 1] - b.rest_frame[:, 1].take(order)
+    ring = fr.to_frame(vv.take(b.ring, 0))
+    ring = ring.take(np.argsort(ring[:, 0]), 0)
+    ramp = max(1.5 * max(drop.tolist()), 2.0)
+    return partial(_hook, fr, b, ext, new, drop, ring, ramp)
 
-    def hook(ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
-             box: tuple[int, int, int, int]) -> None:
-        bx0, by0, bx1, by1 = box
-        x0, y0 = max(math.floor(lo[0]) - 1, bx0), max(math.floor(lo[1]) - 1, by0)
-        x1, y1 = min(math.ceil(hi[0]) + 2, bx1), min(math.ceil(hi[1]) + 2, by1)
-        if x1 <= x0 or y1 <= y0:
-            return
-        sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
-        sel = lut[ids[sub]]  # the band's pixels (as the warp's rasterizer gave them)
-        if not sel.any():
-            return
-        R, org = fr.rot, fr.origin
-        # the jaw line now and its drop along the frame's x, tabulated every _STEP px and
-        # read per pixel with one cv2.remap (np.interp per pixel costs several times more)
-        cx = np.array([x0, x1 - 1, x0, x1 - 1], np.float64) - org[0]
-        cy = np.array([y0, y0, y1 - 1, y1 - 1], np.float64) - org[1]
-        bx = cx * R[0, 0] + cy * R[1, 0]
-        lo_x = float(bx.min())
-        u = lo_x + _STEP * np.arange(int(np.ceil((float(bx.max()) - lo_x) / _STEP)) + 2)
-        table = np.empty((2, len(u), 4), np.float32)  # 2 rows: no border path on the last
-        table[:, :, 0] = np.interp(u, new[order, 0], new[order, 1])
-        table[:, :, 1] = np.interp(u, new[order, 0], drop[order])
-        # the room below the jaw line down to the margin ring: the strip and the fade fit in
-        # it, so that the map is the photo's own where the band meets the ring
-        room = np.maximum(np.interp(u, ring[:, 0], ring[:, 1]) - table[0, :, 0], 1.0)
-        t_strip = np.minimum(tau, 0.3 * room)
-        table[:, :, 2] = t_strip
-        table[:, :, 3] = np.maximum(np.minimum(ramp, room - t_strip), 0.5)
-        w, h = x1 - x0, y1 - y0
-        # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
-        # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
-        # than a tenth of a pixel); on a small one at every pixel
-        s = _COARSE if w * h > _COARSE_AREA else 1
-        nw, nh = (-(-w // s) + 1, -(-h // s) + 1) if s > 1 else (w, h)
-        off = 0.5 * s - 0.5
-        xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(org[0]))[None, :]
-        ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(org[1]))[:, None]
-        tx = (xs * np.float32(R[0, 0] / _STEP) - np.float32(lo_x / _STEP)) \
-            + ys * np.float32(R[1, 0] / _STEP)  # the pixel's frame x, in table steps
-        got = cv2.split(cv2.remap(table, tx, np.zeros_like(tx), cv2.INTER_LINEAR,
-                                  borderMode=cv2.BORDER_REPLICATE))
-        d = xs * np.float32(R[0, 1]) + ys * np.float32(R[1, 1])  # the pixel's frame y ...
-        d -= got[0]  # ... below the new jaw line
-        d -= got[2]  # past the strip
-        d /= got[3]  # over the fade
-        np.clip(d, 0.0, 1.0, out=d)
-        shift = (np.float32(3.0) - np.float32(2.0) * d) * d * d  # smoothstep
-        np.subtract(1.0, shift, out=shift)
-        shift *= got[1]  # the chin's drop over its underside, then none
-        if s > 1:
-            shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
-        mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(R[0, 1])
-        my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(R[1, 1])
-        np.copyto(map_x[sub], mx, where=sel)
-        np.copyto(map_y[sub], my, where=sel)
 
-    return hook
+def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: np.ndarray,
+          drop: np.ndarray, ring: np.ndarray, ramp: float, ids: np.ndarray,
+          map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]) -> None:
+    """:func:`jaw_map`'s hook: the band's pixels of the warp's box ``box`` (triangle ids
+    ``ids``) take the chin's map in ``map_x``, ``map_y`` (in place). ``new`` the jaw line in
+    the frame by its x, ``drop`` its drop there, ``ring`` the margin ring below it, ``ramp``
+    the fade's length, ``ext`` the band's vertices' extent (x0, y0, x1, y1)."""
+    bx0, by0, bx1, by1 = box
+    x0, y0 = max(math.floor(ext[0]) - 1, bx0), max(math.floor(ext[1]) - 1, by0)
+    x1, y1 = min(math.ceil(ext[2]) + 2, bx1), min(math.ceil(ext[3]) + 2, by1)
+    if x1 <= x0 or y1 <= y0:
+        return
+    sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
+    sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
+    if not np.count_nonzero(sel):
+        return
+    R, org = fr.rot, fr.origin
+    o0, o1 = float(org[0]), float(org[1])
+    r00, r10, r01, r11 = float(R[0, 0]), float(R[1, 0]), float(R[0, 1]), float(R[1, 1])
+    # the jaw line now and its drop along the frame's x, tabulated every _STEP px and
+    # read per pixel with one cv2.remap (np.interp per pixel costs several times more); the
+    # frame's x over the box is extreme at its corners (Python floats: the same float64
+    # arithmetic as on arrays, without their cost for four values)
+    ax, ay = (x0 - o0) * r00, (x1 - 1 - o0) * r00
+    by, cy = (y0 - o1) * r10, (y1 - 1 - o1) * r10
+    bx = (ax + by, ay + by, ax + cy, ay + cy)
+    lo_x = min(bx)
+    u = lo_x + _STEP * np.arange(math.ceil((max(bx) - lo_x) / _STEP) + 2)
+    table = np.empty((2, len(u), 4), np.float32)  # 2 rows: no border path on the last
+    jaw = np.interp(u, new[:, 0], new[:, 1])
+    table[:, :, 0] = jaw
+    table[:, :, 1] = np.interp(u, new[:, 0], drop)
+    # the room below the jaw line down to the margin ring: the strip and the fade fit in
+    # it, so that the map is the photo's own where the band meets the ring
+    room = np.interp(u, ring[:, 0], ring[:, 1])
+    room -= table[0, :, 0]
+    np.maximum(room, 1.0, out=room)
+    t_strip = np.minimum(b.tau, 0.3 * room)
+    table[:, :, 2] = t_strip
+    room -= t_strip
+    table[:, :, 3] = np.maximum(np.minimum(ramp, room, out=room), 0.5, out=room)
+    w, h = x1 - x0, y1 - y0
+    # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
+    # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
+    # than a tenth of a pixel); on a small one at every pixel
+    s = _COARSE if w * h > _COARSE_AREA else 1
+    nw, nh = (-(-w // s) + 1, -(-h // s) + 1) if s > 1 else (w, h)
+    off = 0.5 * s - 0.5
+    xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]
+    ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
+    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
+        + ys * np.float32(r10 / _STEP)  # the pixel's frame x, in table steps
+    # (the four channels read as views: cheaper than splitting them into new arrays)
+    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
+    d -= got[..., 0]  # ... below the new jaw line
+    d -= got[..., 2]  # past the strip
+    d /= got[..., 3]  # over the fade
+    np.clip(d, 0.0, 1.0, out=d)
+    shift = np.multiply(d, np.float32(-2.0))  # smoothstep (3 - 2 d) d d, in place
+    shift += np.float32(3.0)
+    shift *= d
+    shift *= d
+    np.subtract(1.0, shift, out=shift)
+    shift *= got[..., 1]  # the chin's drop over its underside, then none
+    if s > 1:
+        shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)
+    my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(r11)
+    np.copyto(map_x[sub], mx, where=sel)
+    np.copyto(map_y[sub], my, where=sel)

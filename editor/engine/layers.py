@@ -25,6 +25,7 @@ them (skin lighting, its own teeth, what its mouth opening shows: :func:`_own_in
 
 from __future__ import annotations
 
+import itertools
 import math
 import weakref
 from dataclasses import dataclass
@@ -142,15 +143,6 @@ def _box_of(lo: list[float], hi: list[float], shape: tuple[int, ...], pad: int =
     return x0, y0, x1, y1
 
 
-def _raster(poly: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
-    """The pixels ``warp`` gives to an opening (same fill call and rule), bool (h, w)."""
-    x0, y0, x1, y1 = box
-    m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.rint((np.asarray(poly, np.float32) - np.array([x0, y0], np.float32)) * (1 << _SHIFT))
-    cv2.fillPoly(m, [q.astype(np.int32)], 1, cv2.LINE_8, _SHIFT)
-    return m.view(bool)  # 0 / 1 bytes
-
-
 @lru_cache(maxsize=8)
 def _next_in_loop(ends: tuple[int, ...]) -> np.ndarray:
     """Index of the next vertex along each loop of concatenated loops ending at ``ends``."""
@@ -195,11 +187,11 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     lips = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
     rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip") \
         if len(lips) else np.zeros(face.shape, np.float32)
-    rim = cv2.GaussianBlur(rim, (5, 5), 1.0)
+    rim = _blur(rim, 1.0, 5)
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = min(max(0.03 * D, 0.7), 1.5)
-    spread: np.ndarray = cv2.GaussianBlur(alpha, (0, 0), s)  # >= 0: clamped above only
+    spread: np.ndarray = _blur(alpha, s)  # >= 0: clamped above only
     spread *= np.float32(1.6)
     shade = 1.0 - 0.35 * strength * np.minimum(spread, 1.0) * (1.0 - alpha)
     return rim, depth, shade.astype(np.float32, copy=False)
@@ -236,6 +228,26 @@ def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
     cv2.add(res, _zeros32(res.shape), dst=dst, dtype=cv2.CV_8U)
 
 
+@lru_cache(maxsize=64)
+def _gauss_kernel(ksize: int, sigma: float) -> np.ndarray:
+    """The float32 Gaussian kernel ``cv2.GaussianBlur`` uses for float images (kept: the
+    sigmas of a face recur from frame to frame)."""
+    k = cv2.getGaussianKernel(ksize, sigma, cv2.CV_32F)
+    k.setflags(write=False)
+    return k
+
+
+def _blur(a: np.ndarray, sigma: float, ksize: int = 0) -> np.ndarray:
+    """``cv2.GaussianBlur(a, (ksize, ksize), sigma)`` of a float32 image (the same values: the
+    same kernel through ``cv2.sepFilter2D``, without GaussianBlur's per-call set-up, which
+    costs as much as the filtering on a layer's box). ``ksize`` 0: OpenCV's size for the
+    sigma of a float image, ``round(8 sigma + 1) | 1``."""
+    if ksize <= 0:
+        ksize = int(round(sigma * 8.0 + 1.0)) | 1
+    k = _gauss_kernel(ksize, float(sigma))
+    return cv2.sepFilter2D(a, -1, k, k)
+
+
 @lru_cache(maxsize=32)
 def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
     """A read-only float32 array of zeros (kept: a box's shape recurs from frame to frame)."""
@@ -256,10 +268,13 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     if shade is not None:
         face *= cv2.merge([shade, shade, shade])
     if np.count_nonzero(hole):
-        keep = (~hole).astype(np.float32)
-        num: np.ndarray = cv2.boxFilter(face * cv2.merge([keep, keep, keep]), -1, (5, 5),
-                                        normalize=False, borderType=cv2.BORDER_REPLICATE)
-        den = cv2.boxFilter(keep, -1, (5, 5), normalize=False, borderType=cv2.BORDER_REPLICATE)
+        # the face without the hole (zeros there: a masked copy, the same values as face times
+        # a 0/1 weight) and the weights' box sums taken straight from the 0/1 byte mask
+        keep = (~hole).view(np.uint8)
+        num: np.ndarray = cv2.boxFilter(cv2.copyTo(face, keep), -1, (5, 5), normalize=False,
+                                        borderType=cv2.BORDER_REPLICATE)
+        den = cv2.boxFilter(keep, cv2.CV_32F, (5, 5), normalize=False,
+                            borderType=cv2.BORDER_REPLICATE)
         fill = hole & (den > 0.5)
         np.maximum(den, 1e-6, out=den)
         num /= cv2.merge([den, den, den])
@@ -282,10 +297,11 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     jobs = []
     # how far each opening's outline moved (one gather for the three) and the irises
     idx_all, cuts = _opening_index(face.mesh)
-    polys = v[idx_all]
-    far = np.maximum.reduceat(np.abs(polys - _rest_loops(face)).max(1), cuts).tolist()
+    polys = v.take(idx_all, 0)  # (take: fancy indexing of rows costs several us more)
+    # (over both coordinates of each loop at once: an axis-1 max of (n, 2) costs more)
+    far = np.maximum.reduceat(np.abs(polys - _rest_loops(face)).ravel(), 2 * cuts).tolist()
     V = face.plan.n_vertices
-    iris_far = np.abs(extra[:2] - face.plan.neutral[V:V + 2]).max(1).tolist()  # 3.5, 3.6
+    iris_far = [max(d) for d in np.abs(extra[:2] - face.plan.neutral[V:V + 2]).tolist()]  # 3.5, 3.6
     ends = [*cuts.tolist(), len(idx_all)]
     # ---- eyes
     state = None
@@ -317,22 +333,26 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     hi_all = np.maximum.reduceat(polys, cuts).tolist()
     slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
     closure = None
-    for kind, name, poly, tf, active, moved in jobs:
+    # every opening's box, then their pixel sets and coverages at once (_opening_masks)
+    todo = []
+    for job in jobs:
+        k_open = slot[job[1]]
+        box = _box_of(lo_all[k_open], hi_all[k_open], out.shape, 4 if job[0] == "mouth" else 2)
+        if box[2] > box[0] and box[3] > box[1]:
+            todo.append((job, box))
+    masks = _opening_masks([(job[2], box, job[5] > _TOL) for job, box in todo]) if todo else []
+    for ((kind, name, poly, tf, active, moved), box), (hole, cov) in zip(todo, masks,
+                                                                          strict=True):
         k_open = slot[name]
-        box = _box_of(lo_all[k_open], hi_all[k_open], out.shape, 4 if kind == "mouth" else 2)
-        if box[2] <= box[0] or box[3] <= box[1]:
-            continue
-        hole = _raster(poly, box)
         # an outline that did not move keeps the photo's own edge pixels; the anti-aliased
         # coverage takes over within its first pixel of motion (no jump at small FAPs)
         alpha = hole.astype(np.float32)
-        if moved > _TOL:
+        if cov is not None:
             t = min(moved, 1.0)
-            cov = _coverage(poly, box)
             if kind == "mouth":
                 # a slit a pixel wide on a slant: its box-filtered coverage alternates from
                 # pixel to pixel and the dark line reads dotted; a slightly wider filter
-                cov = cv2.GaussianBlur(cov, (3, 3), 0.6)
+                cov = _blur(np.ascontiguousarray(cov), 0.6, 3)
             alpha += (t * t * (3.0 - 2.0 * t)) * (cov - alpha)
         lip_shade = None
         if kind == "mouth":
@@ -576,6 +596,50 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
                     casting="same_kind")
         ext_mask[:, cols_t] = 1.0
     return own_up, own_low, rgb_up, ext_mask
+
+
+def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool]]
+                   ) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """The pixels ``warp`` gives to each of several openings (outline, box, coverage wanted;
+    the same fill call and rule: bool (h, w) 0 / 1 bytes) and, where asked, their
+    :func:`_coverage`, all at once: their boxes side by side on one canvas each, so that one fill,
+    one erosion and one reduction serve all of them. The same values as one call per opening:
+    every outline keeps its own fixed-point vertices, moved by whole pixels (whole samples),
+    and each box's margin (>= 2 px around its outline) keeps the fills, the erosion and the
+    4 x 4 sample blocks of neighbouring boxes apart. Returns views into the canvases."""
+    ss = 4
+    ws = [b[2] - b[0] for _, b, _ in items]
+    hs = [b[3] - b[1] for _, b, _ in items]
+    cols = list(itertools.accumulate([0, *ws[:-1]]))
+    lens = [len(p) for p, _, _ in items]
+    ends = list(itertools.accumulate(lens))
+    parts = list(zip([0, *ends[:-1]], ends, strict=True))  # (slices: np.split costs more)
+    P = np.concatenate([p for p, _, _ in items])
+    org = np.array([b[:2] for _, b, _ in items])
+    shift = np.zeros((len(items), 2), np.int32)
+    shift[:, 0] = cols
+    # the pixel sets (as warp fills an opening: float32 outline minus box origin, 4 fractional
+    # bits)
+    q = np.rint((P.astype(np.float32) - np.repeat(org.astype(np.float32), lens, 0))
+                * (1 << _SHIFT)).astype(np.int32)
+    q += np.repeat(shift << _SHIFT, lens, 0)
+    m = np.zeros((max(hs), sum(ws)), np.uint8)
+    cv2.fillPoly(m, [q[a:b] for a, b in parts], 1, cv2.LINE_8, _SHIFT)
+    holes = [m[:h, c:c + w].view(bool) for h, w, c in zip(hs, ws, cols, strict=True)]
+    if not any(want for _, _, want in items):
+        return [(hole, None) for hole in holes]
+    # the coverages (as _coverage: the sample grid, 4 fractional bits, from float64)
+    k = 16.0 * ss
+    qc = np.rint(P.astype(np.float64) * k + (8.0 * ss - 8.0 - k * np.repeat(org, lens, 0))
+                 ).astype(np.int32)
+    qc += np.repeat(shift * (16 * ss), lens, 0)
+    big: np.ndarray = np.zeros((max(hs) * ss, sum(ws) * ss), np.uint8)
+    cv2.fillPoly(big, [qc[a:b] for a, b in parts], 255, cv2.LINE_8, 4)
+    big = cv2.erode(big, _CROSS)
+    small = cv2.resize(big, (sum(ws), max(hs)), interpolation=cv2.INTER_AREA)
+    cov = np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)
+    return [(hole, cov[:h, c:c + w] if want else None)
+            for hole, (_, _, want), h, w, c in zip(holes, items, hs, ws, cols, strict=True)]
 
 
 def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,

@@ -93,8 +93,14 @@ def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, sl
 
 
 def _smooth01(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
+    x = _clip01(x)
     return x * x * (3.0 - 2.0 * x)
+
+
+def _clip01(x: np.ndarray) -> np.ndarray:
+    """``np.clip(x, 0, 1)`` (the same values) for the per-strip tables: on ~100 values the
+    wrapper of np.clip costs more than its two passes (on a box of pixels it is faster)."""
+    return np.minimum(np.maximum(x, 0.0), 1.0)
 
 
 def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
@@ -113,7 +119,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     strips = _strips(face)
     # only the strips' vertices in the frame (row by row: the same values as all of them)
     idx, parts = _strip_index(strips)
-    P = fr.to_frame(np.asarray(vertices, np.float64)[idx])
+    # (rows gathered with take: numpy's fancy indexing of an (n, 2) array costs several us more)
+    P = fr.to_frame(np.asarray(vertices).take(idx, 0).astype(np.float64))
     # each strip's image box from its points mapped back (one mapping, one reduction each)
     C = fr.to_image(P)
     starts = [a.start for a, _ in parts]
@@ -122,6 +129,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     img = res.image
     H, W = img.shape[:2]
     R, org = fr.rot, fr.origin
+    o0, o1, r00, r10 = float(org[0]), float(org[1]), float(R[0, 0]), float(R[1, 0])
     # per strip that spans enough: its box, first frame x, the frame x of its table (u), the
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
@@ -138,13 +146,15 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         x1, y1 = min(math.ceil(ix1) + 2, W), min(math.ceil(iy1) + 2, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        # the frame's x over the box (its extremes are at the box's corners)
-        bx = (np.array([x0, x1 - 1, x0, x1 - 1]) - org[0]) * R[0, 0] \
-            + (np.array([y0, y0, y1 - 1, y1 - 1]) - org[1]) * R[1, 0]
-        lo = float(bx.min())
+        # the frame's x over the box (its extremes are at the box's corners; Python floats:
+        # the same float64 arithmetic as on arrays, without their cost for four values)
+        ax, ay = (x0 - o0) * r00, (x1 - 1 - o0) * r00
+        by, cy = (y0 - o1) * r10, (y1 - 1 - o1) * r10
+        bx = (ax + by, ay + by, ax + cy, ay + cy)
+        lo = min(bx)
         # the table along the frame's x over the box: lid line, 1 / Hd, k (from the strip's
         # height now and in the photo)
-        u = lo + _STEP * np.arange(int(np.ceil((float(bx.max()) - lo) / _STEP)) + 2)
+        u = lo + _STEP * np.arange(math.ceil((max(bx) - lo) / _STEP) + 2)
         lines = (np.interp(u, L[:, 0], L[:, 1]), np.interp(u, B[:, 0], B[:, 1]),
                  np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]))
         cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines))
@@ -153,38 +163,45 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     n_u = [len(c[2]) for c in cand]
     u = np.concatenate([c[2] for c in cand])
     lid_y, brow_y, lid_s, brow_s = (np.concatenate([c[5][i] for c in cand]) for i in range(4))
-    x_lo = np.repeat([c[3] for c in cand], n_u)
-    x_hi = np.repeat([c[4] for c in cand], n_u)
+    if len(cand) == 1:
+        x_lo, x_hi = cand[0][3], cand[0][4]
+    else:  # (both rows in one call)
+        x_lo, x_hi = np.repeat(np.array([[c[3] for c in cand], [c[4] for c in cand]]), n_u, 1)
     Hd = lid_y - brow_y
     Hs = lid_s - brow_s
     ex = Hd - Hs
-    fade = (_smooth01((u - x_lo) / (END_FADE * (x_hi - x_lo)))
-            * _smooth01((x_hi - u) / (END_FADE * (x_hi - x_lo))))
+    span = END_FADE * (x_hi - x_lo)
+    fade = _smooth01((u - x_lo) / span) * _smooth01((x_hi - u) / span)
     # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (rigid at
     # the lid); a closing lid unfolds the lid's own skin between its margin and the brow
     # (rigid at both ends: the lashes stay a thin line on the lid's edge, and the brow's lower
     # edge is not dragged down over the eye into an "M"; rigid at the brow alone froze the
     # lid's edge row, and the lashes smeared into a dark band over the closed eye)
     brow_up, lid_down = brow_s - brow_y, lid_y - lid_s
-    pull = np.clip((brow_up - lid_down) / (np.abs(brow_up) + np.abs(lid_down) + 1e-6), -1.0, 1.0)
+    pull = np.minimum(np.maximum(
+        (brow_up - lid_down) / (np.abs(brow_up) + np.abs(lid_down) + 1e-6), -1.0), 1.0)
     hs = np.maximum(Hs, 1e-6)
     # rising brow: f = t Hs + m ex t (1 - t), rigid at the lid
-    m = np.maximum(pull, 0.0) * fade * np.clip(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
+    m = np.maximum(pull, 0.0) * fade * _clip01(Hs / np.maximum(ex, 1e-6))
     # closing lid: rigid at both ends, f' = s + lam (1 - s) (1 - 6 t (1 - t)) (s = Hs / Hd the
     # mean slope), f = Hd (s t + lam (1 - s) t (1 - t) (1 - 2 t)); lam <= 2 s / (1 - s) keeps
     # it monotonic (f' >= 0 at t = 1/2)
     s_bar = Hs / np.maximum(Hd, 1e-6)
-    lam = np.maximum(-pull, 0.0) * fade * np.clip(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6),
-                                                  0.0, 1.0)
+    lam = np.maximum(-pull, 0.0) * fade * _clip01(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6))
     live = (ex > _MIN_STRETCH) & (Hs > 0.5) & ((m != 0) | (lam != 0))
     k = np.where(live, m * ex * Hd / hs, 0.0)
     k2 = np.where(live, lam * ex * Hd / hs, 0.0)
-    tab_all = np.stack([lid_y, 1.0 / np.maximum(Hd, 1e-6), k, k2], 1)
+    tab_all = np.empty((len(u), 4))
+    tab_all[:, 0] = lid_y
+    tab_all[:, 1] = 1.0 / np.maximum(Hd, 1e-6)
+    tab_all[:, 2] = k
+    tab_all[:, 3] = k2
     jobs = []  # per stretched strip: box, table, its first frame x
-    for cd, a, b in zip(cand, np.cumsum([0, *n_u[:-1]]).tolist(), np.cumsum(n_u).tolist(),
-                        strict=True):
-        if live[a:b].any():
-            jobs.append((cd[0], tab_all[a:b], cd[1]))
+    a = 0
+    for cd, n in zip(cand, n_u, strict=True):
+        if np.count_nonzero(live[a:a + n]):
+            jobs.append((cd[0], tab_all[a:a + n], cd[1]))
+        a += n
     if not jobs:
         return res
     # the boxes side by side: per column its image x, first row, table row and first frame x
@@ -194,30 +211,34 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # exact integer positions weigh by 0: without it every pixel of the last strip takes
     # OpenCV's slow border path)
     table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
-    xs, y0s, rows, los = [], [], [], []
+    widths, shifts, y0s, los = [], [], [], []
+    c = 0
     for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
         table[j, :len(tab)] = tab
         table[j, len(tab):] = tab[-1]
-        w = x1 - x0
-        xs.append(np.arange(x0, x1, dtype=np.float64))
-        y0s.append(np.full(w, y0, np.float64))
-        rows.append(np.full(w, j, np.float32))
-        los.append(np.full(w, lo))
+        widths.append(x1 - x0)
+        shifts.append(x0 - c)
+        y0s.append(y0)
+        los.append(lo)
+        c += x1 - x0
     table[-1] = table[-2]
-    xc, y0c, lo_c = np.concatenate(xs), np.concatenate(y0s), np.concatenate(los)
+    # per column (the boxes side by side): its image x, first row, table row and first frame x
+    sh_c, y0c, lo_c = np.repeat(np.array([shifts, y0s, los], np.float64), widths, 1)
+    xc = np.arange(c, dtype=np.float64) + sh_c
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)
     rows_f = np.arange(hmax, dtype=np.float32)[:, None]
-    tx = ((xc - org[0]) * R[0, 0] + (y0c - org[1]) * R[1, 0] - lo_c) * (1.0 / _STEP)
+    xo, yo = xc - org[0], y0c - org[1]
+    tx = (xo * R[0, 0] + yo * R[1, 0] - lo_c) * (1.0 / _STEP)
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
-    ty = np.repeat(np.concatenate(rows)[None, :], hmax, 0)
+    ty = np.repeat(np.repeat(np.arange(len(jobs), dtype=np.float32), widths)[None, :], hmax, 0)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     ly, inv_hd, kk, kk2 = cv2.split(got)
-    ly -= ((xc - org[0]) * R[0, 1] + (y0c - org[1]) * R[1, 1]).astype(np.float32)[None, :]
+    ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
     t = ly
     t *= inv_hd
-    np.clip(t, 0.0, 1.0, out=t)
+    np.clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
     kk2 *= 1.0 - 2.0 * t
     kk += kk2  # k + k2 (1 - 2 t)
     t -= t * t  # t (1 - t)

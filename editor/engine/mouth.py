@@ -321,7 +321,8 @@ class MouthPlan:
         L = S[:, :2]
         sc = math.sqrt(abs(L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])) or 1.0
         E = L @ self._exy  # the frame axes turned with the skull (columns), normalised
-        E /= np.sqrt((E * E).sum(0))
+        E2 = E * E
+        E /= np.sqrt(E2[0] + E2[1])  # (the column norms: an axis-0 sum costs more)
         ex, ey = E[:, 0], E[:, 1]
         xs = np.arange(x0, x1, dtype=np.float64)[None, :]
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
@@ -334,16 +335,16 @@ class MouthPlan:
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
-        fp = (v[self._frame_idx].astype(np.float64) - O) @ E
+        fp = (v.take(self._frame_idx, 0).astype(np.float64) - O) @ E  # (take: cheaper rows)
         q21, q23 = fp[0], fp[1]
         n_lip = len(self.upper_lip)
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
         lip = fp[2:2 + n_lip]
-        lip = lip[np.argsort(lip[:, 0])]
+        lip = lip.take(np.argsort(lip[:, 0]), 0)
         y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
         low = fp[2 + n_lip:2 + 2 * n_lip]
-        low = low[np.argsort(low[:, 0])]
+        low = low.take(np.argsort(low[:, 0]), 0)
         # light on the teeth through the opening: the local gap between the lips (per column)
         # against how deep behind them the teeth lie
         gap = np.maximum(np.interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
@@ -353,7 +354,8 @@ class MouthPlan:
         zg = TONGUE_RECEDE * D
         a_g = (zg / np.sqrt(g2 + zg * zg)).astype(np.float32)
         hole = fp[2 + 2 * n_lip:]
-        (lo_h, lo_v), (hi_h, hi_v) = hole.min(0), hole.max(0)
+        hx, hy = hole[:, 0].tolist(), hole[:, 1].tolist()  # (a few values: Python's min/max)
+        lo_h, lo_v, hi_h, hi_v = min(hx), min(hy), max(hx), max(hy)
         cxm = 0.5 * (lo_h + hi_h)
         hw = max(0.5 * float(hi_h - lo_h), 1.0)
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
@@ -430,8 +432,8 @@ class MouthPlan:
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
         lp_u, lp_d = self._lip_idx
-        gap = (v[lp_d] - v[lp_u]).astype(np.float64) @ ey
-        fade = 1.0 - _smoothstep1(float((gap - self.gap0).max()) / 2.0)
+        gap = (v.take(lp_d, 0) - v.take(lp_u, 0)).astype(np.float64) @ ey
+        fade = 1.0 - _smoothstep1(max((gap - self.gap0).tolist()) / 2.0)
         a_up, p_up = self._own(mx, my, 0, fade)
         a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
                                (sy - tjs[1]).astype(np.float32), 1, fade)
@@ -549,7 +551,7 @@ class MouthPlan:
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
         f = np.asarray(faps, np.float64)
-        if not f[42:47].any():  # FAPs 43-47
+        if not np.count_nonzero(f[42:47]):  # FAPs 43-47
             return None
         d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
         lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)

@@ -308,6 +308,14 @@ def _fold_lines(face: Face) -> list[_Line]:
     return lines
 
 
+def _on_mesh(V: np.ndarray, tri: tuple[np.ndarray, ...], bary: tuple[np.ndarray, ...]
+             ) -> np.ndarray:
+    """Points (N, 2) on the mesh ``V`` given as 3 x (N,) vertex indices and 3 x (N, 1)
+    barycentric weights (rows gathered with ``take``: fancy indexing costs more)."""
+    (t0, t1, t2), (b0, b1, b2) = tri, bary
+    return V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
+
+
 def _normals(pts: np.ndarray) -> np.ndarray:
     """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
     # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
@@ -833,9 +841,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
     groups = _live_groups(fa, np.maximum(sa, sb) > _MIN_STRENGTH)
     if not groups:
         return []
-    (t0, t1, t2), (b0, b1, b2) = fa.sample_tri, fa.bary
-    # the samples on the deformed mesh (gathered with take: fancy indexing costs more)
-    pos = V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
+    pos = _on_mesh(V, fa.sample_tri, fa.bary)  # the samples on the deformed mesh
     # every segment at once: start, direction, length, normal (-dy, dx) / L
     a_all = pos.take(fa.seg_a, 0)
     d_all = pos.take(fa.seg_b, 0) - a_all
@@ -1077,9 +1083,7 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
     groups = _live_groups(fa, np.maximum(ua, ub) > _MIN_UNFOLD)
     if not groups:
         return []
-    (t0, t1, t2), (b0, b1, b2) = _valley_samples(face)
-    # the valley's samples on the deformed mesh (gathered with take: fancy indexing costs more)
-    pos = V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
+    pos = _on_mesh(V, *_valley_samples(face))  # the valley's samples on the deformed mesh
     a_all = pos.take(fa.seg_a, 0)
     d_all = pos.take(fa.seg_b, 0) - a_all
     dx, dy = d_all[:, 0], d_all[:, 1]

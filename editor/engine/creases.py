@@ -49,7 +49,8 @@ import numpy as np
 
 from .fitting import channel_median, luminance
 from .layers import _blur, _rebox, _union
-from .warp import WarpResult
+from .lipseal import sealed_photo
+from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
     from .face import Face, FapInput
@@ -991,7 +992,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     V = face.vertices.astype(np.float64)
     pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
     tri, bary = p.tri.copy(), p.bary.copy()
-    img = face.image
+    img = sealed_photo(face)  # (the mouth's dark corners are no valley)
     H, W = img.shape[:2]
     todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
@@ -1173,7 +1174,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             (S, Cw), (px0, py0) = got
             hb, wb = y1 - y0, x1 - x0
             hc, wc = -(-hb // f), -(-wb // f)
-            mx, my = _box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
+            mx, my = box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
             if f > 1:
                 Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
                                cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
@@ -1245,30 +1246,6 @@ def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float =
     return pts, w, d, L, K
 
 
-def _box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
-              box: tuple[int, int, int, int], shift: tuple[int, int] = (0, 0)
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """The warp's backward map over ``box`` (identity where the warp did not write), minus
-    ``shift`` (new arrays)."""
-    x0, y0, x1, y1 = box
-    map_x, map_y, (a0, b0, a1, b1) = maps
-    if a0 <= x0 and b0 <= y0 and x1 <= a1 and y1 <= b1:
-        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[0]),
-                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[1]))
-    mx = np.empty((y1 - y0, x1 - x0), np.float32)
-    my = np.empty_like(mx)
-    mx[:] = np.arange(x0, x1, dtype=np.float32)[None]
-    my[:] = np.arange(y0, y1, dtype=np.float32)[:, None]
-    c0, r0, c1, r1 = max(x0, a0), max(y0, b0), min(x1, a1), min(y1, b1)
-    if c1 > c0 and r1 > r0:
-        mx[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_x[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
-        my[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_y[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
-    if shift != (0, 0):
-        mx -= np.float32(shift[0])
-        my -= np.float32(shift[1])
-    return mx, my
-
-
 _LIFT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -1309,7 +1286,7 @@ def _photo_lift(face: Face, g: int
     un = p.utaper.astype(np.float64)  # the strength's shape along the line (its scale cancels)
     got = None
     if len(ia) and (np.maximum(un[ia], un[ia + 1]) > 0).any():
-        img = face.image
+        img = sealed_photo(face)  # the mouth's dark corners are no fold to lift
         H, W = img.shape[:2]
         sb = max(2.5 * float(fa.sig[g]), 1.0)
         pts, w, d, L, K = _band_samples(pos, ia, un)

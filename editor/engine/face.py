@@ -47,6 +47,7 @@ from .jawband import jaw_map
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
+from .lipseal import apply_lip_seal
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .transform import similarity
 from .warp import WarpPlan, WarpResult, warp
@@ -533,6 +534,7 @@ class Face:
         tf = self.layer_transforms(v)
         w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v))
         w = apply_lid_skin(self, w, v)
+        w = apply_lip_seal(self, w, v)
         res = render_layers(self, w, v, extra, vec, tf)
         return apply_creases(self, res, v) if creases else res
 

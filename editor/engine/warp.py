@@ -409,3 +409,27 @@ def _cavity(dst: np.ndarray, loop: np.ndarray, xs: np.ndarray, ys: np.ndarray) -
     r = np.sqrt(((xs - cx) / half_w) ** 2 + ((ys - cy) / half_h) ** 2)
     shade = np.clip(0.35 + 0.65 * r, 0.35, 1.0)[:, None]
     return (CAVITY_RGB * shade).astype(np.uint8)
+
+
+def box_maps(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
+             box: tuple[int, int, int, int], shift: tuple[int, int] = (0, 0)
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The warp's backward map over ``box`` (identity where the warp did not write), minus
+    ``shift`` (new arrays)."""
+    x0, y0, x1, y1 = box
+    map_x, map_y, (a0, b0, a1, b1) = maps
+    if a0 <= x0 and b0 <= y0 and x1 <= a1 and y1 <= b1:
+        return (map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[0]),
+                map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0] - np.float32(shift[1]))
+    mx = np.empty((y1 - y0, x1 - x0), np.float32)
+    my = np.empty_like(mx)
+    mx[:] = np.arange(x0, x1, dtype=np.float32)[None]
+    my[:] = np.arange(y0, y1, dtype=np.float32)[:, None]
+    c0, r0, c1, r1 = max(x0, a0), max(y0, b0), min(x1, a1), min(y1, b1)
+    if c1 > c0 and r1 > r0:
+        mx[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_x[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
+        my[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = map_y[r0 - b0:r1 - b0, c0 - a0:c1 - a0]
+    if shift != (0, 0):
+        mx -= np.float32(shift[0])
+        my -= np.float32(shift[1])
+    return mx, my

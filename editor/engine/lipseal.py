@@ -1,0 +1,282 @@
+"""The photo's open mouth sealed when the lips close (issue 21). No Qt.
+
+A photo whose lips are apart (a smile showing teeth: most portraits) has pixels of its
+opening just outside the mesh's inner-lip polygon: the dark corners of the cavity and the
+shadow under the upper lip, which the polygon's straight edges between its inner-lip points
+leave on the lips' triangles. When a target closes the lips (the neutralised face, anger,
+sadness, the p/b/m visemes), the warp carries them onto the closed lips: dark wedges at the
+mouth corners and a dark band along the lip line, which read as the photo's smile (a smirk
+under every preset). A closed mouth, in turn, shows a dark contact line where its lips meet,
+which no pixel of an open photo provides.
+
+* **Once per face** (:func:`seal_plan`): the opening's pixels on the lips are found on the
+  photo (luminance below :data:`DARK` of the lips' median, within :data:`REACH` of the
+  inner-lip polygon, outside it) and filled: the colour from the lips around them
+  (``cv2.inpaint``), the grain from the photo's own high-pass mirrored across the nearest lip
+  pixel (a flat fill reads as paint on a grainy photo). Kept: the difference fill - photo over
+  the mouth's box.
+* **Per frame** (:func:`apply_lip_seal`): the share ``s`` by which the target closes the photo's
+  opening (1 - area of the deformed inner polygon / the photo's, clipped to [0, 1]): 0 at the
+  photo's own expression (the photo exactly) and wherever the lips open as far or further,
+  1 on a closed mouth. The difference is carried to the frame by the warp's own backward map
+  and added times ``s``; along the lips where they meet (their gap under :data:`SHUT` of the
+  inter-ocular distance) a soft contact line darkens the lips by up to :data:`LINE_DEPTH`.
+
+A photo whose lips are closed (the opening's area under 0.5 % of IOD^2) has no plan: nothing
+changes. Runs after the lid skin, before the mouth and eye layers.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from .fitting import luminance
+from .layers import _blur, _rebox, _union
+from .warp import WarpResult, box_maps
+
+if TYPE_CHECKING:
+    from .face import Face
+
+#: an opening's pixel on the lips is darker than this share of the lips' median luminance
+DARK = 0.8
+#: ... or brighter than this share and paler than 0.6 of the lips' saturation (teeth)
+BRIGHT = 1.2
+#: how far outside the inner-lip polygon such pixels are looked for (inter-ocular distances)
+REACH = 0.08
+#: the inner lips count as shut where their gap is under this share of the IOD (fading in from
+#: twice it)
+SHUT = 0.012
+#: darkening of the contact line at its middle, relative to the lips, and its half-width
+#: (Gaussian sigma, IOD). Ten JAFFE neutral photos: the lip line 0.53-0.77 darker than the
+#: lips 0.08 IOD either side (median 0.71), its dip 7-10 % IOD wide at half depth (the lips'
+#: own shading towards the line included); the fill keeps part of the photo's darker lip edge
+LINE_DEPTH, LINE_SIGMA = 0.35, 0.018
+#: below this share of the photo's opening closed, nothing is drawn
+_MIN_SHARE = 1e-3
+
+
+@dataclass(eq=False)
+class SealPlan:
+    """What :func:`apply_lip_seal` needs of one face (see the module docstring)."""
+
+    diff: np.ndarray  # (h, w, 4) float32 fill - photo over ``org`` (4th channel 0)
+    org: tuple[int, int]  # the box's top-left corner on the photo
+    area0: float  # the photo's inner-lip polygon area, px^2
+    upper: np.ndarray  # (n,) vertex indices of the upper inner lip, corner to corner
+    lower: np.ndarray  # (n,) the lower inner lip, the same corners
+    outer: np.ndarray  # vertex indices of the outer lip contour
+    iod: float
+    tint: np.ndarray  # (3,) float32 per-channel weights of the contact line's darkening
+
+
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def seal_plan(face: Face) -> SealPlan | None:
+    """The face's :class:`SealPlan` (cached for its lifetime; None: its lips are closed)."""
+    if face in _PLANS:
+        return _PLANS[face]
+    p = _build(face)
+    _PLANS[face] = p
+    return p
+
+
+_SEALED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def sealed_photo(face: Face) -> np.ndarray:
+    """The photo with its opening's pixels on the lips filled (the plan's fill at full
+    share; the photo itself when the lips are closed). Cached per face, read-only. What the
+    photo's own folds are measured on (:mod:`creases`): the cavity's dark corners are no
+    skin fold to lift."""
+    got = _SEALED.get(face)
+    if got is None:
+        p = seal_plan(face)
+        got = face.image
+        if p is not None:
+            got = face.image.copy()
+            x0, y0 = p.org
+            h, w = p.diff.shape[:2]
+            box = got[y0:y0 + h, x0:x0 + w]
+            box[:] = np.clip(box + p.diff[..., :3] + 0.5, 0, 255).astype(np.uint8)
+            got.setflags(write=False)
+        _SEALED[face] = got
+    return got
+
+
+def _area(poly: np.ndarray) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
+    """``img`` with ``mask`` filled: inpainted colour plus the photo's high-pass (sigma 1 px)
+    mirrored across the nearest unmasked pixel (float32)."""
+    filled = cv2.inpaint(img, mask, radius, cv2.INPAINT_TELEA).astype(np.float32)
+    f = img.astype(np.float32)
+    hp = f - cv2.GaussianBlur(f, (0, 0), 1.0)
+    _, lab = cv2.distanceTransformWithLabels((mask == 0).astype(np.uint8) ^ 1, cv2.DIST_L2, 5,
+                                             labelType=cv2.DIST_LABEL_PIXEL)
+    zy, zx = np.nonzero(mask == 0)  # the labels number the unmasked pixels in scan order
+    ny = np.zeros(len(zy) + 1, np.float32)
+    nx = np.zeros(len(zx) + 1, np.float32)
+    ny[1:], nx[1:] = zy, zx
+    h, w = mask.shape
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    grain = cv2.remap(hp, 2 * nx[lab] - xx, 2 * ny[lab] - yy, cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_REFLECT)
+    # within the photo's grain (a mirror landing on an edge would print it as a speckle)
+    lim = 2.0 * float(np.median(np.abs(hp[mask == 0]))) / 0.6745 + 1.0
+    np.clip(grain, -lim, lim, out=grain)
+    return np.where((mask > 0)[..., None], filled + grain, f)
+
+
+def _build(face: Face) -> SealPlan | None:
+    m = face.mesh
+    iod = float(face.interocular)
+    V = face.vertices.astype(np.float64)
+    hole = np.asarray(m.holes["mouth"])
+    poly = V[hole]
+    area0 = _area(poly)
+    if area0 < 0.005 * iod * iod:
+        return None
+    names = m.names
+    upper = np.array([m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)]
+                     + [m.index("lipi_c1")])
+    lower = np.array([m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)]
+                     + [m.index("lipi_c1")])
+    outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
+                     + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
+    assert all(names[i].startswith("lip") for i in outer)
+    img = face.image
+    H, W = img.shape[:2]
+    reach = max(REACH * iod, 1.5)
+    pad = int(math.ceil(reach)) + 4
+    lo = np.floor(V[outer].min(0)).astype(int) - pad
+    hi = np.ceil(V[outer].max(0)).astype(int) + pad + 1
+    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
+    if x1 - x0 < 4 or y1 - y0 < 4:
+        return None
+    patch = np.ascontiguousarray(img[y0:y1, x0:x1])
+    shape = (y1 - y0, x1 - x0)
+
+    def raster(pts: np.ndarray) -> np.ndarray:
+        a = np.zeros(shape, np.uint8)
+        q = np.round((pts - (x0, y0)) * 16).astype(np.int32)
+        cv2.fillPoly(a, [q], 1, cv2.LINE_8, 4)
+        return a
+
+    inside = raster(poly)
+    lips = raster(V[outer])
+    r = max(int(round(reach)), 1)
+    near = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,
+                                                                            2 * r + 1)))
+    L = luminance(patch)
+    ring = (lips > 0) & (inside == 0)
+    if not ring.any():
+        return None
+    ref = float(np.median(L[ring]))
+    hsv = cv2.cvtColor(patch, cv2.COLOR_RGB2HSV)
+    sat = hsv[..., 1].astype(np.float32)
+    lip_sat = float(np.median(sat[ring]))
+    # dark (the cavity, the shadow under the upper lip) or teeth (bright and paler than the
+    # lips; on a grey photo bright alone)
+    # (teeth only within the lips: beyond them, skin is as bright on a grey photo)
+    teeth = (L > BRIGHT * ref) & (sat <= 0.6 * lip_sat) & (lips > 0)
+    opening = (near > 0) & (inside == 0) & ((L < DARK * ref) | teeth)
+    if not opening.any():
+        return None
+    mask = (opening | (inside > 0)).astype(np.uint8) * 255
+    filled = _fill(patch, mask, max(2, r))
+    diff = np.zeros(shape + (4,), np.float32)
+    # inside the polygon too: the warp's bilinear taps along a closed lip line reach a pixel
+    # into the photo's opening (the mouth layer draws over what is inside a deformed opening)
+    diff[..., :3] = filled - patch.astype(np.float32)
+    # on a colour photo the line darkens towards the lips' deep red (blue and green more)
+    grey = float(np.abs(patch.astype(np.int16) - patch[..., 1:2]).mean()) < 2.0
+    tint = np.ones(3, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
+    return SealPlan(diff, (x0, y0), area0, upper, lower, outer, iod, tint)
+
+
+def closing_share(plan: SealPlan, face: Face, vertices: np.ndarray) -> float:
+    """Share of the photo's opening that ``vertices`` close (0: as open or more, 1: shut)."""
+    poly = np.asarray(vertices, np.float64)[face.mesh.holes["mouth"]]
+    return min(max(1.0 - _area(poly) / plan.area0, 0.0), 1.0)
+
+
+def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
+    """Seal the photo's opening on the lips of ``res.image`` (in place), by the share the
+    deformed mesh ``vertices`` closes it; the result's ``bbox`` grown to what was written."""
+    plan = seal_plan(face)
+    if plan is None:
+        return res
+    s = closing_share(plan, face, vertices)
+    if s < _MIN_SHARE:
+        return res
+    v = np.asarray(vertices, np.float64)
+    out = res.image
+    H, W = out.shape[:2]
+    pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
+    q = v[plan.outer]
+    x0, y0 = max(int(q[:, 0].min()) - pad, 0), max(int(q[:, 1].min()) - pad, 0)
+    x1, y1 = min(int(q[:, 0].max()) + pad + 1, W), min(int(q[:, 1].max()) + pad + 1, H)
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return res
+    view = out[y0:y1, x0:x1]
+    acc = view.astype(np.float32)
+    if res.maps is not None:
+        mx, my = box_maps(res.maps, (x0, y0, x1, y1), plan.org)
+        d = cv2.remap(plan.diff, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0)
+        acc += np.float32(s) * d[..., :3]
+    line = _contact_line(plan, v, (x0, y0, x1, y1), s)
+    if line is not None:
+        acc *= 1.0 - line[..., None] * plan.tint
+    np.clip(acc, 0, 255, out=acc)
+    view[:] = (acc + 0.5).astype(np.uint8)
+    box = _union(res.bbox, (x0, y0, x1, y1))
+    return res if box == res.bbox else _rebox(res, box, {})
+
+
+def _contact_line(plan: SealPlan, v: np.ndarray, box: tuple[int, int, int, int], s: float
+                  ) -> np.ndarray | None:
+    """(h, w) float32 darkening along the lips where they meet (None: nowhere)."""
+    x0, y0, x1, y1 = box
+    up, lo = v[plan.upper], v[plan.lower]
+    gap = np.hypot(*(lo - up).T)
+    shut = SHUT * plan.iod
+    c = np.clip((2.0 * shut - gap) / shut, 0.0, 1.0)  # 1 shut, 0 from twice SHUT apart
+    c[[0, -1]] *= 0.6  # the corners: the line fades into the commissure
+    w = s * c
+    if float(w.max()) < 0.02:
+        return None
+    mid = 0.5 * (up + lo) - (x0, y0)
+    # the line sampled every half pixel or finer, splatted bilinearly (one bincount)
+    seg = mid[1:] - mid[:-1]
+    n = int(min(max(math.ceil(float(np.hypot(*seg.T).max()) / 0.5), 1), 64))
+    t = (np.arange(n) + 0.5) / n
+    pts = (mid[:-1, None, :] + seg[:, None, :] * t[None, :, None]).reshape(-1, 2)
+    wt = (w[:-1, None] + (w[1:] - w[:-1])[:, None] * t[None]).ravel()
+    wt *= np.hypot(*seg.T).repeat(n) / n  # a line's weight per unit length
+    h, wd = y1 - y0, x1 - x0
+    ix = np.floor(pts).astype(np.intp)
+    fx, fy = pts[:, 0] - ix[:, 0], pts[:, 1] - ix[:, 1]
+    cx, cy = np.clip(ix[:, 0], 0, wd - 2), np.clip(ix[:, 1], 0, h - 2)
+    flat = np.concatenate([cy * wd + cx, cy * wd + cx + 1, (cy + 1) * wd + cx,
+                           (cy + 1) * wd + cx + 1])
+    ws = np.concatenate([(1 - fy) * (1 - fx) * wt, (1 - fy) * fx * wt, fy * (1 - fx) * wt,
+                         fy * fx * wt])
+    canvas = np.bincount(flat, ws, h * wd).astype(np.float32).reshape(h, wd)
+    sig = max(LINE_SIGMA * plan.iod, 0.6)
+    line = _blur(canvas, sig)
+    # a 1-px line blurred by sig has its peak at 1 / (sqrt(2 pi) sig): scaled to LINE_DEPTH
+    line *= np.float32(LINE_DEPTH * math.sqrt(2.0 * math.pi) * sig)
+    np.minimum(line, LINE_DEPTH, out=line)
+    return line

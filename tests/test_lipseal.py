@@ -1,0 +1,113 @@
+"""The photo's open mouth sealed when the lips close (issue 21: a smile survives no preset)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from conftest import JAFFE
+
+from editor.core import Face
+from editor.engine import lipseal
+from editor.engine.fitting import luminance
+from editor.formats.presets import apply_preset
+
+OUTER = (["lipo_c0"] + [f"lipo_u{k}" for k in range(1, 8)] + ["lipo_c1"]
+         + [f"lipo_d{k}" for k in range(7, 0, -1)])
+
+
+def _lips(face: Face, v: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    m = np.zeros(shape, np.uint8)
+    q = np.round(v[[face.mesh.index(n) for n in OUTER]] * 16).astype(np.int32)
+    cv2.fillPoly(m, [q], 1, cv2.LINE_8, 4)
+    return m > 0
+
+
+def _dark_at_corners(face: Face, vec) -> int:
+    """Pixels within 0.15 IOD of the mouth corners darker than 0.6 of the lips' median: the
+    photo's cavity corners carried onto closed lips (dark wedges that read as a smile)."""
+    img = face.render(vec)
+    v = face.deform(vec)
+    L = luminance(img)
+    ref = float(np.median(L[_lips(face, v, L.shape)]))
+    yy, xx = np.mgrid[0:L.shape[0], 0:L.shape[1]]
+    n = 0
+    for c in ("lipo_c0", "lipo_c1"):
+        p = v[face.mesh.index(c)]
+        near = np.hypot(xx - p[0], yy - p[1]) < 0.15 * face.interocular
+        n += int(np.count_nonzero((L < 0.6 * ref) & near))
+    return n
+
+
+def test_closed_lips_of_a_smiling_photo_show_no_cavity_corners(sample_face):
+    """The sample smiles with its teeth: neutralised, angry or saying p/b/m, the closed lips
+    carry none of the opening's dark corners (before: 9 px at the image-right corner of the
+    neutralised face, 9 under anger)."""
+    f = sample_face
+    assert lipseal.seal_plan(f) is not None
+    for vec in (None, apply_preset("anger"), apply_preset("viseme_pbm")):
+        assert _dark_at_corners(f, vec) == 0
+
+
+def test_closed_lips_meet_in_a_contact_line(sample_face):
+    """Where the sealed lips meet, a darker line (a real closed mouth's), not a flat fill: the
+    middle of the lip line at least 8 % darker than the lips 0.05 IOD above and below it."""
+    f = sample_face
+    img = luminance(f.render(None))
+    v = f.neutral_vertices
+    m = f.mesh
+    mid = 0.5 * (v[m.index("lipi_u4")] + v[m.index("lipi_d4")])
+    ey = f.frame.rot[:, 1]
+    d = 0.05 * f.interocular
+
+    def at(p: np.ndarray) -> float:
+        return float(cv2.getRectSubPix(img, (3, 1), (float(p[0]), float(p[1])))[0].mean())
+
+    shoulders = 0.5 * (at(mid - d * ey) + at(mid + d * ey))
+    assert at(mid) < 0.92 * shoulders
+
+
+def test_the_photo_and_wider_openings_are_left_alone(sample_face):
+    """Share 0 at the photo's own expression (the photo exactly) and for a mouth opened wider
+    than the photo's; 1 for the neutral face's closed lips."""
+    f = sample_face
+    p = lipseal.seal_plan(f)
+    assert p is not None
+    assert lipseal.closing_share(p, f, f.vertices) == 0.0
+    assert lipseal.closing_share(p, f, f.deform({"open_jaw": 600})) == 0.0
+    assert lipseal.closing_share(p, f, f.neutral_vertices) == pytest.approx(1.0, abs=0.02)
+    assert np.array_equal(f.render(f.expression), f.image)
+
+
+def test_sealed_photo_changes_only_the_mouth(sample_face):
+    f = sample_face
+    p = lipseal.seal_plan(f)
+    s = lipseal.sealed_photo(f)
+    x0, y0 = p.org
+    h, w = p.diff.shape[:2]
+    out = np.ones(f.image.shape[:2], bool)
+    out[y0:y0 + h, x0:x0 + w] = False
+    assert np.array_equal(s[out], f.image[out])
+    changed = np.abs(s.astype(int) - f.image).max(2) > 0
+    assert changed.any()
+    # what changed lies within the lips (plus the reach) around the photo's opening
+    lips = cv2.dilate(_lips(f, f.vertices, changed.shape).astype(np.uint8), np.ones((5, 5)))
+    assert not (changed & (lips == 0)).any()
+
+
+def test_a_closed_mouth_photo_has_nothing_to_seal(sample_face):
+    """The neutralised sample (its lips closed) fitted as a photo: no plan, renders unchanged
+    by this module."""
+    g = Face.from_image(sample_face.render(None))
+    assert lipseal.seal_plan(g) is None
+    assert lipseal.sealed_photo(g) is g.image
+
+
+@pytest.mark.skipif(not JAFFE.exists(), reason="needs ../shared/data/jaffe")
+def test_jaffe_toothy_smiles_close_without_a_dark_band():
+    """JAFFE KA and KM smiling with their teeth, neutralised: no dark band of the opening at
+    the corners (before: 52 and 77 px darker than 0.6 of the lips)."""
+    for who in ("KA", "KM"):
+        photo = sorted((JAFFE / "images").glob(f"{who}.HA*.tiff"))[0]
+        f = Face.from_image(photo)
+        assert _dark_at_corners(f, None) <= 5, who

@@ -73,6 +73,7 @@ class SealPlan:
     outer: np.ndarray  # vertex indices of the outer lip contour
     iod: float
     tint: np.ndarray  # (3,) float32 per-channel weights of the contact line's darkening
+    hole: np.ndarray  # (n,) the mouth opening's vertex indices, in order
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -111,8 +112,10 @@ def sealed_photo(face: Face) -> np.ndarray:
 
 
 def _area(poly: np.ndarray) -> float:
+    """Area of a closed polygon (n, 2), shoelace (a few us: this runs every frame)."""
     x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    a = float(x[:-1] @ y[1:]) - float(x[1:] @ y[:-1]) + float(x[-1] * y[0] - x[0] * y[-1])
+    return 0.5 * abs(a)
 
 
 def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
@@ -202,12 +205,12 @@ def _build(face: Face) -> SealPlan | None:
     # on a colour photo the line darkens towards the lips' deep red (blue and green more)
     grey = float(np.abs(patch.astype(np.int16) - patch[..., 1:2]).mean()) < 2.0
     tint = np.ones(3, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
-    return SealPlan(diff, (x0, y0), area0, upper, lower, outer, iod, tint)
+    return SealPlan(diff, (x0, y0), area0, upper, lower, outer, iod, tint, hole)
 
 
 def closing_share(plan: SealPlan, face: Face, vertices: np.ndarray) -> float:
     """Share of the photo's opening that ``vertices`` close (0: as open or more, 1: shut)."""
-    poly = np.asarray(vertices, np.float64)[face.mesh.holes["mouth"]]
+    poly = np.asarray(vertices).take(plan.hole, 0)
     return min(max(1.0 - _area(poly) / plan.area0, 0.0), 1.0)
 
 

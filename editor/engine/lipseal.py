@@ -146,7 +146,7 @@ def _build(face: Face) -> SealPlan | None:
     V = face.vertices.astype(np.float64)
     hole = np.asarray(m.holes["mouth"])
     poly = V[hole]
-    area0 = _area(poly)
+    area0 = _area(face.vertices.take(hole, 0))  # as closing_share measures it
     if area0 < 0.005 * iod * iod:
         return None
     names = m.names

@@ -204,7 +204,7 @@ def _build(face: Face) -> SealPlan | None:
     diff[..., :3] = filled - patch.astype(np.float32)
     # on a colour photo the line darkens towards the lips' deep red (blue and green more)
     grey = float(np.abs(patch.astype(np.int16) - patch[..., 1:2]).mean()) < 2.0
-    tint = np.ones(3, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
+    tint = np.full(3, 1.5, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
     return SealPlan(diff, (x0, y0), area0, upper, lower, outer, iod, tint, hole)
 
 

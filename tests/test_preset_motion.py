@@ -71,3 +71,16 @@ def test_fear(motion):
 def test_disgust(motion):
     m = motion("disgust")
     assert m["8.1"][1] < -0.3                             # upper lip raised
+
+
+@pytest.mark.parametrize("k", [1.0, 1.5])
+def test_fear_lower_lip_is_a_curve_not_a_w(k, sample_neutral, jaffe_faces):
+    """Fear drops the lower lip as a whole: the inner lower lip's middle (2.3) is nowhere above
+    its mid-points (2.8 / 2.9 and their neighbours) by more than 1 % of the inter-ocular
+    distance, on the sample and on five JAFFE faces (with 5/52 at -30 the middle stayed
+    0.8-3.3 px above them on the JAFFE faces, IOD ~60 px: a W; now 0-0.47 px)."""
+    for f in [sample_neutral, *jaffe_faces]:
+        v = f.deform(apply_preset(get_preset("fear"), k))
+        ey = f.frame.rot[:, 1]
+        y = np.array([v[f.mesh.index(f"lipi_d{i}")] @ ey for i in range(2, 7)])
+        assert (y - y[2]).max() < 0.01 * f.interocular, (f.source, np.round(y - y[2], 2))

@@ -10,8 +10,9 @@ under every preset). A closed mouth, in turn, shows a dark contact line where it
 which no pixel of an open photo provides.
 
 * **Once per face** (:func:`seal_plan`): the opening's pixels on the lips are found on the
-  photo (luminance below :data:`DARK` of the lips' median, within :data:`REACH` of the
-  inner-lip polygon, outside it) and filled: the colour from the lips around them
+  photo (darker than :data:`DARK` of the lips' median luminance, or teeth: brighter than
+  :data:`BRIGHT` of it and paler; within :data:`REACH` of the inner-lip polygon, outside it)
+  and filled: the colour from the lips around them
   (``cv2.inpaint``), the grain from the photo's own high-pass mirrored across the nearest lip
   pixel (a flat fill reads as paint on a grainy photo). Kept: the difference fill - photo over
   the mouth's box.
@@ -21,9 +22,17 @@ which no pixel of an open photo provides.
   1 on a closed mouth. The difference is carried to the frame by the warp's own backward map
   and added times ``s``; along the lips where they meet (their gap under :data:`SHUT` of the
   inter-ocular distance) a soft contact line darkens the lips by up to :data:`LINE_DEPTH`.
+* **The corners.** A smile also leaves a dark notch beside each mouth corner (the commissure
+  fold; a grin's cavity corner beyond the lips' corner point), which stays where the photo
+  has it when the corner goes back (a detached dark tick beside a neutral mouth). Where the
+  photo's corner lies more than :data:`CORNER_MOVE` from its neutral place, the pixels within
+  :data:`CORNER_R` of it, lateral to it and outside the lips, darker than :data:`NOTCH_DARK` of
+  the skin around, are filled the same way (on the photo with its opening already filled, so
+  that no pixel takes two differences); per frame each corner's fill comes with that corner's
+  share of the way from the photo's place to the neutral one.
 
-A photo whose lips are closed (the opening's area under 0.5 % of IOD^2) has no plan: nothing
-changes. Runs after the lid skin, before the mouth and eye layers.
+A photo with closed lips and its corners at their neutral places (a neutral photo) has no
+plan: nothing changes. Runs after the lid skin, before the mouth and eye layers.
 """
 
 from __future__ import annotations
@@ -57,17 +66,40 @@ SHUT = 0.012
 #: lips 0.08 IOD either side (median 0.71), its dip 7-10 % IOD wide at half depth (the lips'
 #: own shading towards the line included); the fill keeps part of the photo's darker lip edge
 LINE_DEPTH, LINE_SIGMA = 0.35, 0.018
+#: a mouth corner the photo's expression moved by more than this (IOD) from its neutral place
+#: has its notch looked for: within CORNER_R of it, on its lateral side, outside the lips,
+#: darker than NOTCH_DARK of the skin around it
+CORNER_MOVE, CORNER_R, NOTCH_DARK = 0.03, 0.12, 0.85
 #: below this share of the photo's opening closed, nothing is drawn
 _MIN_SHARE = 1e-3
+
+
+@dataclass(eq=False)
+class _Patch:
+    """A fill of the photo: ``diff`` (h, w, 4) float32 fill - photo (4th channel 0) over the
+    box at ``org`` (its top-left corner on the photo)."""
+
+    diff: np.ndarray
+    org: tuple[int, int]
+
+
+@dataclass(eq=False)
+class _Corner:
+    """A mouth corner the photo's expression moved: the dark notch beside it, filled."""
+
+    vertex: int  # the outer lip corner's vertex
+    p0: np.ndarray  # (2,) its place on the photo
+    disp: np.ndarray  # (2,) from there to the neutral mesh's corner
+    patch: _Patch
 
 
 @dataclass(eq=False)
 class SealPlan:
     """What :func:`apply_lip_seal` needs of one face (see the module docstring)."""
 
-    diff: np.ndarray  # (h, w, 4) float32 fill - photo over ``org`` (4th channel 0)
-    org: tuple[int, int]  # the box's top-left corner on the photo
-    area0: float  # the photo's inner-lip polygon area, px^2
+    opening: _Patch | None  # the opening's pixels on the lips (None: the lips are closed)
+    corners: list[_Corner]  # the corners' notches (none on a neutral photo)
+    area0: float  # the photo's inner-lip polygon area, px^2 (0 without ``opening``)
     upper: np.ndarray  # (n,) vertex indices of the upper inner lip, corner to corner
     lower: np.ndarray  # (n,) the lower inner lip, the same corners
     outer: np.ndarray  # vertex indices of the outer lip contour
@@ -102,13 +134,20 @@ def sealed_photo(face: Face) -> np.ndarray:
         got = face.image
         if p is not None:
             got = face.image.copy()
-            x0, y0 = p.org
-            h, w = p.diff.shape[:2]
-            box = got[y0:y0 + h, x0:x0 + w]
-            box[:] = np.clip(box + p.diff[..., :3] + 0.5, 0, 255).astype(np.uint8)
+            for q in ([p.opening] if p.opening is not None else []) + [c.patch
+                                                                       for c in p.corners]:
+                _add(got, q)
             got.setflags(write=False)
         _SEALED[face] = got
     return got
+
+
+def _add(img: np.ndarray, q: _Patch) -> None:
+    """``img`` (uint8, in place) plus a patch's difference, rounded."""
+    x0, y0 = q.org
+    h, w = q.diff.shape[:2]
+    box = img[y0:y0 + h, x0:x0 + w]
+    box[:] = np.clip(box + q.diff[..., :3] + 0.5, 0, 255).astype(np.uint8)
 
 
 def _area(poly: np.ndarray) -> float:
@@ -145,39 +184,66 @@ def _build(face: Face) -> SealPlan | None:
     iod = float(face.interocular)
     V = face.vertices.astype(np.float64)
     hole = np.asarray(m.holes["mouth"])
-    poly = V[hole]
-    area0 = _area(face.vertices.take(hole, 0))  # as closing_share measures it
-    if area0 < 0.005 * iod * iod:
-        return None
-    names = m.names
     upper = np.array([m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     lower = np.array([m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
                      + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
-    assert all(names[i].startswith("lip") for i in outer)
     img = face.image
+    area0 = _area(face.vertices.take(hole, 0))  # as closing_share measures it
+    opening = None
+    if area0 >= 0.005 * iod * iod:
+        opening = _opening_patch(img, V[hole], V[outer], iod)
+    if opening is None:
+        area0 = 0.0
+    # the corners' notches are looked for on the photo with its opening filled (a pixel of
+    # both fills would take both differences: photo + 2 x (fill - photo), white on a dark one)
+    base = img
+    if opening is not None:
+        base = img.copy()
+        _add(base, opening)
+    corners = [c for c in (_corner(face, base, m.index(n), V[outer], iod)
+                           for n in ("lipo_c0", "lipo_c1")) if c is not None]
+    if opening is None and not corners:
+        return None
+    x0, y0 = (opening or corners[0].patch).org
+    patch = img[y0:y0 + 8, x0:x0 + 8]
+    # on a colour photo the line darkens towards the lips' deep red (blue and green more)
+    grey = float(np.abs(patch.astype(np.int16) - patch[..., 1:2]).mean()) < 2.0
+    tint = np.full(3, 1.5, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
+    return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole)
+
+
+def _box(img: np.ndarray, lo: np.ndarray, hi: np.ndarray
+         ) -> tuple[int, int, int, int] | None:
     H, W = img.shape[:2]
+    x0, y0 = max(int(math.floor(lo[0])), 0), max(int(math.floor(lo[1])), 0)
+    x1, y1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
+    return None if x1 - x0 < 4 or y1 - y0 < 4 else (x0, y0, x1, y1)
+
+
+def _raster(shape: tuple[int, int], org: tuple[int, int], pts: np.ndarray) -> np.ndarray:
+    a = np.zeros(shape, np.uint8)
+    q = np.round((pts - org) * 16).astype(np.int32)
+    cv2.fillPoly(a, [q], 1, cv2.LINE_8, 4)
+    return a
+
+
+def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: float
+                   ) -> _Patch | None:
+    """The opening's pixels on the lips (dark or teeth, within :data:`REACH` outside the
+    inner-lip polygon ``poly``), filled (None: there are none)."""
     reach = max(REACH * iod, 1.5)
     pad = int(math.ceil(reach)) + 4
-    lo = np.floor(V[outer].min(0)).astype(int) - pad
-    hi = np.ceil(V[outer].max(0)).astype(int) + pad + 1
-    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-    x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
-    if x1 - x0 < 4 or y1 - y0 < 4:
+    box = _box(img, outer.min(0) - pad, outer.max(0) + pad)
+    if box is None:
         return None
+    x0, y0, x1, y1 = box
     patch = np.ascontiguousarray(img[y0:y1, x0:x1])
     shape = (y1 - y0, x1 - x0)
-
-    def raster(pts: np.ndarray) -> np.ndarray:
-        a = np.zeros(shape, np.uint8)
-        q = np.round((pts - (x0, y0)) * 16).astype(np.int32)
-        cv2.fillPoly(a, [q], 1, cv2.LINE_8, 4)
-        return a
-
-    inside = raster(poly)
-    lips = raster(V[outer])
+    inside = _raster(shape, (x0, y0), poly)
+    lips = _raster(shape, (x0, y0), outer)
     r = max(int(round(reach)), 1)
     near = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,
                                                                             2 * r + 1)))
@@ -190,8 +256,8 @@ def _build(face: Face) -> SealPlan | None:
     sat = hsv[..., 1].astype(np.float32)
     lip_sat = float(np.median(sat[ring]))
     # dark (the cavity, the shadow under the upper lip) or teeth (bright and paler than the
-    # lips; on a grey photo bright alone)
-    # (teeth only within the lips: beyond them, skin is as bright on a grey photo)
+    # lips; on a grey photo bright alone; only within the lips: beyond them, skin is as
+    # bright on a grey photo)
     teeth = (L > BRIGHT * ref) & (sat <= 0.6 * lip_sat) & (lips > 0)
     opening = (near > 0) & (inside == 0) & ((L < DARK * ref) | teeth)
     if not opening.any():
@@ -202,16 +268,63 @@ def _build(face: Face) -> SealPlan | None:
     # inside the polygon too: the warp's bilinear taps along a closed lip line reach a pixel
     # into the photo's opening (the mouth layer draws over what is inside a deformed opening)
     diff[..., :3] = filled - patch.astype(np.float32)
-    # on a colour photo the line darkens towards the lips' deep red (blue and green more)
-    grey = float(np.abs(patch.astype(np.int16) - patch[..., 1:2]).mean()) < 2.0
-    tint = np.full(3, 1.5, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
-    return SealPlan(diff, (x0, y0), area0, upper, lower, outer, iod, tint, hole)
+    return _Patch(diff, (x0, y0))
+
+
+def _corner(face: Face, img: np.ndarray, vertex: int, outer: np.ndarray, iod: float
+            ) -> _Corner | None:
+    """The dark notch the photo's expression made beside one mouth corner (a smile's
+    commissure fold), filled with the skin around it; None when the photo's corner is where
+    its neutral mesh puts it (within :data:`CORNER_MOVE`) or no notch is there."""
+    p0 = face.vertices[vertex].astype(np.float64)
+    disp = face.neutral_vertices[vertex].astype(np.float64) - p0
+    if float(np.hypot(*disp)) < CORNER_MOVE * iod:
+        return None
+    R = max(CORNER_R * iod, 2.0)
+    box = _box(img, p0 - R - 4, p0 + R + 4)
+    if box is None:
+        return None
+    x0, y0, x1, y1 = box
+    patch = np.ascontiguousarray(img[y0:y1, x0:x1])
+    shape = (y1 - y0, x1 - x0)
+    lips = _raster(shape, (x0, y0), outer)
+    yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+    out_dir = p0 - outer.mean(0)
+    out_dir /= max(float(np.hypot(*out_dir)), 1e-9)
+    # beside the corner, on its lateral side (not the lips' own shading above or below it)
+    lateral = ((xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1]) > -0.02 * iod
+    disk = np.hypot(xx - p0[0], yy - p0[1]) < R
+    L = luminance(patch)
+    skin = (lips == 0) & ~disk
+    if not skin.any():
+        return None
+    ref = float(np.median(L[skin]))
+    notch = disk & lateral & (lips == 0) & (L < NOTCH_DARK * ref)
+    if not notch.any():
+        return None
+    # the notch's soft edge too (one pixel around it)
+    mask = cv2.dilate(notch.astype(np.uint8), np.ones((3, 3), np.uint8))
+    mask[lips > 0] = 0
+    filled = _fill(patch, mask * 255, 2)
+    diff = np.zeros(shape + (4,), np.float32)
+    diff[..., :3] = filled - patch.astype(np.float32)
+    return _Corner(vertex, p0, disp, _Patch(diff, (x0, y0)))
 
 
 def closing_share(plan: SealPlan, face: Face, vertices: np.ndarray) -> float:
     """Share of the photo's opening that ``vertices`` close (0: as open or more, 1: shut)."""
+    if plan.opening is None:
+        return 0.0
     poly = np.asarray(vertices).take(plan.hole, 0)
     return min(max(1.0 - _area(poly) / plan.area0, 0.0), 1.0)
+
+
+def corner_share(corner: _Corner, vertices: np.ndarray) -> float:
+    """How far a mouth corner of ``vertices`` went from the photo's place towards the
+    neutral mesh's (its projection on that way, clipped to [0, 1])."""
+    d = np.asarray(vertices[corner.vertex], np.float64) - corner.p0
+    t = float(d @ corner.disp) / float(corner.disp @ corner.disp)
+    return min(max(t, 0.0), 1.0)
 
 
 def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
@@ -221,24 +334,35 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     if plan is None:
         return res
     s = closing_share(plan, face, vertices)
-    if s < _MIN_SHARE:
+    cs = [corner_share(c, vertices) for c in plan.corners]
+    if s < _MIN_SHARE and not any(c >= _MIN_SHARE for c in cs):
         return res
     v = np.asarray(vertices, np.float64)
     out = res.image
     H, W = out.shape[:2]
-    pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
     q = v[plan.outer]
-    x0, y0 = max(int(q[:, 0].min()) - pad, 0), max(int(q[:, 1].min()) - pad, 0)
-    x1, y1 = min(int(q[:, 0].max()) + pad + 1, W), min(int(q[:, 1].max()) + pad + 1, H)
+    lo, hi = q.min(0), q.max(0)
+    for c in plan.corners:  # the notches stay about where the photo has them
+        lo, hi = np.minimum(lo, c.p0), np.maximum(hi, c.p0)
+    pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
+    if plan.corners:
+        pad = max(pad, int(math.ceil(CORNER_R * plan.iod)) + 4)
+    x0, y0 = max(int(lo[0]) - pad, 0), max(int(lo[1]) - pad, 0)
+    x1, y1 = min(int(hi[0]) + pad + 1, W), min(int(hi[1]) + pad + 1, H)
     if x1 - x0 < 2 or y1 - y0 < 2:
         return res
     view = out[y0:y1, x0:x1]
     acc = view.astype(np.float32)
     if res.maps is not None:
-        mx, my = box_maps(res.maps, (x0, y0, x1, y1), plan.org)
-        d = cv2.remap(plan.diff, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                      borderValue=0)
-        acc += np.float32(s) * d[..., :3]
+        mx, my = box_maps(res.maps, (x0, y0, x1, y1))
+        for share, patch in [(s, plan.opening)] + list(zip(cs, [c.patch for c in plan.corners],
+                                                          strict=True)):
+            if patch is None or share < _MIN_SHARE:
+                continue
+            ox, oy = np.float32(patch.org[0]), np.float32(patch.org[1])
+            d = cv2.remap(patch.diff, mx - ox, my - oy, cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            acc += np.float32(share) * d[..., :3]
     line = _contact_line(plan, v, (x0, y0, x1, y1), s)
     if line is not None:
         acc *= 1.0 - line[..., None] * plan.tint

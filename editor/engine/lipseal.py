@@ -70,8 +70,12 @@ LINE_DEPTH, LINE_SIGMA = 0.35, 0.018
 #: has its notch looked for: within CORNER_R of it, on its lateral side, outside the lips,
 #: darker than NOTCH_DARK of the skin around it
 CORNER_MOVE, CORNER_R, NOTCH_DARK = 0.03, 0.12, 0.85
-#: below this share of the photo's opening closed, nothing is drawn
-_MIN_SHARE = 1e-3
+#: cv2.inpaint's neighbourhood, px (its cost grows with its square; the grain comes from the
+#: mirrored high-pass, not from a wider inpainting)
+INPAINT_R = 3
+#: below this share (of the photo's opening closed, of a corner's way back) nothing is drawn
+#: (at most 2 % of a fill's difference: a few grey levels)
+_MIN_SHARE = 0.02
 
 
 @dataclass(eq=False)
@@ -199,11 +203,7 @@ def _build(face: Face) -> SealPlan | None:
         area0 = 0.0
     # the corners' notches are looked for on the photo with its opening filled (a pixel of
     # both fills would take both differences: photo + 2 x (fill - photo), white on a dark one)
-    base = img
-    if opening is not None:
-        base = img.copy()
-        _add(base, opening)
-    corners = [c for c in (_corner(face, base, m.index(n), V[outer], iod)
+    corners = [c for c in (_corner(face, opening, m.index(n), V[outer], iod)
                            for n in ("lipo_c0", "lipo_c1")) if c is not None]
     if opening is None and not corners:
         return None
@@ -262,16 +262,19 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     opening = (near > 0) & (inside == 0) & ((L < DARK * ref) | teeth)
     if not opening.any():
         return None
-    mask = (opening | (inside > 0)).astype(np.uint8) * 255
-    filled = _fill(patch, mask, max(2, r))
+    # inside the polygon: the lips' median colour (the warp's bilinear taps along a closed lip
+    # line reach a pixel into the photo's opening; the mouth layer draws over what is inside a
+    # deformed opening), so that only the ring is inpainted (its cost grows with the pixels
+    # filled) and it is filled from the lips, not from the teeth
+    base = patch.copy()
+    base[inside > 0] = np.median(patch[ring], axis=0).astype(np.uint8)
+    filled = _fill(base, opening.astype(np.uint8) * 255, INPAINT_R)
     diff = np.zeros(shape + (4,), np.float32)
-    # inside the polygon too: the warp's bilinear taps along a closed lip line reach a pixel
-    # into the photo's opening (the mouth layer draws over what is inside a deformed opening)
     diff[..., :3] = filled - patch.astype(np.float32)
     return _Patch(diff, (x0, y0))
 
 
-def _corner(face: Face, img: np.ndarray, vertex: int, outer: np.ndarray, iod: float
+def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, iod: float
             ) -> _Corner | None:
     """The dark notch the photo's expression made beside one mouth corner (a smile's
     commissure fold), filled with the skin around it; None when the photo's corner is where
@@ -280,12 +283,21 @@ def _corner(face: Face, img: np.ndarray, vertex: int, outer: np.ndarray, iod: fl
     disp = face.neutral_vertices[vertex].astype(np.float64) - p0
     if float(np.hypot(*disp)) < CORNER_MOVE * iod:
         return None
+    img = face.image
     R = max(CORNER_R * iod, 2.0)
     box = _box(img, p0 - R - 4, p0 + R + 4)
     if box is None:
         return None
     x0, y0, x1, y1 = box
-    patch = np.ascontiguousarray(img[y0:y1, x0:x1])
+    patch = img[y0:y1, x0:x1].copy()
+    if opening is not None:  # with the opening's fill where the boxes overlap
+        ox, oy = opening.org
+        oh, ow = opening.diff.shape[:2]
+        a0, b0 = max(x0, ox), max(y0, oy)
+        a1, b1 = min(x1, ox + ow), min(y1, oy + oh)
+        if a1 > a0 and b1 > b0:
+            _add(patch[b0 - y0:b1 - y0, a0 - x0:a1 - x0],
+                 _Patch(opening.diff[b0 - oy:b1 - oy, a0 - ox:a1 - ox], (0, 0)))
     shape = (y1 - y0, x1 - x0)
     lips = _raster(shape, (x0, y0), outer)
     yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
@@ -305,7 +317,7 @@ def _corner(face: Face, img: np.ndarray, vertex: int, outer: np.ndarray, iod: fl
     # the notch's soft edge too (one pixel around it)
     mask = cv2.dilate(notch.astype(np.uint8), np.ones((3, 3), np.uint8))
     mask[lips > 0] = 0
-    filled = _fill(patch, mask * 255, 2)
+    filled = _fill(patch, mask * 255, INPAINT_R)
     diff = np.zeros(shape + (4,), np.float32)
     diff[..., :3] = filled - patch.astype(np.float32)
     return _Corner(vertex, p0, disp, _Patch(diff, (x0, y0)))
@@ -329,47 +341,64 @@ def corner_share(corner: _Corner, vertices: np.ndarray) -> float:
 
 def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Seal the photo's opening on the lips of ``res.image`` (in place), by the share the
-    deformed mesh ``vertices`` closes it; the result's ``bbox`` grown to what was written."""
+    deformed mesh ``vertices`` closes it, and fill the corners' notches by their shares; the
+    result's ``bbox`` grown to what was written."""
     plan = seal_plan(face)
     if plan is None:
         return res
-    s = closing_share(plan, face, vertices)
-    cs = [corner_share(c, vertices) for c in plan.corners]
-    if s < _MIN_SHARE and not any(c >= _MIN_SHARE for c in cs):
+    # the shares ramp in from _MIN_SHARE (continuous in the FAPs; nothing to do below it)
+    s = _ramp(closing_share(plan, face, vertices))
+    jobs: list[tuple[float, _Patch, np.ndarray]] = []  # share, fill, its offset on the frame
+    if s > 0.0 and plan.opening is not None:
+        jobs.append((s, plan.opening, np.zeros(2)))
+    for c in plan.corners:
+        cs = _ramp(corner_share(c, vertices))
+        if cs > 0.0:
+            jobs.append((cs, c.patch, np.asarray(vertices[c.vertex], np.float64) - c.p0))
+    if not jobs:
         return res
-    v = np.asarray(vertices, np.float64)
     out = res.image
     H, W = out.shape[:2]
-    q = v[plan.outer]
-    lo, hi = q.min(0), q.max(0)
-    for c in plan.corners:  # the notches stay about where the photo has them
-        lo, hi = np.minimum(lo, c.p0), np.maximum(hi, c.p0)
-    pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
-    if plan.corners:
-        pad = max(pad, int(math.ceil(CORNER_R * plan.iod)) + 4)
-    x0, y0 = max(int(lo[0]) - pad, 0), max(int(lo[1]) - pad, 0)
-    x1, y1 = min(int(hi[0]) + pad + 1, W), min(int(hi[1]) + pad + 1, H)
-    if x1 - x0 < 2 or y1 - y0 < 2:
-        return res
-    view = out[y0:y1, x0:x1]
-    acc = view.astype(np.float32)
-    if res.maps is not None:
-        mx, my = box_maps(res.maps, (x0, y0, x1, y1))
-        for share, patch in [(s, plan.opening)] + list(zip(cs, [c.patch for c in plan.corners],
-                                                          strict=True)):
-            if patch is None or share < _MIN_SHARE:
-                continue
-            ox, oy = np.float32(patch.org[0]), np.float32(patch.org[1])
-            d = cv2.remap(patch.diff, mx - ox, my - oy, cv2.INTER_LINEAR,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            acc += np.float32(share) * d[..., :3]
-    line = _contact_line(plan, v, (x0, y0, x1, y1), s)
-    if line is not None:
-        acc *= 1.0 - line[..., None] * plan.tint
-    np.clip(acc, 0, 255, out=acc)
-    view[:] = (acc + 0.5).astype(np.uint8)
-    box = _union(res.bbox, (x0, y0, x1, y1))
-    return res if box == res.bbox else _rebox(res, box, {})
+    v = np.asarray(vertices, np.float64)
+    bbox = res.bbox
+    m = 2
+    for share, patch, shift in jobs:
+        # the frame's pixels whose photo position may fall in the fill's box: the box where
+        # the photo has it and where its lip vertex took it, with a margin
+        h, w = patch.diff.shape[:2]
+        ox, oy = patch.org
+        lo = np.minimum((ox, oy), (ox + shift[0], oy + shift[1])) - m
+        hi = np.maximum((ox + w, oy + h), (ox + w + shift[0], oy + h + shift[1])) + m
+        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        if res.maps is None or x1 - x0 < 2 or y1 - y0 < 2:
+            continue
+        mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))
+        d = cv2.remap(patch.diff, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0)
+        d3 = cv2.cvtColor(d, cv2.COLOR_RGBA2RGB)
+        d3 *= np.float32(share)
+        view = out[y0:y1, x0:x1]
+        cv2.add(view, d3, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+        bbox = _union(bbox, (x0, y0, x1, y1))
+    if s > 0.0:  # the contact line where the lips meet
+        pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
+        q = v[plan.upper]
+        x0, y0 = max(int(q[:, 0].min()) - pad, 0), max(int(q[:, 1].min()) - pad, 0)
+        x1, y1 = min(int(q[:, 0].max()) + pad + 1, W), min(int(q[:, 1].max()) + pad + 1, H)
+        line = None if x1 - x0 < 2 or y1 - y0 < 2 else _contact_line(plan, v, (x0, y0, x1,
+                                                                                  y1), s)
+        if line is not None:
+            view = out[y0:y1, x0:x1]
+            acc = view.astype(np.float32)
+            acc *= 1.0 - line[..., None] * plan.tint
+            view[:] = (acc + 0.5).astype(np.uint8)
+            bbox = _union(bbox, (x0, y0, x1, y1))
+    return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
+
+
+def _ramp(share: float) -> float:
+    return max(share - _MIN_SHARE, 0.0) / (1.0 - _MIN_SHARE)
 
 
 def _contact_line(plan: SealPlan, v: np.ndarray, box: tuple[int, int, int, int], s: float
@@ -382,7 +411,7 @@ def _contact_line(plan: SealPlan, v: np.ndarray, box: tuple[int, int, int, int],
     c = np.clip((2.0 * shut - gap) / shut, 0.0, 1.0)  # 1 shut, 0 from twice SHUT apart
     c[[0, -1]] *= 0.6  # the corners: the line fades into the commissure
     w = s * c
-    if float(w.max()) < 0.02:
+    if not w.any():
         return None
     mid = 0.5 * (up + lo) - (x0, y0)
     # the line sampled every half pixel or finer, splatted bilinearly (one bincount)

@@ -376,7 +376,7 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))
         d = cv2.remap(patch.diff, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=0)
-        d3 = cv2.cvtColor(d, cv2.COLOR_RGBA2RGB)
+        d3 = np.asarray(cv2.cvtColor(d, cv2.COLOR_RGBA2RGB), np.float32)
         d3 *= np.float32(share)
         view = out[y0:y1, x0:x1]
         cv2.add(view, d3, dst=view, dtype=cv2.CV_8U)  # rounded, saturated

@@ -76,7 +76,8 @@ class WarpPlan:
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self._mouth_local, self._mouth_at = m.astype(bool), (mx0, my0)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
-        self._edge_v, self._edge_t = _edges(self.triangles)
+        if self.map_step > 1:  # (only the interpolated map looks at the edges' bends)
+            self._edge_v, self._edge_t = _edges(self.triangles)
         self._band_tri = (np.zeros(len(self.triangles), bool) if self.band is None
                           else np.asarray(self.band, bool)[self.triangles].any(1))
         # source bounding box of every triangle (+1 px), to clamp the edge pixels that the

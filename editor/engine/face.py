@@ -50,7 +50,7 @@ from .lidskin import apply_lid_skin
 from .lipseal import apply_lip_seal
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .transform import similarity
-from .warp import WarpPlan, WarpResult, warp
+from .warp import WarpPlan, WarpResult, map_step, warp
 
 #: estimate_own rounds, each against the FAPU of the neutral the previous one implies
 OWN_ROUNDS = 3
@@ -451,7 +451,8 @@ class Face:
     @cached_property
     def warp_plan(self) -> WarpPlan:
         return WarpPlan(self.image, self.vertices, self.mesh.triangles, self.mesh.holes,
-                        band=self.mesh.regions == "margin")
+                        band=self.mesh.regions == "margin",
+                        map_step=map_step(self.interocular, self.image.shape))
 
     def fap_vector(self, faps: FapInput) -> np.ndarray:
         """(68,) float32 FAP vector from a mapping (names or numbers) or array, clamped."""

@@ -1525,9 +1525,10 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
     # (_skin_weight of min(C, ref + 0.3 (C - ref)), tolerance 0.6, in float32 and OpenCV's
     # per-pixel channel arithmetic: numpy's on channel views costs several times more)
     ref32 = np.asarray(ref, np.float32)
-    d = cv2.subtract(C, cv2.merge([np.full(C.shape[:2], v, np.float32) for v in ref32]))
+    d: np.ndarray = np.asarray(cv2.subtract(
+        C, cv2.merge([np.full(C.shape[:2], v, np.float32) for v in ref32])), np.float32)
     np.minimum(d, np.float32(0.3) * d, out=d)  # the level minus ref
-    d *= d
+    np.multiply(d, d, out=d)
     dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))
     ref_l = np.float32(1.0 / max(float(np.mean(ref)), 20.0))
     wgt = np.clip((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)

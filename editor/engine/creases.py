@@ -49,7 +49,7 @@ import numpy as np
 
 from .fitting import channel_median, luminance
 from .layers import _blur, _rebox, _union
-from .lipseal import sealed_photo
+from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
@@ -992,8 +992,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     V = face.vertices.astype(np.float64)
     pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
     tri, bary = p.tri.copy(), p.bary.copy()
-    img = sealed_photo(face)  # (the mouth's dark corners are no valley)
-    H, W = img.shape[:2]
+    H, W = face.image.shape[:2]  # (the valleys are looked for on the sealed photo: the
+    # mouth's dark corners are no valley; each fold's box only)
     todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
@@ -1012,12 +1012,13 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         # the luminance of this fold's box only (bit for bit the whole photo's, cut); on a
         # large face its wq x wq block means (the valley is then still >= ~3 px wide)
         if wq == 1:
-            ls = cv2.GaussianBlur(luminance(img[y0:y1, x0:x1]), (0, 0), 0.7 * sig)
+            ls = cv2.GaussianBlur(luminance(sealed_box(face, (x0, y0, x1, y1))), (0, 0),
+                                  0.7 * sig)
             org: tuple[float, float] = (x0, y0)
         else:
             x1, y1 = x0 + (x1 - x0) // wq * wq, y0 + (y1 - y0) // wq * wq
-            ls = cv2.GaussianBlur(_block_mean(luminance(img[y0:y1, x0:x1]), wq), (0, 0),
-                                  0.7 * sig / wq)
+            ls = cv2.GaussianBlur(_block_mean(luminance(sealed_box(face, (x0, y0, x1, y1))),
+                                              wq), (0, 0), 0.7 * sig / wq)
             org = (x0 + 0.5 * (wq - 1), y0 + 0.5 * (wq - 1))
             r = int(math.ceil(_VALLEY_WIDTH * sig / wq))
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
@@ -1286,8 +1287,7 @@ def _photo_lift(face: Face, g: int
     un = p.utaper.astype(np.float64)  # the strength's shape along the line (its scale cancels)
     got = None
     if len(ia) and (np.maximum(un[ia], un[ia + 1]) > 0).any():
-        img = sealed_photo(face)  # the mouth's dark corners are no fold to lift
-        H, W = img.shape[:2]
+        H, W = face.image.shape[:2]
         sb = max(2.5 * float(fa.sig[g]), 1.0)
         pts, w, d, L, K = _band_samples(pos, ia, un)
         # wider than the band: the frame's band, mapped back to the photo, lies inside it
@@ -1295,11 +1295,16 @@ def _photo_lift(face: Face, g: int
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
         q = _work_factor(p.iod)
-        if x1 - x0 >= 4 and y1 - y0 >= 4 and q == 1:
-            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
-                                n_dir=0), (x0, y0))
-        elif x1 - x0 >= 4 and y1 - y0 >= 4:
-            got = (_lift_fields_q(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1), q),
+        if x1 - x0 >= 4 and y1 - y0 >= 4:
+            # measured on the sealed photo (the mouth's dark corners are no fold to lift), cut
+            # to what the fields read (>= their pads; clipped to the photo, so the fields
+            # clip there as on the whole photo): the same values, the box shifted
+            P = 2 * int(math.ceil(_VALLEY_WIDTH * float(fa.sig[g]) * 1.25)) + 2 + 2 * q
+            R0, S0 = max(x0 - P, 0), max(y0 - P, 0)
+            img = sealed_box(face, (R0, S0, min(x1 + P, W), min(y1 + P, H)))
+            box, at = (x0 - R0, y0 - S0, x1 - R0, y1 - S0), pts - (R0, S0)
+            got = ((_lift_fields(fa, g, img, at, w, d, L, K, len(ia), box, n_dir=0) if q == 1
+                    else _lift_fields_q(fa, g, img, at, w, d, L, K, len(ia), box, q)),
                    (x0, y0))
     cache[g] = got
     return got

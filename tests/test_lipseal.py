@@ -79,6 +79,26 @@ def test_the_photo_and_wider_openings_are_left_alone(sample_face):
     assert np.array_equal(f.render(f.expression), f.image)
 
 
+def test_sealed_box_is_the_sealed_photo_cut(sample_face):
+    """A box of the sealed photo, built without the whole photo's copy: the same values, on
+    boxes meeting the fills, containing them, and away from them."""
+    f = sample_face.with_vertices(sample_face.vertices)  # (no sealed photo cached yet)
+    p = lipseal.seal_plan(f)
+    x0, y0 = p.opening.org
+    h, w = p.opening.diff.shape[:2]
+    H, W = f.image.shape[:2]
+    boxes = [(x0 + 3, y0 - 5, x0 + w + 9, y0 + h // 2), (max(x0 - 20, 0), max(y0 - 20, 0),
+             min(x0 + w + 20, W), min(y0 + h + 20, H)), (0, 0, 30, 30), (0, 0, W, H)]
+    for c in p.corners:
+        cx, cy = c.patch.org
+        boxes.append((cx + 1, cy + 2, cx + 9, cy + 7))
+    got = [lipseal.sealed_box(f, b).copy() for b in boxes]
+    full = lipseal.sealed_photo(f)
+    for (a0, b0, a1, b1), g in zip(boxes, got, strict=True):
+        assert np.array_equal(g, full[b0:b1, a0:a1])
+    assert not np.array_equal(got[1], f.image[boxes[1][1]:boxes[1][3], boxes[1][0]:boxes[1][2]])
+
+
 def test_sealed_photo_changes_only_the_mouth(sample_face):
     f = sample_face
     p = lipseal.seal_plan(f)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import warnings
 
+import cv2
 import numpy as np
 import pytest
 
@@ -157,9 +158,17 @@ def test_texture_tint_and_mean_are_the_pixel_formulas(name):
             opaque &= c[..., 0] - c[..., 1] < 0.15 * 255.0
         co = c[opaque]
         lo = mouth._lum(co)[:, None]
-        ref_mean = (lo + sat * (co - lo)).mean(0)
-        got = mouth._opaque_mean(name, sat)
-        assert got.dtype == ref_mean.dtype and np.array_equal(got, ref_mean)
+        ref_mean = (lo + sat * (co - lo)).mean(0, dtype=np.float64)
+        got = mouth._opaque_mean(name, sat)  # (float64 means of lum and chroma, combined)
+        assert got.dtype == np.float32
+        assert np.abs(got - ref_mean).max() < 1e-3
+        # a face's copy: resized, then tinted (the same values, to float rounding, whether
+        # nothing is clipped or the gain clips and the full texture is tinted)
+        for size in ((34, 10), (70, 20), (250, 80), (900, 300)):
+            want = cv2.resize(mouth._tint(name, sat, g), size, interpolation=cv2.INTER_AREA)
+            small = mouth._tinted_at(name, sat, g, size)
+            assert small.dtype == np.float32 and small.shape == want.shape
+            assert np.abs(small - want).max() < 1e-3
 
 
 def test_fold_normals_are_the_gradients_turned():

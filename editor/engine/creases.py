@@ -49,7 +49,7 @@ import numpy as np
 
 from .fitting import channel_median, luminance
 from .layers import _blur, _rebox, _union
-from .lipseal import sealed_photo
+from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
@@ -992,8 +992,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     V = face.vertices.astype(np.float64)
     pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
     tri, bary = p.tri.copy(), p.bary.copy()
-    img = sealed_photo(face)  # (the mouth's dark corners are no valley)
-    H, W = img.shape[:2]
+    H, W = face.image.shape[:2]  # (the valleys are looked for on the sealed photo: the
+    # mouth's dark corners are no valley; each fold's box only)
     todo: list[tuple[int, int, np.ndarray]] = []
     reach = max(_VALLEY_REACH * p.iod, 2.0)
     ds = np.arange(-reach, reach + 1e-6, 0.25)
@@ -1012,12 +1012,13 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         # the luminance of this fold's box only (bit for bit the whole photo's, cut); on a
         # large face its wq x wq block means (the valley is then still >= ~3 px wide)
         if wq == 1:
-            ls = cv2.GaussianBlur(luminance(img[y0:y1, x0:x1]), (0, 0), 0.7 * sig)
+            ls = cv2.GaussianBlur(luminance(sealed_box(face, (x0, y0, x1, y1))), (0, 0),
+                                  0.7 * sig)
             org: tuple[float, float] = (x0, y0)
         else:
             x1, y1 = x0 + (x1 - x0) // wq * wq, y0 + (y1 - y0) // wq * wq
-            ls = cv2.GaussianBlur(_block_mean(luminance(img[y0:y1, x0:x1]), wq), (0, 0),
-                                  0.7 * sig / wq)
+            ls = cv2.GaussianBlur(_block_mean(luminance(sealed_box(face, (x0, y0, x1, y1))),
+                                              wq), (0, 0), 0.7 * sig / wq)
             org = (x0 + 0.5 * (wq - 1), y0 + 0.5 * (wq - 1))
             r = int(math.ceil(_VALLEY_WIDTH * sig / wq))
         ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
@@ -1286,8 +1287,7 @@ def _photo_lift(face: Face, g: int
     un = p.utaper.astype(np.float64)  # the strength's shape along the line (its scale cancels)
     got = None
     if len(ia) and (np.maximum(un[ia], un[ia + 1]) > 0).any():
-        img = sealed_photo(face)  # the mouth's dark corners are no fold to lift
-        H, W = img.shape[:2]
+        H, W = face.image.shape[:2]
         sb = max(2.5 * float(fa.sig[g]), 1.0)
         pts, w, d, L, K = _band_samples(pos, ia, un)
         # wider than the band: the frame's band, mapped back to the photo, lies inside it
@@ -1295,11 +1295,16 @@ def _photo_lift(face: Face, g: int
         x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
         x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
         q = _work_factor(p.iod)
-        if x1 - x0 >= 4 and y1 - y0 >= 4 and q == 1:
-            got = (_lift_fields(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1),
-                                n_dir=_N_DIR_PHOTO), (x0, y0))
-        elif x1 - x0 >= 4 and y1 - y0 >= 4:
-            got = (_lift_fields_q(fa, g, img, pts, w, d, L, K, len(ia), (x0, y0, x1, y1), q),
+        if x1 - x0 >= 4 and y1 - y0 >= 4:
+            # measured on the sealed photo (the mouth's dark corners are no fold to lift), cut
+            # to what the fields read (>= their pads; clipped to the photo, so the fields
+            # clip there as on the whole photo): the same values, the box shifted
+            P = 2 * int(math.ceil(_VALLEY_WIDTH * float(fa.sig[g]) * 1.25)) + 2 + 2 * q
+            R0, S0 = max(x0 - P, 0), max(y0 - P, 0)
+            img = sealed_box(face, (R0, S0, min(x1 + P, W), min(y1 + P, H)))
+            box, at = (x0 - R0, y0 - S0, x1 - R0, y1 - S0), pts - (R0, S0)
+            got = ((_lift_fields(fa, g, img, at, w, d, L, K, len(ia), box, n_dir=0) if q == 1
+                    else _lift_fields_q(fa, g, img, at, w, d, L, K, len(ia), box, q)),
                    (x0, y0))
     cache[g] = got
     return got
@@ -1326,7 +1331,7 @@ def _lift_fields_q(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.nd
     sx1 = min(-(-(x1 - a0) // q), small.shape[1])
     sy1 = min(-(-(y1 - b0) // q), small.shape[0])
     S, c4 = _lift_fields(fa, g, small, (pts - o) / q, w / q, d / q, L / q, K, M,
-                         (sx0, sy0, sx1, sy1), n_dir=_N_DIR_PHOTO, scale=1.0 / q)
+                         (sx0, sy0, sx1, sy1), n_dir=0, scale=1.0 / q)
     return _upsample_box(S, (sx0, sy0), (a0, b0), q, box), _upsample_box(
         c4, (sx0, sy0), (a0, b0), q, box)
 
@@ -1421,13 +1426,75 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         fs = cv2.resize(fs, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)[:hb, :wb]
     fc = fc * np.float32(f * f) + np.float32(1e-6 * c2.sum())
     fs = fs * np.float32(f * f) + np.float32(1e-6 * s2.sum())
-    nd = n_dir
-    k = np.rint(np.arctan2(fs, fc) * (0.5 * nd / math.pi)).astype(np.int32) % nd
     iy, ix = slice(y0 - Y0, y1 - Y0), slice(x0 - X0, x1 - X0)
     sub = big[max(y0 - Y0 - h, 0):y1 - Y0 + h, max(x0 - X0 - h, 0):x1 - X0 + h]
     cy, cx = min(y0 - Y0, h), min(x0 - X0, h)
-    Si = np.empty((y1 - y0, x1 - x0, big.shape[2]), np.float32)
     along = round(max(1.5 * sig, 1.0), 2)
+    if n_dir == 0:
+        Si = _along_taps(sub, (cx, cy), fc, fs, along)
+    else:
+        Si = _along_filters(sub, (cx, cy), fc, fs, along, n_dir, h)
+    # the skin level either side of the valley; blurred so that between shoulders of
+    # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps.
+    # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
+    if not closing:
+        return Si, None
+    # (every pixel of the box was filtered along the fold; the isotropic blur feeds C)
+    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
+    S[iy, ix] = Si
+    return Si, _closing(fa, g, S, r, iy, ix)
+
+
+#: Steps (in units of the along-fold sigma) between the taps of :func:`_along_taps`
+_TAP_STEP = 0.5
+
+
+def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.ndarray,
+                along: float) -> np.ndarray:
+    """``sub`` smoothed along the fold's own direction at every pixel (a Gaussian of sigma
+    ``along`` px, truncated at 3 sigma, sampled by bilinear taps ``_TAP_STEP`` sigma apart
+    along the line): float32 over the (h, w) of ``fc`` at ``at`` (x, y) in ``sub``.
+
+    The direction is continuous (half the angle of the doubled-angle field ``(fc, fs)``),
+    not quantised; each tap is one ``cv2.remap`` of the box, so the cost is the taps times
+    the box, not the kernel's area times the box per direction used."""
+    hb, wb = fc.shape
+    n = np.sqrt(fc * fc + fs * fs)
+    np.maximum(n, np.float32(1e-30), out=n)
+    c2 = fc / n
+    ux = np.sqrt(np.clip(0.5 + 0.5 * c2, 0.0, 1.0))
+    uy = np.sqrt(np.clip(0.5 - 0.5 * c2, 0.0, 1.0))
+    np.copysign(uy, fs, out=uy)
+    h = 3.0 * along
+    step = _TAP_STEP * along
+    nt = max(int(h / step), 1)
+    ts = np.arange(-nt, nt + 1) * (h / nt)
+    wts = np.exp(-0.5 * (ts / along) ** 2)
+    wts /= wts.sum()
+    bx = np.arange(wb, dtype=np.float32) + np.float32(at[0])
+    by = (np.arange(hb, dtype=np.float32) + np.float32(at[1]))[:, None]
+    nc = sub.shape[2]
+    # (a 3-channel image resampled as four channels: OpenCV's 4-channel remap is faster, with
+    # the same values per channel)
+    src = cv2.cvtColor(sub, cv2.COLOR_RGB2RGBA) if nc == 3 else sub
+    acc = np.zeros((hb, wb, src.shape[2]), np.float32)
+    for t, wt in zip(ts.tolist(), wts.tolist(), strict=True):
+        mx = ux * np.float32(t)
+        mx += bx
+        my = uy * np.float32(t)
+        my += by
+        got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        cv2.scaleAdd(got, wt, acc, dst=acc)
+    return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
+
+
+def _along_filters(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.ndarray,
+                   along: float, nd: int, h: int) -> np.ndarray:
+    """``sub`` smoothed along the fold (per pixel, the line kernel of the direction of
+    ``(fc, fs)`` rounded to ``nd`` steps; ``h``: the margin of ``sub``)."""
+    cx, cy = at
+    k = np.rint(np.arctan2(fs, fc) * (0.5 * nd / math.pi)).astype(np.int32) % nd
+    Si = np.empty(fc.shape + (sub.shape[2],), np.float32)
     for j in np.flatnonzero(np.bincount(k.ravel(), minlength=nd)):
         m = k == j
         ker = _line_kernel(int(j) * math.pi / nd, along, 0.35)
@@ -1442,14 +1509,12 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         filt = cv2.filter2D(part, -1, ker, borderType=cv2.BORDER_REPLICATE)
         np.copyto(Si[r0:r1, c0:c1], filt[oy:oy + r1 - r0, ox:ox + c1 - c0],
                   where=m[r0:r1, c0:c1, None])
-    # the skin level either side of the valley; blurred so that between shoulders of
-    # different brightness (a lit cheek beside a shaded upper lip) it ramps, not steps.
-    # S is smooth at the fold's scale: on large faces the closing runs at 1/q resolution
-    if not closing:
-        return Si, None
-    # (every pixel of the box was filtered along the fold; the isotropic blur feeds C)
-    S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
-    S[iy, ix] = Si
+    return Si
+
+
+def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> np.ndarray:
+    """``C`` (the closing of ``S`` of radius ``r``, blurred) over ``[iy, ix]`` with the
+    skin-likeness of that level as a 4th channel."""
     q = max(1, r // 6)
     if q > 1:
         rq = max(r // q, 1)
@@ -1464,12 +1529,19 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
         C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
     # the lifted level is skin unless it is much darker than the skin or off its colour
     # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
-    C = C[iy, ix]
+    C = np.ascontiguousarray(C[iy, ix])
     ref = fa.skin[g]
-    c4 = np.empty(C.shape[:2] + (4,), np.float32)
-    c4[..., :3] = C
-    c4[..., 3] = _skin_weight(np.minimum(C, ref + 0.3 * (C - ref)), ref, 0.6)
-    return Si, c4
+    # (_skin_weight of min(C, ref + 0.3 (C - ref)), tolerance 0.6, in float32 and OpenCV's
+    # per-pixel channel arithmetic: numpy's on channel views costs several times more)
+    ref32 = np.asarray(ref, np.float32)
+    d: np.ndarray = np.asarray(cv2.subtract(
+        C, cv2.merge([np.full(C.shape[:2], v, np.float32) for v in ref32])), np.float32)
+    np.minimum(d, np.float32(0.3) * d, out=d)  # the level minus ref
+    np.multiply(d, d, out=d)
+    dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))
+    ref_l = np.float32(1.0 / max(float(np.mean(ref)), 20.0))
+    wgt = np.clip((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
+    return cv2.merge([C, wgt.astype(np.float32)])
 
 
 def creases_cost_ms(face: Face, faps: FapInput, n: int = 30, warm: int = 3) -> dict[str, float]:

@@ -283,18 +283,17 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     for ch in range(3):
         ref[:, ch] = np.interp(jj, jj[ok], ref[ok, ch])
     ref = cv2.GaussianBlur(ref[None], (0, 0), max(0.8, 0.3 * r))[0]
-    c_t, c_b = ref, ref
+    c_t = ref
     near = cols[np.abs(jj[:, None] - cols[None, :]).argmin(1)]
     ref_t, ref_b = ref_t[near], ref_b[near]
-    # (the float64 colours written only where they go, rounded to float32 as before; the
-    # shading computed there only: the distance to the reference row, float64)
-    for side, c, sign, ref_row in ((yy < ref_t[None, :], c_t, 1, ref_t),
-                                   (yy > ref_b[None, :], c_b, -1, ref_b)):
-        iy, ix = np.nonzero(side)
-        y = yy[iy, 0]
-        d = np.maximum(ref_row[ix] - y if sign > 0 else y - ref_row[ix], 0.0)
-        shade = (1.0 - BALL_SHADE * (1.0 - np.exp(-d / max(r, 1.0))))[:, None]
-        out[iy, ix] = c[ix] * shade
+    # (the float64 colours rounded to float32 where they go, as before; the distance to the
+    # reference row, float64: above the upper one, below the lower one, 0 between them,
+    # where the plate is kept; whole-patch arithmetic, no gathers)
+    d = np.maximum(np.maximum(ref_t[None, :] - yy, yy - ref_b[None, :]), 0.0)
+    shade = 1.0 - BALL_SHADE * (1.0 - np.exp(-d / max(r, 1.0)))
+    side = (yy < ref_t[None, :]) | (yy > ref_b[None, :])
+    np.copyto(out, c_t[None, :, :] * shade[..., None], where=side[..., None],
+              casting="same_kind")
     return out
 
 

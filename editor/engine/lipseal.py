@@ -146,6 +146,32 @@ def sealed_photo(face: Face) -> np.ndarray:
     return got
 
 
+def sealed_box(face: Face, box: tuple[int, int, int, int]) -> np.ndarray:
+    """``sealed_photo(face)[y0:y1, x0:x1]`` for ``box`` ``(x0, y0, x1, y1)`` inside the
+    photo, the same values, without copying the whole photo: the box of the photo with the
+    fills that meet it added (a view of the photo where none does). Read only."""
+    x0, y0, x1, y1 = box
+    got = _SEALED.get(face)
+    if got is not None:
+        return got[y0:y1, x0:x1]
+    p = seal_plan(face)
+    out = face.image[y0:y1, x0:x1]
+    if p is None:
+        return out
+    copied = False
+    for q in ([p.opening] if p.opening is not None else []) + [c.patch for c in p.corners]:
+        ox, oy = q.org
+        h, w = q.diff.shape[:2]
+        a0, b0, a1, b1 = max(x0, ox), max(y0, oy), min(x1, ox + w), min(y1, oy + h)
+        if a1 <= a0 or b1 <= b0:
+            continue
+        if not copied:
+            out, copied = out.copy(), True
+        # (the same per-pixel sum and rounding as sealed_photo's, in the same order)
+        _add(out, _Patch(q.diff[b0 - oy:b1 - oy, a0 - ox:a1 - ox], (a0 - x0, b0 - y0)))
+    return out
+
+
 def _add(img: np.ndarray, q: _Patch) -> None:
     """``img`` (uint8, in place) plus a patch's difference, rounded."""
     x0, y0 = q.org

@@ -119,10 +119,41 @@ def _texture_parts() -> dict[str, tuple[np.ndarray, ...]]:
             opaque &= c[..., 0] - c[..., 1] < 0.15 * 255.0  # colour (it gave them a cyan cast)
         co = c[opaque]
         lum_o = _lum(co)[:, None]
+        a = rgba[..., 3:4]
+        # premultiplied (c a, a): what a face's small copy is resized from
+        pre = np.concatenate([c * a, a], 2).astype(np.float32)
+        # any tint's value is between lum and the colour: at most this per channel
+        seen = rgba[..., 3] > 0
+        bound = np.maximum(c[seen], lum[seen]).max(0) if seen.any() else np.zeros(3)
+        # the gum band (the upper teeth's top eighth, alpha > 0.5): its pixels' lum and chroma
+        top = rgba[: max(1, rgba.shape[0] // 8)].reshape(-1, 4)
+        top = top[top[:, 3] > 0.5, :3].astype(np.float64)
+        lum_t = _lum(top)[:, None]
         out[name] = tuple(np.ascontiguousarray(x) for x in (
             lum[..., 0], (c - lum).transpose(2, 0, 1), rgba[..., 3], lum_o[:, 0],
-            (co - lum_o).T))
+            (co - lum_o).T, pre, np.asarray(bound, np.float64),
+            np.array([lum_o.mean(dtype=np.float64)]), (co - lum_o).mean(0, dtype=np.float64),
+            lum_t[:, 0], top - lum_t))
     return out
+
+
+def _tinted_at(name: str, sat: float, gain: np.ndarray, size: tuple[int, int]
+               ) -> np.ndarray:
+    """``cv2.resize(_tint(name, sat, gain), size, INTER_AREA)``: the premultiplied texture
+    ``(c a, a)`` resized first, then tinted: ``((1 - sat) lum + sat c) a gain``, linear in
+    ``c a`` (``lum`` is) where nothing is clipped at 255, which :func:`_texture_parts`'
+    per-channel bound rules out (else the full texture is tinted and resized)."""
+    parts = _texture_parts()[name]
+    g = np.asarray(gain, np.float32)
+    if np.any(g.astype(np.float64) * parts[6] > 255.0):
+        return np.asarray(cv2.resize(_tint(name, sat, gain), size,
+                                     interpolation=cv2.INTER_AREA), np.float32)
+    small = np.asarray(cv2.resize(parts[5], size, interpolation=cv2.INTER_AREA), np.float32)
+    ca = small[..., :3]
+    c = ca * np.float32(sat)
+    c += (np.float32(1.0 - sat) * _lum(ca))[..., None]
+    c *= g
+    return np.concatenate([c, small[..., 3:4]], 2)
 
 
 def _tint(name: str, sat: float, gain: np.ndarray) -> np.ndarray:
@@ -141,10 +172,8 @@ def _opaque_mean(name: str, sat: float) -> np.ndarray:
     """Mean colour (3,) float32 of texture ``name``'s opaque pixels desaturated to ``sat``:
     the values of ``(lum + sat (c - lum)).mean(0)`` over the (n, 3) pixels, whose float32
     sums run through the pixels in order (here a cumulative sum per channel plane)."""
-    lum, chroma = _texture_parts()[name][3:]
-    x = sat * chroma
-    x += lum
-    return np.true_divide(np.cumsum(x, axis=1)[:, -1], len(lum))
+    ml, mc = _texture_parts()[name][7:9]
+    return (ml + sat * mc).astype(np.float32)
 
 
 def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | None
@@ -269,17 +298,16 @@ class MouthPlan:
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
         tongue_mean = _opaque_mean("tongue", sat)
         gain_g = np.full(3, TONGUE_L * skin_l / max(float(_lum(tongue_mean)), 1.0), np.float32)
-        tex, tinted = {}, {}
+        tex = {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0),
                                   ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
-            t = tinted[name] = _tint(name, sat, gain * shade)
             wpx, hpx = size[name]
             tw_, th_ = max(int(round(wpx)), 2), max(int(round(hpx)), 2)
-            tex[name] = cv2.resize(t, (tw_, th_), interpolation=cv2.INTER_AREA)
-        t = tinted["upper_teeth"]  # (its gain is gain_t: times a shade of 1.0 is the same)
-        gum = t[: max(1, t.shape[0] // 8)].reshape(-1, 4)
-        gum = gum[gum[:, 3] > 0.5]
-        gum_rgb = (gum[:, :3] / gum[:, 3:4]).mean(0) if len(gum) else 0.6 * target
+            tex[name] = _tinted_at(name, sat, gain * shade, (tw_, th_))
+        # the gum: the tinted upper teeth's top band (alpha > 0.5), unpremultiplied
+        lum_g, chroma_g = _texture_parts()["upper_teeth"][9:11]
+        gum_rgb = (np.clip((lum_g[:, None] + sat * chroma_g) * gain_t.astype(np.float64), 0.0,
+                           255.0).mean(0) if len(lum_g) else 0.6 * target)
         cav_l = float(_lum(CAVITY_RGB))
         cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)
         anchor0 = _jaw_anchor(v, i21, i23, ex, ey)

@@ -73,9 +73,9 @@ def test_the_photo_and_wider_openings_are_left_alone(sample_face):
     f = sample_face
     p = lipseal.seal_plan(f)
     assert p is not None
-    assert lipseal.closing_share(p, f, f.vertices) == 0.0
-    assert lipseal.closing_share(p, f, f.deform({"open_jaw": 600})) == 0.0
-    assert lipseal.closing_share(p, f, f.neutral_vertices) == pytest.approx(1.0, abs=0.02)
+    assert lipseal.closing_share(p, f.vertices) == 0.0
+    assert lipseal.closing_share(p, f.deform({"open_jaw": 600})) == 0.0
+    assert lipseal.closing_share(p, f.neutral_vertices) == pytest.approx(1.0, abs=0.02)
     assert np.array_equal(f.render(f.expression), f.image)
 
 

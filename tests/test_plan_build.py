@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from editor.engine import creases, gaze, layers, mouth
+from editor.engine import creases, fitting, gaze, layers, mouth
 
 
 def _random_masks(rng, n, max_h=50, max_w=40):
@@ -135,12 +135,12 @@ def test_is_grey():
     img[..., 0] = np.arange(80, dtype=np.uint8)[None, :]
     img[..., 1] = img[..., 0]
     img[..., 2] = img[..., 0]
-    assert creases._is_grey(img)
+    assert fitting.is_grey(img)
     img[3, 5, 2] += 1  # one pixel off the sparse sample's grid
-    assert not creases._is_grey(img)
+    assert not fitting.is_grey(img)
     img[3, 5, 2] -= 1
     img[7, 14, 1] += 1  # one on it
-    assert not creases._is_grey(img)
+    assert not fitting.is_grey(img)
 
 
 @pytest.mark.parametrize("name", mouth.NAMES)

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, luminance
+from .fitting import channel_median, is_grey, luminance
 from .layers import _blur, _rebox, _union
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -450,15 +450,6 @@ def _skin_triangles(mesh) -> np.ndarray:
     return cand
 
 
-def _is_grey(img: np.ndarray) -> bool:
-    """Whether the three channels of ``img`` (h, w, 3) are equal everywhere. A colour photo
-    is told by sparse samples of its pixels first (the whole image only when they agree)."""
-    for a in (img[::61, ::61], img[::7, ::7], img):
-        if not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 1], a[..., 2])):
-            return False
-    return True
-
-
 def _build_plan(face: Face) -> CreasePlan:
     mesh = face.mesh
     V = face.vertices.astype(np.float64)
@@ -521,7 +512,7 @@ def _build_plan(face: Face) -> CreasePlan:
     inv = np.stack([np.stack([E[:, 1, 1], -E[:, 0, 1]], 1),
                     np.stack([-E[:, 1, 0], E[:, 0, 0]], 1)], 1) / det[:, None, None]
     img = face.image
-    grey = _is_grey(img)
+    grey = is_grey(img)
     tint = np.ones(3) if grey else np.array([0.8, 1.0, 1.12])
     fold = np.repeat(np.arange(len(kinds)), np.diff(starts))
     tri = np.concatenate(all_tri)

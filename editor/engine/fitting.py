@@ -579,3 +579,12 @@ def inner_lips_on_opening(points68: np.ndarray, V: dict[str, np.ndarray]) -> np.
         on = np.interp(pts[list(ids)] @ ex, t[o], (cur @ ey)[o])
         pts[list(ids)] += (on - pts[list(ids)] @ ey)[:, None] * ey
     return pts.astype(np.float32)
+
+
+def is_grey(img: np.ndarray) -> bool:
+    """Whether the three channels of ``img`` (h, w, 3) are equal everywhere. A colour photo
+    is told by sparse samples of its pixels first (the whole image only when they agree)."""
+    for a in (img[::61, ::61], img[::7, ::7], img):
+        if not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 1], a[..., 2])):
+            return False
+    return True

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import luminance
+from .fitting import is_grey, luminance
 from .layers import _blur, _rebox, _union
 from .warp import WarpResult, box_maps
 
@@ -111,6 +111,12 @@ class SealPlan:
     tint: np.ndarray  # (3,) float32 per-channel weights of the contact line's darkening
     hole: np.ndarray  # (n,) the mouth opening's vertex indices, in order
 
+    @property
+    def patches(self) -> list[_Patch]:
+        """Every fill: the opening's, then the corners'."""
+        return ([self.opening] if self.opening is not None else []) + [c.patch
+                                                                       for c in self.corners]
+
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -124,50 +130,42 @@ def seal_plan(face: Face) -> SealPlan | None:
     return p
 
 
-_SEALED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def sealed_photo(face: Face) -> np.ndarray:
-    """The photo with its opening's pixels on the lips filled (the plan's fill at full
-    share; the photo itself when the lips are closed). Cached per face, read-only. What the
-    photo's own folds are measured on (:mod:`creases`): the cavity's dark corners are no
-    skin fold to lift."""
-    got = _SEALED.get(face)
-    if got is None:
-        p = seal_plan(face)
-        got = face.image
-        if p is not None:
-            got = face.image.copy()
-            for q in ([p.opening] if p.opening is not None else []) + [c.patch
-                                                                       for c in p.corners]:
-                _add(got, q)
-            got.setflags(write=False)
-        _SEALED[face] = got
-    return got
+    """The photo with every fill of its plan added at full share (the photo itself when it
+    has no plan). Read-only."""
+    if seal_plan(face) is None:
+        return face.image
+    H, W = face.image.shape[:2]
+    out = sealed_box(face, (0, 0, W, H))
+    out.setflags(write=False)
+    return out
 
 
 def sealed_box(face: Face, box: tuple[int, int, int, int]) -> np.ndarray:
     """``sealed_photo(face)[y0:y1, x0:x1]`` for ``box`` ``(x0, y0, x1, y1)`` inside the
-    photo, the same values, without copying the whole photo: the box of the photo with the
-    fills that meet it added (a view of the photo where none does). Read only."""
+    photo, without copying the whole photo: what the photo's own folds are measured on
+    (:mod:`creases`: the cavity's dark corners are no skin fold to lift). A view of the
+    photo where no fill meets the box. Read only."""
     x0, y0, x1, y1 = box
-    got = _SEALED.get(face)
-    if got is not None:
-        return got[y0:y1, x0:x1]
     p = seal_plan(face)
     out = face.image[y0:y1, x0:x1]
-    if p is None:
-        return out
-    copied = False
-    for q in ([p.opening] if p.opening is not None else []) + [c.patch for c in p.corners]:
+    return out if p is None else _overlaid(out, box, p.patches)
+
+
+def _overlaid(img: np.ndarray, box: tuple[int, int, int, int], patches: list[_Patch]
+              ) -> np.ndarray:
+    """``img`` (the photo's ``box``) with the parts of ``patches`` that meet the box added,
+    in order (a copy; ``img`` itself when none meets it)."""
+    x0, y0, x1, y1 = box
+    out = img
+    for q in patches:
         ox, oy = q.org
         h, w = q.diff.shape[:2]
         a0, b0, a1, b1 = max(x0, ox), max(y0, oy), min(x1, ox + w), min(y1, oy + h)
         if a1 <= a0 or b1 <= b0:
             continue
-        if not copied:
-            out, copied = out.copy(), True
-        # (the same per-pixel sum and rounding as sealed_photo's, in the same order)
+        if out is img:
+            out = img.copy()
         _add(out, _Patch(q.diff[b0 - oy:b1 - oy, a0 - ox:a1 - ox], (a0 - x0, b0 - y0)))
     return out
 
@@ -233,11 +231,9 @@ def _build(face: Face) -> SealPlan | None:
                            for n in ("lipo_c0", "lipo_c1")) if c is not None]
     if opening is None and not corners:
         return None
-    x0, y0 = (opening or corners[0].patch).org
-    patch = img[y0:y0 + 8, x0:x0 + 8]
     # on a colour photo the line darkens towards the lips' deep red (blue and green more)
-    grey = float(np.abs(patch.astype(np.int16) - patch[..., 1:2]).mean()) < 2.0
-    tint = np.full(3, 1.5, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
+    tint = (np.full(3, 1.5, np.float32) if is_grey(img)
+            else np.array([0.8, 1.0, 1.12], np.float32))
     return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole)
 
 
@@ -315,15 +311,8 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     if box is None:
         return None
     x0, y0, x1, y1 = box
-    patch = img[y0:y1, x0:x1].copy()
-    if opening is not None:  # with the opening's fill where the boxes overlap
-        ox, oy = opening.org
-        oh, ow = opening.diff.shape[:2]
-        a0, b0 = max(x0, ox), max(y0, oy)
-        a1, b1 = min(x1, ox + ow), min(y1, oy + oh)
-        if a1 > a0 and b1 > b0:
-            _add(patch[b0 - y0:b1 - y0, a0 - x0:a1 - x0],
-                 _Patch(opening.diff[b0 - oy:b1 - oy, a0 - ox:a1 - ox], (0, 0)))
+    # with the opening's fill where the boxes overlap
+    patch = _overlaid(img[y0:y1, x0:x1], box, [opening] if opening is not None else [])
     shape = (y1 - y0, x1 - x0)
     lips = _raster(shape, (x0, y0), outer)
     yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
@@ -349,7 +338,7 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     return _Corner(vertex, p0, disp, _Patch(diff, (x0, y0)))
 
 
-def closing_share(plan: SealPlan, face: Face, vertices: np.ndarray) -> float:
+def closing_share(plan: SealPlan, vertices: np.ndarray) -> float:
     """Share of the photo's opening that ``vertices`` close (0: as open or more, 1: shut)."""
     if plan.opening is None:
         return 0.0
@@ -373,7 +362,7 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     if plan is None:
         return res
     # the shares ramp in from _MIN_SHARE (continuous in the FAPs; nothing to do below it)
-    s = _ramp(closing_share(plan, face, vertices))
+    s = _ramp(closing_share(plan, vertices))
     jobs: list[tuple[float, _Patch, np.ndarray]] = []  # share, fill, its offset on the frame
     if s > 0.0 and plan.opening is not None:
         jobs.append((s, plan.opening, np.zeros(2)))

@@ -469,3 +469,26 @@ def test_splat_of_many_canvases_equals_one_canvas_at_a_time():
     got = _splat_many([((h, wd), out, np.append(w, 1.0), False), cans[1][:3] + (False,)])
     assert np.array_equal(got[0], alone((h, wd), xy, w))
     assert np.array_equal(got[1], alone(*cans[1][:3]))
+
+
+def test_per_face_constants_are_published_only_when_complete():
+    """The editor's GUI and render threads may ask for a face's crease constants at once: the
+    cached entry appears only after the photo's own folds' fields are set (published before,
+    the other thread could render without the unfold: a rare preview differing from a
+    re-render of the same document, test_ui_window's project round trip)."""
+    from editor.core import Face
+    from editor.engine import creases
+
+    f = Face.from_image(SAMPLE)
+    assert f.has_expression
+    seen = []
+    deform = f.deform
+
+    def watching(vec):
+        seen.append(f in creases._FAST)
+        return deform(vec)
+
+    f.deform = watching  # the own folds' fields are computed from the neutral mesh
+    fa = creases._fast(f)
+    assert seen and not any(seen)
+    assert fa.own_gap is not None and creases._FAST[f] is fa

@@ -621,21 +621,27 @@ def _fast(face: Face) -> _Fast:
     k1s, k2s = math.sqrt(2 * math.pi) * sig, math.sqrt(2 * math.pi) * (1.6 * sig)
     f.gain_mat = [np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32)
                   for k1, k2 in zip(k1s.tolist(), k2s.tolist(), strict=True)]
-    _FAST[face] = f
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
-        g = np.log(np.maximum(_spacing(face, face.deform(None)), 1e-6))
+        g = np.log(np.maximum(_spacing(face, face.deform(None), f), 1e-6))
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])
         f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
         f.own_div = np.maximum(f.own_sum, 1e-9)
         f.own_fade = np.clip((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
+    # published only when complete: the editor's render thread and its GUI thread may ask for
+    # the same face's constants at once (published before the own folds' fields were set, a
+    # render on the other thread could draw no unfold: a rare preview differing from a
+    # re-render of the same document)
+    _FAST[face] = f
     return f
 
 
-def _spacing(face: Face, vertices: np.ndarray) -> np.ndarray:
+def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.ndarray:
     """(N,) spacing of skin lines parallel to each fold on ``vertices``, relative to the photo's
-    mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes."""
-    fa = _fast(face)
+    mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes (``fa``:
+    the face's :class:`_Fast` while it is being built)."""
+    if fa is None:
+        fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     # (gathers with take: numpy's fancy indexing of an (n, 2) array costs several us more)
     T = V.take(fa.used_tri, 0)

@@ -142,8 +142,11 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                           "14/23), p90 93/77; 150 % stays inside the max 89 of FAP 7"),
         "jaw": (300, "AU26 jaw drop (fear prototype; it read as worry with the mouth nearly "
                      "closed): median 190, p90 815 MNS"),
-        "b_mid": (-30, "with the jaw, the lower lip drops ~320 MNS (the open mouth of fear): "
-                       "median -208 (outer -254), p10 -565 (outer -679), min -680"),
+        "b_mid": (-130, "with the jaw, the lower lip drops ~320 MNS (the open mouth of fear): "
+                        "median -208 (outer -254), p10 -565 (outer -679), min -680; -130 so "
+                        "that the lower lip's middle drops as far as its mid-points (10/11 = "
+                        "-100): at -30 it stayed 1-2 px above them on KA, NA and TM and the "
+                        "inner lower lip read as a W"),
         "b_mids": (-100, "as b_mid (median -232/-193, p10 -513/-541, min -688/-735)"),
         "t_mid": (60, "the upper lip stays down over the upper teeth (AU20 stretches it "
                       "flat; a raised upper lip showing the upper teeth reads as a smile): "
@@ -158,16 +161,28 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         41: (100, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "
                   "also lifts the lower lids, which the fit of 21/22 accounts for"),
         42: (100, "as 41"),
-        "c_raise": (-90, "AU15 lip corner depressor (disgust prototype; barely visible at the "
-                         "median): JAFFE median -13/-14 MNS, p10 -187/-159, min -322/-269"),
+        "c_raise": (-130, "AU15 lip corner depressor (disgust prototype; barely visible at the "
+                          "median): JAFFE median -13/-14 MNS, p10 -187/-159, min -322/-269; at "
+                          "-90 the corners stayed level under the raised upper lip and the "
+                          "sample's disgust read as a grin; 150 % stays above the min"),
         "t_mid": (-190, "AU9/AU10 raise the upper lip, disgust's key mouth cue (barely visible "
                         "at the median): JAFFE median -82 (outer -41) MNS, p10 -296/-267, min "
                         "-428/-364"),
         "t_mids": (-210, "as t_mid (the mid-points more than the middle: the curl); JAFFE "
                          "median -82/-98 (outer -41/-55), p10 -328/-281 (outer -343/-365), min "
                          "-460/-416 (outer -447/-459)"),
-        "b_mid": (-190, "AU16 lower lip depressor (disgust prototype): median -162 (outer -122) "
-                        "MNS, p10 -411 (outer -336)"),
+        "b_mid": (-50, "AU16 lower lip depressor of the prototype, kept small: at -190 (towards "
+                       "the JAFFE median -162, outer -122; p10 -411/-336) the lips parted into "
+                       "a gap showing the teeth under the raised upper lip, read as a grin on "
+                       "the smiling sample and as a snarl on JAFFE faces whose real disgust "
+                       "keeps the lips together, the lower lip pushed up (AU17; the inner-lip "
+                       "landmarks read the everted lower lip as a drop)"),
+        "b_mids": (-30, "as b_mid, a little less than the middle (the lower lip a curve): the "
+                        "fit gave -70, a gap at the sides showing the lower teeth (median "
+                        "-151/-124, p90 98/28)"),
+        18: (120, "AU17 chin raiser: the pushed-up lower lip and chin of JAFFE disgust (KA, "
+                  "KL, NA, YM show it beside the renders); no landmark on the chin boss, the "
+                  "amount as for anger"),
         "nose": (20, "AU9 widens the nose wings a little (median 10/-3, p90 24/34)"),
         "brow_i": (-95, "AU4 brow lowerer, with AU9 the brows come down in JAFFE disgust "
                         "(median -75/-57 ENS, p10 -115/-145): the fitted median read as a "

@@ -68,9 +68,15 @@ def test_fear(motion):
     assert m["4.5"][1] > 0 and m["4.6"][1] > 0            # outer brows down
 
 
-def test_disgust(motion):
+def test_disgust(motion, sample_neutral):
     m = motion("disgust")
     assert m["8.1"][1] < -0.3                             # upper lip raised
+    # the lower lip stays up (AU17), not a gap showing the teeth: with 5/52 at -190 the lower
+    # lip dropped as far as the upper one rose and the sample's disgust read as a grin
+    assert m["2.3"][1] < 0.35 * -m["2.2"][1]
+    # mouth corners clearly down (AU15), by at least 100 MNS (at -90 the corners stayed level)
+    mns = sample_neutral.fapu["MNS"]
+    assert m["8.3"][1] > 100 * mns and m["8.4"][1] > 100 * mns
 
 
 @pytest.mark.parametrize("k", [1.0, 1.5])

@@ -243,3 +243,46 @@ def test_uncovered_white_is_as_bright_as_the_photos_sclera(big_faces):
                 ratios.append(float(np.median(px)) / sc)
     assert len(ratios) >= 6
     assert np.mean(ratios) >= 0.82, ratios
+
+
+# --------------------------------------------------------------- soft photos (large faces)
+@pytest.fixture(scope="module")
+def soft_face(sample_face):
+    """The sample upscaled 4x (cubic): a large face whose edges span several pixels, as on a
+    defocused or upscaled portrait."""
+    img = cv2.resize(sample_face.image, None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+    return Face.from_image(img)
+
+
+def _steps(img: np.ndarray, poly: np.ndarray) -> float:
+    """99.5th percentile of the luminance step between neighbouring pixels in and around an
+    eye opening (grown by 2 px): how hard its sharpest edges are."""
+    g = _lum(img)
+    m = cv2.dilate(_mask(img.shape, poly).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    dx = np.abs(np.diff(g, axis=1))[m[:, 1:] & m[:, :-1]]
+    dy = np.abs(np.diff(g, axis=0))[m[1:] & m[:-1]]
+    return float(np.percentile(np.r_[dx, dy], 99.5))
+
+
+def test_edge_ramp_follows_the_photos_softness(sample_face, soft_face):
+    """The eye layers' edge ramp is measured from the irises' edges: one pixel (today's
+    edges, renders unchanged) on the sharp sample, several on the same face upscaled 4x."""
+    from editor.engine.layers import layer_plan
+
+    assert layer_plan(sample_face).soft == 1.0
+    assert 3.0 <= layer_plan(soft_face).soft <= 8.0
+
+
+def test_eyeball_edges_are_as_soft_as_the_photos(soft_face):
+    """On a soft photo the uncovered eyeball (surprise at 150 %: lids wide open) has no edge
+    harder than the photo's own eye: the iris's limbus, the white's hand-over from the photo
+    to the continued ball and the lids' edges ramp over the photo's edge width. With the
+    one-pixel edges of a sharp photo the sharpest steps were twice the photo's."""
+    from editor.formats.presets import apply_preset
+
+    f = soft_face
+    vec = apply_preset("surprise", 1.5)
+    v, out = f.deform(vec), f.render(vec)
+    for name, _ in EYES:
+        hole = f.mesh.holes[name]
+        assert _steps(out, v[hole]) <= 1.4 * _steps(f.image, f.vertices[hole]), name

@@ -29,6 +29,7 @@ Returns colours only; the caller composites them behind the deformed lids with a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -95,8 +96,74 @@ def _iris_edges(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r:
     return cx + uc * ex[0], cy + uc * ex[1], float(re)
 
 
+def limbus_widths(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r: float,
+                  ex: np.ndarray, ey: np.ndarray) -> list[float]:
+    """How soft the photo draws edges: the 10-90 % width (px) of the iris's left and right
+    edge (the limbus, sclera to iris) where both sides are clearly visible.
+
+    The luminance is averaged over the rows near the centre (pixels one clear of the lids)
+    along the eye's horizontal, every 0.25 px. Per side the iris level is the median over
+    0.45-0.75 r from the centre, the white's over 1.25-1.6 r; an edge is measured only with
+    at least 15 grey levels between them, from the last crossing of 10 % to the first of 90 %
+    inside 0.6-1.4 r. A sharp photo gives about a pixel (the limbus is a little soft itself);
+    an upscaled or defocused one proportionally more. Empty when no edge is clear.
+    """
+    g = cv2.cvtColor(patch, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    m = cv2.erode(opening.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
+    us = np.arange(-1.7 * r, 1.7 * r + 1e-6, 0.25)
+    U, W = np.meshgrid(us, np.linspace(-0.3 * r, 0.3 * r, 7))
+    mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
+    my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
+    lum = cv2.remap(g, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    vis = cv2.remap(m, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT) > 0.99
+    cnt = vis.sum(0)
+    prof = (lum * vis).sum(0) / np.maximum(cnt, 1)
+    ok = cnt >= 2
+    a = np.abs(us)
+    widths = []
+    for side in (us < 0, us > 0):
+        inner = ok & side & (a > 0.45 * r) & (a < 0.75 * r)
+        outer = ok & side & (a > 1.25 * r) & (a < 1.6 * r)
+        if inner.sum() < 2 or outer.sum() < 2:
+            continue
+        li, lo = float(np.median(prof[inner])), float(np.median(prof[outer]))
+        if lo - li < 15.0:
+            continue
+        idx = np.flatnonzero(ok & side & (a >= 0.6 * r) & (a <= 1.4 * r))
+        if len(idx) < 4 or np.any(np.diff(idx) != 1):
+            continue
+        order = np.argsort(a[idx])
+        u, t = a[idx][order], (prof[idx][order] - li) / (lo - li)
+        c10 = np.flatnonzero(np.diff(np.sign(t - 0.1)) != 0)
+        c90 = np.flatnonzero(np.diff(np.sign(t - 0.9)) != 0)
+        if not len(c10) or not len(c90):
+            continue
+        k1, k9 = int(c10[-1]), int(c90[0])
+        x1 = u[k1] + (0.1 - t[k1]) * (u[k1 + 1] - u[k1]) / (t[k1 + 1] - t[k1] + 1e-9)
+        x9 = u[k9] + (0.9 - t[k9]) * (u[k9 + 1] - u[k9]) / (t[k9 + 1] - t[k9] + 1e-9)
+        if x9 > x1:
+            widths.append(float(x9 - x1))
+    return widths
+
+
+def edge_ramp(widths: list[float]) -> float:
+    """The ramp (px) over which the layers blend their edges into a photo whose edges have
+    the 10-90 % ``widths`` (:func:`limbus_widths`): their median less a pixel's own sampling
+    (in quadrature), over 0.8 (a linear ramp's 10-90 % share); 1 (a pixel, the layers' edges
+    before) when that is below 1.5 or nothing was measured, so sharp photos are unchanged."""
+    if not widths:
+        return 1.0
+    w = float(np.median(widths))
+    s = math.sqrt(max(w * w - 1.0, 0.0)) / 0.8
+    return s if s >= SOFT_MIN else 1.0
+
+
+#: Below this edge ramp (px) the layers keep their one-pixel edges (see :func:`edge_ramp`)
+SOFT_MIN = 1.5
+
+
 def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill: float,
-                 radius: float) -> np.ndarray:
+                 radius: float, soft: float = 1.0) -> np.ndarray:
     """The white of the eye without the iris, continued beyond the opening (float32).
 
     Inside the disc ``rho < r_fill``: away from the lids, each row is interpolated between the
@@ -131,8 +198,10 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         out[box] = w * fill + (1.0 - w) * out[box]
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
-    # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris)
-    inner = opening & (cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3) > 1.5)
+    # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris);
+    # on a soft photo the margin's blur reaches ``soft`` times as far
+    inner = opening & (cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
+                       > 1.5 * soft)
     margin = opening & ~inner
     if inner.any() and margin.any():
         _, lab = cv2.distanceTransformWithLabels((~inner).astype(np.uint8), cv2.DIST_L2, 3,
@@ -298,7 +367,7 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
 
 
 def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.ndarray,
-                   r: float, r_fill: float, cy: float) -> np.ndarray:
+                   r: float, r_fill: float, cy: float, soft: float = 1.0) -> np.ndarray:
     """The iris disc with its hidden pixels completed from the visible ones (``vis``).
 
     Kept: the pixels in ``keep`` (the opening) and, inside the radius ``r``, photo pixels that
@@ -306,7 +375,10 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     to the white's): the iris often shows a little above the detected lid line. The others
     take their vertical mirror about the iris centre row when that is visible and iris-like,
     else the mean of the iris-like visible pixels at the same radius (beyond ``r``: of all
-    visible pixels there, the limbus and the white).
+    visible pixels there, the limbus and the white). On a soft photo (``soft`` > 1 px, the
+    edge ramp of :func:`edge_ramp`) the lids' margins are dark gradients that wide, which
+    look like iris: the disc is completed from the radial means alone (smoothed along the
+    radius) and the photo's ``keep`` pixels fade into it over ``soft`` px.
     """
     ph, pw = vis.shape
     out = src.copy()
@@ -318,12 +390,15 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     else:
         like = np.ones(vis.shape, bool)
     disc = rho <= r
-    need = (rho <= r_fill + 1.5) & ~keep & ~(like & disc)
+    strict = soft > 1.0
+    near = rho <= r_fill + 1.5
+    need = near if strict else near & ~keep & ~(like & disc)
     if not need.any():
         return out
     yy, xx = np.mgrid[0:ph, 0:pw]
     my = np.clip(np.rint(2 * cy - yy), 0, ph - 1).astype(np.int64)
-    mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
+    mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc) if not strict else \
+        np.zeros_like(need)
     out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
     rest = need & ~mirror_ok
     if rest.any():
@@ -337,9 +412,17 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
             for ch in range(3):
                 sm = np.bincount(bins[sel], src[..., ch][sel], minlength=nb)
                 mean[:, ch] = np.interp(np.arange(nb), np.flatnonzero(okb), sm[okb] / cnt[okb])
+            if strict:  # (smooth along the radius: half-pixel bins of a few samples each ring)
+                mean[:] = cv2.GaussianBlur(mean[:, None, :], (1, 0), soft)[:, 0, :]
         else:
             mean[:] = np.percentile(src.reshape(-1, 3), 10, axis=0)
         out[rest] = mean[bins[rest]]
+    if strict:
+        # the photo's own iris where visible, handing over to the smooth completion across
+        # the lids' blurred margins (a hard switch reads as a flat cut across the iris)
+        w = np.minimum(cv2.distanceTransform(keep.astype(np.uint8), cv2.DIST_L2, 3) / soft,
+                       1.0).astype(np.float32)[..., None]
+        out = np.where(near[..., None], out + w * (src - out), src)
     return out
 
 
@@ -390,6 +473,10 @@ class EyePlan:
     band_low: float
     lid_up: np.ndarray  # (7, 2) neutral upper lid c0, u1..u5, c1 (frame, iris-centred)
     lid_low: np.ndarray  # (7, 2) neutral lower lid c0, d1..d5, c1
+    #: edge ramp (px) of the layer's own edges (iris, the white's lid bands) matching the
+    #: photo's softness (:func:`edge_ramp`, set for the face by ``layers.layer_plan``)
+    soft: float = 1.0
+    widths: tuple[float, ...] = ()  # this eye's limbus_widths
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
@@ -414,19 +501,31 @@ class EyePlan:
         cv2.fillPoly(opening, [np.round((poly - (x0, y0)) * 16).astype(np.int32)], 1,
                      cv2.LINE_8, 4)
         cx, cy, r = _iris_edges(patch, opening, cx - x0, cy - y0, r, ex, ey)
+        widths = tuple(limbus_widths(patch, opening, cx, cy, r, ex, ey))
+        soft = edge_ramp(list(widths))  # (this eye's; the face's pooled one renders)
         cx, cy = cx + x0, cy + y0
         rho = np.hypot((np.arange(pw, dtype=np.float64) + x0 - cx)[None, :],
                        (np.arange(ph, dtype=np.float64) + y0 - cy)[:, None])
         r_fill = r + max(1.5, 0.3 * r)  # the limbus and its blur go too (no ring remnant)
-        plate = _white_plate(patch, opening > 0, rho, r_fill, r)
+        plate = _white_plate(patch, opening > 0, rho, r_fill, r, soft)
         # iris sprite: visible = inside the opening, one pixel clear of the lid edge
         vis = cv2.erode(opening, np.ones((3, 3), np.uint8)) > 0
         src = patch.astype(np.float32)
-        out = _complete_iris(src, opening > 0, vis, rho, r, r_fill, cy - y0)
+        # (on a soft photo the lids' blurred margins inside the opening are hidden too)
+        e = int(math.ceil(0.5 * soft))
+        kept = opening > 0 if soft <= 1.0 else \
+            cv2.erode(opening, np.ones((2 * e + 1, 2 * e + 1), np.uint8)) > 0
+        out = _complete_iris(src, kept, vis & kept, rho, r, r_fill, cy - y0, soft)
         # for a raised lid: the bands along the lids (their shadow, the lashes) replaced too
         band_up, band_low = max(2.5, 0.5 * r), max(1.5, 0.25 * r)
         ball = _ball_white(plate, opening > 0, r, band_up, band_low)
-        plate = np.where((opening > 0)[..., None], plate, ball)
+        if soft > 1.0:
+            # the photo's white hands over to the ball over the lid margin's blur (a hard
+            # switch at the photo's opening shows as a line where the lid was)
+            m = np.minimum(cv2.distanceTransform(opening, cv2.DIST_L2, 3) / soft, 1.0)
+            plate = ball + m[..., None].astype(np.float32) * (plate - ball)
+        else:
+            plate = np.where((opening > 0)[..., None], plate, ball)
         # corner / 1/5 points in frame coordinates centred on the iris
         names_u = [0, 1, 2, 3, 4, 5, 6]
         loop = poly
@@ -476,7 +575,7 @@ class EyePlan:
                    photo=src,  # (the float32 patch: nothing above changes it)
                    iris=out, split_r=split_r, split_l=split_l, corner_l=upf[0],
                    corner_r=upf[-1], lim_r=float(_line_u(cc, dd, 0.0)),
-                   lim_l=float(_line_u(a, b, 0.0)))
+                   lim_l=float(_line_u(a, b, 0.0)), widths=widths)
 
     # ------------------------------------------------------------------ per frame
     def gaze_shift(self, iris_dst: np.ndarray, sim: np.ndarray) -> np.ndarray:
@@ -598,10 +697,12 @@ class EyePlan:
             up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
             if up_moved or low_moved:
                 # (a lid that did not open contributes a factor of exactly 1: skipped)
-                keep = 1.0 - s_up * (1.0 - _clamp(W - w_up0 - self.band_up + 0.5, 0, 1)) \
+                sk = 1.0 / self.soft
+                keep = 1.0 - s_up * (1.0 - _clamp((W - w_up0 - self.band_up) * sk + 0.5, 0, 1)) \
                     if up_moved else None
                 if low_moved:
-                    k_lo = 1.0 - s_lo * (1.0 - _clamp(w_lo0 - W - self.band_low + 0.5, 0, 1))
+                    k_lo = 1.0 - s_lo * (1.0 - _clamp((w_lo0 - W - self.band_low) * sk + 0.5,
+                                                      0, 1))
                     keep = k_lo if keep is None else keep * k_lo
                 assert keep is not None  # up_moved or low_moved
                 keep = keep.astype(np.float32)
@@ -620,7 +721,9 @@ class EyePlan:
         Di = U - du if du else U
         Dw = W - dw if dw else W
         rho = np.sqrt(Di * Di + Dw * Dw)
-        a = _clamp(r_new + 1.0 - rho, 0.0, 1.0)  # the limbus blur is part of the iris
+        # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
+        a = _clamp(r_new + 1.0 - rho, 0.0, 1.0) if self.soft == 1.0 else \
+            _clamp((r_new + 0.5 - rho) / self.soft + 0.5, 0.0, 1.0)
         if not np.count_nonzero(a):
             return white if shadow is None else white * cv2.merge([shadow, shadow, shadow])
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0

@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from .deform import eye_state
 from .fitting import channel_median
-from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, photo_through
+from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
     GUM_FADE,
@@ -67,6 +67,10 @@ _SQUARE = np.ones((3, 3), np.uint8)
 class LayerPlan:
     mouth: MouthPlan
     eyes: dict[str, EyePlan]
+    #: edge ramp (px) of the eye layers: 1 on a sharp photo; on a soft one (upscaled,
+    #: defocused: a large face whose edges span several pixels) the eyeballs fade in over as
+    #: many pixels inside the lids (:func:`gaze.edge_ramp` of both irises' edges)
+    soft: float = 1.0
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -105,7 +109,10 @@ def layer_plan(face: Face) -> LayerPlan:
                                 skin, face.neutral_vertices)
         lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
         mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
-        p = LayerPlan(mouth, eyes)
+        soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths])
+        for ep in eyes.values():
+            ep.soft = soft
+        p = LayerPlan(mouth, eyes, soft)
         _PLANS[face] = p
     return p
 
@@ -256,18 +263,52 @@ def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
     return z
 
 
+def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray,
+               alpha: np.ndarray, soft: float, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """An eye opening's coverage faded in over ``soft`` px inside its outline, and the colour
+    (h, w, 3) the face continues with inside it: the nearest pixel outside (the lid's or
+    lip's margin), smoothed over the ramp.
+
+    A soft photo (a large face from an upscaled or defocused picture) draws its lid and lip
+    margins as gradients several pixels wide; an interior cut in at one pixel then reads as
+    a sticker. Inside only: the lids and lips keep their shape, no interior colour spills onto
+    them (the eyes' lids; the mouth keeps its one-pixel edge: its interior is shaded from
+    the lips inwards already, :func:`_mouth_rim`). ``t`` in [0, 1]: how far the fade has come in (it
+    follows the opening's first pixel of motion, as the coverage does: at rest the interior
+    is the photo's own, edges included)."""
+    x0, y0, x1, y1 = box
+    face = out[y0:y1, x0:x1]
+    inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
+    depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
+                                                    labelType=cv2.DIST_LABEL_PIXEL)
+    labels = cast("npt.NDArray[np.int32]", labels)
+    margin = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
+    rim = np.take(margin, labels - 1, axis=0, mode="clip") \
+        if len(margin) else face.astype(np.float32)
+    rim = _blur(np.ascontiguousarray(rim, np.float32), max(0.5 * soft, 0.8))
+    fade = np.minimum(np.asarray(depth, np.float32) * np.float32(1.5 / soft), np.float32(1.0))
+    fade -= 1.0
+    fade *= np.float32(t)
+    fade += 1.0
+    return alpha * fade, rim
+
+
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
-               hole: np.ndarray, interior: np.ndarray, shade: np.ndarray | None = None) -> None:
-    """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole``;
-    ``shade`` (h, w) multiplies the face (the lips' inner edge)."""
+               hole: np.ndarray, interior: np.ndarray, shade: np.ndarray | None = None,
+               inside: np.ndarray | None = None) -> None:
+    """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole`` (by
+    ``inside`` (h, w, 3) when given: the soft edge's nearest lid or lip colour, else from the
+    neighbours); ``shade`` (h, w) multiplies the face (the lips' inner edge)."""
     x0, y0, x1, y1 = box
     view = out[y0:y1, x0:x1]
     face = view.astype(np.float32)
     # (per-pixel weights spread over the 3 channels with cv2.merge: numpy's broadcasting of
     # an (h, w, 1) array over 3 channels is several times slower on these small boxes)
+    if inside is not None:
+        cv2.copyTo(np.asarray(inside, np.float32), hole.view(np.uint8), face)
     if shade is not None:
         face *= cv2.merge([shade, shade, shade])
-    if np.count_nonzero(hole):
+    if inside is None and np.count_nonzero(hole):
         # the face without the hole (zeros there: a masked copy, the same values as face times
         # a 0/1 weight) and the weights' box sums taken straight from the 0/1 byte mask
         keep = (~hole).view(np.uint8)
@@ -376,7 +417,14 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
-        _composite(out, box, alpha, hole, interior, lip_shade)
+            if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)
+                amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
+                alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
+                                             float(_smoothstep1(min(amount, 1.0))))
+        if lp.soft > 1.0 and kind == "eye":
+            _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
+        else:
+            _composite(out, box, alpha, hole, interior, lip_shade)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, fade_in)
         else:

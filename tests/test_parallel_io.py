@@ -143,12 +143,12 @@ def _old_info(data: bytes) -> str:
 
 def _new_info(data: bytes, rng: np.random.Generator) -> str:
     from editor.errors import FapFileError
-    from editor.formats.fapfile import _InfoStream, _stream_lines
+    from editor.formats.fapfile import _InfoStream, _stream_blocks
 
     cuts = np.sort(rng.integers(0, len(data) + 1, int(rng.integers(0, 12))))
     chunks = [data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)], strict=True)]
     try:
-        return _InfoStream("t.fap").run(_stream_lines(iter(chunks), "t.fap"))
+        return _InfoStream("t.fap").run(_stream_blocks(iter(chunks), "t.fap"))
     except FapFileError as e:
         return f"error: {e}"
 
@@ -199,6 +199,108 @@ def test_fap_info_stream_fuzz():
         errors += old.startswith("error:")
         assert _new_info(data, rng) == old, (k, data[:200])
     assert 50 < errors < 300
+
+
+def _long_fap(frames: int, data: dict[int, str] | None = None,
+              between: dict[int, str] | None = None, masks: dict[int, str] | None = None,
+              count: int | None = None, first: int = 0, eol: str = "\n") -> bytes:
+    """A file of ``frames`` plain integer frames under one mask (the block path's case), with
+    frame k's data line, the lines before it or its mask line replaced."""
+    flags = ["0"] * 68
+    for i in (2, 3, 10, 30, 47):
+        flags[i] = "1"
+    mask = " ".join(flags)
+    out = [f"2.1 long 25 {frames if count is None else count}"]
+    for k in range(frames):
+        out += [(between or {}).get(k, "")] if k in (between or {}) else []
+        out.append((masks or {}).get(k, mask))
+        v = (k * 37) % 301 - 150
+        out.append((data or {}).get(k, f"{k + first} {v} {-v} 7 {k % 50} -{k % 9}"))
+    return (eol.join(out) + eol).encode()
+
+
+def test_fap_info_block_path_is_the_line_by_line_reader():
+    """Runs of plain frames are read a block at a time: whatever a line holds, wherever a chunk
+    ends (mid-frame, mid-line, between a mask and its data line), the text or the error is
+    read_fap's."""
+    n = 300
+    samples = [_long_fap(n), _long_fap(n, first=1), _long_fap(n, eol="\r\n"),
+               _long_fap(n, count=n + 1), _long_fap(n, count=n - 1), _long_fap(n)[:-200]]
+    odd = ["+200 -0 007 1 2 3", " \t200 1\t+2  3 4 5\t ", "200 1 2 3 4 5.5", "200 1 2 3 4",
+           f"200 1 2 3 4 {2**24}", f"200 1 2 3 4 -{2**24 + 1}", "200 1 2 3 4 1234567890123456",
+           "200 1 2 3 4 5 6", "200 1 2 3 4 5-3", "200 1 2 3 4 --5", "200 1 2 3 4 +",
+           "200 1 2 3 4 -99999999999999999999", "200 1 2 3 4 0000000000000000005",
+           "200 1 2 3 4 \u0663", "200 1\x0b2 3 4 5", "200 1\xa02 3 4 5", "201 1 2 3 4 5",
+           "199 1 2 3 4 5", "", "# a comment", "200 1 2 3 4 5 # note"]
+    samples += [_long_fap(n, data={200: t}) for t in odd]
+    samples += [_long_fap(n, data={0: "1 1 2 3 4 5"}), _long_fap(n, data={0: "2 1 2 3 4 5"}),
+                _long_fap(n, data={k: f"{k} 1 2 3 4 5" for k in range(0, n, 3)})]
+    samples += [_long_fap(n, between={k: t}) for k in (1, 200, n - 1) for t in ("", "# c")]
+    alt = " ".join(["0", "0", "1", "1"] + ["0"] * 64)
+    greta = " ".join(["0", "0", "1", "1", "0", "0", "0", "0", "0", "0", "1"] + ["0"] * 19
+                     + ["1"] + ["0"] * 16 + ["1"] + ["0"] * 20 + ["1"])
+    spaced = greta[:-2].replace(" ", "  ", 3)
+    samples += [_long_fap(n, masks={200: alt}, data={200: "200 1 2"}),
+                _long_fap(n, masks={k: greta for k in range(100, 250)}),
+                _long_fap(n, masks={k: spaced for k in range(100, 250, 2)}),
+                _long_fap(n, masks={200: "1 " + greta[2:-2]}, data={200: "200 3 1 2 3 4 5"}),
+                _long_fap(n, masks={200: "1" + spaced[1:]}, data={200: "200 1 2 3 4 5"})]
+    rng = np.random.default_rng(1515)
+    olds = [_old_info(data) for data in samples]
+    for data, old in zip(samples, olds, strict=True):
+        for _ in range(2):
+            assert _new_info(data, rng) == old, data[:80]
+        mid = data.index(b"\n", data.index(b"\n", len(data) // 2) + 1) + 1  # a line's end
+        for cuts in ([mid], [mid - 1], list(range(0, len(data), 1999))):
+            chunks = [data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)], strict=True)]
+            assert _stream_info(chunks) == old, (cuts[:2], data[:80])
+    assert sum(old.startswith("error:") for old in olds) >= 15
+
+
+def test_fap_info_reads_plain_runs_by_blocks(monkeypatch):
+    """The block path is what reads a run of plain frames (the test above is not vacuous):
+    all frames but the first few (line by line, until a run shows) and one per chunk."""
+    from editor.formats import fapfile
+
+    taken: list[np.ndarray] = []
+
+    def spy(*args, **kwargs):
+        taken.append(rows := plain_frames(*args, **kwargs))
+        return rows
+
+    plain_frames = fapfile._plain_frames
+    monkeypatch.setattr(fapfile, "_plain_frames", spy)
+    data = _long_fap(700)
+    cuts = list(range(0, len(data), 20_000))
+    chunks = [data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)], strict=True)]
+    assert _stream_info(chunks) == _old_info(data)
+    numbers = np.concatenate([r[:, 0] for r in taken])
+    assert len(numbers) >= 700 - fapfile._RUN - len(chunks)
+    assert (np.diff(numbers) > 0).all() and numbers[-1] == 699
+
+
+def _stream_info(chunks: list[bytes]) -> str:
+    from editor.errors import FapFileError
+    from editor.formats.fapfile import _InfoStream, _stream_blocks
+
+    try:
+        return _InfoStream("t.fap").run(_stream_blocks(iter(chunks), "t.fap"))
+    except FapFileError as e:
+        return f"error: {e}"
+
+
+def test_fap_info_long_fuzz():
+    """Byte mutations anywhere in a long run of plain frames: the text or error of read_fap."""
+    from tests.test_robustness import _mutate
+
+    rng = np.random.default_rng(1516)
+    base = [_long_fap(200), _long_fap(200, masks={100: " ".join(["0", "0", "1"] + ["0"] * 65)},
+                                      data={100: "100 9"})]
+    for k in range(80):
+        data = base[k % 2]
+        for _ in range(int(rng.integers(1, 4))):
+            data = _mutate(rng, data)
+        assert _new_info(data, rng) == _old_info(data), (k, data[:200])
 
 
 def test_fap_info_cli_streams_a_file(cli, tmp_path):

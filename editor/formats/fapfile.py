@@ -556,13 +556,14 @@ def fap_info_file(path: str | os.PathLike, *, label: str | None = None) -> str:
     label = label or p.name
     chunks = iter_bounded(p, MAX_FILE_BYTES, error=FapFileError, label=label,
                           what="a .fap file")
-    return _InfoStream(label).run(_stream_lines(chunks, label))
+    return _InfoStream(label).run(_stream_blocks(chunks, label))
 
 
-def _stream_lines(chunks: Iterator[bytes], label: str) -> Iterator[str]:
-    """The lines of :meth:`_Parser`'s split (CRLF, CR, LF) of the decoded chunks, one by one;
-    at the end (only when run to the end) :func:`_decode`'s errors: the first NUL byte, else
-    the first non-UTF-8 byte, anywhere in the file."""
+def _stream_blocks(chunks: Iterator[bytes], label: str) -> Iterator[list[str]]:
+    """The lines of :meth:`_Parser`'s split (CRLF, CR, LF) of the decoded chunks, a list per
+    chunk (the complete lines it ends); at the end (only when run to the end)
+    :func:`_decode`'s errors: the first NUL byte, else the first non-UTF-8 byte, anywhere in
+    the file."""
     buf, first, nl_before = b"", True, 0
     bad_utf8: FapFileError | None = None
     nl = b"\n"
@@ -589,21 +590,84 @@ def _stream_lines(chunks: Iterator[bytes], label: str) -> Iterator[str]:
                     f"{label} line {nl_before + part.count(nl, 0, e.start) + 1}: byte "
                     f"0x{part[e.start]:02x} is not UTF-8, expected a text .fap file")
             else:
-                lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
-                yield from (lines if chunk is None else lines[:-1])
+                if "\r" in text:
+                    text = text.replace("\r\n", "\n").replace("\r", "\n")
+                lines = text.split("\n")
+                if chunk is not None:
+                    lines.pop()  # "": the part ends with its last line's break
+                if lines:
+                    yield lines
         nl_before += part.count(nl)
     if bad_utf8 is not None:
         raise bad_utf8
 
 
-#: a data line of plain integer tokens (ASCII digits, spaces/tabs): the parser's fast path
+#: a data line of plain integer tokens (ASCII digits, spaces/tabs): the line-by-line fast path
 _PLAIN_INTS = re.compile(r"[ \t]*[+-]?[0-9]{1,15}(?:[ \t]+[+-]?[0-9]{1,15})*[ \t]*\Z")
+
+#: byte classes of :func:`_plain_frames`: 1 digit, 2 sign, 4 space or tab, 8 line break,
+#: 0 anything else (the line is left to the reader's own code)
+_BYTE_CLASS = np.zeros(256, np.uint8)
+_BYTE_CLASS[np.frombuffer(b"0123456789", np.uint8)] = 1
+_BYTE_CLASS[np.frombuffer(b"+-", np.uint8)] = 2
+_BYTE_CLASS[np.frombuffer(b" \t", np.uint8)] = 4
+_BYTE_CLASS[ord("\n")] = 8
+_MAX_DIGITS = 15  # a token of at most 15 digits is exact in int64 and float64
+
+#: the block path (:func:`_plain_frames`) is tried once _RUN frames in a row were plain under
+#: one mask (a file of short runs pays nothing for it); it looks at _WINDOW_MIN frames, doubled
+#: while it takes every frame it looks at (to _WINDOW_MAX: its temporaries stay small)
+_RUN, _WINDOW_MIN, _WINDOW_MAX = 8, 16, 1 << 9
+
+
+def _plain_frames(block: list[str], p: int, m: int, mask_text: str, width: int,
+                  expect: int) -> np.ndarray:
+    """The longest run of frames of ``block`` from line ``p`` on (at most ``m``) that
+    :meth:`_Parser.data` reads as plain integers without a message: each a mask line that is
+    ``mask_text`` (a mask without FAP 1/2) then a data line of ``width`` tokens
+    ``[+-]?[0-9]{1,15}`` (ASCII, spaces and tabs between; longer tokens would saturate in
+    int64), frame numbers ``expect``, ``expect + 1``, ..., values within
+    :data:`MAX_ABS_VALUE` (the first frame, which sets the mask, is never read here). Returns
+    their tokens, (r, width) int64, r in 0..m; whatever is left goes through the reader's own
+    code line by line (its checks, its messages)."""
+    none = np.zeros((0, width), np.int64)
+    r = next(itertools.compress(itertools.count(), map(mask_text.__ne__, block[p:p + 2 * m:2])),
+             m)
+    if r == 0:
+        return none
+    data = "\n".join(block[p + 1:p + 2 * r:2]).encode()
+    cls = _BYTE_CLASS[np.frombuffer(data, np.uint8)]
+    line = np.cumsum(cls == 8, dtype=np.int32)  # each byte's line (a break: the next one's)
+    digit, sign, tok = cls == 1, cls == 2, (cls & 3) != 0
+    after_sep = np.ones(len(cls), bool)
+    after_sep[1:] = (cls[:-1] & 12) != 0
+    before_digit = np.zeros(len(cls), bool)
+    before_digit[:-1] = digit[1:]
+    bad = (cls == 0) | (sign & ~(after_sep & before_digit))  # a sign only starts a number
+    edges = np.concatenate(([-1], np.flatnonzero(~digit), [len(cls)]))
+    long_runs = edges[:-1][np.diff(edges) > _MAX_DIGITS + 1] + 1  # first digit of each
+    counts = np.bincount(line[tok & after_sep], minlength=r)  # tokens per line
+    for firsts in (np.flatnonzero(counts != width), line[bad], line[long_runs]):
+        if len(firsts):
+            r = min(r, int(firsts[0]))  # each sorted: its first is its least
+    if r == 0:
+        return none
+    if r < len(counts):
+        data = data[:np.flatnonzero(cls == 8)[r - 1]]
+    vals = np.fromstring(data, np.int64, sep=" ").reshape(r, width)
+    wrong = vals[:, 0] != expect + np.arange(r)
+    if width > 1:
+        wrong |= np.abs(vals[:, 1:]).max(axis=1) > MAX_ABS_VALUE
+    stop = np.flatnonzero(wrong)
+    return vals[:stop[0]] if len(stop) else vals
 
 
 class _InfoStream(_Parser):
-    """:class:`_Parser` over a stream of lines, keeping per-FAP counts and ranges instead of
-    the frames. The first parse error is held until the stream has been read to the end
-    (a NUL byte or a non-UTF-8 byte anywhere wins, as in :func:`read_fap`)."""
+    """:class:`_Parser` over a stream of blocks of lines, keeping per-FAP counts and ranges
+    instead of the frames. Runs of plain integer frames under one mask are read a block at a
+    time (:func:`_plain_frames`); every other line goes through :class:`_Parser`'s code (its
+    checks, its messages). The first parse error is held until the stream has been read to the
+    end (a NUL byte or a non-UTF-8 byte anywhere wins, as in :func:`read_fap`)."""
 
     def __init__(self, label: str) -> None:
         super().__init__("", label)
@@ -611,21 +675,21 @@ class _InfoStream(_Parser):
         self.content = []
         self.notes = []
 
-    def run(self, lines: Iterator[str]) -> str:
+    def run(self, blocks: Iterator[list[str]]) -> str:
         pending: FapFileError | None = None
         try:
-            result = self._consume(lines)
+            result = self._consume(blocks)
         except FapFileError as e:
             pending = e
-        for _ in lines:  # the rest of the file: NUL / UTF-8 errors come first
+        for _ in blocks:  # the rest of the file: NUL / UTF-8 errors come first
             pass
         if pending is not None:
             raise pending
         return result
 
-    def _consume(self, lines: Iterator[str]) -> str:
+    def _consume(self, blocks: Iterator[list[str]]) -> str:
         comments = 0
-        idx = -1
+        idx = -1  # 0-based index of the last line read
         header: tuple[str, str, float, int] | None = None
         count = done = 0
         last_content = -1
@@ -641,78 +705,103 @@ class _InfoStream(_Parser):
         high = False
         mask_text, mask_val = None, (np.zeros(N_FAPS, bool), False)
         low = np.zeros(0, np.int64)
-        block: list[list[int]] = []
+        rows: list[list[int]] = []  # plain frames read line by line, under mask_text
+        run = 0  # plain frames in a row under mask_text: from _RUN on, tried a block at a time
+        window = _WINDOW_MIN
 
         def flush() -> None:
-            if block:
-                a = np.array(block, np.float32)[:, 1:]
+            if rows:
+                a = np.array(rows, np.float32)[:, 1:]
                 n_used[low - 1] += len(a)
                 if a.shape[1]:
                     lo[low - 1] = np.minimum(lo[low - 1], a.min(axis=0))
                     hi[low - 1] = np.maximum(hi[low - 1], a.max(axis=0))
-                block.clear()
+                rows.clear()
 
-        for line in lines:
-            idx += 1
-            s = line.strip()
-            if not s:
-                continue
-            if s[0] == "#":
-                comments += 1
-                continue
-            last_content = idx
-            if header is None:
-                self.lines = {idx: line}
-                self.content = [idx]
-                header = self.header()
-                count = header[3]
-                self.lines = frame_lines
-                continue
-            if done == count:
-                raise self.fail(idx, f"expected the end of the file after the {count} "
-                                     f"frame(s) the header (line {self.content[0] + 1}) "
-                                     "declares, got more data")
-            if held is None:
-                held = idx
-                frame_lines.clear()
+        for lines in blocks:
+            p, n_lines = 0, len(lines)
+            while p < n_lines:
+                if (run >= _RUN and held is None and lines[p] == mask_text
+                        and (m := min(window, (n_lines - p) // 2, count - done))):
+                    taken = _plain_frames(lines, p, m, lines[p], len(low) + 1, last_num + 1)
+                    r = len(taken)
+                    run, window = ((run, min(2 * window, _WINDOW_MAX)) if r == m
+                                   else (0, _WINDOW_MIN))
+                    if r:
+                        n_used[low - 1] += r
+                        if len(low):
+                            lo[low - 1] = np.minimum(lo[low - 1], taken[:, 1:].min(axis=0))
+                            hi[low - 1] = np.maximum(hi[low - 1], taken[:, 1:].max(axis=0))
+                        last_num = int(taken[-1, 0])
+                        greta += r * mask_val[1]
+                        done += r
+                        p, idx = p + 2 * r, idx + 2 * r
+                        last_content = idx
+                        continue
+                line = lines[p]
+                p, idx = p + 1, idx + 1
+                s = line.strip()
+                if not s:
+                    continue
+                if s[0] == "#":
+                    comments += 1
+                    continue
+                last_content = idx
+                if header is None:
+                    self.lines = {idx: line}
+                    self.content = [idx]
+                    header = self.header()
+                    count = header[3]
+                    self.lines = frame_lines
+                    continue
+                if done == count:
+                    raise self.fail(idx, f"expected the end of the file after the {count} "
+                                         f"frame(s) the header (line {self.content[0] + 1}) "
+                                         "declares, got more data")
+                if held is None:
+                    held = idx
+                    frame_lines.clear()
+                    frame_lines[idx] = line
+                    continue
                 frame_lines[idx] = line
-                continue
-            frame_lines[idx] = line
-            mline = frame_lines[held]
-            if mline != mask_text:
-                flush()
-                mask_val = self.mask(held)
-                mask_text = mline
-                low = np.flatnonzero(mask_val[0][2:]) + 3
-            mask, extra = mask_val
-            expect = None if done == 0 else last_num + 1
-            toks = line.split() if not (mask[0] or mask[1]) else None
-            if (toks is not None and len(toks) == len(low) + 1 and _PLAIN_INTS.match(line)
-                    and (ints := [int(t) for t in toks])
-                    and (ints[0] == expect or (expect is None and ints[0] in (0, 1)))
-                    and (len(ints) == 1 or max(map(abs, ints[1:])) <= MAX_ABS_VALUE)):
-                block.append(ints)
-                num = ints[0]
-                if len(block) >= 4096:  # memory stays bounded
+                mline = frame_lines[held]
+                if mline != mask_text:
                     flush()
-            else:  # anything else: the reader's own code (its checks, its messages)
-                flush()
-                row = np.zeros(N_FAPS, np.float32)
-                num, vis, expr, is_x = self.data(idx, mask, expect, row)
-                nv, ne = nv + (vis is not None), ne + (expr is not None)
-                xface += is_x
-                plain += (not is_x) and bool(mask[:2].any())
-                sel = np.flatnonzero(mask[2:]) + 2
-                n_used[sel] += 1
-                lo[sel] = np.minimum(lo[sel], row[sel])
-                hi[sel] = np.maximum(hi[sel], row[sel])
-            high = high or bool(mask[0] or mask[1])
-            greta += extra
-            if done == 0:
-                first_num = num
-            last_num = num
-            done += 1
-            held = None
+                    mask_val = self.mask(held)
+                    mask_text = mline
+                    low = np.flatnonzero(mask_val[0][2:]) + 3
+                    run = 0
+                mask, extra = mask_val
+                expect = None if done == 0 else last_num + 1
+                toks = line.split() if not (mask[0] or mask[1]) else None
+                if (toks is not None and len(toks) == len(low) + 1 and _PLAIN_INTS.match(line)
+                        and (ints := [int(t) for t in toks])
+                        and (ints[0] == expect or (expect is None and ints[0] in (0, 1)))
+                        and (len(ints) == 1 or max(map(abs, ints[1:])) <= MAX_ABS_VALUE)):
+                    rows.append(ints)
+                    num = ints[0]
+                    run += 1
+                    if len(rows) >= 4096:  # memory stays bounded
+                        flush()
+                else:  # anything else: the reader's own code (its checks, its messages)
+                    flush()
+                    run = 0
+                    row = np.zeros(N_FAPS, np.float32)
+                    num, vis, expr, is_x = self.data(idx, mask, expect, row)
+                    nv, ne = nv + (vis is not None), ne + (expr is not None)
+                    xface += is_x
+                    plain += (not is_x) and bool(mask[:2].any())
+                    sel = low - 1
+                    n_used[sel] += 1
+                    lo[sel] = np.minimum(lo[sel], row[sel])
+                    hi[sel] = np.maximum(hi[sel], row[sel])
+                high = high or bool(mask[0] or mask[1])
+                greta += extra
+                if done == 0:
+                    first_num = num
+                last_num = num
+                done += 1
+                held = None
         flush()
         if header is None:
             raise self.fail(0, f"empty file, expected the header {_HEADER}")

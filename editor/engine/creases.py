@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, luminance
+from .fitting import channel_median, is_grey, luminance, median
 from .layers import _blur, _rebox, _union
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -239,7 +239,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     xs = np.linspace(brow[1, 0], brow[-2, 0], 40)
     yb = np.interp(xs, brow[:, 0], brow[:, 1])
     # the lines curve gently like the brows (half as much), not with the brows' gap
-    yb_s = 0.5 * yb + 0.5 * float(np.median(yb))
+    yb_s = 0.5 * yb + 0.5 * float(median(yb))
     yh = np.interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
     t = np.linspace(0.0, 1.0, len(xs))

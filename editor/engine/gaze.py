@@ -34,6 +34,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .fitting import median, percentile
+
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
 EXTRA_INDEX = {"eye_l": 0, "eye_r": 1}  # position among deform's extra points (3.5, 3.6)
@@ -313,7 +315,7 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
     core = vis & (rho <= 0.8 * r)
     if core.sum() >= 3 and vis.sum() >= 6:
-        med, white = float(np.median(lum[core])), float(np.percentile(lum[vis], 90))
+        med, white = float(median(lum[core])), float(percentile(lum[vis], 90))
         like = lum <= med + max(white - med, 0.0) / 3.0
     else:
         like = np.ones(vis.shape, bool)
@@ -451,9 +453,9 @@ class EyePlan:
         ring = vis & (rho <= r)
         lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
         if core.sum() >= 3 and ring.sum() >= 3:
-            k = core & (lum <= np.percentile(lum[core], 25))
+            k = core & (lum <= percentile(lum[core], 25))
             pupil = src[k].mean(0)
-            iris_l = float(np.median(lum[ring]))
+            iris_l = float(median(lum[ring]))
         else:
             pupil, iris_l = np.full(3, 20.0, np.float32), 60.0
         # the lash line: the darkest fifth of a 2-px band along the upper lid, above it
@@ -463,7 +465,7 @@ class EyePlan:
         band = (up_mask > 0) & (opening == 0)
         if band.sum() >= 5:
             lb = lum[band]
-            lash = src[band][lb <= np.percentile(lb, 20)].mean(0)
+            lash = src[band][lb <= percentile(lb, 20)].mean(0)
         else:
             lash = np.full(3, 30.0, np.float32)
         x, y = poly[:, 0], poly[:, 1]

@@ -523,10 +523,12 @@ def _build_plan(face: Face) -> CreasePlan:
     h, w = img.shape[:2]
     m = 0.06 * iod
     skin = np.zeros((len(kinds), 3))
-    for f in range(len(kinds)):
-        q = pos[fold == f]
-        x0, y0 = np.clip(np.floor(q.min(0) - m).astype(int), 0, [w - 1, h - 1])
-        x1, y1 = np.clip(np.ceil(q.max(0) + m).astype(int) + 1, 1, [w, h])
+    # (each fold's samples are consecutive: every box at once)
+    lo = np.clip(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
+                 [w - 1, h - 1]).tolist()
+    hi = np.clip(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
+                 [w, h]).tolist()
+    for f, ((x0, y0), (x1, y1)) in enumerate(zip(lo, hi, strict=True)):
         skin[f] = channel_median(img[y0:y1, x0:x1])
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),

@@ -69,7 +69,7 @@ def _iris_edges(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r:
     m = opening.astype(np.float32)
     us = np.arange(-2.0 * r, 2.0 * r + 1e-6, 0.25)
     ws = np.linspace(-0.4 * r, 0.4 * r, 7)
-    U, W = np.meshgrid(us, ws)
+    U, W = us[None, :], ws[:, None]  # (np.meshgrid's values, broadcast)
     mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
     my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
     lum = cv2.remap(g, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -323,8 +323,10 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     need = (rho <= r_fill + 1.5) & ~keep & ~(like & disc)
     if not need.any():
         return out
-    yy, xx = np.mgrid[0:ph, 0:pw]
-    my = np.clip(np.rint(2 * cy - yy), 0, ph - 1).astype(np.int64)
+    # (the mirror row of each row, broadcast over the columns: np.mgrid's values)
+    my = np.broadcast_to(np.clip(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
+                         .astype(np.int64), (ph, pw))
+    xx = np.broadcast_to(np.arange(pw)[None, :], (ph, pw))
     mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
     out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
     rest = need & ~mirror_ok

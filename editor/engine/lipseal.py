@@ -198,7 +198,8 @@ def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
     nx = np.zeros(len(zx) + 1, np.float32)
     ny[1:], nx[1:] = zy, zx
     h, w = mask.shape
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    # (np.mgrid's values, broadcast)
+    yy, xx = np.arange(h, dtype=np.float32)[:, None], np.arange(w, dtype=np.float32)[None, :]
     grain = cv2.remap(hp, 2 * nx[lab] - xx, 2 * ny[lab] - yy, cv2.INTER_LINEAR,
                       borderMode=cv2.BORDER_REFLECT)
     # within the photo's grain (a mirror landing on an edge would print it as a speckle)
@@ -315,7 +316,9 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     patch = _overlaid(img[y0:y1, x0:x1], box, [opening] if opening is not None else [])
     shape = (y1 - y0, x1 - x0)
     lips = _raster(shape, (x0, y0), outer)
-    yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+    # (np.mgrid's values, broadcast)
+    yy = np.arange(y0, y1, dtype=np.float64)[:, None]
+    xx = np.arange(x0, x1, dtype=np.float64)[None, :]
     out_dir = p0 - outer.mean(0)
     out_dir /= max(float(np.hypot(*out_dir)), 1e-9)
     # beside the corner, on its lateral side (not the lips' own shading above or below it)

@@ -217,6 +217,7 @@ def _fold_lines(face: Face) -> list[_Line]:
                            (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
+    crow_fade = _fade(np.linspace(0, 1, 10), 0.35, 0.6)  # (the same for every crow's foot)
     for s, sg in (("r", -1.0), ("l", 1.0)):
         oc = q(f"eye_{s}_c{0 if s == 'r' else 1}")
         for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
@@ -228,8 +229,7 @@ def _fold_lines(face: Face) -> list[_Line]:
             pts = oc + rr[:, None] * d + bend[:, None] * perp
             probes = oc + np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
                                     (sg * 0.18, 0.2)])
-            lines.append(_Line("crow", f"crow_{s}", pts, _fade(np.linspace(0, 1, 10), 0.35,
-                                                              0.6), (0.0, -1.0), probes))
+            lines.append(_Line("crow", f"crow_{s}", pts, crow_fade, (0.0, -1.0), probes))
     # ---- forehead: three horizontal lines between the brows and the hairline
     brow = np.array([q(f"brow_r_u{k}") for k in range(1, 6)] + [q(f"brow_l_u{k}")
                                                               for k in range(1, 6)])

@@ -111,9 +111,10 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     outside_iris = rho >= r_fill
     disc = opening & ~outside_iris
     out = patch.astype(np.float32)
+    # the distance to the lids (read by the fill and by the lid margin below)
+    d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
     if disc.any():
         tel = _telea(patch, disc, radius)
-        d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
         # only the disc changes (its weight w is 0 elsewhere): the fill is made and blurred
         # over the disc's box and the blur's reach (the blur's values there are those of the
@@ -134,7 +135,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
     # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris)
-    inner = opening & (cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3) > 1.5)
+    inner = opening & (d_lid > 1.5)
     margin = opening & ~inner
     if inner.any() and margin.any():
         _, lab = cv2.distanceTransformWithLabels((~inner).astype(np.uint8), cv2.DIST_L2, 3,

@@ -180,3 +180,38 @@ def test_fold_normals_are_the_gradients_turned():
         tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-9)
         ref = np.stack([-tang[:, 1], tang[:, 0]], 1)
         assert np.array_equal(creases._normals(pts), ref)
+
+
+def _same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return (a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
+            and np.array_equal(np.signbit(a), np.signbit(b)))
+
+
+def test_median_and_percentile_are_numpys():
+    rng = np.random.default_rng(11)
+    for trial in range(3000):
+        n = int(rng.integers(1, 300))
+        kind = trial % 5
+        if kind == 0:
+            a = (rng.random(n) * 255).astype(np.float32)
+        elif kind == 1:
+            a = rng.normal(size=n)
+        elif kind == 2:
+            a = rng.integers(0, 8, n).astype(np.float32)  # ties
+        elif kind == 3:
+            a = rng.integers(0, 256, (n, 3)).astype(np.uint8)
+        else:
+            a = ((rng.random((n, 3)) * 3).round(1) - 1.5).astype(np.float32)
+        if a.ndim == 2:
+            assert _same(fitting.median(a, axis=0), np.median(a, axis=0)), trial
+            a = a[:, 0]
+        q = float(rng.choice([10, 20, 25, 50, 80, 90, 0, 100, rng.random() * 100]))
+        assert _same(fitting.median(a), np.median(a)), trial
+        assert _same(fitting.percentile(a, q), np.percentile(a, q)), (trial, q)
+        assert _same(fitting.percentile(a, int(q)), np.percentile(a, int(q))), (trial, q)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        nan = np.array([1.0, np.nan, 2.0], np.float32)
+        assert _same(fitting.median(nan), np.median(nan))
+        assert _same(fitting.percentile(nan, 30.0), np.percentile(nan, 30.0))

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, luminance
+from .fitting import channel_median, is_grey, luminance, median
 from .layers import _blur, _rebox, _union
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -217,6 +217,7 @@ def _fold_lines(face: Face) -> list[_Line]:
                            (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
+    crow_fade = _fade(np.linspace(0, 1, 10), 0.35, 0.6)  # (the same for every crow's foot)
     for s, sg in (("r", -1.0), ("l", 1.0)):
         oc = q(f"eye_{s}_c{0 if s == 'r' else 1}")
         for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
@@ -228,8 +229,7 @@ def _fold_lines(face: Face) -> list[_Line]:
             pts = oc + rr[:, None] * d + bend[:, None] * perp
             probes = oc + np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
                                     (sg * 0.18, 0.2)])
-            lines.append(_Line("crow", f"crow_{s}", pts, _fade(np.linspace(0, 1, 10), 0.35,
-                                                              0.6), (0.0, -1.0), probes))
+            lines.append(_Line("crow", f"crow_{s}", pts, crow_fade, (0.0, -1.0), probes))
     # ---- forehead: three horizontal lines between the brows and the hairline
     brow = np.array([q(f"brow_r_u{k}") for k in range(1, 6)] + [q(f"brow_l_u{k}")
                                                               for k in range(1, 6)])
@@ -239,7 +239,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     xs = np.linspace(brow[1, 0], brow[-2, 0], 40)
     yb = np.interp(xs, brow[:, 0], brow[:, 1])
     # the lines curve gently like the brows (half as much), not with the brows' gap
-    yb_s = 0.5 * yb + 0.5 * float(np.median(yb))
+    yb_s = 0.5 * yb + 0.5 * float(median(yb))
     yh = np.interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
     t = np.linspace(0.0, 1.0, len(xs))
@@ -523,10 +523,12 @@ def _build_plan(face: Face) -> CreasePlan:
     h, w = img.shape[:2]
     m = 0.06 * iod
     skin = np.zeros((len(kinds), 3))
-    for f in range(len(kinds)):
-        q = pos[fold == f]
-        x0, y0 = np.clip(np.floor(q.min(0) - m).astype(int), 0, [w - 1, h - 1])
-        x1, y1 = np.clip(np.ceil(q.max(0) + m).astype(int) + 1, 1, [w, h])
+    # (each fold's samples are consecutive: every box at once)
+    lo = np.clip(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
+                 [w - 1, h - 1]).tolist()
+    hi = np.clip(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
+                 [w, h]).tolist()
+    for f, ((x0, y0), (x1, y1)) in enumerate(zip(lo, hi, strict=True)):
         skin[f] = channel_median(img[y0:y1, x0:x1])
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),

@@ -35,6 +35,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .fitting import median, percentile
+
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
 EXTRA_INDEX = {"eye_l": 0, "eye_r": 1}  # position among deform's extra points (3.5, 3.6)
@@ -68,7 +70,7 @@ def _iris_edges(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r:
     m = opening.astype(np.float32)
     us = np.arange(-2.0 * r, 2.0 * r + 1e-6, 0.25)
     ws = np.linspace(-0.4 * r, 0.4 * r, 7)
-    U, W = np.meshgrid(us, ws)
+    U, W = us[None, :], ws[:, None]  # (np.meshgrid's values, broadcast)
     mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
     my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
     lum = cv2.remap(g, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -176,9 +178,10 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     outside_iris = rho >= r_fill
     disc = opening & ~outside_iris
     out = patch.astype(np.float32)
+    # the distance to the lids (read by the fill and by the lid margin below)
+    d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
     if disc.any():
         tel = _telea(patch, disc, radius)
-        d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
         # only the disc changes (its weight w is 0 elsewhere): the fill is made and blurred
         # over the disc's box and the blur's reach (the blur's values there are those of the
@@ -200,8 +203,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
     # (else a rotated eyeball carries the lash line into view: a dark stripe beside the iris);
     # on a soft photo the margin's blur reaches ``soft`` times as far
-    inner = opening & (cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
-                       > 1.5 * soft)
+    inner = opening & (d_lid > 1.5 * soft)
     margin = opening & ~inner
     if inner.any() and margin.any():
         _, lab = cv2.distanceTransformWithLabels((~inner).astype(np.uint8), cv2.DIST_L2, 3,
@@ -385,7 +387,7 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
     core = vis & (rho <= 0.8 * r)
     if core.sum() >= 3 and vis.sum() >= 6:
-        med, white = float(np.median(lum[core])), float(np.percentile(lum[vis], 90))
+        med, white = float(median(lum[core])), float(percentile(lum[vis], 90))
         like = lum <= med + max(white - med, 0.0) / 3.0
     else:
         like = np.ones(vis.shape, bool)
@@ -395,8 +397,10 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     need = near if strict else near & ~keep & ~(like & disc)
     if not need.any():
         return out
-    yy, xx = np.mgrid[0:ph, 0:pw]
-    my = np.clip(np.rint(2 * cy - yy), 0, ph - 1).astype(np.int64)
+    # (the mirror row of each row, broadcast over the columns: np.mgrid's values)
+    my = np.broadcast_to(np.clip(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
+                         .astype(np.int64), (ph, pw))
+    xx = np.broadcast_to(np.arange(pw)[None, :], (ph, pw))
     mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc) if not strict else \
         np.zeros_like(need)
     out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
@@ -550,9 +554,9 @@ class EyePlan:
         ring = vis & (rho <= r)
         lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
         if core.sum() >= 3 and ring.sum() >= 3:
-            k = core & (lum <= np.percentile(lum[core], 25))
+            k = core & (lum <= percentile(lum[core], 25))
             pupil = src[k].mean(0)
-            iris_l = float(np.median(lum[ring]))
+            iris_l = float(median(lum[ring]))
         else:
             pupil, iris_l = np.full(3, 20.0, np.float32), 60.0
         # the lash line: the darkest fifth of a 2-px band along the upper lid, above it
@@ -562,7 +566,7 @@ class EyePlan:
         band = (up_mask > 0) & (opening == 0)
         if band.sum() >= 5:
             lb = lum[band]
-            lash = src[band][lb <= np.percentile(lb, 20)].mean(0)
+            lash = src[band][lb <= percentile(lb, 20)].mean(0)
         else:
             lash = np.full(3, 30.0, np.float32)
         x, y = poly[:, 0], poly[:, 1]

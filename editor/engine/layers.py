@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median
+from .fitting import channel_median, median
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
@@ -470,7 +470,7 @@ def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray
     if patch.size == 0:
         return None
     sel = (_poly_mask(patch.shape[:2], poly, np.array([x0, y0])) > 0) & _bright(patch, skin_l)
-    return np.median(patch[sel], axis=0) if sel.sum() >= 12 else None
+    return median(patch[sel], axis=0) if sel.sum() >= 12 else None
 
 
 def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: float,
@@ -532,7 +532,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         # visible height in the middle columns), then fades into the gum
         fade = max(GUM_FADE * D, 1.0)
         mid = span[np.abs(span - 0.5 * (span[0] + span[-1])) <= max(0.15 * len(span), 1.0)]
-        seen = float(np.median(split[mid] - col_top[mid])) if len(mid) else 0.0
+        seen = float(median(split[mid] - col_top[mid])) if len(mid) else 0.0
         hidden = max(CROWN * D - seen, 0.0)
         # (all columns at once: the rows above each column's opening)
         top = col_top[span]  # first row of the opening in each column

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import is_grey, luminance
+from .fitting import is_grey, luminance, median
 from .layers import _blur, _rebox, _union
 from .warp import WarpResult, box_maps
 
@@ -198,11 +198,12 @@ def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
     nx = np.zeros(len(zx) + 1, np.float32)
     ny[1:], nx[1:] = zy, zx
     h, w = mask.shape
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    # (np.mgrid's values, broadcast)
+    yy, xx = np.arange(h, dtype=np.float32)[:, None], np.arange(w, dtype=np.float32)[None, :]
     grain = cv2.remap(hp, 2 * nx[lab] - xx, 2 * ny[lab] - yy, cv2.INTER_LINEAR,
                       borderMode=cv2.BORDER_REFLECT)
     # within the photo's grain (a mirror landing on an edge would print it as a speckle)
-    lim = 2.0 * float(np.median(np.abs(hp[mask == 0]))) / 0.6745 + 1.0
+    lim = 2.0 * float(median(np.abs(hp[mask == 0]))) / 0.6745 + 1.0
     np.clip(grain, -lim, lim, out=grain)
     return np.where((mask > 0)[..., None], filled + grain, f)
 
@@ -273,10 +274,10 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     ring = (lips > 0) & (inside == 0)
     if not ring.any():
         return None
-    ref = float(np.median(L[ring]))
+    ref = float(median(L[ring]))
     hsv = cv2.cvtColor(patch, cv2.COLOR_RGB2HSV)
     sat = hsv[..., 1].astype(np.float32)
-    lip_sat = float(np.median(sat[ring]))
+    lip_sat = float(median(sat[ring]))
     # dark (the cavity, the shadow under the upper lip) or teeth (bright and paler than the
     # lips; on a grey photo bright alone; only within the lips: beyond them, skin is as
     # bright on a grey photo)
@@ -289,7 +290,7 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     # deformed opening), so that only the ring is inpainted (its cost grows with the pixels
     # filled) and it is filled from the lips, not from the teeth
     base = patch.copy()
-    base[inside > 0] = np.median(patch[ring], axis=0).astype(np.uint8)
+    base[inside > 0] = median(patch[ring], axis=0).astype(np.uint8)
     filled = _fill(base, opening.astype(np.uint8) * 255, INPAINT_R)
     diff = np.zeros(shape + (4,), np.float32)
     diff[..., :3] = filled - patch.astype(np.float32)
@@ -315,7 +316,9 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     patch = _overlaid(img[y0:y1, x0:x1], box, [opening] if opening is not None else [])
     shape = (y1 - y0, x1 - x0)
     lips = _raster(shape, (x0, y0), outer)
-    yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+    # (np.mgrid's values, broadcast)
+    yy = np.arange(y0, y1, dtype=np.float64)[:, None]
+    xx = np.arange(x0, x1, dtype=np.float64)[None, :]
     out_dir = p0 - outer.mean(0)
     out_dir /= max(float(np.hypot(*out_dir)), 1e-9)
     # beside the corner, on its lateral side (not the lips' own shading above or below it)
@@ -325,7 +328,7 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     skin = (lips == 0) & ~disk
     if not skin.any():
         return None
-    ref = float(np.median(L[skin]))
+    ref = float(median(L[skin]))
     notch = disk & lateral & (lips == 0) & (L < NOTCH_DARK * ref)
     if not notch.any():
         return None

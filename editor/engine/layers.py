@@ -67,9 +67,10 @@ _SQUARE = np.ones((3, 3), np.uint8)
 class LayerPlan:
     mouth: MouthPlan
     eyes: dict[str, EyePlan]
-    #: edge ramp (px) of the eye layers: 1 on a sharp photo; on a soft one (upscaled,
-    #: defocused: a large face whose edges span several pixels) the eyeballs fade in over as
-    #: many pixels inside the lids (:func:`gaze.edge_ramp` of both irises' edges)
+    #: edge ramp (px) of the openings' layers: 1 on a sharp photo; on a soft one (upscaled,
+    #: defocused: a large face whose edges span several pixels) the eyeballs and the mouth's
+    #: interior fade in over as many pixels inside the lids and lips (:func:`gaze.edge_ramp`
+    #: of both irises' edges)
     soft: float = 1.0
 
 
@@ -112,6 +113,7 @@ def layer_plan(face: Face) -> LayerPlan:
         soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths])
         for ep in eyes.values():
             ep.soft = soft
+        mouth.soften(soft)
         p = LayerPlan(mouth, eyes, soft)
         _PLANS[face] = p
     return p
@@ -264,27 +266,32 @@ def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
 
 
 def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray,
-               alpha: np.ndarray, soft: float, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """An eye opening's coverage faded in over ``soft`` px inside its outline, and the colour
+               alpha: np.ndarray, soft: float, t: float,
+               known: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """An opening's coverage faded in over ``soft`` px inside its outline, and the colour
     (h, w, 3) the face continues with inside it: the nearest pixel outside (the lid's or
     lip's margin), smoothed over the ramp.
 
     A soft photo (a large face from an upscaled or defocused picture) draws its lid and lip
     margins as gradients several pixels wide; an interior cut in at one pixel then reads as
     a sticker. Inside only: the lids and lips keep their shape, no interior colour spills onto
-    them (the eyes' lids; the mouth keeps its one-pixel edge: its interior is shaded from
-    the lips inwards already, :func:`_mouth_rim`). ``t`` in [0, 1]: how far the fade has come in (it
-    follows the opening's first pixel of motion, as the coverage does: at rest the interior
-    is the photo's own, edges included)."""
-    x0, y0, x1, y1 = box
-    face = out[y0:y1, x0:x1]
-    inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
-    depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
-                                                    labelType=cv2.DIST_LABEL_PIXEL)
-    labels = cast("npt.NDArray[np.int32]", labels)
-    margin = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
-    rim = np.take(margin, labels - 1, axis=0, mode="clip") \
-        if len(margin) else face.astype(np.float32)
+    them. ``t`` in [0, 1]: how far the fade has come in (it follows the opening's first
+    pixel of motion, as the coverage does: at rest the interior is the photo's own, edges
+    included). ``known``: the distance to the outline and the nearest margin colour when
+    already measured (:func:`_mouth_rim`)."""
+    if known is not None:
+        depth, rim = known
+    else:
+        x0, y0, x1, y1 = box
+        face = out[y0:y1, x0:x1]
+        inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
+        depth, labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
+                                                        labelType=cv2.DIST_LABEL_PIXEL)
+        labels = cast("npt.NDArray[np.int32]", labels)
+        margin = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
+        rim = np.take(margin, labels - 1, axis=0, mode="clip") \
+            if len(margin) else face.astype(np.float32)
     rim = _blur(np.ascontiguousarray(rim, np.float32), max(0.5 * soft, 0.8))
     fade = np.minimum(np.asarray(depth, np.float32) * np.float32(1.5 / soft), np.float32(1.0))
     fade -= 1.0
@@ -304,6 +311,10 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     face = view.astype(np.float32)
     # (per-pixel weights spread over the 3 channels with cv2.merge: numpy's broadcasting of
     # an (h, w, 1) array over 3 channels is several times slower on these small boxes)
+    if inside is not None:
+        # (no separate inner-edge shade on a soft edge: the fade from the continued lip colour
+        # is the lips' surface turning in; a one-pixel shade beside it reads as an outline)
+        shade = None
     if inside is not None:
         cv2.copyTo(np.asarray(inside, np.float32), hole.view(np.uint8), face)
     if shade is not None:
@@ -401,6 +412,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
                                                fade_in)
             interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)
+            if lp.soft > 1.0:
+                alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
+                                             (depth, rim))
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -421,7 +435,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
                                              float(_smoothstep1(min(amount, 1.0))))
-        if lp.soft > 1.0 and kind == "eye":
+        if lp.soft > 1.0:
             _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
         else:
             _composite(out, box, alpha, hole, interior, lip_shade)

@@ -258,6 +258,17 @@ class MouthPlan:
             self._own_c.append(c4)
         self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
 
+    def soften(self, soft: float) -> None:
+        """Ramp the photo's own interior parts (upper teeth with the skull, the rest with the
+        jaw) in over ``soft`` px (the photo's edge ramp, ``layers.LayerPlan.soft``): on a soft
+        photo their masks' one-pixel edges cut the teeth from the dark cavity with a step
+        harder than anything in the photo. Their colours are the photo's own on both sides."""
+        if soft <= 1.0 or self.own is None:
+            return
+        sigma = 0.31 * soft  # (a Gaussian's 10-90 % width, 2.56 sigma, as 0.8 soft)
+        self._own_a = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_a]
+        self._own_keep = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_keep]
+
     @classmethod
     def build(cls, vertices: np.ndarray, mesh: StandardMesh, plan: DeformPlan, skin_l: float,
               sat: float, teeth: np.ndarray | None, skin: np.ndarray | None = None,

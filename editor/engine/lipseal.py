@@ -31,6 +31,10 @@ which no pixel of an open photo provides.
   that no pixel takes two differences); per frame each corner's fill comes with that corner's
   share of the way from the photo's place to the neutral one.
 
+On a soft photo (a large face from an upscaled or defocused picture: its edge ramp
+``layers.LayerPlan.soft`` above a pixel) the masks are grown by half the ramp (the blurred rims
+of teeth and cavity pass neither threshold) and the fills' differences feathered over it.
+
 A photo with closed lips and its corners at their neutral places (a neutral photo) has no
 plan: nothing changes. Runs after the lid skin, before the mouth and eye layers.
 """
@@ -46,7 +50,7 @@ import cv2
 import numpy as np
 
 from .fitting import is_grey, luminance, median
-from .layers import _blur, _rebox, _union
+from .layers import _blur, _rebox, _union, layer_plan
 from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
@@ -222,13 +226,15 @@ def _build(face: Face) -> SealPlan | None:
     img = face.image
     area0 = _area(face.vertices.take(hole, 0))  # as closing_share measures it
     opening = None
+    # the photo's edge ramp (1 px on a sharp photo: the fills as before)
+    soft = layer_plan(face).soft
     if area0 >= 0.005 * iod * iod:
-        opening = _opening_patch(img, V[hole], V[outer], iod)
+        opening = _opening_patch(img, V[hole], V[outer], iod, soft)
     if opening is None:
         area0 = 0.0
     # the corners' notches are looked for on the photo with its opening filled (a pixel of
     # both fills would take both differences: photo + 2 x (fill - photo), white on a dark one)
-    corners = [c for c in (_corner(face, opening, m.index(n), V[outer], iod)
+    corners = [c for c in (_corner(face, opening, m.index(n), V[outer], iod, soft)
                            for n in ("lipo_c0", "lipo_c1")) if c is not None]
     if opening is None and not corners:
         return None
@@ -253,10 +259,11 @@ def _raster(shape: tuple[int, int], org: tuple[int, int], pts: np.ndarray) -> np
     return a
 
 
-def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: float
-                   ) -> _Patch | None:
+def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: float,
+                   soft: float = 1.0) -> _Patch | None:
     """The opening's pixels on the lips (dark or teeth, within :data:`REACH` outside the
-    inner-lip polygon ``poly``), filled (None: there are none)."""
+    inner-lip polygon ``poly``), filled (None: there are none); ``soft``: the photo's edge
+    ramp (:func:`_soften`)."""
     reach = max(REACH * iod, 1.5)
     pad = int(math.ceil(reach)) + 4
     box = _box(img, outer.min(0) - pad, outer.max(0) + pad)
@@ -285,6 +292,8 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     opening = (near > 0) & (inside == 0) & ((L < DARK * ref) | teeth)
     if not opening.any():
         return None
+    if soft > 1.0:
+        opening = (_grow(opening, soft) > 0) & (near > 0) & (inside == 0)
     # inside the polygon: the lips' median colour (the warp's bilinear taps along a closed lip
     # line reach a pixel into the photo's opening; the mouth layer draws over what is inside a
     # deformed opening), so that only the ring is inpainted (its cost grows with the pixels
@@ -292,13 +301,30 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     base = patch.copy()
     base[inside > 0] = median(patch[ring], axis=0).astype(np.uint8)
     filled = _fill(base, opening.astype(np.uint8) * 255, INPAINT_R)
-    diff = np.zeros(shape + (4,), np.float32)
+    return _Patch(_difference(filled, patch, soft), (x0, y0))
+
+
+def _grow(mask: np.ndarray, soft: float) -> np.ndarray:
+    """``mask`` (bool or 0/1) grown by half the edge ramp ``soft``: on a soft photo the
+    blurred rim of teeth and cavity is neither dark nor bright enough for the thresholds,
+    and stays on the closed lips as a pale ghost of the teeth."""
+    r = int(math.ceil(0.5 * soft))
+    return cv2.dilate(np.asarray(mask, np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+
+
+def _difference(filled: np.ndarray, patch: np.ndarray, soft: float) -> np.ndarray:
+    """(h, w, 4) float32 fill minus photo (4th channel zero), feathered over the edge ramp
+    ``soft`` on a soft photo (a patch cut at one pixel shows its outline there)."""
+    diff: np.ndarray = np.zeros(patch.shape[:2] + (4,), np.float32)
     diff[..., :3] = filled - patch.astype(np.float32)
-    return _Patch(diff, (x0, y0))
+    if soft > 1.0:
+        diff = cv2.GaussianBlur(diff, (0, 0), 0.31 * soft)  # (a 10-90 % width of 0.8 soft)
+    return diff
 
 
-def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, iod: float
-            ) -> _Corner | None:
+def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, iod: float,
+            soft: float = 1.0) -> _Corner | None:
     """The dark notch the photo's expression made beside one mouth corner (a smile's
     commissure fold), filled with the skin around it; None when the photo's corner is where
     its neutral mesh puts it (within :data:`CORNER_MOVE`) or no notch is there."""
@@ -334,11 +360,11 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
         return None
     # the notch's soft edge too (one pixel around it)
     mask = cv2.dilate(notch.astype(np.uint8), np.ones((3, 3), np.uint8))
+    if soft > 1.0:
+        mask = _grow(mask, soft)
     mask[lips > 0] = 0
     filled = _fill(patch, mask * 255, INPAINT_R)
-    diff = np.zeros(shape + (4,), np.float32)
-    diff[..., :3] = filled - patch.astype(np.float32)
-    return _Corner(vertex, p0, disp, _Patch(diff, (x0, y0)))
+    return _Corner(vertex, p0, disp, _Patch(_difference(filled, patch, soft), (x0, y0)))
 
 
 def closing_share(plan: SealPlan, vertices: np.ndarray) -> float:

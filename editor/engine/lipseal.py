@@ -364,6 +364,15 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
         mask = _grow(mask, soft)
     mask[lips > 0] = 0
     filled = _fill(patch, mask * 255, INPAINT_R)
+    if soft > 1.0:
+        # the disc's and the lateral side's edges fade over a third of the radius: a fold
+        # crossing them (the nasolabial fold, wide on a large face) is not cut off by a line
+        d = np.hypot(xx - p0[0], yy - p0[1])
+        side = ((xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1] + 0.02 * iod) \
+            / max(0.05 * iod, 1.0)
+        wgt = np.clip((R - d) / (R / 3.0), 0.0, 1.0) * np.clip(side, 0.0, 1.0)
+        filled = patch + (wgt * wgt * (3.0 - 2.0 * wgt))[..., None].astype(np.float32) \
+            * (filled - patch.astype(np.float32))
     return _Corner(vertex, p0, disp, _Patch(_difference(filled, patch, soft), (x0, y0)))
 
 

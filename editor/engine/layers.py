@@ -293,7 +293,11 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         rim = np.take(margin, labels - 1, axis=0, mode="clip") \
             if len(margin) else face.astype(np.float32)
     rim = _blur(np.ascontiguousarray(rim, np.float32), max(0.5 * soft, 0.8))
-    fade = np.minimum(np.asarray(depth, np.float32) * np.float32(1.5 / soft), np.float32(1.0))
+    # (the mouth's fade starts a quarter of the way in: the eye, and a re-detection's lip
+    # landmarks - cloning, tracking - read the opening's size from it; begun at zero, fear's
+    # open mouth came back from the detector a quarter less open)
+    fade = np.minimum(np.asarray(depth, np.float32) * np.float32(1.5 / soft)
+                      + np.float32(0.25 if known is not None else 0.0), np.float32(1.0))
     fade -= 1.0
     fade *= np.float32(t)
     fade += 1.0

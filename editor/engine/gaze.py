@@ -57,6 +57,25 @@ def _line_u(p: np.ndarray, q: np.ndarray, w: np.ndarray | float) -> np.ndarray |
     return p[0] + (np.asarray(w) - p[1]) * (q[0] - p[0]) / dw
 
 
+def _eye_profile(patch: np.ndarray, mask: np.ndarray, cx: float, cy: float, r: float,
+                 ex: np.ndarray, ey: np.ndarray, reach: float, rows: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The luminance along the eye's horizontal through the iris centre, every 0.25 px over
+    ``reach`` r either side, averaged over 7 rows within ``rows`` r of the centre (pixels of
+    ``mask`` only): the positions ``us``, the profile and where two or more rows saw it."""
+    g = cv2.cvtColor(patch, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    m = mask.astype(np.float32)
+    us = np.arange(-reach * r, reach * r + 1e-6, 0.25)
+    ws = np.linspace(-rows * r, rows * r, 7)
+    U, W = us[None, :], ws[:, None]  # (np.meshgrid's values, broadcast)
+    mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
+    my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
+    lum = cv2.remap(g, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    vis = cv2.remap(m, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT) > 0.99
+    cnt = vis.sum(0)
+    return us, (lum * vis).sum(0) / np.maximum(cnt, 1), cnt >= 2
+
+
 def _iris_edges(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r: float,
                 ex: np.ndarray, ey: np.ndarray) -> tuple[float, float, float]:
     """Refine the iris from its left and right edges (the paper's Canny edge points).
@@ -66,18 +85,7 @@ def _iris_edges(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r:
     centre, the right edge the strongest dark-to-bright step right of it. Kept only when both
     are clear and give a radius within 0.75-1.7 of the detector's; else the circle is unchanged.
     """
-    g = cv2.cvtColor(patch, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    m = opening.astype(np.float32)
-    us = np.arange(-2.0 * r, 2.0 * r + 1e-6, 0.25)
-    ws = np.linspace(-0.4 * r, 0.4 * r, 7)
-    U, W = us[None, :], ws[:, None]  # (np.meshgrid's values, broadcast)
-    mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
-    my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
-    lum = cv2.remap(g, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    vis = cv2.remap(m, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT) > 0.99
-    cnt = vis.sum(0)
-    prof = (lum * vis).sum(0) / np.maximum(cnt, 1)
-    ok = cnt >= 2
+    us, prof, ok = _eye_profile(patch, opening, cx, cy, r, ex, ey, 2.0, 0.4)
     if ok.sum() < 8:
         return cx, cy, r
     prof = np.interp(us, us[ok], prof[ok])
@@ -110,17 +118,8 @@ def limbus_widths(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, 
     inside 0.6-1.4 r. A sharp photo gives about a pixel (the limbus is a little soft itself);
     an upscaled or defocused one proportionally more. Empty when no edge is clear.
     """
-    g = cv2.cvtColor(patch, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    m = cv2.erode(opening.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
-    us = np.arange(-1.7 * r, 1.7 * r + 1e-6, 0.25)
-    U, W = np.meshgrid(us, np.linspace(-0.3 * r, 0.3 * r, 7))
-    mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
-    my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
-    lum = cv2.remap(g, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    vis = cv2.remap(m, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT) > 0.99
-    cnt = vis.sum(0)
-    prof = (lum * vis).sum(0) / np.maximum(cnt, 1)
-    ok = cnt >= 2
+    clear = cv2.erode(opening.astype(np.uint8), np.ones((3, 3), np.uint8))
+    us, prof, ok = _eye_profile(patch, clear, cx, cy, r, ex, ey, 1.7, 0.3)
     a = np.abs(us)
     widths = []
     for side in (us < 0, us > 0):

@@ -316,10 +316,6 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     # (per-pixel weights spread over the 3 channels with cv2.merge: numpy's broadcasting of
     # an (h, w, 1) array over 3 channels is several times slower on these small boxes)
     if inside is not None:
-        # (no separate inner-edge shade on a soft edge: the fade from the continued lip colour
-        # is the lips' surface turning in; a one-pixel shade beside it reads as an outline)
-        shade = None
-    if inside is not None:
         cv2.copyTo(np.asarray(inside, np.float32), hole.view(np.uint8), face)
     if shade is not None:
         face *= cv2.merge([shade, shade, shade])
@@ -411,6 +407,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 cov = _blur(np.ascontiguousarray(cov), 0.6, 3)
             alpha += (t * t * (3.0 - 2.0 * t)) * (cov - alpha)
         lip_shade = None
+        alpha_c, inside = alpha, None  # (a soft photo's edge ramp replaces them: _soft_edge)
         if kind == "mouth":
             fade_in = _smoothstep1(min(moved, 1.0))
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
@@ -419,6 +416,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             if lp.soft > 1.0:
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
                                              (depth, rim))
+                # (no one-pixel inner-edge shade beside the fade, which is the lips' surface
+                # turning in: the two read as a drawn outline)
+                lip_shade = None
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -439,10 +439,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
                                              float(_smoothstep1(min(amount, 1.0))))
-        if lp.soft > 1.0:
-            _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
-        else:
-            _composite(out, box, alpha, hole, interior, lip_shade)
+        _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, fade_in)
         else:

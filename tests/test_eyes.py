@@ -303,3 +303,17 @@ def test_mouth_edges_are_as_soft_as_the_photos(soft_face, name):
     vec = apply_preset(name, 1.0)
     limit = {"joy": 1.4, "fear": 3.0}[name]
     assert _steps(f.render(vec), f.deform(vec)[hole]) <= limit * photo
+
+
+def test_edge_ramp_is_capped_by_the_iris(soft_face):
+    """A badly defocused photo (the 4x face blurred further) measures very wide edges; the
+    ramp stays at most half an iris radius, so no eye or mouth is faded away."""
+    from editor.engine.gaze import edge_ramp
+    from editor.engine.layers import layer_plan
+
+    f = Face.from_image(cv2.GaussianBlur(soft_face.image, (0, 0), 10.0))
+    lp = layer_plan(f)
+    r = 0.5 * (lp.eyes["eye_l"].r0 + lp.eyes["eye_r"].r0)
+    # the edges ask for a ramp wider than half an iris radius ...
+    assert edge_ramp([*lp.eyes["eye_l"].widths, *lp.eyes["eye_r"].widths]) > 0.5 * r
+    assert 1.0 < lp.soft <= 0.5 * r + 1e-9  # ... the ramp stops there

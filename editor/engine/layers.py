@@ -110,7 +110,10 @@ def layer_plan(face: Face) -> LayerPlan:
                                 skin, face.neutral_vertices)
         lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
         mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
-        soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths])
+        # (at most half an iris radius: a badly defocused photo or a misread edge must not
+        # fade an eye or a mouth away)
+        soft = min(edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths]),
+                   max(1.0, 0.25 * (eyes["eye_l"].r0 + eyes["eye_r"].r0)))
         for ep in eyes.values():
             ep.soft = soft
         mouth.soften(soft)

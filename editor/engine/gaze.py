@@ -397,12 +397,14 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     if not need.any():
         return out
     # (the mirror row of each row, broadcast over the columns: np.mgrid's values)
-    my = np.broadcast_to(np.clip(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
-                         .astype(np.int64), (ph, pw))
-    xx = np.broadcast_to(np.arange(pw)[None, :], (ph, pw))
-    mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc) if not strict else \
-        np.zeros_like(need)
-    out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
+    if strict:
+        mirror_ok = np.zeros_like(need)
+    else:
+        my = np.broadcast_to(np.clip(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
+                             .astype(np.int64), (ph, pw))
+        xx = np.broadcast_to(np.arange(pw)[None, :], (ph, pw))
+        mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
+        out[mirror_ok] = src[my[mirror_ok], xx[mirror_ok]]
     rest = need & ~mirror_ok
     if rest.any():
         bins = np.minimum((rho * 2).astype(np.int64), int(2 * (r_fill + 2)))
@@ -505,7 +507,8 @@ class EyePlan:
                      cv2.LINE_8, 4)
         cx, cy, r = _iris_edges(patch, opening, cx - x0, cy - y0, r, ex, ey)
         widths = tuple(limbus_widths(patch, opening, cx, cy, r, ex, ey))
-        soft = edge_ramp(list(widths))  # (this eye's; the face's pooled one renders)
+        # (this eye's, capped as the face's pooled one that renders: layers.layer_plan)
+        soft = min(edge_ramp(list(widths)), max(1.0, 0.5 * r))
         cx, cy = cx + x0, cy + y0
         rho = np.hypot((np.arange(pw, dtype=np.float64) + x0 - cx)[None, :],
                        (np.arange(ph, dtype=np.float64) + y0 - cy)[:, None])

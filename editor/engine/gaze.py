@@ -147,16 +147,20 @@ def limbus_widths(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, 
     return widths
 
 
-def edge_ramp(widths: list[float]) -> float:
+def edge_ramp(widths: list[float], r: float | None = None) -> float:
     """The ramp (px) over which the layers blend their edges into a photo whose edges have
     the 10-90 % ``widths`` (:func:`limbus_widths`): their median less a pixel's own sampling
     (in quadrature), over 0.8 (a linear ramp's 10-90 % share); 1 (a pixel, the layers' edges
-    before) when that is below 1.5 or nothing was measured, so sharp photos are unchanged."""
+    before) when that is below 1.5 or nothing was measured, so sharp photos are unchanged.
+    With the iris radius ``r``: at most half of it (a badly defocused photo or a misread edge
+    must not fade an eye or a mouth away)."""
     if not widths:
         return 1.0
     w = float(np.median(widths))
     s = math.sqrt(max(w * w - 1.0, 0.0)) / 0.8
-    return s if s >= SOFT_MIN else 1.0
+    if s < SOFT_MIN:
+        return 1.0
+    return s if r is None else min(s, max(1.0, 0.5 * r))
 
 
 #: Below this edge ramp (px) the layers keep their one-pixel edges (see :func:`edge_ramp`)
@@ -478,9 +482,6 @@ class EyePlan:
     band_low: float
     lid_up: np.ndarray  # (7, 2) neutral upper lid c0, u1..u5, c1 (frame, iris-centred)
     lid_low: np.ndarray  # (7, 2) neutral lower lid c0, d1..d5, c1
-    #: edge ramp (px) of the layer's own edges (iris, the white's lid bands) matching the
-    #: photo's softness (:func:`edge_ramp`, set for the face by ``layers.layer_plan``)
-    soft: float = 1.0
     widths: tuple[float, ...] = ()  # this eye's limbus_widths
 
     def __post_init__(self) -> None:
@@ -507,8 +508,7 @@ class EyePlan:
                      cv2.LINE_8, 4)
         cx, cy, r = _iris_edges(patch, opening, cx - x0, cy - y0, r, ex, ey)
         widths = tuple(limbus_widths(patch, opening, cx, cy, r, ex, ey))
-        # (this eye's, capped as the face's pooled one that renders: layers.layer_plan)
-        soft = min(edge_ramp(list(widths)), max(1.0, 0.5 * r))
+        soft = edge_ramp(list(widths), r)  # (this eye's; the face's pooled one renders)
         cx, cy = cx + x0, cy + y0
         rho = np.hypot((np.arange(pw, dtype=np.float64) + x0 - cx)[None, :],
                        (np.arange(ph, dtype=np.float64) + y0 - cy)[:, None])
@@ -626,7 +626,7 @@ class EyePlan:
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,
                lids: tuple[np.ndarray, np.ndarray] | None = None,
-               inv: np.ndarray | None = None) -> np.ndarray:
+               inv: np.ndarray | None = None, soft: float = 1.0) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
 
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
@@ -637,7 +637,8 @@ class EyePlan:
         the lid; the iris keeps its own pixels and catch-lights) and the raised upper lid casts
         a soft shadow on what it uncovers. Each column fades in over its lid's first
         pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known,
-        ``inv`` the inverse of ``sim``.
+        ``inv`` the inverse of ``sim``. ``soft``: the face's edge ramp (px,
+        ``layers.LayerPlan.soft``) over which the iris and the white's lid bands blend.
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
@@ -703,7 +704,7 @@ class EyePlan:
             up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
             if up_moved or low_moved:
                 # (a lid that did not open contributes a factor of exactly 1: skipped)
-                sk = 1.0 / self.soft
+                sk = 1.0 / soft
                 keep = 1.0 - s_up * (1.0 - _clamp((W - w_up0 - self.band_up) * sk + 0.5, 0, 1)) \
                     if up_moved else None
                 if low_moved:
@@ -728,8 +729,8 @@ class EyePlan:
         Dw = W - dw if dw else W
         rho = np.sqrt(Di * Di + Dw * Dw)
         # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
-        a = _clamp(r_new + 1.0 - rho, 0.0, 1.0) if self.soft == 1.0 else \
-            _clamp((r_new + 0.5 - rho) / self.soft + 0.5, 0.0, 1.0)
+        a = _clamp(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
+            _clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
         if not np.count_nonzero(a):
             return white if shadow is None else white * cv2.merge([shadow, shadow, shadow])
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0

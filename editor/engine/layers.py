@@ -110,12 +110,8 @@ def layer_plan(face: Face) -> LayerPlan:
                                 skin, face.neutral_vertices)
         lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
         mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
-        # (at most half an iris radius: a badly defocused photo or a misread edge must not
-        # fade an eye or a mouth away)
-        soft = min(edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths]),
-                   max(1.0, 0.25 * (eyes["eye_l"].r0 + eyes["eye_r"].r0)))
-        for ep in eyes.values():
-            ep.soft = soft
+        soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths],
+                         0.5 * (eyes["eye_l"].r0 + eyes["eye_r"].r0))
         mouth.soften(soft)
         p = LayerPlan(mouth, eyes, soft)
         _PLANS[face] = p
@@ -180,14 +176,16 @@ def _union(a: tuple[int, int, int, int] | None, b: tuple[int, int, int, int]
 
 
 def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray,
-               alpha: np.ndarray, D: float, strength: float = 1.0
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               alpha: np.ndarray, D: float, strength: float = 1.0, with_shade: bool = True
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """What the lips around an opening give its interior, and their own shading.
 
     Returns the colour of the nearest lip pixel (h, w, 3) and the distance (px) to the lips
     (h, w) at every pixel of ``box`` (one distance transform with labels), and a factor
     (h, w) that darkens the lips' inner edge (their surface turning into the mouth) over about
-    a pixel outside the opening, in proportion to how open it is there.
+    a pixel outside the opening, in proportion to how open it is there (None when
+    ``with_shade`` is False: a soft photo's edge ramp is the lips' surface turning in,
+    :func:`_soft_edge`).
     """
     x0, y0, x1, y1 = box
     face = out[y0:y1, x0:x1]
@@ -200,6 +198,8 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     rim: np.ndarray = np.take(lips, labels - 1, axis=0, mode="clip") \
         if len(lips) else np.zeros(face.shape, np.float32)
     rim = _blur(rim, 1.0, 5)
+    if not with_shade:
+        return rim, depth, None
     # the inner edge of the lips: darker close to the opening, scaled with its local width
     # (the coverage blurred over the lip band), nothing where the lips meet
     s = min(max(0.03 * D, 0.7), 1.5)
@@ -413,15 +413,14 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         alpha_c, inside = alpha, None  # (a soft photo's edge ramp replaces them: _soft_edge)
         if kind == "mouth":
             fade_in = _smoothstep1(min(moved, 1.0))
+            # (on a soft photo no one-pixel inner-edge shade beside the soft edge's fade, which
+            # is the lips' surface turning in: the two read as a drawn outline)
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
-                                               fade_in)
+                                               fade_in, with_shade=lp.soft <= 1.0)
             interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)
             if lp.soft > 1.0:
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
                                              (depth, rim))
-                # (no one-pixel inner-edge shade beside the fade, which is the lips' surface
-                # turning in: the two read as a drawn outline)
-                lip_shade = None
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -435,7 +434,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)

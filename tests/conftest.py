@@ -34,6 +34,15 @@ def sample_neutral():
     return Face.from_image(SAMPLE, own_expression=False)
 
 
+def map_error(a, b):
+    """Per pixel, the larger of the x and y differences (px) between two warps' backward maps
+    (``WarpResult.maps`` of each; both must have one)."""
+    import numpy as np
+
+    assert a.maps is not None and b.maps is not None
+    return np.maximum(np.abs(a.maps[0] - b.maps[0]), np.abs(a.maps[1] - b.maps[1]))
+
+
 def jaffe_images(pattern: str = "*.tiff") -> list[Path]:
     if not (JAFFE / "images").is_dir():
         return []

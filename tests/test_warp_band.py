@@ -6,6 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from conftest import map_error
 
 import editor.engine.warp as warp_mod
 from editor.core import FAPS, Face
@@ -60,8 +61,7 @@ def test_head_rotation_matches_exact_warp_within_tolerance(wide_face, monkeypatc
     outside = np.ones((h, w), bool)
     outside[by0:by1, bx0:bx1] = False
     assert np.array_equal(fast.image[outside], wide_face.image[outside])
-    assert fast.maps is not None and exact.maps is not None
-    err = np.maximum(np.abs(fast.maps[0] - exact.maps[0]), np.abs(fast.maps[1] - exact.maps[1]))
+    err = map_error(fast, exact)
     assert err.max() <= MAP_MAX_PX
     assert err.mean() <= MAP_MEAN_PX
     assert (err > 0.5).mean() <= MAP_OVER_HALF

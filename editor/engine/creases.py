@@ -1441,8 +1441,18 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     # (every pixel of the box was filtered along the fold; the isotropic blur feeds C)
     S = cv2.GaussianBlur(big, (0, 0), max(0.7 * sig, 0.5))
     S[iy, ix] = Si
-    return Si, _closing(fa, g, S, r, iy, ix)
+    C4 = _closing(fa, g, S, r, iy, ix)
+    # where the valley deepens quickly along the line (a nasolabial fold's elbow above the
+    # mouth corner) the along-fold mean is lighter than its core, which then stayed a dark
+    # stub after the lift (the sample: 110 against shoulders of ~195, lifted to 170): the
+    # level the gain divides by is at most the lightly smoothed photo plus the skin's grain
+    np.minimum(Si, big[iy, ix] + np.float32(_GRAIN), out=Si)
+    return Si, C4
 
+
+#: grey levels by which a pixel in an own fold's valley may stay below its lightly smoothed
+#: surroundings after the lift: the skin's grain along the valley (see :func:`_lift_fields`)
+_GRAIN = 6.0
 
 #: Steps (in units of the along-fold sigma) between the taps of :func:`_along_taps`
 _TAP_STEP = 0.5

@@ -217,6 +217,28 @@ def test_closed_lids_show_skin_and_one_dark_lash_line(faces):
             assert np.median(skin_below) > 0.7 * ref, (name, skin_below, ref)
 
 
+def test_a_closing_upper_lid_meets_the_lower_lid_all_along(faces):
+    """Closed (FAP 19/20 at 1080 IRISD), every point of the upper lid's margin lies within
+    0.024 IOD of its lower partner; at 500 its sides move at least 0.9 x as far as the skin
+    just above them (now 1.05-1.37 x). The margin's sides once moved by ~0.7 of the lid's
+    parabola (a tent in y took them down): closed, they stayed 0.030-0.038 IOD above the lower
+    lid (the lash line a wavy W), and the ones beside the inner corner moved less than the skin
+    above them (0.65-0.71 x)."""
+    for face in faces:
+        n = face.mesh.index
+        frame = face.frame.to_frame
+        V = frame(face.deform({19: 1080, 20: 1080}).astype(np.float64))
+        half = frame(face.deform({19: 500, 20: 500}).astype(np.float64))
+        V0 = frame(face.deform(None).astype(np.float64))
+        for s in "lr":
+            gaps = [V[n(f"eye_{s}_d{k}"), 1] - V[n(f"eye_{s}_u{k}"), 1] for k in range(1, 6)]
+            assert max(gaps) <= 0.024 * face.interocular, (s, np.round(gaps, 2))
+            for k in (1, 5):
+                lid = half[n(f"eye_{s}_u{k}"), 1] - V0[n(f"eye_{s}_u{k}"), 1]
+                ring = half[n(f"eyering_{s}_u{k}"), 1] - V0[n(f"eyering_{s}_u{k}"), 1]
+                assert lid >= 0.9 * ring > 0, (s, k, lid, ring)
+
+
 def test_zero_vector_is_the_photo(faces):
     for face in faces:
         assert np.array_equal(face.render({}), face.image)

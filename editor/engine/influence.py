@@ -176,11 +176,20 @@ def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
         # eyelids: parabolic across the eye, corners fixed
         c0, c1 = eyes[s]
         up, low = ("3.1", "3.3") if s == "l" else ("3.2", "3.4")
+        # each lid's own margin moves by the parabola alone: flat in y (a plateau) from its
+        # feature point to the lower of its corners. A tent in y took the margin's sides,
+        # which lie below the upper lid's top (above the lower lid's bottom), down to ~0.7 of
+        # the parabola: a closed upper lid met the lower lid in the middle only, its sides
+        # stayed up (the lash line a wavy W) and moved less than the skin above them
+        corner_lo = max(Y(c0), Y(c1))
+        corner_hi = min(Y(c0), Y(c1))
         R[up] = Rect(X(c0), Y(f"brow_{s}_d2"), X(c1), Y(f"eye_{s}_d3") + 0.02 * iod,
-                     parabolic_x=True, side=f"eye_{s}_up")
+                     py=(Y(f"eye_{s}_u3"), corner_lo), parabolic_x=True,
+                     side=f"eye_{s}_up")
         ring_lo = Y(f"eyering_{s}_d3")
         R[low] = Rect(X(c0), Y(f"eye_{s}_u3") - 0.02 * iod, X(c1),
-                      ring_lo + 0.8 * (ring_lo - Y(f"eye_{s}_d3")), parabolic_x=True,
+                      ring_lo + 0.8 * (ring_lo - Y(f"eye_{s}_d3")),
+                      py=(corner_hi, Y(f"eye_{s}_d3")), parabolic_x=True,
                       side=f"eye_{s}_low")
         # brows
         inner_e, outer_e = (f"brow_{s}_e0", f"brow_{s}_e1") if s == "l" else (

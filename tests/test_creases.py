@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import SAMPLE, jaffe_images
 
-from editor.core import load_image
+from editor.core import Face, load_image
 from editor.engine.creases import _MIN_STRENGTH, fold_lines, fold_strength
 from editor.engine.layers import render_layers
 from editor.engine.warp import warp
@@ -160,7 +160,6 @@ def test_width_follows_the_face_not_the_resolution():
     """The same face at twice the size: the fold band darkens alike (width in IOD units)."""
     import cv2
 
-    from editor.core import Face
 
     img = load_image(SAMPLE)
     drops = []
@@ -188,7 +187,6 @@ def test_cli_no_creases_flag(tmp_path, sample_face):
 
 
 def test_jaffe_surprise_forehead_and_joy_nasolabial():
-    from editor.core import Face
 
     paths = jaffe_images("KA.NE*.tiff")
     if not paths:
@@ -316,7 +314,6 @@ def test_no_own_folds_faded_on_nearly_neutral_photos():
     """JAFFE neutral photos opened as the product does (own expression estimated): the estimate
     finds a trace of a smile on some (compression up to 0.07), which is no fold to fade; the
     sample's real smile (0.15-0.27) is faded fully (test above)."""
-    from editor.core import Face
     from editor.engine.creases import unfold_strength
     from editor.formats.presets import apply_preset as shipped
 
@@ -415,6 +412,28 @@ def test_own_fold_leaves_no_dark_stub_above_the_mouth_corner(sample_face, emotio
     assert max(deepest) <= 23.0, deepest
 
 
+def test_folds_on_a_soft_photo_are_no_sharper_than_its_own_edges():
+    """On a soft photo (the sample upscaled 4x: its edges span 5.3 px 10-90 %, a Gaussian blur
+    of sigma 2.07) anger's folds are drawn as if seen through the same blur: the darkening's
+    steepest flank against its depth gives an effective line sigma (0.607 depth / slope) of at
+    least 0.95 x the photo's. Drawn at their own width (the nose bridge's 0.011 IOD) they read
+    as scratches on a large face: 1.65 (now 2.25), the steepest slope twice as steep."""
+    import cv2
+
+    from editor.engine.layers import layer_plan
+
+    img = cv2.resize(load_image(SAMPLE), None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+    f = Face.from_image(img, own_expression=False)
+    psf = layer_plan(f).soft / 2.56
+    assert psf > 1.5  # a soft photo
+    vec = apply_preset("anger", 1.0)
+    d = _lum(f.render(vec, creases=False)).astype(np.float32) - _lum(f.render(vec))
+    d = cv2.GaussianBlur(d.astype(np.float32), (0, 0), 0.7)  # (the 8-bit rounding's noise)
+    gy, gx = np.gradient(d)
+    assert d.max() > 10  # folds are drawn
+    assert 0.607 * d.max() / np.hypot(gx, gy).max() >= 0.95 * psf
+
+
 def test_closing_the_eyes_makes_no_nasal_root_lines(sample_face):
     """The nasal-root lines follow the inner brows pushed down, not the upper lids: closed eyes
     (the lids and the ring above them move down) draw none (main: 0.13, as strong as anger)."""
@@ -511,7 +530,6 @@ def test_per_face_constants_are_published_only_when_complete():
     cached entry appears only after the photo's own folds' fields are set (published before,
     the other thread could render without the unfold: a rare preview differing from a
     re-render of the same document, test_ui_window's project round trip)."""
-    from editor.core import Face
     from editor.engine import creases
 
     f = Face.from_image(SAMPLE)

@@ -48,7 +48,7 @@ import cv2
 import numpy as np
 
 from .fitting import channel_median, is_grey, luminance, median
-from .layers import _blur, _rebox, _union
+from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
 
@@ -569,6 +569,9 @@ class _Fast:
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
     keep: np.ndarray = field(init=False)  # (N,) 1 - spread
     seg_b: np.ndarray = field(init=False)  # (M,) seg_a + 1: the last sample of each segment
+    # (G,) the drawn line's half-width, px: ``sig`` seen through the photo's own blur (a soft
+    # photo, see _draw_sigma); ``sig`` itself on a sharp one
+    dsig: np.ndarray = field(init=False)
     ref_l: np.ndarray = field(init=False)  # (G,) luminance of ``skin`` (at least 20)
     skin_shift: list[np.ndarray] = field(init=False)  # per group (3, 4) ``cv2.transform``: - skin
     # per group (3, 3) ``cv2.transform`` of (light, dark, 1) to the per-channel gain
@@ -603,10 +606,12 @@ def _fast(face: Face) -> _Fast:
            for g in range(G)]
     first = [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)]
     sig = np.array([max(x.sigma * p.iod, 0.6) for x in first])
+    dsig = _draw_sigma(face, sig)
     skin = np.array([p.skin[p.group == g].mean(0) for g in range(G)], np.float32)
     f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
-              np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * sig,
+              np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * dsig,
               skin, dead)
+    f.dsig = dsig
     f.used_tri = face.mesh.triangles[used]
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
@@ -619,7 +624,9 @@ def _fast(face: Face) -> _Fast:
     f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
     f.skin_shift = [np.hstack([np.eye(3), -x[:, None]]).astype(np.float32) for x in skin]
     # the blurred line and ridge canvases integrate to their weights: scaled back by the
-    # Gaussians' 1-D integrals (sqrt(2 pi) sigma; the ridge's is 1.6 times wider)
+    # Gaussians' 1-D integrals (sqrt(2 pi) sigma; the ridge's is 1.6 times wider). With the
+    # line's own sigma, not the drawn one: a soft photo's fold is as dark in all (its
+    # integral), shallower and wider
     k1s, k2s = math.sqrt(2 * math.pi) * sig, math.sqrt(2 * math.pi) * (1.6 * sig)
     f.gain_mat = [np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32)
                   for k1, k2 in zip(k1s.tolist(), k2s.tolist(), strict=True)]
@@ -811,6 +818,18 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     return _rebox(res, bbox, {})
 
 
+def _draw_sigma(face: Face, sig: np.ndarray) -> np.ndarray:
+    """(G,) half-widths the folds are drawn with: ``sig`` on a sharp photo; on a soft one (a
+    large face from an upscaled or defocused picture, whose edges span ``soft`` px 10-90 %,
+    :attr:`layers.LayerPlan.soft`) the line seen through the same blur, a Gaussian of sigma
+    ``soft / 2.56``: a fold one-third as wide as the photo's finest edge read as a drawn scratch
+    (the nose bridge's line under anger at IOD 328 px: sigma 3.6 px on a photo blurred by 4)."""
+    soft = layer_plan(face).soft
+    if soft <= 1.0:
+        return sig
+    return np.sqrt(sig * sig + (soft / 2.56) ** 2)
+
+
 def _live_groups(fa, live: np.ndarray) -> list[tuple[int, int, int]]:
     """``(group, first segment, end)`` of every fold group with a ``live`` segment (all groups
     tested in one ``reduceat``: the non-empty groups' segments are consecutive, in order)."""
@@ -870,7 +889,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
         pts, ridge, w = lines[3 * j:3 * j + 3]
         (lx, ly), (rx, ry) = lo[2 * j], lo[2 * j + 1]
         (hx, hy), (sx, sy) = hi[2 * j], hi[2 * j + 1]
-        pad = 3.0 * (1.6 * float(fa.sig[g])) + 2.0
+        pad = 3.0 * (1.6 * float(fa.dsig[g])) + 2.0
         x0, y0 = max(int(min(lx, rx) - pad), 0), max(int(min(ly, ry) - pad), 0)
         x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
@@ -890,7 +909,7 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     """Darken group ``g``'s fold line (and lighten its ridge) over ``box`` of ``out`` from
     its splatted canvases (in place); returns ``bbox`` grown by the box."""
     x0, y0, x1, y1 = box
-    sig = float(fa.sig[g])
+    sig = float(fa.dsig[g])
     dark = np.asarray(_blur(dark[:-1, :-1], sig), np.float32)
     light = np.asarray(_blur(light[:-1, :-1], 1.6 * sig), np.float32)
     view = out[y0:y1, x0:x1]

@@ -447,7 +447,56 @@ def _smooth01(t: np.ndarray) -> np.ndarray:
 
 
 #: Shadow the upper lid casts on the eyeball it uncovers: depth and 1/e fall-off (x iris r)
+#: (on an eye without :attr:`EyePlan.bands` only: the photo's own band along the lid, moved
+#: with it, is the lid's shadow)
 LID_SHADOW, LID_SHADOW_FALL = 0.12, 0.25
+
+
+def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.ndarray,
+               r: float, soft: float, lids: tuple[np.ndarray, np.ndarray],
+               org: tuple[float, float], axes: tuple[np.ndarray, np.ndarray],
+               widths: tuple[float, float]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Two (h, w, 3) float32 maps, the upper lid's and the lower lid's: the photo over the bare
+    eyeball (the completed iris over the white plate, at rest), per channel and clipped to
+    [0, 1], in the band along that lid (``widths`` below the upper lid, above the lower one)
+    and fading to 1 over the edge ramp ``soft``; 1 elsewhere. What the lid's margin, its lashes
+    and their shadow take from the eyeball, to move with the lid when it opens. (Real sclera
+    under the upper lid, JAFFE and the sample: 0.5 of its brightest over the first fifth of an
+    iris radius, 0.87 over the next; the photo's mesh puts the lid line inside the lash band,
+    so its lower half lies in the opening.) None on a degenerate patch."""
+    ph, pw = rho.shape
+    if ph < 2 or pw < 2:
+        return None
+    cover = np.clip((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
+        np.clip(r + 1.0 - rho, 0.0, 1.0)
+    a = cover.astype(np.float32)[..., None]
+    bare = plate + a * (iris - plate)
+    # both smoothed (a shading field; the completed iris's edge is not exactly the photo's:
+    # unsmoothed, the ratio along it carried black specks up over the white)
+    sig = max(1.0, 0.5 * soft)
+    src = cv2.GaussianBlur(src, (0, 0), sig)
+    bare = cv2.GaussianBlur(bare, (0, 0), sig)
+    # per channel (the lashes keep their brown over the white), its hue held within a quarter
+    # of the luminance ratio (where the completed iris and the photo's differ in hue, free
+    # channel ratios tinted the iris yellow)
+    lum = np.array([0.299, 0.587, 0.114], np.float32)
+    rl = np.clip((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0)[..., None]
+    ratio = np.clip(src / np.maximum(bare, 1.0), 0.75 * rl, np.minimum(1.25 * rl, 1.0))
+    ex, ey = axes
+    xs = np.arange(pw, dtype=np.float64) + org[0]
+    ys = np.arange(ph, dtype=np.float64) + org[1]
+    U = xs[None, :] * ex[0] + ys[:, None] * ex[1]
+    W = xs[None, :] * ey[0] + ys[:, None] * ey[1]
+    up, low = lids
+    d_up = W - np.interp(U, up[:, 0], up[:, 1])  # depth below the upper lid
+    d_lo = np.interp(U, low[:, 0], low[:, 1]) - W  # height above the lower lid
+    ramp = max(soft, 1.0)
+    # (one map per lid: each is sampled with its own lid's shift, which would carry the
+    # other lid's band too)
+    w_up = np.clip((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)[..., None]
+    w_lo = np.clip((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)[..., None]
+    return ((1.0 - w_up * (1.0 - ratio)).astype(np.float32),
+            (1.0 - w_lo * (1.0 - ratio)).astype(np.float32))
 
 
 @dataclass(eq=False)
@@ -483,6 +532,11 @@ class EyePlan:
     lid_up: np.ndarray  # (7, 2) neutral upper lid c0, u1..u5, c1 (frame, iris-centred)
     lid_low: np.ndarray  # (7, 2) neutral lower lid c0, d1..d5, c1
     widths: tuple[float, ...] = ()  # this eye's limbus_widths
+    #: (h, w, 3) float32 x 2, the upper and the lower lid's: the photo's band along that lid
+    #: (the lashes and margin hanging over the eyeball, their shadow) as a share of the bare
+    #: eyeball (<= 1), 1 elsewhere (see :func:`_lid_bands`). None: no bands (a raised lid
+    #: then casts a synthetic shadow only)
+    bands: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
@@ -573,8 +627,10 @@ class EyePlan:
             lash = np.full(3, 30.0, np.float32)
         x, y = poly[:, 0], poly[:, 1]
         area0 = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-        return cls(ball=ball, lash=lash.astype(np.float32), area0=area0, band_up=band_up,
-                   band_low=band_low, lid_up=upf, lid_low=lof,
+        bands = _lid_bands(src, plate, out, rho, r, soft, (upf, lof),
+                           (x0 - cx, y0 - cy), (ex, ey), (band_up, band_low))
+        return cls(bands=bands, ball=ball, lash=lash.astype(np.float32), area0=area0,
+                   band_up=band_up, band_low=band_low, lid_up=upf, lid_low=lof,
                    pupil=pupil.astype(np.float32), iris_lum=iris_l, name=name,
                    hole=np.asarray(hole), detected=detected, r_det=r_det, centre=c,
                    r0=r, p0=p0, ex=ex, ey=ey, off=np.array([x0, y0], np.float64), plate=plate,
@@ -693,6 +749,7 @@ class EyePlan:
         # opened lids: per pixel, how far its column's lid moved away and the weight of the
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep, shadow = None, None
+        band3: np.ndarray | None = None  # (h, w, 3) the photo's lid bands, moved
         if poly is not None:
             up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
@@ -720,10 +777,32 @@ class EyePlan:
                 white -= ball
                 white *= cv2.merge([keep, keep, keep])
                 white += ball
-                if up_moved:
+                if up_moved and self.bands is None:
                     fall = LID_SHADOW_FALL * self.r0
                     shadow = (1.0 - LID_SHADOW * s_up
                               * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
+                if self.bands is not None:
+                    # the photo's own bands ride with their lids: a pixel at depth d below
+                    # the raised upper lid (above the lowered lower one) takes the band's
+                    # share at depth d below the photo's lid (the lashes' lower half, which
+                    # lay inside the photo's opening, are not wiped off with the white)
+                    w_lo = np.interp(U, low[:, 0], low[:, 1]) if low_moved else None
+                    for moved_lid, s_lid, dW, bmap in ((up_moved, s_up, w_up0 - w_up,
+                                                        self.bands[0]),
+                                                       (low_moved, s_lo, None, self.bands[1])):
+                        if not moved_lid:
+                            continue
+                        if dW is None:
+                            assert w_lo is not None
+                            dW = w_lo0 - w_lo
+                        Wb = W + dW
+                        bx = (ox + U * ex[0] + Wb * ey[0]).astype(np.float32)
+                        by = (oy + U * ex[1] + Wb * ey[1]).astype(np.float32)
+                        got = cv2.remap(bmap, bx, by, cv2.INTER_LINEAR,
+                                        borderMode=cv2.BORDER_CONSTANT,
+                                        borderValue=(1.0, 1.0, 1.0))
+                        got = (1.0 - s_lid[..., None] * (1.0 - got)).astype(np.float32)
+                        band3 = got if band3 is None else np.minimum(band3, got)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du if du else U
         Dw = W - dw if dw else W
@@ -732,7 +811,9 @@ class EyePlan:
         a = _clamp(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
             _clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
         if not np.count_nonzero(a):
-            return white if shadow is None else white * cv2.merge([shadow, shadow, shadow])
+            if shadow is not None:
+                white = white * cv2.merge([shadow, shadow, shadow])
+            return white if band3 is None else white * band3
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
         if du == 0.0 and dw == 0.0 and abs(r_new - self.r0) <= 1e-9 * self.r0 \
@@ -772,6 +853,8 @@ class EyePlan:
         col += white
         if shadow is not None:
             col *= cv2.merge([shadow, shadow, shadow])
+        if band3 is not None:
+            col *= band3
         return col
 
 

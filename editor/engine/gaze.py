@@ -756,8 +756,11 @@ class EyePlan:
             w_up = np.interp(U, up[:, 0], up[:, 1])
             w_up0 = np.interp(U, su[:, 0], su[:, 1])
             w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
-            s_up = _smooth01(w_up0 - w_up)
-            s_lo = _smooth01(np.interp(U, low[:, 0], low[:, 1]) - w_lo0)
+            w_lo = np.interp(U, low[:, 0], low[:, 1])
+            d_up = w_up0 - w_up  # how far each column's lid moved away (frame px)
+            d_lo = w_lo - w_lo0
+            s_up = _smooth01(d_up)
+            s_lo = _smooth01(d_lo)
             up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
             if up_moved or low_moved:
                 # (a lid that did not open contributes a factor of exactly 1: skipped)
@@ -786,18 +789,16 @@ class EyePlan:
                     # the raised upper lid (above the lowered lower one) takes the band's
                     # share at depth d below the photo's lid (the lashes' lower half, which
                     # lay inside the photo's opening, are not wiped off with the white)
-                    w_lo = np.interp(U, low[:, 0], low[:, 1]) if low_moved else None
-                    for moved_lid, s_lid, dW, bmap in ((up_moved, s_up, w_up0 - w_up,
-                                                        self.bands[0]),
-                                                       (low_moved, s_lo, None, self.bands[1])):
-                        if not moved_lid:
+                    # (the pixel's image position is ox + U ex + Wb ey: its U part is the
+                    # same for both lids)
+                    bu = (ox + U * ex[0], oy + U * ex[1])
+                    for moved_lid, s_lid, Wb, bmap in (
+                            (up_moved, s_up, W + d_up if up_moved else None, self.bands[0]),
+                            (low_moved, s_lo, W - d_lo if low_moved else None, self.bands[1])):
+                        if not moved_lid or Wb is None:
                             continue
-                        if dW is None:
-                            assert w_lo is not None
-                            dW = w_lo0 - w_lo
-                        Wb = W + dW
-                        bx = (ox + U * ex[0] + Wb * ey[0]).astype(np.float32)
-                        by = (oy + U * ex[1] + Wb * ey[1]).astype(np.float32)
+                        bx = (bu[0] + Wb * ey[0]).astype(np.float32)
+                        by = (bu[1] + Wb * ey[1]).astype(np.float32)
                         got = cv2.remap(bmap, bx, by, cv2.INTER_LINEAR,
                                         borderMode=cv2.BORDER_CONSTANT,
                                         borderValue=(1.0, 1.0, 1.0))

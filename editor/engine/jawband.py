@@ -186,9 +186,13 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     w, h = x1 - x0, y1 - y0
     # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
     # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
-    # than a tenth of a pixel); on a small one at every pixel
+    # than a tenth of a pixel); on a small one at the band's pixels only
     s = _COARSE if w * h > _COARSE_AREA else 1
-    nw, nh = (-(-w // s) + 1, -(-h // s) + 1) if s > 1 else (w, h)
+    if s == 1:
+        _hook_pixels(table, sel, sub, (x0, y0, x1, y1), (o0, o1), (r00, r10, r01, r11), lo_x,
+                     map_x, map_y)
+        return
+    nw, nh = -(-w // s) + 1, -(-h // s) + 1
     off = 0.5 * s - 0.5
     xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]
     ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
@@ -198,19 +202,58 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
                     borderMode=cv2.BORDER_REPLICATE)
     d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
+    shift = _shift(d, got)
+    shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)
+    my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(r11)
+    np.copyto(map_x[sub], mx, where=sel)
+    np.copyto(map_y[sub], my, where=sel)
+
+
+def _shift(d: np.ndarray, got: np.ndarray) -> np.ndarray:
+    """The band's shift along the frame's y at pixels of frame height ``d`` (float32, changed
+    in place) from their rows of the jaw table ``got`` (jaw line, drop, strip, fade)."""
     d -= got[..., 0]  # ... below the new jaw line
     d -= got[..., 2]  # past the strip
     d /= got[..., 3]  # over the fade
-    np.clip(d, 0.0, 1.0, out=d)
+    np.minimum(np.maximum(d, 0.0, out=d), 1.0, out=d)  # (np.clip: the same, slower)
     shift = np.multiply(d, np.float32(-2.0))  # smoothstep (3 - 2 d) d d, in place
     shift += np.float32(3.0)
     shift *= d
     shift *= d
     np.subtract(1.0, shift, out=shift)
     shift *= got[..., 1]  # the chin's drop over its underside, then none
-    if s > 1:
-        shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
-    mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)
-    my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(r11)
-    np.copyto(map_x[sub], mx, where=sel)
-    np.copyto(map_y[sub], my, where=sel)
+    return shift
+
+
+def _hook_pixels(table: np.ndarray, sel: np.ndarray, sub: tuple[slice, slice],
+                 box: tuple[int, int, int, int], org: tuple[float, float],
+                 rot: tuple[float, float, float, float], lo_x: float, map_x: np.ndarray,
+                 map_y: np.ndarray) -> None:
+    """:func:`_hook` at every pixel of a small band box ``box`` (``sel``: the band's pixels
+    in it, ``sub`` its slices of the warp's maps): the table is read and the shift evaluated
+    at the band's pixels only (about half the box), each with the float32 arithmetic of a
+    whole-box evaluation (its row and column terms, then their sum), so with its values."""
+    x0, y0, x1, y1 = box
+    o0, o1 = org
+    r00, r10, r01, r11 = rot
+    # (the pixels' flat indices, split: np.nonzero of a 2-d mask costs several times more)
+    k = np.flatnonzero(sel)
+    yi = k // (x1 - x0)
+    xi = k - yi * (x1 - x0)
+    xs = x0 + np.arange(x1 - x0, dtype=np.float32) - np.float32(o0)
+    ys = y0 + np.arange(y1 - y0, dtype=np.float32) - np.float32(o1)
+    # the pixel's frame x in table steps, and its frame y
+    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)).take(xi)
+    tx += (ys * np.float32(r10 / _STEP)).take(yi)
+    d = (xs * np.float32(r01)).take(xi)
+    d += (ys * np.float32(r11)).take(yi)
+    got = cv2.remap(table, tx[None], np.zeros((1, len(tx)), np.float32), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)[0]
+    shift = _shift(d, got)
+    mx = np.arange(x0, x1, dtype=np.float32).take(xi)
+    mx -= shift * np.float32(r01)
+    my = np.arange(y0, y1, dtype=np.float32).take(yi)
+    my -= shift * np.float32(r11)
+    map_x[sub][sel] = mx
+    map_y[sub][sel] = my

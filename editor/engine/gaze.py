@@ -446,16 +446,10 @@ def _smooth01(t: np.ndarray) -> np.ndarray:
     return t * t * (3.0 - 2.0 * t)
 
 
-#: Shadow the upper lid casts on the eyeball it uncovers: depth and 1/e fall-off (x iris r)
-#: (on an eye without :attr:`EyePlan.bands` only: the photo's own band along the lid, moved
-#: with it, is the lid's shadow)
-LID_SHADOW, LID_SHADOW_FALL = 0.12, 0.25
-
-
 def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.ndarray,
                r: float, soft: float, lids: tuple[np.ndarray, np.ndarray],
                org: tuple[float, float], axes: tuple[np.ndarray, np.ndarray],
-               widths: tuple[float, float]) -> tuple[np.ndarray, np.ndarray] | None:
+               widths: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """Two (h, w, 3) float32 maps, the upper lid's and the lower lid's: the photo over the bare
     eyeball (the completed iris over the white plate, at rest), per channel and clipped to
     [0, 1], in the band along that lid (``widths`` below the upper lid, above the lower one)
@@ -463,10 +457,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     and their shadow take from the eyeball, to move with the lid when it opens. (Real sclera
     under the upper lid, JAFFE and the sample: 0.5 of its brightest over the first fifth of an
     iris radius, 0.87 over the next; the photo's mesh puts the lid line inside the lash band,
-    so its lower half lies in the opening.) None on a degenerate patch."""
+    so its lower half lies in the opening.)"""
     ph, pw = rho.shape
-    if ph < 2 or pw < 2:
-        return None
     cover = np.clip((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
         np.clip(r + 1.0 - rho, 0.0, 1.0)
     a = cover.astype(np.float32)[..., None]
@@ -534,9 +526,8 @@ class EyePlan:
     widths: tuple[float, ...] = ()  # this eye's limbus_widths
     #: (h, w, 3) float32 x 2, the upper and the lower lid's: the photo's band along that lid
     #: (the lashes and margin hanging over the eyeball, their shadow) as a share of the bare
-    #: eyeball (<= 1), 1 elsewhere (see :func:`_lid_bands`). None: no bands (a raised lid
-    #: then casts a synthetic shadow only)
-    bands: tuple[np.ndarray, np.ndarray] | None = None
+    #: eyeball (<= 1), 1 elsewhere (see :func:`_lid_bands`): the shadow an opened lid casts
+    bands: tuple[np.ndarray, ...] = ()
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
@@ -748,7 +739,7 @@ class EyePlan:
         white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         # opened lids: per pixel, how far its column's lid moved away and the weight of the
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
-        keep, shadow = None, None
+        keep = None
         band3: np.ndarray | None = None  # (h, w, 3) the photo's lid bands, moved
         if poly is not None:
             up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
@@ -780,30 +771,21 @@ class EyePlan:
                 white -= ball
                 white *= cv2.merge([keep, keep, keep])
                 white += ball
-                if up_moved and self.bands is None:
-                    fall = LID_SHADOW_FALL * self.r0
-                    shadow = (1.0 - LID_SHADOW * s_up
-                              * np.exp(-np.maximum(W - w_up, 0.0) / fall)).astype(np.float32)
-                if self.bands is not None:
-                    # the photo's own bands ride with their lids: a pixel at depth d below
-                    # the raised upper lid (above the lowered lower one) takes the band's
-                    # share at depth d below the photo's lid (the lashes' lower half, which
-                    # lay inside the photo's opening, are not wiped off with the white)
-                    # (the pixel's image position is ox + U ex + Wb ey: its U part is the
-                    # same for both lids)
-                    bu = (ox + U * ex[0], oy + U * ex[1])
-                    for moved_lid, s_lid, Wb, bmap in (
-                            (up_moved, s_up, W + d_up if up_moved else None, self.bands[0]),
-                            (low_moved, s_lo, W - d_lo if low_moved else None, self.bands[1])):
-                        if not moved_lid or Wb is None:
-                            continue
-                        bx = (bu[0] + Wb * ey[0]).astype(np.float32)
-                        by = (bu[1] + Wb * ey[1]).astype(np.float32)
-                        got = cv2.remap(bmap, bx, by, cv2.INTER_LINEAR,
-                                        borderMode=cv2.BORDER_CONSTANT,
-                                        borderValue=(1.0, 1.0, 1.0))
-                        got = (1.0 - s_lid[..., None] * (1.0 - got)).astype(np.float32)
-                        band3 = got if band3 is None else np.minimum(band3, got)
+                # the photo's own bands ride with their lids: a pixel at depth d below the
+                # raised upper lid (above the lowered lower one) takes the band's share at depth
+                # d below the photo's lid (the lashes' lower half, which lay inside the photo's
+                # opening, and their shadow; not wiped off with the white). The pixel's image
+                # position is ox + U ex + Wb ey: its U part is the same for both lids
+                bu = (ox + U * ex[0], oy + U * ex[1])
+                for moved_lid, s_lid, Wb, bmap in ((up_moved, s_up, W + d_up, self.bands[0]),
+                                                   (low_moved, s_lo, W - d_lo, self.bands[1])):
+                    if not moved_lid:
+                        continue
+                    got = cv2.remap(bmap, (bu[0] + Wb * ey[0]).astype(np.float32),
+                                    (bu[1] + Wb * ey[1]).astype(np.float32), cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_CONSTANT, borderValue=(1.0, 1.0, 1.0))
+                    got = (1.0 - s_lid[..., None] * (1.0 - got)).astype(np.float32)
+                    band3 = got if band3 is None else np.minimum(band3, got)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du if du else U
         Dw = W - dw if dw else W
@@ -812,8 +794,6 @@ class EyePlan:
         a = _clamp(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
             _clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
         if not np.count_nonzero(a):
-            if shadow is not None:
-                white = white * cv2.merge([shadow, shadow, shadow])
             return white if band3 is None else white * band3
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
@@ -852,8 +832,6 @@ class EyePlan:
         col = iris - white  # a iris + (1 - a) white (white is this frame's own array)
         col *= cv2.merge([a, a, a])
         col += white
-        if shadow is not None:
-            col *= cv2.merge([shadow, shadow, shadow])
         if band3 is not None:
             col *= band3
         return col

@@ -760,6 +760,15 @@ _OWN_MIN = 0.07
 _SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
 
 
+@functools.lru_cache(maxsize=64)
+def _sub_steps(k: int) -> np.ndarray:
+    """``(arange(k) + 0.5) / k``: where a segment's ``k`` sub-samples lie along it (kept
+    read-only: k is at most 64, and three arrays a frame cost as much as their use)."""
+    u = (np.arange(k) + 0.5) / k
+    u.setflags(write=False)
+    return u
+
+
 # ---------------------------------------------------------------------------- drawing
 def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarray,
             w2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -872,7 +881,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
         sig = float(fa.sig[g])
         K = int(min(max(math.ceil(max(L.tolist()) / min(0.5, 0.5 * sig)), 1), 64))
-        u = (np.arange(K) + 0.5) / K
+        u = _sub_steps(K)
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = sa[g0:g1], sb[g0:g1]
         w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
@@ -1116,7 +1125,7 @@ def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, 
         f = 1 if got is None else max(1, int(sb / 1.5))
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
         K = int(min(max(math.ceil(max(L.tolist()) / (0.5 * f)), 1), 64))  # (no ndarray.max)
-        u = (np.arange(K) + 0.5) / K
+        u = _sub_steps(K)
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = ua[g0:g1], ub[g0:g1]
         w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
@@ -1258,7 +1267,7 @@ def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float =
     a, d = pos[ia], pos[ia + 1] - pos[ia]
     L = np.sqrt((d * d).sum(1))
     K = int(min(max(np.ceil(L.max() / step), 1), 64))
-    u = (np.arange(K) + 0.5) / K
+    u = _sub_steps(K)
     pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
     ua, ub = un[ia], un[ia + 1]
     w = ((ua[:, None] + (ub - ua)[:, None] * u[None]) * (L / K)[:, None]).ravel()

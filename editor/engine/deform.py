@@ -448,13 +448,22 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     convex parabola whose vertex lies inside (0, 1), at the vertex. Triangles at or below the
     limit at ``t = 0`` are left to the guard, as in :func:`_tau`.
     """
-    t0, t1, t2 = _tri_columns(plan)
-    # (B, V, 4) viewed component first: the corners gathered with take (fancy indexing costs
-    # several us more) into (4, B, T), whose components are contiguous (B, T) arrays
-    X = np.concatenate([base, D], axis=2).transpose(2, 0, 1)
-    XC = X.take(t2, 2)
-    u = XC - X.take(t0, 2)
-    w = XC - X.take(t1, 2)
+    T = len(plan.triangles)
+    if base.shape[0] == 1:
+        # one vector: its (V, 4) positions and displacements, all corners gathered in one take
+        # (C, A, B of every triangle) and viewed component first, (4, 1, T) each
+        G = np.concatenate([base[0], D[0]], axis=1).take(_tri_gather(plan), 0).T
+        XC = G[:, None, :T]
+        u = XC - G[:, None, T:2 * T]
+        w = XC - G[:, None, 2 * T:]
+    else:
+        t0, t1, t2 = _tri_columns(plan)
+        # (B, V, 4) viewed component first: the corners gathered with take (fancy indexing
+        # costs several us more) into (4, B, T)
+        X = np.concatenate([base, D], axis=2).transpose(2, 0, 1)
+        XC = X.take(t2, 2)
+        u = XC - X.take(t0, 2)
+        w = XC - X.take(t1, 2)
     ux, uy, dux, duy = u
     wx, wy, dwx, dwy = w
     sg, lim, tol = _fold_limits(plan)
@@ -462,14 +471,27 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     a1 = sg * (ux * dwy - uy * dwx + dux * wy - duy * wx)
     a0 = sg * (ux * wy - uy * wx) - lim
     p1 = a0 + a1 + a2
-    # the parabola's minimum inside (0, 1) (convex, vertex -a1 / (2 a2) there): a0 - a1^2/(4 a2)
-    # (divided only there: a2 > 0, so no division warning to silence)
-    inner = (a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2)
-    low = np.full(a0.shape, np.inf)
-    np.subtract(a0, np.divide(a1 * a1, 4.0 * a2, where=inner, out=np.zeros_like(a0)),
-                out=low, where=inner)
-    ok = (a0 <= 0) | ((p1 > tol) & (low > tol))
-    return bool(ok.all())
+    if not ((a0 <= 0) | (p1 > tol)).all():
+        return False
+    # the parabola's minimum inside (0, 1) (convex, vertex -a1 / (2 a2) there): a0 - a1^2/(4 a2),
+    # at those triangles only (a2 > 0 there: no division warning to silence)
+    inner = np.flatnonzero((a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2) & (a0 > 0))
+    if not len(inner):
+        return True
+    a0, a1, a2 = a0.ravel().take(inner), a1.ravel().take(inner), a2.ravel().take(inner)
+    return bool((a0 - a1 * a1 / (4.0 * a2) > np.broadcast_to(tol, p1.shape).ravel().take(inner)
+                 ).all())
+
+
+def _tri_gather(plan: DeformPlan) -> np.ndarray:
+    """The triangles' corners C, A, B (columns 2, 0, 1) concatenated: one gather of all of
+    them (once per plan)."""
+    got = plan.__dict__.get("_tri_gather")
+    if got is None:
+        t0, t1, t2 = _tri_columns(plan)
+        got = np.concatenate([t2, t0, t1])
+        object.__setattr__(plan, "_tri_gather", got)
+    return got
 
 
 def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int = 8

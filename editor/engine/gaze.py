@@ -441,6 +441,17 @@ def _clamp(x, lo, hi):
     return np.minimum(np.maximum(x, lo), hi)
 
 
+def _ramp(d: np.ndarray, sk: float) -> np.ndarray:
+    """``d * sk + 0.5`` (the same values: on a sharp photo ``sk`` is 1, by which a product is
+    exact, and the multiplication is skipped)."""
+    if sk == 1.0:
+        d += 0.5
+        return d
+    d *= sk
+    d += 0.5
+    return d
+
+
 def _smooth01(t: np.ndarray) -> np.ndarray:
     t = _clamp(t, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
@@ -756,11 +767,10 @@ class EyePlan:
             if up_moved or low_moved:
                 # (a lid that did not open contributes a factor of exactly 1: skipped)
                 sk = 1.0 / soft
-                keep = 1.0 - s_up * (1.0 - _clamp((W - w_up0 - self.band_up) * sk + 0.5, 0, 1)) \
+                keep = 1.0 - s_up * (1.0 - _clamp(_ramp(W - w_up0 - self.band_up, sk), 0, 1)) \
                     if up_moved else None
                 if low_moved:
-                    k_lo = 1.0 - s_lo * (1.0 - _clamp((w_lo0 - W - self.band_low) * sk + 0.5,
-                                                      0, 1))
+                    k_lo = 1.0 - s_lo * (1.0 - _clamp(_ramp(w_lo0 - W - self.band_low, sk), 0, 1))
                     keep = k_lo if keep is None else keep * k_lo
                 assert keep is not None  # up_moved or low_moved
                 keep = keep.astype(np.float32)

@@ -156,14 +156,56 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
         return
     sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
     sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
+    w, h = x1 - x0, y1 - y0
+    if w * h <= _COARSE_AREA:
+        # a small box: the table is read and the shift evaluated at the band's pixels only
+        # (their flat indices: np.nonzero of a 2-d mask costs several times more)
+        k = np.flatnonzero(sel)
+        if len(k):
+            _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
+                         k, sub, (x0, y0, x1, y1), map_x, map_y)
+        return
     if not np.count_nonzero(sel):
         return
+    # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
+    # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
+    # than a tenth of a pixel)
+    table, lo_x = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
+    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
+    s = _COARSE
+    nw, nh = -(-w // s) + 1, -(-h // s) + 1
+    off = 0.5 * s - 0.5
+    xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]
+    ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
+    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
+        + ys * np.float32(r10 / _STEP)  # the pixel's frame x, in table steps
+    # (the four channels read as views: cheaper than splitting them into new arrays)
+    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
+    shift = _shift(d, got)
+    shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)
+    my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(r11)
+    np.copyto(map_x[sub], mx, where=sel)
+    np.copyto(map_y[sub], my, where=sel)
+
+
+def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, float]:
+    """The frame's origin and rotation as Python floats: o0, o1, r00, r10, r01, r11."""
     R, org = fr.rot, fr.origin
-    o0, o1 = float(org[0]), float(org[1])
-    r00, r10, r01, r11 = float(R[0, 0]), float(R[1, 0]), float(R[0, 1]), float(R[1, 1])
-    # the jaw line now and its drop along the frame's x, tabulated every _STEP px and
-    # read per pixel with one cv2.remap (np.interp per pixel costs several times more); the
-    # frame's x over the box is extreme at its corners (Python floats: the same float64
+    return (float(org[0]), float(org[1]), float(R[0, 0]), float(R[1, 0]), float(R[0, 1]),
+            float(R[1, 1]))
+
+
+def _jaw_table(fr: FaceFrame, b: _Band, box: tuple[int, int, int, int], new: np.ndarray,
+               drop: np.ndarray, ring: np.ndarray, ramp: float) -> tuple[np.ndarray, float]:
+    """The jaw line now, its drop, the strip and the fade along the frame's x over ``box``,
+    tabulated every _STEP px (2, n, 4) float32 (read per pixel with one cv2.remap: np.interp
+    per pixel costs several times more), and the frame x of its first entry."""
+    x0, y0, x1, y1 = box
+    o0, o1, r00, r10, _, _ = _frame_numbers(fr)
+    # the frame's x over the box is extreme at its corners (Python floats: the same float64
     # arithmetic as on arrays, without their cost for four values)
     ax, ay = (x0 - o0) * r00, (x1 - 1 - o0) * r00
     by, cy = (y0 - o1) * r10, (y1 - 1 - o1) * r10
@@ -183,31 +225,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     table[:, :, 2] = t_strip
     room -= t_strip
     table[:, :, 3] = np.maximum(np.minimum(ramp, room, out=room), 0.5, out=room)
-    w, h = x1 - x0, y1 - y0
-    # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
-    # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
-    # than a tenth of a pixel); on a small one at the band's pixels only
-    s = _COARSE if w * h > _COARSE_AREA else 1
-    if s == 1:
-        _hook_pixels(table, sel, sub, (x0, y0, x1, y1), (o0, o1), (r00, r10, r01, r11), lo_x,
-                     map_x, map_y)
-        return
-    nw, nh = -(-w // s) + 1, -(-h // s) + 1
-    off = 0.5 * s - 0.5
-    xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]
-    ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
-    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
-        + ys * np.float32(r10 / _STEP)  # the pixel's frame x, in table steps
-    # (the four channels read as views: cheaper than splitting them into new arrays)
-    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
-    d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
-    shift = _shift(d, got)
-    shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
-    mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)
-    my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(r11)
-    np.copyto(map_x[sub], mx, where=sel)
-    np.copyto(map_y[sub], my, where=sel)
+    return table, lo_x
 
 
 def _shift(d: np.ndarray, got: np.ndarray) -> np.ndarray:
@@ -226,19 +244,17 @@ def _shift(d: np.ndarray, got: np.ndarray) -> np.ndarray:
     return shift
 
 
-def _hook_pixels(table: np.ndarray, sel: np.ndarray, sub: tuple[slice, slice],
-                 box: tuple[int, int, int, int], org: tuple[float, float],
-                 rot: tuple[float, float, float, float], lo_x: float, map_x: np.ndarray,
-                 map_y: np.ndarray) -> None:
+def _hook_pixels(fr: FaceFrame, tab: tuple[np.ndarray, float], sel: np.ndarray,
+                 k: np.ndarray, sub: tuple[slice, slice], box: tuple[int, int, int, int],
+                 map_x: np.ndarray, map_y: np.ndarray) -> None:
     """:func:`_hook` at every pixel of a small band box ``box`` (``sel``: the band's pixels
-    in it, ``sub`` its slices of the warp's maps): the table is read and the shift evaluated
-    at the band's pixels only (about half the box), each with the float32 arithmetic of a
-    whole-box evaluation (its row and column terms, then their sum), so with its values."""
+    in it, ``k`` their flat indices, ``sub`` its slices of the warp's maps; ``tab``
+    :func:`_jaw_table`): the table is read and the shift evaluated at the band's pixels only
+    (about half the box), each with the float32 arithmetic of a whole-box evaluation (its
+    row and column terms, then their sum), so with its values."""
     x0, y0, x1, y1 = box
-    o0, o1 = org
-    r00, r10, r01, r11 = rot
-    # (the pixels' flat indices, split: np.nonzero of a 2-d mask costs several times more)
-    k = np.flatnonzero(sel)
+    table, lo_x = tab
+    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
     yi = k // (x1 - x0)
     xi = k - yi * (x1 - x0)
     xs = x0 + np.arange(x1 - x0, dtype=np.float32) - np.float32(o0)

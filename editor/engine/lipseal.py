@@ -125,10 +125,14 @@ class SealPlan:
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+_MISSING = object()  # (a face whose plan is None is cached too)
+
+
 def seal_plan(face: Face) -> SealPlan | None:
     """The face's :class:`SealPlan` (cached for its lifetime; None: its lips are closed)."""
-    if face in _PLANS:
-        return _PLANS[face]
+    p = _PLANS.get(face, _MISSING)
+    if p is not _MISSING:
+        return p
     p = _build(face)
     _PLANS[face] = p
     return p
@@ -420,10 +424,11 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         # the photo has it and where its lip vertex took it, with a margin
         h, w = patch.diff.shape[:2]
         ox, oy = patch.org
-        lo = np.minimum((ox, oy), (ox + shift[0], oy + shift[1])) - m
-        hi = np.maximum((ox + w, oy + h), (ox + w + shift[0], oy + h + shift[1])) + m
-        x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        x1, y1 = min(int(hi[0]) + 1, W), min(int(hi[1]) + 1, H)
+        # (Python floats: the same values as numpy's element-wise min / max of two pairs)
+        sx, sy = float(shift[0]), float(shift[1])
+        x0, y0 = max(int(min(ox, ox + sx) - m), 0), max(int(min(oy, oy + sy) - m), 0)
+        x1 = min(int(max(ox + w, ox + w + sx) + m) + 1, W)
+        y1 = min(int(max(oy + h, oy + h + sy) + m) + 1, H)
         if res.maps is None or x1 - x0 < 2 or y1 - y0 < 2:
             continue
         mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))

@@ -478,6 +478,24 @@ def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
     return (lo64 + part[h].astype(np.float64)) / 2.0
 
 
+def linspace(start: float, stop: float, num: int) -> np.ndarray:
+    """``np.linspace(start, stop, num)`` of two float64 (or Python) numbers, ``num`` >= 2, bit
+    for bit (numpy's arithmetic: ``arange * step + start``, the last value ``stop``) without
+    its Python-level overhead (~10 us a call; the plans lay out dozens of lines)."""
+    a, b = float(start), float(stop)
+    delta = b - a
+    step = delta / (num - 1)
+    y = np.arange(num, dtype=np.float64)
+    if step == 0:  # (numpy's order for a step that underflows)
+        y /= num - 1
+        y *= delta
+    else:
+        y *= step
+    y += a
+    y[-1] = b
+    return y
+
+
 def percentile(a: np.ndarray, q: float) -> np.floating:
     """``np.percentile(a, q)`` (default linear method, a Python float ``q``) of a float array,
     bit for bit, without its Python-level overhead (~100 us a call): the two neighbouring

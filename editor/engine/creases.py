@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, linspace, luminance, median
+from .fitting import channel_median, is_grey, linspace, luminance, median, pad_edge
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -1080,8 +1080,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         # nose wing or the mouth corner) follows the others
         w = (np.maximum(depth - 1.0, 0.0) + 1e-3) * (p.utaper[a:b] + 1e-3)
         kern = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
-        num = np.convolve(np.pad(off * w, 4, mode="edge"), kern, mode="valid")
-        den = np.convolve(np.pad(w, 4, mode="edge"), kern, mode="valid")
+        num = np.convolve(pad_edge(off * w, 4), kern, mode="valid")
+        den = np.convolve(pad_edge(w, 4), kern, mode="valid")
         off = np.clip(num / den, -reach, reach)
         todo.append((a, b, q + off[:, None] * nrm))
     if todo:  # located on the mesh in one batch
@@ -1533,12 +1533,21 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     # the same values per channel)
     src = cv2.cvtColor(sub, cv2.COLOR_RGB2RGBA) if nc == 3 else sub
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
-    for t, wt in zip(ts.tolist(), wts.tolist(), strict=True):
-        mx = ux * np.float32(t)
-        mx += bx
-        my = uy * np.float32(t)
-        my += by
-        got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    # the taps are symmetric (ts[nt + k] = -ts[nt - k]): u * t once per pair, added to and
+    # subtracted from the pixel's position (u * -t + b is b - u * t exactly); the middle
+    # tap's map is the pixels themselves, whose bilinear sample is the pixel (weights 1, 0)
+    off = {k: (ux * np.float32(t), uy * np.float32(t)) for k, t in enumerate(ts.tolist())
+           if k > nt}
+    for k, wt in enumerate(wts.tolist()):
+        if k == nt:
+            got = src[at[1]:at[1] + hb, at[0]:at[0] + wb]
+        else:
+            ox, oy = off[k] if k > nt else off[2 * nt - k]
+            if k > nt:
+                mx, my = ox + bx, oy + by
+            else:
+                mx, my = bx - ox, by - oy
+            got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         cv2.scaleAdd(got, wt, acc, dst=acc)
     return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
 

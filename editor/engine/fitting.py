@@ -496,6 +496,12 @@ def linspace(start: float, stop: float, num: int) -> np.ndarray:
     return y
 
 
+def pad_edge(a: np.ndarray, k: int) -> np.ndarray:
+    """``np.pad(a, k, mode="edge")`` of a 1-D array (its ends repeated ``k`` times), without
+    np.pad's Python-level set-up (~20 us a call)."""
+    return np.concatenate((np.repeat(a[:1], k), a, np.repeat(a[-1:], k)))
+
+
 def percentile(a: np.ndarray, q: float) -> np.floating:
     """``np.percentile(a, q)`` (default linear method, a Python float ``q``) of a float array,
     bit for bit, without its Python-level overhead (~100 us a call): the two neighbouring

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, median
+from .fitting import channel_median, median, pad_edge
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
@@ -523,9 +523,9 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         split = np.interp(np.arange(pw), ok, split[ok])
         # a smooth edge along the teeth's tips (upper envelope over 3 columns, then a mean):
         # a ragged per-column edge shows as dark specks once the jaw part moves away
-        env = np.pad(split, 1, mode="edge")
+        env = pad_edge(split, 1)
         split = np.maximum(np.maximum(env[:-2], env[1:-1]), env[2:])
-        split = np.convolve(np.pad(split, 2, mode="edge"), kern, mode="valid")
+        split = np.convolve(pad_edge(split, 2), kern, mode="valid")
     else:
         split[:] = ph
     ys = np.arange(ph, dtype=np.float64)[:, None]
@@ -578,7 +578,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
             own_up, own_low, rgb_up, ext_mask, split, np.flatnonzero(ext))
     # (stacked straight into float32: no float64 stack, no second copy)
     own = np.concatenate([own_up[..., None], own_low[..., None]], axis=2, dtype=np.float32)
-    sliver = np.convolve(np.pad(sliver.astype(np.float64), 2, mode="edge"), kern, mode="valid")
+    sliver = np.convolve(pad_edge(sliver.astype(np.float64), 2), kern, mode="valid")
     rgb = np.concatenate([rgb_up, patch], axis=2, dtype=np.float32)
     return (off, own, rgb, bool(ext.sum() >= 3), has_low, sliver.astype(np.float32), ext_mask)
 

@@ -613,7 +613,14 @@ def _fast(face: Face) -> _Fast:
     if f is not None:
         return f
     p = crease_plan(face)
-    used, inv = np.unique(p.probe_tri, return_inverse=True)
+    # (np.unique's sorted values and inverse, from a mark per triangle: no sort)
+    flat = p.probe_tri.reshape(-1)
+    mark = np.zeros(len(p.tri_inv), bool)
+    mark[flat] = True
+    used = np.flatnonzero(mark).astype(p.probe_tri.dtype, copy=False)
+    slot = np.zeros(len(mark), np.intp)
+    slot[used] = np.arange(len(used))
+    inv = slot[flat]
     st = [STYLES[k] for k in p.kinds]
     depth = np.array([x.depth for x in st])[p.fold]
     c0 = np.array([x.c0 for x in st])[p.fold]
@@ -1079,7 +1086,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         # a sample without a valley (or at the fold's faded ends, where the search may catch the
         # nose wing or the mouth corner) follows the others
         w = (np.maximum(depth - 1.0, 0.0) + 1e-3) * (p.utaper[a:b] + 1e-3)
-        kern = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
+        kern = _VALLEY_KERN
         num = np.convolve(pad_edge(off * w, 4), kern, mode="valid")
         den = np.convolve(pad_edge(w, 4), kern, mode="valid")
         off = np.clip(num / den, -reach, reach)
@@ -1093,6 +1100,9 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     _VALLEYS[face] = (tri, bary)
     return tri, bary
 
+
+#: the along-line smoothing of the valley offsets (a Gaussian of 2 samples, unnormalised)
+_VALLEY_KERN = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
 
 #: how far across its laid-out line a photo's own fold is looked for (inter-ocular distances)
 _VALLEY_REACH = 0.08

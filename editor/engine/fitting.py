@@ -562,8 +562,8 @@ def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarra
 
     m = None if mask is None else (mask > 0).astype(np.uint8)
     n = img.shape[0] * img.shape[1] if m is None else int(cv2.countNonZero(m))
-    # (a partition is quicker below ~1000 pixels; the counts are float32: exact below 2^24)
-    if img.dtype != np.uint8 or img.ndim != 3 or n < 1024 or n >= 1 << 24:
+    # (a partition is quicker below ~4000 pixels; the counts are float32: exact below 2^24)
+    if img.dtype != np.uint8 or img.ndim != 3 or n < 4096 or n >= 1 << 24:
         return median(img.reshape(-1, img.shape[-1]) if m is None else img[m > 0], axis=0)
     out = np.empty(img.shape[2])
     for c in range(img.shape[2]):

@@ -61,6 +61,7 @@ _SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
 _EYE_FAP_IDX = {k: np.array(v) for k, v in EYE_FAPS.items()}
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 _SQUARE = np.ones((3, 3), np.uint8)
+_ZEROS2 = np.zeros(2)  # (np.pad's two zeros either side, without its set-up)
 
 
 @dataclass(eq=False)
@@ -544,7 +545,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         near = cols[np.abs(span[:, None] - cols[None, :]).argmin(1)]
         full = np.zeros(pw)
         full[span] = 1.0
-        ext_w = np.convolve(np.pad(full, 2), kern, mode="valid")
+        ext_w = np.convolve(np.concatenate((_ZEROS2, full, _ZEROS2)), kern, mode="valid")
         # the crown goes on above the opening for what the photo does not show of it (its
         # visible height in the middle columns), then fades into the gum
         fade = max(GUM_FADE * D, 1.0)

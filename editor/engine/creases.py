@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, luminance, median
+from .fitting import channel_median, is_grey, linspace, luminance, median, pad_edge
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -141,7 +141,7 @@ def _catmull(ctrl: np.ndarray, n: int) -> np.ndarray:
     """n points on a Catmull-Rom curve through the control points (uniform in parameter)."""
     c = np.vstack([2 * ctrl[0] - ctrl[1], ctrl, 2 * ctrl[-1] - ctrl[-2]])
     m = len(ctrl) - 1
-    t = np.linspace(0.0, m, n)
+    t = linspace(0.0, m, n)
     i = np.minimum(t.astype(int), m - 1)
     u = (t - i)[:, None]
     p0, p1, p2, p3 = c[i], c[i + 1], c[i + 2], c[i + 3]
@@ -152,7 +152,7 @@ def _catmull(ctrl: np.ndarray, n: int) -> np.ndarray:
 def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
     """Taper along a line: rises over [0, a], falls over [1 - b, 1] (smoothstep)."""
     def ss(x: np.ndarray) -> np.ndarray:
-        x = np.clip(x, 0.0, 1.0)
+        x = np.minimum(np.maximum(x, 0.0), 1.0)  # (np.clip's values, without its overhead)
         return x * x * (3.0 - 2.0 * x)
     return ss(t / max(a, 1e-6)) * ss((1.0 - t) / max(b, 1e-6))
 
@@ -198,14 +198,14 @@ def _fold_lines(face: Face) -> list[_Line]:
         bow = np.array([-d[1], d[0]]) * (0.12 * sg)  # slightly convex towards the cheek
         ctrl = np.array([top, 0.5 * (top + mid) - bow, mid, bot])  # mirror images
         pts = _catmull(ctrl, 28)
-        t = np.linspace(0.0, 1.0, len(pts))
+        t = linspace(0.0, 1.0, len(pts))
         # a smiling photo's own fold reaches from the nose wing down past the corner
         lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
                            (sg, -0.5), utaper=_fade(t, 0.2, 0.25)))
         # its upper part, driven by the skin between the nose wing and the upper lip's
         # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
         up = pts[: int(0.6 * len(pts))]
-        tu = np.linspace(0.0, 1.0, len(up))
+        tu = linspace(0.0, 1.0, len(up))
         lip = q(f"lipo_u{2 if s == 'r' else 6}")
         # (probes 0.55 and 0.8 of the way to the lip: they straddle the philtrum row, where
         # the lip's lift compresses the skin; at 0.4 / 0.65 they sat above it on some fits, so
@@ -217,13 +217,13 @@ def _fold_lines(face: Face) -> list[_Line]:
                            (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
-    crow_fade = _fade(np.linspace(0, 1, 10), 0.35, 0.6)  # (the same for every crow's foot)
+    crow_fade = _fade(linspace(0, 1, 10), 0.35, 0.6)  # (the same for every crow's foot)
     for s, sg in (("r", -1.0), ("l", 1.0)):
         oc = q(f"eye_{s}_c{0 if s == 'r' else 1}")
         for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
             a = np.deg2rad(ang)
             d = np.array([sg * np.cos(a), np.sin(a)])
-            rr = np.linspace(r0, r1, 10)
+            rr = linspace(r0, r1, 10)
             bend = 0.015 * np.sin(np.pi * (rr - r0) / (r1 - r0))  # slightly curved
             perp = np.array([-d[1], d[0]])
             pts = oc + rr[:, None] * d + bend[:, None] * perp
@@ -236,13 +236,13 @@ def _fold_lines(face: Face) -> list[_Line]:
     brow = brow[np.argsort(brow[:, 0])]
     top = np.array([q(f"forehead_2_{k}") for k in range(1, 8)])
     top = top[np.argsort(top[:, 0])]
-    xs = np.linspace(brow[1, 0], brow[-2, 0], 40)
+    xs = linspace(brow[1, 0], brow[-2, 0], 40)
     yb = np.interp(xs, brow[:, 0], brow[:, 1])
     # the lines curve gently like the brows (half as much), not with the brows' gap
     yb_s = 0.5 * yb + 0.5 * float(median(yb))
     yh = np.interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
-    t = np.linspace(0.0, 1.0, len(xs))
+    t = linspace(0.0, 1.0, len(xs))
     # real lines are irregular: uneven waviness, breaks, lengths and strength along the line
     # (a fixed draw: the same at any resolution), so they do not look drawn with a ruler
     rng = np.random.default_rng(1729)
@@ -274,7 +274,7 @@ def _fold_lines(face: Face) -> list[_Line]:
         x = g[0] + sg * max(0.32 * half, 0.07) * rng.uniform(0.9, 1.1)
         y_brow = 0.5 * (ri[1] + li[1])
         y_top, y_bot = y_brow - 0.24 * rng.uniform(0.85, 1.1), max(g[1], y_brow + 0.04)
-        ys = np.linspace(y_top, y_bot, 14)
+        ys = linspace(y_top, y_bot, 14)
         u = (ys - y_top) / (y_bot - y_top)
         pts = np.stack([x + tilt * u - sg * 0.02 * u * u + sg * 0.015 * (1 - u) ** 2
                         + 0.004 * np.sin(2 * np.pi * 1.5 * u + rng.uniform(0, 6.3)), ys], 1)
@@ -298,8 +298,8 @@ def _fold_lines(face: Face) -> list[_Line]:
     for at, half_w, k_b, dx, tilt, curve in ((0.05, 0.11, 1.0, 0.0, 0.03, 0.06),
                                              (-0.35, 0.07, 0.55, 0.015, -0.05, 0.02)):
         c = n27 + at * (n28 - n27)
-        xs_b = np.linspace(-half_w, half_w, 12)
-        t_b = np.linspace(0, 1, 12)
+        xs_b = linspace(-half_w, half_w, 12)
+        t_b = linspace(0, 1, 12)
         wave = 0.003 * np.sin(2 * np.pi * 1.3 * t_b + rng.uniform(0, 6.3))
         y_b = c[1] + curve * xs_b ** 2 / half_w + tilt * xs_b + wave
         pts = np.stack([c[0] + dx + xs_b, y_b], 1)
@@ -328,7 +328,11 @@ def _normals(pts: np.ndarray) -> np.ndarray:
     tang[-1] = p[-1] - p[-2]
     tx, ty = tang[:, 0], tang[:, 1]
     n = np.maximum(np.sqrt(tx * tx + ty * ty), 1e-9)
-    return np.stack([-ty / n, tx / n], 1)
+    out = np.empty_like(p)  # (np.stack's values without its overhead)
+    np.divide(ty, n, out=out[:, 0])
+    np.negative(out[:, 0], out=out[:, 0])
+    np.divide(tx, n, out=out[:, 1])
+    return out
 
 
 def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
@@ -352,25 +356,44 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
         return ti.astype(np.int32), bary
     ti = np.zeros(n, np.int64)
     bary = np.zeros((n, 3))
-    # candidate (point, triangle) pairs: the points in each triangle's x range (points sorted
-    # by x), then kept where y is in its range too (boxes grown by 1e-3 px: rounding)
+    # candidate (point, triangle) pairs: the points in each triangle's box (grown by 1e-3 px:
+    # rounding). The points are binned in horizontal bands and sorted by band, then x; per
+    # triangle and band it spans, the band's points in (a hair more than) its x range: a
+    # superset of the pairs, cut to exactly those by the box comparisons. (A sweep over x
+    # alone paired each triangle with every point in its column: ~15 x the pairs.)
     lo = np.minimum(np.minimum(a, b), c) - 1e-3
     hi = np.maximum(np.maximum(a, b), c) + 1e-3
-    order = np.argsort(points[:, 0], kind="stable")
-    xs = points[order, 0]
-    r0 = np.searchsorted(xs, lo[:, 0], "left")
-    cnt = np.searchsorted(xs, hi[:, 0], "right") - r0
-    cnt[np.abs(det) < 1.0] = 0  # (degenerate: added to every point below)
-    pt_t = np.repeat(np.arange(T), cnt)
+    px, py = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
+    ymin, xmin = float(py.min()), float(px.min())
+    hb = max(float(median(hi[:, 1] - lo[:, 1])), 1.0)  # band height: a typical triangle's
+    band = np.floor((py - ymin) / hb)
+    span = float(px.max()) - xmin + 2.0  # the bands' keys lie apart
+    key = band * span + (px - xmin)
+    order = np.argsort(key)  # (the pairs found do not depend on the order of equal keys)
+    key = key[order]
+    # the bands each triangle's y range spans (floor is monotonic: a point in the range lies
+    # in one of them)
+    tb0 = np.maximum(np.floor((lo[:, 1] - ymin) / hb), 0.0)
+    tb1 = np.minimum(np.floor((hi[:, 1] - ymin) / hb), float(band.max()))
+    nb = np.maximum(tb1 - tb0 + 1.0, 0.0).astype(np.intp)
+    nb[np.abs(det) < 1.0] = 0  # (degenerate: added to every point below)
+    tt = np.repeat(np.arange(T), nb)
+    bb = np.repeat(tb0, nb) + (np.arange(len(tt)) - np.repeat(np.cumsum(nb) - nb, nb))
+    # (x offsets held within the band's keys; +- 1e-6 px covers the keys' rounding)
+    ka = bb * span + (np.clip(lo[tt, 0] - xmin, -1.0, span - 1.0) - 1e-6)
+    kb = bb * span + (np.clip(hi[tt, 0] - xmin, -1.0, span - 1.0) + 1e-6)
+    r0 = np.searchsorted(key, ka, "left")
+    cnt = np.searchsorted(key, kb, "right") - r0
+    pt_t = np.repeat(tt, cnt)
     pt_p = order[np.arange(len(pt_t)) - np.repeat(np.cumsum(cnt) - cnt - r0, cnt)]
-    py = points[pt_p, 1]
-    keep = (py >= lo[pt_t, 1]) & (py <= hi[pt_t, 1])
+    qx, qy = px[pt_p], py[pt_p]
+    keep = (qx >= lo[pt_t, 0]) & (qx <= hi[pt_t, 0]) & (qy >= lo[pt_t, 1]) & (qy <= hi[pt_t, 1])
     pt_t, pt_p = pt_t[keep], pt_p[keep]
     thin = np.flatnonzero(np.abs(det) < 1.0)
     if len(thin):
         pt_t = np.concatenate([pt_t, np.repeat(thin, n)])
         pt_p = np.concatenate([pt_p, np.tile(np.arange(n), len(thin))])
-    srt = np.lexsort((pt_t, pt_p))  # by point, then triangle
+    srt = np.argsort(pt_p * T + pt_t)  # by point, then triangle (unique keys)
     pt_t, pt_p = pt_t[srt], pt_p[srt]
     # the same arithmetic as _locate_all, pair by pair
     dx = points[pt_p, 0] - a[pt_t, 0]
@@ -388,11 +411,13 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     np.minimum(worst, l2, out=worst)
     done = np.zeros(n, bool)
     if len(pt_p):
-        starts = np.flatnonzero(np.r_[True, pt_p[1:] != pt_p[:-1]])
+        # (np.concatenate rather than np.r_: the same arrays, without its overhead)
+        starts = np.flatnonzero(np.concatenate(([True], pt_p[1:] != pt_p[:-1])))
         best = np.maximum.reduceat(worst, starts)
-        sizes = np.diff(np.r_[starts, len(pt_p)])
+        sizes = np.diff(np.concatenate((starts, [len(pt_p)])))
         hit = np.flatnonzero(worst == np.repeat(best, sizes))
-        first = hit[np.r_[True, pt_p[hit[1:]] != pt_p[hit[:-1]]]]  # first hit per point
+        # the first hit per point
+        first = hit[np.concatenate(([True], pt_p[hit[1:]] != pt_p[hit[:-1]]))]
         inside = worst[first] >= 0.0
         first = first[inside]
         pts = pt_p[first]
@@ -471,9 +496,11 @@ def _build_plan(face: Face) -> CreasePlan:
         pts = fr.to_image(ln.pts * iod)
         nrm = _normals(pts)
         if float((nrm @ (fr.rot @ np.asarray(ln.side))).mean()) < 0:
-            # orient the line so that its normal points to the ridge side
+            # orient the line so that its normal points to the ridge side (the reversed
+            # line's normals are these, reversed and negated: its central differences are
+            # the negated ones, exactly)
             pts, taper, utaper = pts[::-1].copy(), taper[::-1].copy(), utaper[::-1].copy()
-            nrm = _normals(pts)
+            nrm = -nrm[::-1]
         q0 = len(queries)
         queries.append(pts)
         if ln.probes is None:
@@ -586,7 +613,14 @@ def _fast(face: Face) -> _Fast:
     if f is not None:
         return f
     p = crease_plan(face)
-    used, inv = np.unique(p.probe_tri, return_inverse=True)
+    # (np.unique's sorted values and inverse, from a mark per triangle: no sort)
+    flat = p.probe_tri.reshape(-1)
+    mark = np.zeros(len(p.tri_inv), bool)
+    mark[flat] = True
+    used = np.flatnonzero(mark).astype(p.probe_tri.dtype, copy=False)
+    slot = np.zeros(len(mark), np.intp)
+    slot[used] = np.arange(len(used))
+    inv = slot[flat]
     st = [STYLES[k] for k in p.kinds]
     depth = np.array([x.depth for x in st])[p.fold]
     c0 = np.array([x.c0 for x in st])[p.fold]
@@ -1061,9 +1095,9 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         # a sample without a valley (or at the fold's faded ends, where the search may catch the
         # nose wing or the mouth corner) follows the others
         w = (np.maximum(depth - 1.0, 0.0) + 1e-3) * (p.utaper[a:b] + 1e-3)
-        kern = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
-        num = np.convolve(np.pad(off * w, 4, mode="edge"), kern, mode="valid")
-        den = np.convolve(np.pad(w, 4, mode="edge"), kern, mode="valid")
+        kern = _VALLEY_KERN
+        num = np.convolve(pad_edge(off * w, 4), kern, mode="valid")
+        den = np.convolve(pad_edge(w, 4), kern, mode="valid")
         off = np.clip(num / den, -reach, reach)
         todo.append((a, b, q + off[:, None] * nrm))
     if todo:  # located on the mesh in one batch
@@ -1075,6 +1109,9 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     _VALLEYS[face] = (tri, bary)
     return tri, bary
 
+
+#: the along-line smoothing of the valley offsets (a Gaussian of 2 samples, unnormalised)
+_VALLEY_KERN = np.exp(-0.5 * (np.arange(-4, 5) / 2.0) ** 2)
 
 #: how far across its laid-out line a photo's own fold is looked for (inter-ocular distances)
 _VALLEY_REACH = 0.08
@@ -1515,12 +1552,21 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     # the same values per channel)
     src = cv2.cvtColor(sub, cv2.COLOR_RGB2RGBA) if nc == 3 else sub
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
-    for t, wt in zip(ts.tolist(), wts.tolist(), strict=True):
-        mx = ux * np.float32(t)
-        mx += bx
-        my = uy * np.float32(t)
-        my += by
-        got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    # the taps are symmetric (ts[nt + k] = -ts[nt - k]): u * t once per pair, added to and
+    # subtracted from the pixel's position (u * -t + b is b - u * t exactly); the middle
+    # tap's map is the pixels themselves, whose bilinear sample is the pixel (weights 1, 0)
+    off = {k: (ux * np.float32(t), uy * np.float32(t)) for k, t in enumerate(ts.tolist())
+           if k > nt}
+    for k, wt in enumerate(wts.tolist()):
+        if k == nt:
+            got = src[at[1]:at[1] + hb, at[0]:at[0] + wb]
+        else:
+            ox, oy = off[k] if k > nt else off[2 * nt - k]
+            if k > nt:
+                mx, my = ox + bx, oy + by
+            else:
+                mx, my = bx - ox, by - oy
+            got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         cv2.scaleAdd(got, wt, acc, dst=acc)
     return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
 

@@ -449,8 +449,8 @@ def luminance(rgb: np.ndarray, rows: int = LUMINANCE_ROWS) -> np.ndarray:
 def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
     """``np.median(a)`` (``axis``: None or 0) bit for bit, without its Python-level overhead
     (~50 us a call, more than the partition itself on the plans' small arrays): the middle
-    order statistic(s) from one ``np.partition``, averaged in ``np.mean``'s precision (the
-    array's float type, float64 for integers). Empty or NaN-holding input: ``np.median``."""
+    order statistic(s) from ``np.partition``, averaged in ``np.mean``'s precision (the array's
+    float type, float64 for integers). Empty or NaN-holding input: ``np.median``."""
     a = np.asarray(a)
     if axis is None:
         a = a.reshape(-1)
@@ -461,6 +461,22 @@ def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
     if n == 0 or kind not in "fiub":
         return np.median(a, axis=axis)
     h = n // 2
+    if n >= _ONE_KTH_MIN:
+        # one kth per partition: np.partition given several (as np.median asks for its two
+        # middle values and the NaN check) leaves numpy's vectorised selection for a scalar
+        # one, ~8x slower on ~20k values. The lower middle value of an even count is the
+        # largest of the h values partitioned below ``h``; NaNs (sorted last) lie at or after
+        # ``h``
+        part = np.partition(a, h, axis=0)
+        mid = part[h]
+        lo = mid if n % 2 == 1 else part[:h].max(axis=0)
+        if kind != "f":
+            return lo.astype(np.float64) if n % 2 == 1 else \
+                (lo.astype(np.float64) + mid.astype(np.float64)) / 2.0
+        # (a zero middle value may be +0 or -0, whichever the several-kth partition below
+        # leaves there: that one then, as for NaNs)
+        if not np.isnan(part[h:].max(axis=0)).any() and np.all(lo) and np.all(mid):
+            return mid if n % 2 == 1 else (lo + mid) / a.dtype.type(2)
     kth = [h - 1, h] if n % 2 == 0 else [h]
     if kind == "f":
         kth.append(n - 1)  # NaNs sort last: np.median's check
@@ -476,6 +492,35 @@ def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
     if n % 2 == 1:
         return lo64
     return (lo64 + part[h].astype(np.float64)) / 2.0
+
+
+#: From this many values :func:`median` partitions once per order statistic (below, numpy's
+#: several-kth partition costs less than the extra checks)
+_ONE_KTH_MIN = 6000
+
+
+def linspace(start: float, stop: float, num: int) -> np.ndarray:
+    """``np.linspace(start, stop, num)`` of two float64 (or Python) numbers, ``num`` >= 2, bit
+    for bit (numpy's arithmetic: ``arange * step + start``, the last value ``stop``) without
+    its Python-level overhead (~10 us a call; the plans lay out dozens of lines)."""
+    a, b = float(start), float(stop)
+    delta = b - a
+    step = delta / (num - 1)
+    y = np.arange(num, dtype=np.float64)
+    if step == 0:  # (numpy's order for a step that underflows)
+        y /= num - 1
+        y *= delta
+    else:
+        y *= step
+    y += a
+    y[-1] = b
+    return y
+
+
+def pad_edge(a: np.ndarray, k: int) -> np.ndarray:
+    """``np.pad(a, k, mode="edge")`` of a 1-D array (its ends repeated ``k`` times), without
+    np.pad's Python-level set-up (~20 us a call)."""
+    return np.concatenate((np.repeat(a[:1], k), a, np.repeat(a[-1:], k)))
 
 
 def percentile(a: np.ndarray, q: float) -> np.floating:
@@ -517,8 +562,8 @@ def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarra
 
     m = None if mask is None else (mask > 0).astype(np.uint8)
     n = img.shape[0] * img.shape[1] if m is None else int(cv2.countNonZero(m))
-    # (a partition is quicker below ~1000 pixels; the counts are float32: exact below 2^24)
-    if img.dtype != np.uint8 or img.ndim != 3 or n < 1024 or n >= 1 << 24:
+    # (a partition is quicker below ~4000 pixels; the counts are float32: exact below 2^24)
+    if img.dtype != np.uint8 or img.ndim != 3 or n < 4096 or n >= 1 << 24:
         return median(img.reshape(-1, img.shape[-1]) if m is None else img[m > 0], axis=0)
     out = np.empty(img.shape[2])
     for c in range(img.shape[2]):

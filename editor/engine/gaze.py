@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import median, percentile
+from .fitting import linspace, median, pad_edge, percentile
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -66,7 +66,7 @@ def _eye_profile(patch: np.ndarray, mask: np.ndarray, cx: float, cy: float, r: f
     g = cv2.cvtColor(patch, cv2.COLOR_RGB2GRAY).astype(np.float32)
     m = mask.astype(np.float32)
     us = np.arange(-reach * r, reach * r + 1e-6, 0.25)
-    ws = np.linspace(-rows * r, rows * r, 7)
+    ws = linspace(-rows * r, rows * r, 7)
     U, W = us[None, :], ws[:, None]  # (np.meshgrid's values, broadcast)
     mx = (cx + U * ex[0] + W * ey[0]).astype(np.float32)
     my = (cy + U * ex[1] + W * ey[1]).astype(np.float32)
@@ -89,7 +89,7 @@ def _iris_edges(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, r:
     if ok.sum() < 8:
         return cx, cy, r
     prof = np.interp(us, us[ok], prof[ok])
-    prof = np.convolve(np.pad(prof, 2, mode="edge"), np.ones(5) / 5.0, mode="valid")
+    prof = np.convolve(pad_edge(prof, 2), np.ones(5) / 5.0, mode="valid")
     grad = np.gradient(prof, us)
     left = (us > -1.8 * r) & (us < -0.5 * r) & ok
     right = (us < 1.8 * r) & (us > 0.5 * r) & ok
@@ -127,7 +127,7 @@ def limbus_widths(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, 
         outer = ok & side & (a > 1.25 * r) & (a < 1.6 * r)
         if inner.sum() < 2 or outer.sum() < 2:
             continue
-        li, lo = float(np.median(prof[inner])), float(np.median(prof[outer]))
+        li, lo = float(median(prof[inner])), float(median(prof[outer]))
         if lo - li < 15.0:
             continue
         idx = np.flatnonzero(ok & side & (a >= 0.6 * r) & (a <= 1.4 * r))
@@ -156,7 +156,7 @@ def edge_ramp(widths: list[float], r: float | None = None) -> float:
     must not fade an eye or a mouth away)."""
     if not widths:
         return 1.0
-    w = float(np.median(widths))
+    w = float(median(np.asarray(widths, np.float64)))
     s = math.sqrt(max(w * w - 1.0, 0.0)) / 0.8
     if s < SOFT_MIN:
         return 1.0
@@ -168,7 +168,8 @@ SOFT_MIN = 1.5
 
 
 def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill: float,
-                 radius: float, soft: float = 1.0) -> np.ndarray:
+                 radius: float, soft: float = 1.0, d_lid: np.ndarray | None = None
+                 ) -> np.ndarray:
     """The white of the eye without the iris, continued beyond the opening (float32).
 
     Inside the disc ``rho < r_fill``: away from the lids, each row is interpolated between the
@@ -182,7 +183,8 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
     disc = opening & ~outside_iris
     out = patch.astype(np.float32)
     # the distance to the lids (read by the fill and by the lid margin below)
-    d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
+    if d_lid is None:  # (the caller's when it has it: :meth:`EyePlan.build` reads it too)
+        d_lid = cv2.distanceTransform(opening.astype(np.uint8), cv2.DIST_L2, 3)
     if disc.any():
         tel = _telea(patch, disc, radius)
         known = opening & outside_iris & (d_lid > 1.0)  # the white, clear of the lash line
@@ -338,7 +340,9 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     mid = 0.5 * (top + bot)
     ref_t = np.minimum(np.rint(top + band_up), np.floor(mid)).astype(np.int64)
     ref_b = np.maximum(np.rint(bot - band_low), np.ceil(mid)).astype(np.int64)
-    ref_t, ref_b = np.clip(ref_t, 0, ph - 1), np.clip(ref_b, 0, ph - 1)
+    # (integers: np.clip's values without its overhead)
+    ref_t = np.minimum(np.maximum(ref_t, 0), ph - 1)
+    ref_b = np.minimum(np.maximum(ref_b, 0), ph - 1)
     jj = np.arange(pw)
 
     # the white of each column: its brighter part between the lids' shadow bands (the plate
@@ -372,7 +376,8 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
 
 
 def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.ndarray,
-                   r: float, r_fill: float, cy: float, soft: float = 1.0) -> np.ndarray:
+                   r: float, r_fill: float, cy: float, soft: float = 1.0,
+                   lum: np.ndarray | None = None) -> np.ndarray:
     """The iris disc with its hidden pixels completed from the visible ones (``vis``).
 
     Kept: the pixels in ``keep`` (the opening) and, inside the radius ``r``, photo pixels that
@@ -387,7 +392,8 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     """
     ph, pw = vis.shape
     out = src.copy()
-    lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
+    if lum is None:  # (``src``'s luminance; the caller's when it has it)
+        lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
     core = vis & (rho <= 0.8 * r)
     if core.sum() >= 3 and vis.sum() >= 6:
         med, white = float(median(lum[core])), float(percentile(lum[vis], 90))
@@ -498,8 +504,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     # other lid's band too)
     w_up = np.clip((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)[..., None]
     w_lo = np.clip((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)[..., None]
-    return ((1.0 - w_up * (1.0 - ratio)).astype(np.float32),
-            (1.0 - w_lo * (1.0 - ratio)).astype(np.float32))
+    dark = 1.0 - ratio  # (float32, shared by both maps)
+    return ((1.0 - w_up * dark).astype(np.float32), (1.0 - w_lo * dark).astype(np.float32))
 
 
 @dataclass(eq=False)
@@ -569,7 +575,9 @@ class EyePlan:
         rho = np.hypot((np.arange(pw, dtype=np.float64) + x0 - cx)[None, :],
                        (np.arange(ph, dtype=np.float64) + y0 - cy)[:, None])
         r_fill = r + max(1.5, 0.3 * r)  # the limbus and its blur go too (no ring remnant)
-        plate = _white_plate(patch, opening > 0, rho, r_fill, r, soft)
+        inside = opening > 0
+        d_lid = cv2.distanceTransform(opening, cv2.DIST_L2, 3)  # (the plate's and the margin's)
+        plate = _white_plate(patch, inside, rho, r_fill, r, soft, d_lid)
         # iris sprite: visible = inside the opening, one pixel clear of the lid edge
         vis = cv2.erode(opening, np.ones((3, 3), np.uint8)) > 0
         src = patch.astype(np.float32)
@@ -577,17 +585,18 @@ class EyePlan:
         e = int(math.ceil(0.5 * soft))
         kept = opening > 0 if soft <= 1.0 else \
             cv2.erode(opening, np.ones((2 * e + 1, 2 * e + 1), np.uint8)) > 0
-        out = _complete_iris(src, kept, vis & kept, rho, r, r_fill, cy - y0, soft)
+        lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
+        out = _complete_iris(src, kept, vis & kept, rho, r, r_fill, cy - y0, soft, lum)
         # for a raised lid: the bands along the lids (their shadow, the lashes) replaced too
         band_up, band_low = max(2.5, 0.5 * r), max(1.5, 0.25 * r)
-        ball = _ball_white(plate, opening > 0, r, band_up, band_low)
+        ball = _ball_white(plate, inside, r, band_up, band_low)
         if soft > 1.0:
             # the photo's white hands over to the ball over the lid margin's blur (a hard
             # switch at the photo's opening shows as a line where the lid was)
-            m = np.minimum(cv2.distanceTransform(opening, cv2.DIST_L2, 3) / soft, 1.0)
+            m = np.minimum(d_lid / soft, 1.0)
             plate = ball + m[..., None].astype(np.float32) * (plate - ball)
         else:
-            plate = np.where((opening > 0)[..., None], plate, ball)
+            plate = np.where(inside[..., None], plate, ball)
         # corner / 1/5 points in frame coordinates centred on the iris
         names_u = [0, 1, 2, 3, 4, 5, 6]
         loop = poly
@@ -597,7 +606,9 @@ class EyePlan:
 
         def fr(p: np.ndarray) -> np.ndarray:
             d = np.atleast_2d(p) - c
-            return np.stack([d @ ex, d @ ey], -1)
+            f = np.empty(d.shape)  # (np.stack's values without its overhead)
+            f[:, 0], f[:, 1] = d @ ex, d @ ey
+            return f
 
         upf, lof = fr(up), fr(lo)
         a, b = _lid_point(upf, 0.2), _lid_point(lof, 0.2)
@@ -610,7 +621,6 @@ class EyePlan:
         p0 = r / 3.0
         core = vis & (rho <= 0.6 * r)
         ring = vis & (rho <= r)
-        lum = src @ np.array([0.299, 0.587, 0.114], np.float32)
         if core.sum() >= 3 and ring.sum() >= 3:
             k = core & (lum <= percentile(lum[core], 25))
             pupil = src[k].mean(0)
@@ -628,7 +638,8 @@ class EyePlan:
         else:
             lash = np.full(3, 30.0, np.float32)
         x, y = poly[:, 0], poly[:, 1]
-        area0 = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        yn, xn = np.concatenate((y[1:], y[:1])), np.concatenate((x[1:], x[:1]))  # (np.roll)
+        area0 = 0.5 * abs(float(np.dot(x, yn) - np.dot(y, xn)))
         bands = _lid_bands(src, plate, out, rho, r, soft, (upf, lof),
                            (x0 - cx, y0 - cy), (ex, ey), (band_up, band_low))
         return cls(bands=bands, ball=ball, lash=lash.astype(np.float32), area0=area0,

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, median
+from .fitting import channel_median, median, pad_edge
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
@@ -61,6 +61,7 @@ _SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
 _EYE_FAP_IDX = {k: np.array(v) for k, v in EYE_FAPS.items()}
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 _SQUARE = np.ones((3, 3), np.uint8)
+_ZEROS2 = np.zeros(2)  # (np.pad's two zeros either side, without its set-up)
 
 
 @dataclass(eq=False)
@@ -523,9 +524,9 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         split = np.interp(np.arange(pw), ok, split[ok])
         # a smooth edge along the teeth's tips (upper envelope over 3 columns, then a mean):
         # a ragged per-column edge shows as dark specks once the jaw part moves away
-        env = np.pad(split, 1, mode="edge")
+        env = pad_edge(split, 1)
         split = np.maximum(np.maximum(env[:-2], env[1:-1]), env[2:])
-        split = np.convolve(np.pad(split, 2, mode="edge"), kern, mode="valid")
+        split = np.convolve(pad_edge(split, 2), kern, mode="valid")
     else:
         split[:] = ph
     ys = np.arange(ph, dtype=np.float64)[:, None]
@@ -544,7 +545,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         near = cols[np.abs(span[:, None] - cols[None, :]).argmin(1)]
         full = np.zeros(pw)
         full[span] = 1.0
-        ext_w = np.convolve(np.pad(full, 2), kern, mode="valid")
+        ext_w = np.convolve(np.concatenate((_ZEROS2, full, _ZEROS2)), kern, mode="valid")
         # the crown goes on above the opening for what the photo does not show of it (its
         # visible height in the middle columns), then fades into the gum
         fade = max(GUM_FADE * D, 1.0)
@@ -578,7 +579,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
             own_up, own_low, rgb_up, ext_mask, split, np.flatnonzero(ext))
     # (stacked straight into float32: no float64 stack, no second copy)
     own = np.concatenate([own_up[..., None], own_low[..., None]], axis=2, dtype=np.float32)
-    sliver = np.convolve(np.pad(sliver.astype(np.float64), 2, mode="edge"), kern, mode="valid")
+    sliver = np.convolve(pad_edge(sliver.astype(np.float64), 2), kern, mode="valid")
     rgb = np.concatenate([rgb_up, patch], axis=2, dtype=np.float32)
     return (off, own, rgb, bool(ext.sum() >= 3), has_low, sliver.astype(np.float32), ext_mask)
 

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import cv2
@@ -114,6 +114,10 @@ class SealPlan:
     iod: float
     tint: np.ndarray  # (3,) float32 per-channel weights of the contact line's darkening
     hole: np.ndarray  # (n,) the mouth opening's vertex indices, in order
+    #: the sealed photo over the box of every fill, ``(box, pixels)`` (:func:`sealed_box`;
+    #: made on its first call)
+    region: tuple[tuple[int, int, int, int], np.ndarray] | None = field(
+        default=None, init=False, repr=False)
 
     @property
     def patches(self) -> list[_Patch]:
@@ -157,7 +161,31 @@ def sealed_box(face: Face, box: tuple[int, int, int, int]) -> np.ndarray:
     x0, y0, x1, y1 = box
     p = seal_plan(face)
     out = face.image[y0:y1, x0:x1]
-    return out if p is None else _overlaid(out, box, p.patches)
+    if p is None:
+        return out
+    if not any(_meets(q, box) for q in p.patches):
+        return out
+    # the fills are added once, over their own boxes (the plans measure several overlapping
+    # boxes around the mouth): the box is the photo with that region's pixels where they
+    # meet, the same values (each pixel's sum depends on that pixel alone)
+    if p.region is None:
+        H, W = face.image.shape[:2]
+        u = (max(min(q.org[0] for q in p.patches), 0), max(min(q.org[1] for q in p.patches), 0),
+             min(max(q.org[0] + q.diff.shape[1] for q in p.patches), W),
+             min(max(q.org[1] + q.diff.shape[0] for q in p.patches), H))
+        p.region = (u, _overlaid(face.image[u[1]:u[3], u[0]:u[2]], u, p.patches))
+    (u0, v0, u1, v1), reg = p.region
+    a0, b0, a1, b1 = max(x0, u0), max(y0, v0), min(x1, u1), min(y1, v1)
+    out = out.copy()
+    out[b0 - y0:b1 - y0, a0 - x0:a1 - x0] = reg[b0 - v0:b1 - v0, a0 - u0:a1 - u0]
+    return out
+
+
+def _meets(q: _Patch, box: tuple[int, int, int, int]) -> bool:
+    """Whether the fill ``q`` overlaps ``box`` (x0, y0, x1, y1)."""
+    ox, oy = q.org
+    h, w = q.diff.shape[:2]
+    return max(box[0], ox) < min(box[2], ox + w) and max(box[1], oy) < min(box[3], oy + h)
 
 
 def _overlaid(img: np.ndarray, box: tuple[int, int, int, int], patches: list[_Patch]

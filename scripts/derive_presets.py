@@ -138,6 +138,14 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                        "78/85, max 91/118: set towards the prototype, 150 % inside the max"),
         "squeeze": (20, "AU4 draws the raised brows together (fear prototype); JAFFE median "
                         "9/5 ES, p90 45/27"),
+        "brow_m": (20, "AU2 of the fear prototype raises the whole brow (with AU1 and AU4 it "
+                       "is flat and high): the fit's -35 (JAFFE median -41/-22 ENS) gave the "
+                       "oblique brow of sadness, and fear read as worry on the contact sheets "
+                       "(KL, YM); +20 is inside the band (p90 31/57; 150 % inside the max "
+                       "53/82)"),
+        "brow_o": (15, "AU2 outer brow raiser (fear prototype), as brow_m: the fit's -25 "
+                       "(median -26/-24) lowered the outer brows; +15 is inside the band (p90 "
+                       "25/27; 150 % inside the max 69/48)"),
         "c_stretch": (55, "AU20 lip stretcher (fear prototype); JAFFE median 9/11 MW (outer "
                           "14/23), p90 93/77; 150 % stays inside the max 89 of FAP 7"),
         "jaw": (300, "AU26 jaw drop (fear prototype; it read as worry with the mouth nearly "

@@ -65,7 +65,10 @@ def test_fear(motion):
     m = motion("fear")
     assert m["8.3"][1] > 0.5 and m["8.4"][1] > 0.5        # mouth corners down
     assert gap(m) > 0.3                                   # lower lip slightly open
-    assert m["4.5"][1] > 0 and m["4.6"][1] > 0            # outer brows down
+    # brows raised (AU1+2) and drawn together (AU4), the inner parts higher: not the sad brow
+    assert m["4.5"][1] < 0 and m["4.6"][1] < 0            # outer brows up
+    assert m["4.1"][1] < m["4.5"][1] and m["4.2"][1] < m["4.6"][1]
+    assert m["4.1"][0] < 0 and m["4.2"][0] > 0            # drawn together
 
 
 def test_disgust(motion, sample_neutral):

@@ -302,3 +302,49 @@ def test_lower_lip_edge_does_not_ride_down_with_the_jaw(sample_face):
         low = rows[rows > rows.min() + 0.55 * np.ptp(rows)]
         bright += int((L[low, x] > 0.85).sum())
     assert bright < 20, bright
+
+
+def test_a_soft_photos_mouth_edges_are_as_soft_as_its_own():
+    """On a soft photo (the sample upscaled 4x: edges ramp over 5.3 px, a blur of sigma 2.07)
+    the opening is composited through the same blur, centred on its outline. (1) The thin
+    wedge at each corner of disgust's raised upper lip reads as a soft shadow, not a black
+    tick: its darkest pixel at least 0.38 of the lips and skin around it (an inside-only fade
+    drew it at 0.29 / 0.33, this code 0.50 / 0.43). (2) The compositing itself: across a
+    straight edge the coverage ramps on both sides over the photo's ramp (10-90 % width at
+    least 0.8 x it; the inside-only fade rose from 0 to 0.25 in one pixel), and a 2 px sliver
+    stays below 0.45 (it reached 0.53)."""
+    from editor.engine.imageio import load_image
+    from editor.engine.layers import _soft_edge, layer_plan
+    from editor.resources import SAMPLE_FACE
+
+    img = cv2.resize(load_image(SAMPLE_FACE), None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+    f = Face.from_image(img)
+    soft = layer_plan(f).soft
+    assert soft > 4.0  # a soft photo
+    vec = apply_preset("disgust", 1.0)
+    v = f.deform(vec)
+    L = _lum(f.render(vec))
+    r = int(0.06 * f.interocular)
+    for a, b in (("2.4", "2.5"), ("2.5", "2.4")):
+        c, o = v[f.fdp[a]], v[f.fdp[b]]
+        worst = 1.0
+        for t in np.linspace(0.02, 0.12, 12):  # the corner's first 12 % towards the other
+            x, y = (int(round(q)) for q in c + t * (o - c))
+            local = np.median(L[y - 3 * r:y + 3 * r, x - r:x + r])
+            worst = min(worst, float(L[y - r:y + r + 1, x].min() / local))
+        assert worst >= 0.38, (a, worst)
+    # the compositing: a straight edge (rows 20+ open) and a 2 px sliver (rows 60-61)
+    hole = np.zeros((90, 40), bool)
+    hole[20:50] = True
+    hole[60:62] = True
+    alpha = hole.astype(np.float32)
+    inside = hole.astype(np.uint8)
+    depth = cv2.distanceTransform(inside, cv2.DIST_L2, 3)
+    rim = np.zeros((90, 40, 3), np.float32)
+    got, _ = _soft_edge(np.zeros((90, 40, 3), np.uint8), (0, 0, 40, 90), hole, alpha, soft, 1.0,
+                        (depth, rim))
+    col = got[:, 20]
+    assert col[19] > 0.2 and col[18] > 0.05  # the edge ramps outside the outline too
+    rise = np.flatnonzero(col[:35] >= 0.9)[0] - np.flatnonzero(col[:35] >= 0.1)[0]
+    assert rise >= 0.8 * soft, (rise, soft)
+    assert col[55:67].max() < 0.45

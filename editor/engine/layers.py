@@ -273,17 +273,18 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
                alpha: np.ndarray, soft: float, t: float,
                known: tuple[np.ndarray, np.ndarray] | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
-    """An opening's coverage faded in over ``soft`` px inside its outline, and the colour
-    (h, w, 3) the face continues with inside it: the nearest pixel outside (the lid's or
-    lip's margin), smoothed over the ramp.
+    """An opening's coverage softened to the photo's edges, and the colour (h, w, 3) the face
+    continues with inside it: the nearest pixel outside (the lid's or lip's margin), smoothed
+    over the ramp.
 
     A soft photo (a large face from an upscaled or defocused picture) draws its lid and lip
     margins as gradients several pixels wide; an interior cut in at one pixel then reads as
-    a sticker. Inside only: the lids and lips keep their shape, no interior colour spills onto
-    them. ``t`` in [0, 1]: how far the fade has come in (it follows the opening's first
-    pixel of motion, as the coverage does: at rest the interior is the photo's own, edges
-    included). ``known``: the distance to the outline and the nearest margin colour when
-    already measured (:func:`_mouth_rim`)."""
+    a sticker. An eye's coverage fades in over ``soft`` px inside its outline only (the lids
+    keep their shape and carry their lash bands, :mod:`gaze`); the mouth's is blurred as the
+    photo is, centred on the outline (``known`` given). ``t`` in [0, 1]: how far the fade
+    has come in (it follows the opening's first pixel of motion, as the coverage does: at
+    rest the interior is the photo's own, edges included). ``known``: the distance to the
+    outline and the nearest margin colour when already measured (:func:`_mouth_rim`)."""
     if known is not None:
         depth, rim = known
     else:
@@ -297,11 +298,20 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         rim = np.take(margin, labels - 1, axis=0, mode="clip") \
             if len(margin) else face.astype(np.float32)
     rim = _blur(np.ascontiguousarray(rim, np.float32), max(0.5 * soft, 0.8))
-    # (the mouth's fade starts a quarter of the way in: the eye, and a re-detection's lip
-    # landmarks - cloning, tracking - read the opening's size from it; begun at zero, fear's
-    # open mouth came back from the detector a quarter less open)
-    fade = np.minimum(np.asarray(depth, np.float32) * np.float32(1.5 / soft)
-                      + np.float32(0.25 if known is not None else 0.0), np.float32(1.0))
+    if known is not None:
+        # the mouth: its coverage seen through the photo's blur (a Gaussian of ramp / 2.56, as
+        # the folds' in :mod:`creases`), centred on the outline. The lips' inner edge darkens
+        # over the photo's ramp as a real open mouth's does, and a sliver narrower than the
+        # blur (the thin wedge at a corner of a smile or of disgust's raised lip) cannot show
+        # its full darkness through it: a 2 px wedge on a face whose edges ramp over 5 px
+        # reaches ~0.4. An inside-only fade (as the eyes') left a step at the outline and drew
+        # such wedges as crisp black ticks on a soft face
+        lim = _blur(np.ascontiguousarray(alpha, np.float32), soft / 2.56)
+        lim -= alpha  # (fading in with the outline's first pixel of motion, as the coverage)
+        lim *= np.float32(t)
+        lim += alpha
+        return lim, rim
+    fade = np.minimum(np.asarray(depth, np.float32) * np.float32(1.5 / soft), np.float32(1.0))
     fade -= 1.0
     fade *= np.float32(t)
     fade += 1.0

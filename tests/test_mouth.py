@@ -348,3 +348,25 @@ def test_a_soft_photos_mouth_edges_are_as_soft_as_its_own():
     rise = np.flatnonzero(col[:35] >= 0.9)[0] - np.flatnonzero(col[:35] >= 0.1)[0]
     assert rise >= 0.8 * soft, (rise, soft)
     assert col[55:67].max() < 0.45
+
+
+def test_a_soft_photos_lips_lose_teeth_strips_as_wide_as_its_blur():
+    """The photo's lip triangles end on its inner-lip contour; on a soft photo the strip of
+    teeth they carry along it is several pixels wide, and rides on the lips as a row of bright
+    dots when the lips move over the teeth (fear's lowered upper lip on the sample at 700 px).
+    Along the outline the lips lose bright structures up to soft / 2 + 2 px wide (a 4 px
+    strip at the 4x sample's 5.3 px ramp; the 3 px opening of sharp photos left it), and
+    nothing outside that band changes."""
+    from editor.engine.layers import _clean_lip_line
+
+    out = np.full((60, 120, 3), 150, np.uint8)  # lips
+    out[30:34, 10:110] = 235  # a 4 px strip of teeth along the outline (row 34)
+    poly = np.array([[10.0, 34.0], [110.0, 34.0], [110.0, 50.0], [10.0, 50.0]])
+    alpha = np.zeros((60, 120), np.float32)
+    alpha[35:50, 10:110] = 1.0  # the opening below
+    sharp = out.copy()
+    _clean_lip_line(sharp, (0, 0, 120, 60), poly, alpha, 1.0, 1.0)
+    assert sharp[31, 60].max() > 200  # a sharp photo's 3x3 opening keeps a 4 px strip
+    _clean_lip_line(out, (0, 0, 120, 60), poly, alpha, 1.0, 5.3)
+    assert out[30:34, 20:100].max() <= 160, out[30:34, 60]
+    assert (out[:24] == 150).all()  # the lips away from the outline are untouched

@@ -61,6 +61,13 @@ _SKIN_SAT = 0.22  # saturation of the skin the mouth textures were drawn for
 _EYE_FAP_IDX = {k: np.array(v) for k, v in EYE_FAPS.items()}
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 _SQUARE = np.ones((3, 3), np.uint8)
+
+
+@lru_cache(maxsize=8)
+def _square(k: int) -> np.ndarray:
+    """A k x k disc (kept: a face's size recurs from frame to frame; a square's opening
+    leaves blocky steps on the lips)."""
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
 _ZEROS2 = np.zeros(2)  # (np.pad's two zeros either side, without its set-up)
 
 
@@ -211,23 +218,27 @@ def _mouth_rim(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
 
 
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,
-                    alpha: np.ndarray, strength: float) -> None:
+                    alpha: np.ndarray, strength: float, soft: float = 1.0) -> None:
     """Remove thin bright specks from the lips along the inner-lip outline (in place).
 
     The photo's lip triangles end on its inner-lip contour; pixels there that are partly
     teeth ride on the moving lips and line up as white dots when the lips close or stretch.
     Within ~1.5 px of the deformed outline, outside the opening, a grey-level opening (3x3)
-    of the colours takes out bright structures thinner than 3 px, nothing else.
+    of the colours takes out bright structures thinner than 3 px, nothing else. On a soft
+    photo (edge ramp ``soft`` > 1 px: a large face) that strip of teeth is several pixels
+    wide: the opening (a disc) grows to k = ``soft`` / 2 + 2 px (odd), the band to k - 1 px
+    either side of the outline.
     """
     x0, y0, x1, y1 = box
+    k = 3 if soft <= 1.0 else max(3, int(round(0.5 * soft + 2.0)) | 1)
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
-    cv2.polylines(band, [q], True, 1, 3, cv2.LINE_8, _SHIFT)
+    cv2.polylines(band, [q], True, 1, 3 if k == 3 else 2 * k - 1, cv2.LINE_8, _SHIFT)
     w = band.astype(np.float32) * _clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
     if not np.count_nonzero(w):
         return
     patch = out[y0:y1, x0:x1]
-    opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE)
+    opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE if k == 3 else _square(k))
     res = opened.astype(np.float32)
     res -= patch
     res *= cv2.merge([w, w, w])
@@ -454,7 +465,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                                              float(_smoothstep1(min(amount, 1.0))))
         _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
         if kind == "mouth":
-            _clean_lip_line(out, box, poly, alpha, fade_in)
+            _clean_lip_line(out, box, poly, alpha, fade_in, lp.soft)
         else:
             # (the lash line is drawn from a closure above 0.6: checked for both eyes at once,
             # with a margin, before its exact test in lash_line)

@@ -18,6 +18,10 @@ monotonic. Only columns stretched
 by more than a tenth of a pixel are touched: at rest, on the photo's own expression and where
 the brow comes down (compression) the warp is left exactly as it is. One ``cv2.remap`` of a
 small box per eye; it runs between the warp and the layers (the lash line is drawn after it).
+
+Where the strip is stretched to more than 1.4 x (a closing lid draws the photo's thin lid band
+over the whole eyeball) its rows are evened out along x and the photo's grain is put back
+(:func:`_even_out`): the stretched grain and lash roots would read as vertical streaks.
 """
 
 from __future__ import annotations
@@ -246,6 +250,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
     new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    new = _even_out(face, res, new, mx, my, xc, y0c)
     bbox = res.bbox
     c = 0
     for (x0, y0, x1, y1), _, _ in jobs:
@@ -255,3 +260,111 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, {})
+
+
+#: vertical stretch (photo rows per output row, inverted) from which a lid's skin is evened
+#: out (:func:`_even_out`) and from which it is evened out fully
+STRETCH_FROM, STRETCH_FULL = 1.4, 2.2
+#: side of the static grain tile (px)
+_TILE = 128
+#: the grain's smallest blur (px) and its share of the photo's grain level: the stretched
+#: skin keeps part of its own grain along the columns; the noise adds the rest
+GRAIN_SIGMA, GRAIN_SHARE = 0.6, 0.6
+_GRAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _grain(face: Face) -> tuple[float, float, np.ndarray]:
+    """The photo's skin grain around the upper lids (robust std of the luminance's
+    high-pass, grey levels), the photo's edge ramp (:func:`layers.layer_plan`) and a static
+    unit-variance noise tile blurred as the photo is (kept per face)."""
+    got = _GRAIN.get(face)
+    if got is not None:
+        return got
+    from .layers import layer_plan  # (built for the layers anyway; imported late: a cycle)
+
+    soft = float(layer_plan(face).soft)
+    img = face.image
+    H, W = img.shape[:2]
+    vals = []
+    for st in _strips(face):
+        C = face.frame.to_image(np.vstack([st.lid_s, st.brow_s]))
+        x0, y0 = max(int(C[:, 0].min()), 0), max(int(C[:, 1].min()), 0)
+        x1, y1 = min(int(C[:, 0].max()) + 1, W), min(int(C[:, 1].max()) + 1, H)
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            continue
+        L = img[y0:y1, x0:x1].astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+        vals.append(np.abs(L - cv2.GaussianBlur(L, (0, 0), max(1.0, soft / 2.56))).ravel())
+    g = 1.4826 * float(np.median(np.concatenate(vals))) if vals else 0.0
+    tile = np.random.default_rng(20261128).standard_normal((_TILE, _TILE)).astype(np.float32)
+    # grain as soft as the photo's, and never finer than a pixel and a half (white noise at
+    # the photo's level reads as speckle on a smooth skin); wrapped: the tile repeats
+    sig = max(soft / 2.56, GRAIN_SIGMA)
+    p = min(int(math.ceil(4 * sig)), _TILE)
+    blurred = np.asarray(cv2.GaussianBlur(np.pad(tile, p, mode="wrap"), (0, 0), sig),
+                         np.float32)[p:-p, p:-p]
+    tile = np.ascontiguousarray(blurred / max(float(blurred.std()), 1e-6), np.float32)
+    got = (g, soft, tile)
+    _GRAIN[face] = got
+    return got
+
+
+def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: np.ndarray,
+              xc: np.ndarray, y0c: np.ndarray) -> np.ndarray:
+    """The lid strips ``new`` (uint8, the boxes side by side; ``mx, my`` where each pixel was
+    read in the warped image, ``xc`` / ``y0c`` each column's image x and first row) with the
+    skin evened out where it is stretched vertically by more than :data:`STRETCH_FROM`.
+
+    A closing lid draws the photo's thin band of lid skin (between its margin and the crease
+    or the brow) over the whole eyeball, two to three times taller: the skin's grain and the
+    lashes' roots become vertical streaks, a combed curtain over a closed eye (JAFFE: the
+    closed lid's horizontal gradient energy 1.4-3.6 x its vertical one, the photo's lid skin
+    0.3-1.4). Where stretched, each row is smoothed along x (streaks go, horizontal lines such
+    as the lash line and the crease stay) and the photo's own grain level comes back as a
+    static noise (isotropic, as soft as the photo's), faded in from 1.4 to 2.2 x stretch."""
+    if res.maps is None:
+        return new
+    map_y, (a0, b0, a1, b1) = res.maps[1], res.maps[2]
+    # the photo row each output pixel shows (the warp's backward map read where the strip
+    # resampling reads the warped image); outside the warp's box the map is the identity
+    sy = cv2.remap(map_y, mx - np.float32(a0), my - np.float32(b0), cv2.INTER_LINEAR,
+                   borderMode=cv2.BORDER_REPLICATE)
+    inside = (mx >= a0) & (mx <= a1 - 1) & (my >= b0) & (my <= b1 - 1)
+    d = np.empty_like(sy)
+    d[:-1] = sy[1:] - sy[:-1]
+    d[-1] = d[-2] if len(d) > 1 else 1.0
+    stretch = 1.0 / np.maximum(np.abs(d), np.float32(0.05))
+    w = (stretch - np.float32(STRETCH_FROM)) * np.float32(1.0 / (STRETCH_FULL - STRETCH_FROM))
+    np.clip(w, 0.0, 1.0, out=w)
+    w *= inside
+    # (only the rows and columns that are stretched, with the blurs' margins)
+    hit_r, hit_c = np.flatnonzero(w.max(1) >= 0.02), np.flatnonzero(w.max(0) >= 0.02)
+    if not len(hit_r):
+        return new
+    g, soft, tile = _grain(face)
+    sx = max(1.0, 0.5 * soft)
+    pad = int(math.ceil(3.0 * sx)) + 3
+    h, wd = w.shape
+    r0, r1 = max(int(hit_r[0]) - 3, 0), min(int(hit_r[-1]) + 4, h)
+    c0, c1 = max(int(hit_c[0]) - pad, 0), min(int(hit_c[-1]) + pad + 1, wd)
+    wb: np.ndarray = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(w[r0:r1, c0:c1]), (0, 0),
+                                                 1.0), np.float32)
+    f = new[r0:r1, c0:c1].astype(np.float32)
+    k = cv2.getGaussianKernel(int(round(8 * sx + 1)) | 1, sx, cv2.CV_32F)
+    sm: np.ndarray = np.asarray(cv2.sepFilter2D(f, -1, k, np.ones((1, 1), np.float32),
+                                                borderType=cv2.BORDER_REFLECT), np.float32)
+    rows = np.arange(r0, r1)[:, None]
+    ix = (np.rint(xc[c0:c1]).astype(np.int64) % _TILE)[None, :]
+    iy = (y0c[c0:c1].astype(np.int64)[None, :] + rows) % _TILE
+    noise = tile[iy, ix] * np.float32(GRAIN_SHARE * g)
+    sm += noise[..., None]
+    sm -= f
+    sm *= wb[..., None]
+    f += sm
+    out = new.copy()
+    out[r0:r1, c0:c1] = _u8(f)
+    return out
+
+
+def _u8(f: np.ndarray) -> np.ndarray:
+    """Rounded to the nearest integer and saturated to uint8."""
+    return np.asarray(np.clip(np.rint(f), 0.0, 255.0), np.uint8)

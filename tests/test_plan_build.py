@@ -165,7 +165,9 @@ def test_texture_tint_and_mean_are_the_pixel_formulas(name):
         # a face's copy: resized, then tinted (the same values, to float rounding, whether
         # nothing is clipped or the gain clips and the full texture is tinted)
         for size in ((34, 10), (70, 20), (250, 80), (900, 300)):
-            want = cv2.resize(mouth._tint(name, sat, g), size, interpolation=cv2.INTER_AREA)
+            # (the teeth's gaps kept at a face's size: one darkening factor per texture pixel)
+            want = cv2.resize(mouth._with_gaps(mouth._tint(name, sat, g), name, size), size,
+                              interpolation=cv2.INTER_AREA)
             small = mouth._tinted_at(name, sat, g, size)
             assert small.dtype == np.float32 and small.shape == want.shape
             assert np.abs(small - want).max() < 1e-3

@@ -27,11 +27,12 @@ def _modules_after(code: str) -> set[str]:
     return set(out.stdout.split())
 
 
-def test_cli_help_imports_neither_opencv_nor_scipy_nor_the_renderer():
+def test_cli_help_imports_neither_numpy_nor_opencv_nor_scipy_nor_the_renderer():
     mods = _modules_after("import contextlib\nfrom editor.cli import main\n"
                           "with contextlib.suppress(SystemExit):\n    main(['--help'])")
     assert "editor.cli.study" in mods  # the parser was built
-    assert not {"cv2", "scipy", "editor.engine.face", "editor.study.stimuli"} & mods
+    assert not {"numpy", "cv2", "scipy", "editor.engine.face", "editor.study.stimuli",
+                "editor.study.mos"} & mods
 
 
 def test_the_editor_window_is_built_without_scipy():

@@ -36,14 +36,15 @@ def test_cli_help_imports_neither_numpy_nor_opencv_nor_scipy_nor_the_renderer():
 
 
 def test_the_editor_window_is_built_without_scipy_or_the_renderer():
-    """The window comes first; the renderer (editor.engine.face), the video export, the study
-    statistics and stimuli are imported when a photo is opened or their action is used."""
+    """The window comes first; OpenCV, the renderer (editor.engine.face), the video export,
+    the study statistics and stimuli are imported when a photo is opened or their action is
+    used."""
     mods = _modules_after("from editor.ui.app import application\n"
                           "from editor.ui.main_window import MainWindow\n"
                           "app = application()\nw = MainWindow()")
     assert "editor.ui.mos_panel" in mods and "editor.ui.au_panel" in mods
     assert not {m for m in mods if m == "scipy" or m.startswith("scipy.")}
-    assert not {"editor.engine.face", "editor.formats.video", "editor.study.mos_stats",
+    assert not {"cv2", "editor.engine.face", "editor.formats.video", "editor.study.mos_stats",
                 "editor.study.stimuli", "editor.ui.mos_results"} & mods
 
 

@@ -16,10 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from editor.engine.faps import FAPS
-from editor.formats.fapfile import FapSequence
 
 if TYPE_CHECKING:  # annotations only: the editor window imports this module before the renderer
-    from editor.engine.face import Face
+    from editor.engine.face import Face  # and before the .fap reader/writer (issue 15)
+    from editor.formats.fapfile import FapSequence
 
 INTERPOLATIONS = ("linear", "smoothstep")
 

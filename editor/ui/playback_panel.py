@@ -36,7 +36,6 @@ from PySide6.QtWidgets import (
 
 from editor.errors import FapStudioError
 from editor.formats.document import NO_ANIMATION, Animation
-from editor.formats.fapfile import FapSequence, read_fap, write_fap
 from editor.formats.playhead import Clock, Playhead
 
 from .document_model import DocumentModel
@@ -46,10 +45,12 @@ from .qt_utils import run_guarded, signals_blocked
 from .tasks import run_task
 
 if TYPE_CHECKING:
+    from editor.formats.fapfile import FapSequence
     from editor.formats.video import ExportResult
 
-# editor.formats.video (OpenCV, the render pool) is imported when a sequence is shown or
-# exported, not when the window is built (issue 15, gui_ready_s).
+# editor.formats.video (OpenCV, the render pool) and the .fap reader/writer are imported when a
+# sequence is shown, read, saved or exported, not when the window is built (issue 15,
+# gui_ready_s).
 
 FAP_FILTER = "MPEG-4 FAP files (*.fap);;All files (*)"
 NO_SEQUENCE = "No sequence. Open a .fap file or build one from keyframes."
@@ -251,6 +252,8 @@ class PlaybackPanel(QWidget):
             if not path:
                 return False
         def read() -> None:
+            from editor.formats.fapfile import read_fap
+
             seq = run_task(self, f"Reading {Path(path).name}…", lambda _p: read_fap(path),
                            title="Open FAP Sequence")
             self.load_sequence(seq, str(path))
@@ -269,6 +272,8 @@ class PlaybackPanel(QWidget):
             if not Path(path).suffix:
                 path += ".fap"
         seq = self.seq
+        from editor.formats.fapfile import write_fap
+
         ok = self.guarded("Save FAP sequence", lambda: write_fap(seq, path))
         win = self.window()
         if ok and hasattr(win, "statusBar"):

@@ -27,19 +27,25 @@ def _modules_after(code: str) -> set[str]:
     return set(out.stdout.split())
 
 
-def test_cli_help_imports_neither_opencv_nor_scipy_nor_the_renderer():
+def test_cli_help_imports_neither_numpy_nor_opencv_nor_scipy_nor_the_renderer():
     mods = _modules_after("import contextlib\nfrom editor.cli import main\n"
                           "with contextlib.suppress(SystemExit):\n    main(['--help'])")
     assert "editor.cli.study" in mods  # the parser was built
-    assert not {"cv2", "scipy", "editor.engine.face", "editor.study.stimuli"} & mods
+    assert not {"numpy", "cv2", "scipy", "editor.engine.face", "editor.study.stimuli",
+                "editor.study.mos"} & mods
 
 
-def test_the_editor_window_is_built_without_scipy():
+def test_the_editor_window_is_built_without_scipy_or_the_renderer():
+    """The window comes first; OpenCV, the renderer (editor.engine.face), the video export,
+    the study statistics and stimuli are imported when a photo is opened or their action is
+    used."""
     mods = _modules_after("from editor.ui.app import application\n"
                           "from editor.ui.main_window import MainWindow\n"
                           "app = application()\nw = MainWindow()")
     assert "editor.ui.mos_panel" in mods and "editor.ui.au_panel" in mods
     assert not {m for m in mods if m == "scipy" or m.startswith("scipy.")}
+    assert not {"cv2", "editor.engine.face", "editor.formats.video", "editor.study.mos_stats",
+                "editor.study.stimuli", "editor.ui.mos_results"} & mods
 
 
 @pytest.mark.parametrize("rows", [1, 5, 256, 10_000])

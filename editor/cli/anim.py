@@ -7,12 +7,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from editor.errors import FapStudioError
 
 from .util import PHOTO_HELP, ProgressBar, detector_option, photo_arg
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# numpy and the engine are imported by the commands that use them, so that ``fap-studio --help``
+# stays quick (issue 15, ``cli_help_s``).
 
 
 def parse_preset(spec: str) -> tuple[str, float]:
@@ -31,6 +36,8 @@ def parse_preset(spec: str) -> tuple[str, float]:
 
 def preset_vector(specs: list[str] | None) -> np.ndarray:
     """Sum of presets ``NAME[:INTENSITY]`` as a (68,) vector (clamped)."""
+    import numpy as np
+
     from editor.engine.faps import FAPS
     from editor.formats.presets import apply_preset, get_preset
 
@@ -64,6 +71,8 @@ def cmd_animate(a: argparse.Namespace) -> int:
 
 
 def cmd_fap_export(a: argparse.Namespace) -> int:
+    import numpy as np
+
     from editor.formats.fapfile import MAX_FPS, MAX_FRAMES, FapSequence, write_fap
     from editor.formats.keyframes import sequence_from_keyframes
     from editor.safeio import finite_in

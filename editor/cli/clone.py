@@ -18,8 +18,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from editor.errors import FapStudioError
 from editor.resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
@@ -35,6 +33,8 @@ def _write_text(path: str | Path, text: str) -> None:
 
 
 def cmd_clone(a: argparse.Namespace) -> int:
+    import numpy as np
+
     from editor.engine.face import Face
     from editor.engine.faps import FAPS
     from editor.engine.imageio import load_image, save_image

@@ -6,10 +6,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from editor.errors import FapStudioError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# numpy and the tables are imported by the commands that use them (``cli_help_s``, issue 15)
 
 KIND_NAMES = {"fap": ".fap", "arkit": "Live Link Face CSV", "au": "AU CSV"}
 
@@ -17,6 +21,8 @@ KIND_NAMES = {"fap": ".fap", "arkit": "Live Link Face CSV", "au": "AU CSV"}
 def au_vector(specs: list[str] | None) -> np.ndarray:
     """(68,) FAPs of ``--au AU=INTENSITY`` values (repeated AUs add up), clamped to the FAP
     ranges."""
+    import numpy as np
+
     from editor.engine.faps import FAPS
     from editor.formats.facs import aus_to_faps, column_weights, parse_au_spec
 
@@ -46,6 +52,8 @@ def _output_kind(path: str, to: str | None) -> str:
 
 
 def cmd_convert(a: argparse.Namespace) -> int:
+    import numpy as np
+
     from editor.formats.facecsv import read_animation, resample, write_animation
     from editor.safeio import finite_in
 

@@ -9,14 +9,26 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from editor.errors import StudyError
-from editor.study.mos import PAPER_EXPRESSIONS, Study
+from editor.study.design import PAPER_EXPRESSIONS
 
 from .util import detector_option, guarded, photo_arg
 
-# The QC, remote-rater and stimulus modules (the renderer, OpenCV) are imported by the commands
-# that use them, so that ``fap-studio --help`` stays quick (issue 15, ``cli_help_s``).
+if TYPE_CHECKING:
+    from editor.study.mos import Study
+
+# The study store (numpy, SQLite) and the QC, remote-rater and stimulus modules (the renderer,
+# OpenCV) are imported by the commands that use them, so that ``fap-studio --help`` stays quick
+# (issue 15, ``cli_help_s``).
+
+
+def _open(path: str) -> Study:
+    """``Study.open(path)``, the study store imported on first use."""
+    from editor.study.mos import Study
+
+    return Study.open(path)
 
 
 @guarded
@@ -73,7 +85,7 @@ def _cmd_qc(args: argparse.Namespace) -> int:
     """``study qc STUDY.db [--faces PHOTO ...] [--training N] [--traps N]``."""
     if args.training < 0 or args.traps < 0:
         raise StudyError("--training and --traps must be >= 0")
-    with Study.open(args.study) as study:
+    with _open(args.study) as study:
         _add_qc(study, args.faces or [], args.crop == "face", args.training, args.traps)
     return 0
 
@@ -86,7 +98,7 @@ def _cmd_invite(args: argparse.Namespace) -> int:
     base = args.base_url.rstrip("/")
     if not base.startswith(("http://", "https://")):
         raise StudyError(f"--base-url must start with http:// or https://, got {base!r}")
-    with Study.open(args.study) as study:
+    with _open(args.study) as study:
         for inv in invite(study, args.raters):
             print(f"{inv.rater}\t{base}/r/{inv.token}/")
     return 0
@@ -97,7 +109,7 @@ def _cmd_revoke(args: argparse.Namespace) -> int:
     """``study revoke STUDY.db RATER_OR_TOKEN ...``."""
     from editor.study.remote import revoke
 
-    with Study.open(args.study) as study:
+    with _open(args.study) as study:
         for who in args.who:
             print(f"revoked {revoke(study, who)}")
     return 0
@@ -114,7 +126,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise StudyError(f"--port must be 0 … 65535, got {args.port}")
 
-    with Study.open(args.study) as study:
+    with _open(args.study) as study:
         valid, revoked = count_tokens(study)
 
     def ready(url: str) -> None:
@@ -132,7 +144,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from editor.study.mos_stats import analyse, format_report  # scipy: import lazily
     from editor.study.qc import format_qc, mos_answers, qc_items, rater_qc
 
-    with Study.open(args.study) as study:
+    with _open(args.study) as study:
         answers, stimuli = mos_answers(study), study.stimuli()
         report = analyse(answers, study.labels, stimuli, confidence=args.confidence)
         qc = rater_qc(study)
@@ -151,7 +163,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     """``study export STUDY.db -o answers.csv``: one row per answer."""
     from editor.study.stimuli import export_answers_csv
 
-    with Study.open(args.study) as study:
+    with _open(args.study) as study:
         n = export_answers_csv(study, args.output)
     print(f"wrote {n} answers to {args.output}")
     return 0

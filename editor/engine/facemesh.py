@@ -44,13 +44,14 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
-import cv2
 import numpy as np
 
 from editor.errors import FapStudioError, NoFaceError
 from editor.resources import MODELS_DIR
 
 from .lip_edges import refine_inner_lips
+
+# OpenCV is imported by the functions that use it (see editor.engine.landmarks)
 
 #: Faces whose eye centres (midpoints of the eye corners) are closer than this many pixels are
 #: refused: an eye is then under 8 px wide and the iris model's crop under 20 px. Chosen by
@@ -243,6 +244,8 @@ _ANCHORS = _anchors()
 
 
 def _read_net(name: str) -> Any:
+    import cv2
+
     path = MODELS_DIR / name
     if not path.is_file():
         raise FapStudioError(f"face model missing: {path} (reinstall FAP Studio)")
@@ -274,6 +277,8 @@ def _crop_matrix(centre: np.ndarray, size: float, angle: float, out: int) -> np.
     Pixel centres are at integer coordinates (OpenCV's convention): the square's corners map to
     the crop's outer pixel edges (-0.5), as MediaPipe's image-to-tensor step does; the models'
     outputs are in edge coordinates (0 = the crop's left edge), see :func:`_invert`."""
+    import cv2
+
     ex = np.array([np.cos(angle), np.sin(angle)]) * size / 2
     ey = np.array([-np.sin(angle), np.cos(angle)]) * size / 2
     src = np.array([centre - ex - ey, centre + ex - ey, centre - ex + ey], np.float32)
@@ -283,6 +288,8 @@ def _crop_matrix(centre: np.ndarray, size: float, angle: float, out: int) -> np.
 
 def _invert(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Model outputs (crop pixels, edge coordinates) -> image pixels (centre coordinates)."""
+    import cv2
+
     inv = cv2.invertAffineTransform(m)
     return (pts - 0.5) @ inv[:, :2].T + inv[:, 2]
 
@@ -304,6 +311,8 @@ def _area_down(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     24 MP photo to the detector's 128 px), it first averages ``k x k`` blocks, ``k`` dividing
     both sides (OpenCV's integer-factor path, ~3 x faster than its general one on the whole
     photo), then resizes that; otherwise one resize, as before."""
+    import cv2
+
     h, w = img.shape[:2]
     most = min(w // size[0], h // size[1]) // 8
     k = next((k for k in range(most, 1, -1) if w % k == 0 and h % k == 0), 1)
@@ -407,6 +416,8 @@ class MediaPipeDetector:
 
     def _mesh(self, rgb: np.ndarray, centre: np.ndarray, size: float,
               angle: float) -> tuple[np.ndarray, np.ndarray, float]:
+        import cv2
+
         m = _crop_matrix(centre, size, angle, _MESH_SIZE)
         crop = cv2.warpAffine(rgb, m, (_MESH_SIZE, _MESH_SIZE), flags=cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REPLICATE)
@@ -420,6 +431,8 @@ class MediaPipeDetector:
     def _iris(self, rgb: np.ndarray, outer: np.ndarray, inner: np.ndarray,
               mirror: bool) -> tuple[np.ndarray, tuple[float, float, float]]:
         """Refined lid contour (16, 2) and iris (cx, cy, r) of one eye from its two corners."""
+        import cv2
+
         # the model's eye runs outer -> inner corner left to right when not mirrored
         a, b = (inner, outer) if mirror else (outer, inner)
         centre = (a + b) / 2

@@ -34,12 +34,15 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Protocol
 
-import cv2
 import numpy as np
 
 from editor.errors import FapStudioError, NoFaceError
 
 from .facemesh import CONTOURS, FDP_FROM_MESH, MediaPipeDetector, points68_from_mesh
+
+# OpenCV is imported by the functions that use it (here, in .facemesh and .lip_edges): the
+# editor's Settings menu reads the detector choice below while the window is built, before any
+# photo is opened (issue 15, gui_ready_s).
 
 #: Detection runs on a copy whose longer side is at most this many pixels.
 DETECT_MAX_SIDE = 800
@@ -214,6 +217,7 @@ class DlibDetector:
     name = "dlib-68"
 
     def detect(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        import cv2
         import dlib
 
         detector, predictor = _dlib_models()
@@ -324,6 +328,8 @@ def locate_iris(rgb: np.ndarray, points: np.ndarray, eye: int,
     edge on clearly visible irises (the sample face, JAFFE's neutral eyes, drawn at 8x). Falls
     back to ``near`` itself.
     """
+    import cv2
+
     poly = _eye_polygon(points, eye).astype(np.float32)
     c0, c1 = poly[0], poly[3]
     width = float(np.linalg.norm(c1 - c0))

@@ -28,8 +28,9 @@ Pure numpy/OpenCV, vectorised over points and samples (no per-point loop); about
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
+
+# OpenCV is imported by the function that uses it (see editor.engine.landmarks)
 
 #: Mesh indices of the inner and outer lip curves, mouth corner to mouth corner (image left to
 #: right), point k of an inner curve facing point k of the outer one.
@@ -88,6 +89,8 @@ def refine_inner_lips(rgb: np.ndarray, mesh: np.ndarray) -> np.ndarray:
     """``mesh`` (468, 2) with its inner-lip points on the photo's inner lip edges (a copy of the
     same dtype; unchanged when the mouth is closed or shows no clear edge). See the module
     docstring."""
+    import cv2
+
     m = np.asarray(mesh, np.float64).reshape(468, 2)
     out = np.array(mesh, copy=True)
     iod = _eye_distance(m)

@@ -11,13 +11,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from editor.engine.face import Face
 from editor.engine.faps import FAPS
-from editor.formats.fapfile import FapSequence
+
+if TYPE_CHECKING:  # annotations only: the editor window imports this module before the renderer
+    from editor.engine.face import Face  # and before the .fap reader/writer (issue 15)
+    from editor.formats.fapfile import FapSequence
 
 INTERPOLATIONS = ("linear", "smoothstep")
 

@@ -44,7 +44,6 @@ import numpy as np
 from editor.engine.faps import FAPS
 from editor.errors import FapFileError, ProjectError
 from editor.formats.document import NO_ANIMATION, Animation
-from editor.formats.fapfile import format_fap, read_fap
 from editor.resources import user_cache_dir
 from editor.safeio import atomic_write_bytes, atomic_write_text, read_bounded
 
@@ -100,6 +99,8 @@ def _animation_json(anim: Animation) -> str:
     parts = [f'    "fps": {_num(anim.fps)}', f'    "interpolation": "{anim.interpolation}"',
              '    "keyframes": [' + ("\n" + ",\n".join(keys) + "\n    ]" if keys else "]")]
     if anim.sequence is not None:
+        from editor.formats.fapfile import format_fap  # the .fap writer: when there is a sequence
+
         parts.append('    "sequence": {"source": ' + json.dumps(anim.source) + ', "fap": '
                      + json.dumps(format_fap(anim.sequence)) + "}")
     return "{\n" + ",\n".join(parts) + "\n  }"
@@ -277,6 +278,8 @@ def _animation(p: Path, block: object) -> Animation:
             if not isinstance(sblock, dict) or not isinstance(sblock.get("fap"), str):
                 raise ValueError('"sequence" must hold the .fap text as "fap"')
             source = str(sblock.get("source") or "")
+            from editor.formats.fapfile import read_fap  # the .fap reader: when there is a sequence
+
             seq = read_fap(sblock["fap"].encode("utf-8"), label="the sequence")
         return Animation(tuple(keys), float(block.get("fps", 25.0)),
                          str(block.get("interpolation", "linear")), seq, source)

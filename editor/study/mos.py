@@ -26,12 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from editor.errors import ImageError, StudyError
+from editor.study.design import PAPER_EXPRESSIONS  # noqa: F401 (re-export)
 
 CANNOT_TELL = "cannot tell"
 
-#: The paper's design (SPEC §4): these five expressions on every face, full intensity (here, not
-#: in :mod:`.stimuli`, so that ``fap-studio --help`` need not import the renderer).
-PAPER_EXPRESSIONS = ("joy", "sadness", "anger", "fear", "surprise")
 #: The paper's naturalness wording (SPEC §4, ITU-T P.800 ACR style), shared by the rating
 #: window and the web page.
 NATURALNESS = {1: "very unnatural", 2: "rather unnatural", 3: "acceptable",

@@ -34,7 +34,6 @@ from PySide6.QtWidgets import (
 
 from editor.errors import FapStudioError
 from editor.formats.blends import EXPRESSIONS
-from editor.formats.facecsv import read_animation, write_animation
 from editor.formats.facs import au_table, faps_to_aus
 from editor.formats.presets import apply_preset, get_preset
 
@@ -259,6 +258,8 @@ def import_csv(window, path: str | None = None) -> bool:
             return False
 
     def load() -> None:
+        from editor.formats.facecsv import read_animation  # the CSV readers: on first use
+
         seq, _kind, notes = read_animation(path)
         panel.load_sequence(seq, str(path))
         if notes:
@@ -285,6 +286,8 @@ def export_csv(window, path: str | None = None, kind: str | None = None) -> bool
     seq = panel.seq
 
     def write() -> None:
+        from editor.formats.facecsv import write_animation  # the CSV writers: on first use
+
         if kind not in ("arkit", "au", "fap"):
             raise FapStudioError(f"unknown CSV kind {kind!r}")
         write_animation(seq, path, kind)

@@ -13,17 +13,20 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QUndoStack
 
-from editor.engine.face import Face
 from editor.engine.faps import FAPS
 from editor.engine.mesh import signed_areas
 from editor.formats.document import Animation, Document
 
 from .commands import SetDocument
+
+if TYPE_CHECKING:  # the renderer is imported where a photo is opened, after the window shows
+    from editor.engine.face import Face
 
 
 class DocumentModel(QObject):

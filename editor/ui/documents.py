@@ -11,17 +11,29 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QFileDialog, QMessageBox, QWidget
 
-from editor.engine.face import Face
-from editor.engine.imageio import save_image
 from editor.formats.project import SUFFIX, load_project, save_project
 
 from .document_model import Document, DocumentModel
 from .qt_utils import run_guarded, settings
 from .tasks import Progress, run_task
+
+if TYPE_CHECKING:
+    from editor.engine.face import Face
+
+# The renderer (editor.engine.face, OpenCV) is imported by the tasks that need it, on the thread
+# pool: the window is up before it is loaded (issue 15, gui_ready_s).
+
+
+def _face_from_image(path: str) -> Face:
+    """``Face.from_image(path)`` (detect, fit), the renderer imported on first use."""
+    from editor.engine.face import Face
+
+    return Face.from_image(path)
 
 PHOTO_FILTER = "Photos (*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp);;All files (*)"
 PROJECT_FILTER = f"FAP Studio projects (*{SUFFIX} *.json);;All files (*)"
@@ -84,7 +96,7 @@ class Documents(QObject):
         path = str(Path(path).resolve())
 
         def fit(_progress: Progress) -> Face:
-            return Face.from_image(path)
+            return _face_from_image(path)
 
         def load() -> None:
             face = run_task(self.widget, f"Opening {Path(path).name}: finding the face…", fit,
@@ -131,7 +143,7 @@ class Documents(QObject):
 
         def load() -> None:
             face = run_task(self.widget, f"Opening {Path(photo).name}: finding the face…",
-                            lambda _p: Face.from_image(photo), title="Open Project")
+                            lambda _p: _face_from_image(photo), title="Open Project")
             verts = face.vertices if data.vertices is None else data.vertices
             doc = Document(photo, verts, face.fap_vector(data.faps), data.photo_neutral,
                            data.embed_photo, data.animation)
@@ -227,6 +239,8 @@ class Documents(QObject):
                 path += ".jpg" if chosen.startswith("JPEG") else ".png"
         face, faps = self.model.face, self.model.doc.faps
         out = path
+        from editor.engine.imageio import save_image
+
         ok = self.guarded("Cannot export the image", lambda: run_task(
             self.widget, f"Exporting {Path(out).name}…",
             lambda _p: save_image(out, face.render(faps)), title="Export Image",

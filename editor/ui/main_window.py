@@ -8,6 +8,7 @@ frames go to the preview and whose timing goes to the status bar.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QByteArray, Qt
 from PySide6.QtGui import (
@@ -27,8 +28,6 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from editor.engine.face import Face
-
 from .canvas import Canvas
 from .document_model import Document, DocumentModel
 from .documents import Documents
@@ -37,6 +36,10 @@ from .gaze_pad import GazePad
 from .help_panel import AboutDialog, FirstRunHint, HelpPanel
 from .qt_utils import settings
 from .render_scheduler import RenderResult, RenderScheduler
+
+if TYPE_CHECKING:  # the renderer (editor.engine.face, OpenCV) is imported when a photo is opened,
+    # on the thread pool after the window is shown (issue 15, gui_ready_s)
+    from editor.engine.face import Face
 
 FAPU_SHOWN = ("MNS", "MW", "ENS", "ES", "IRISD")
 

@@ -10,18 +10,23 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QFileDialog, QMainWindow, QWidget
 
-from editor.study.mos import Study
-
-from .mos_new import NewStudyDialog
-from .mos_rating import RatingWindow, ask_rater
-from .mos_results import ResultsWindow
 from .qt_utils import run_guarded, settings
 from .tasks import Progress, run_task
+
+if TYPE_CHECKING:
+    from .mos_new import NewStudyDialog
+    from .mos_rating import RatingWindow
+    from .mos_results import ResultsWindow
+
+# The study store, the dialogs and the results (statistics, plots, the stimulus renderer) are
+# imported by the actions that open them: the menu is all the editor window needs at start
+# (issue 15, gui_ready_s).
 
 STUDY_FILTER = "FAP Studio study (*.db);;All files (*)"
 _LAST = "mos/lastStudy"
@@ -72,6 +77,8 @@ class MosPanel(QObject):
     def set_study(self, path: str | Path) -> bool:
         """Check that ``path`` is a study (message box if not) and make it the current one."""
         def check() -> Path:
+            from editor.study.mos import Study
+
             Study.open(path).close()
             return Path(path)
 
@@ -91,6 +98,8 @@ class MosPanel(QObject):
 
     def new_study(self, dialog: NewStudyDialog | None = None) -> Path | None:
         """Ask for faces × presets × intensities, render them and create the study."""
+        from .mos_new import NewStudyDialog
+
         photo = self.current_photo()
         dialog = dialog or NewStudyDialog([photo] if photo else [], self.window)
         # a failure after OK (a photo without a face, an unwritable file) reopens the same
@@ -132,6 +141,8 @@ class MosPanel(QObject):
 
     def rate(self, rater: str | None = None, seed: int | None = None) -> RatingWindow | None:
         """Ask for the rater id and open the rating window (resumes a known rater)."""
+        from .mos_rating import RatingWindow, ask_rater
+
         if self.path is None and not self.open_study():
             return None
         rater = rater or ask_rater(self.window)
@@ -146,6 +157,8 @@ class MosPanel(QObject):
         return win
 
     def results(self) -> ResultsWindow | None:
+        from .mos_results import ResultsWindow
+
         if self.path is None and not self.open_study():
             return None
         path = self.path

@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import threading
 import traceback
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Qt, QThread, Signal
 from PySide6.QtWidgets import QProgressDialog, QWidget
 
 from editor.errors import FapStudioError
-from editor.formats.video import ExportResult, export_sequence
+
+if TYPE_CHECKING:
+    from editor.formats.video import ExportResult
 
 
 class _Worker(QObject):
@@ -33,6 +36,9 @@ class _Worker(QObject):
     def run(self) -> None:
         result, message = None, ""
         try:
+            # imported here, not with the window (OpenCV, the render pool; issue 15)
+            from editor.formats.video import export_sequence
+
             # frames rendered in worker processes (forkserver: safe beside Qt's threads)
             result = export_sequence(self.face, self.seq, self.out, progress=self._progress,
                                      jobs=None)  # a worker per core

@@ -12,6 +12,8 @@ time while a sequence is loaded), "Remove" drops the selected key, and
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
@@ -26,8 +28,9 @@ from PySide6.QtWidgets import (
 
 from editor.errors import FapStudioError
 from editor.formats.document import Animation
-from editor.formats.fapfile import FapSequence
-from editor.formats.keyframes import sequence_from_keyframes
+
+if TYPE_CHECKING:
+    from editor.formats.fapfile import FapSequence
 
 
 def low_level(vector: np.ndarray) -> np.ndarray:
@@ -147,6 +150,8 @@ class KeyframeEditor(QGroupBox):
         """The interpolated sequence; :class:`FapStudioError` with a one-line reason."""
         if not self.keys:
             raise FapStudioError("add at least one keyframe first")
+        from editor.formats.keyframes import sequence_from_keyframes  # with the .fap module
+
         try:
             return sequence_from_keyframes(self.keys, self.fps.value(),
                                            self.interp.currentText(), name="keyframes")

@@ -17,6 +17,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtCore import QCoreApplication, Qt, QTimer, Signal
@@ -35,15 +36,21 @@ from PySide6.QtWidgets import (
 
 from editor.errors import FapStudioError
 from editor.formats.document import NO_ANIMATION, Animation
-from editor.formats.fapfile import FapSequence, read_fap, write_fap
 from editor.formats.playhead import Clock, Playhead
-from editor.formats.video import ExportResult, sequence_vectors
 
 from .document_model import DocumentModel
 from .playback_export import ExportJob
 from .playback_keys import KeyframeEditor, low_level
 from .qt_utils import run_guarded, signals_blocked
 from .tasks import run_task
+
+if TYPE_CHECKING:
+    from editor.formats.fapfile import FapSequence
+    from editor.formats.video import ExportResult
+
+# editor.formats.video (OpenCV, the render pool) and the .fap reader/writer are imported when a
+# sequence is shown, read, saved or exported, not when the window is built (issue 15,
+# gui_ready_s).
 
 FAP_FILTER = "MPEG-4 FAP files (*.fap);;All files (*)"
 NO_SEQUENCE = "No sequence. Open a .fap file or build one from keyframes."
@@ -225,6 +232,8 @@ class PlaybackPanel(QWidget):
                 self.info.setText(NO_SEQUENCE)
                 self.info.setToolTip("")
             else:
+                from editor.formats.video import sequence_vectors
+
                 self.vectors = sequence_vectors(seq)
                 self.playhead.reset(seq.n_frames, seq.fps)
                 with signals_blocked(self.slider):
@@ -243,6 +252,8 @@ class PlaybackPanel(QWidget):
             if not path:
                 return False
         def read() -> None:
+            from editor.formats.fapfile import read_fap
+
             seq = run_task(self, f"Reading {Path(path).name}…", lambda _p: read_fap(path),
                            title="Open FAP Sequence")
             self.load_sequence(seq, str(path))
@@ -261,6 +272,8 @@ class PlaybackPanel(QWidget):
             if not Path(path).suffix:
                 path += ".fap"
         seq = self.seq
+        from editor.formats.fapfile import write_fap
+
         ok = self.guarded("Save FAP sequence", lambda: write_fap(seq, path))
         win = self.window()
         if ok and hasattr(win, "statusBar"):

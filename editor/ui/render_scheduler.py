@@ -14,11 +14,13 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtCore import QCoreApplication, QEventLoop, QObject, Qt, Signal
 
-from editor.engine.face import Face
+if TYPE_CHECKING:  # the renderer is imported where a photo is opened, after the window shows
+    from editor.engine.face import Face
 
 
 @dataclass(frozen=True, eq=False)

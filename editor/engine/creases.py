@@ -1531,7 +1531,9 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
 
     The direction is continuous (half the angle of the doubled-angle field ``(fc, fs)``),
     not quantised; each tap is one ``cv2.remap`` of the box, so the cost is the taps times
-    the box, not the kernel's area times the box per direction used."""
+    the box, not the kernel's area times the box per direction used. (All taps' maps are
+    made at once and resampled by one ``cv2.remap`` of the taps stacked as rows: the same
+    values per tap, without a dozen small array operations and calls per tap.)"""
     hb, wb = fc.shape
     n = np.sqrt(fc * fc + fs * fs)
     np.maximum(n, np.float32(1e-30), out=n)
@@ -1551,23 +1553,17 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     # (a 3-channel image resampled as four channels: OpenCV's 4-channel remap is faster, with
     # the same values per channel)
     src = cv2.cvtColor(sub, cv2.COLOR_RGB2RGBA) if nc == 3 else sub
+    k = len(ts)
+    t32 = ts.astype(np.float32)[:, None, None]
+    mx = ux * t32
+    mx += bx
+    my = uy * t32
+    my += by
+    got = cv2.remap(src, mx.reshape(k * hb, wb), my.reshape(k * hb, wb), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
-    # the taps are symmetric (ts[nt + k] = -ts[nt - k]): u * t once per pair, added to and
-    # subtracted from the pixel's position (u * -t + b is b - u * t exactly); the middle
-    # tap's map is the pixels themselves, whose bilinear sample is the pixel (weights 1, 0)
-    off = {k: (ux * np.float32(t), uy * np.float32(t)) for k, t in enumerate(ts.tolist())
-           if k > nt}
-    for k, wt in enumerate(wts.tolist()):
-        if k == nt:
-            got = src[at[1]:at[1] + hb, at[0]:at[0] + wb]
-        else:
-            ox, oy = off[k] if k > nt else off[2 * nt - k]
-            if k > nt:
-                mx, my = ox + bx, oy + by
-            else:
-                mx, my = bx - ox, by - oy
-            got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        cv2.scaleAdd(got, wt, acc, dst=acc)
+    for i, wt in enumerate(wts.tolist()):  # (accumulated in the taps' order, as before)
+        cv2.scaleAdd(got[i * hb:(i + 1) * hb], wt, acc, dst=acc)
     return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
 
 

@@ -321,14 +321,17 @@ def _normals(pts: np.ndarray) -> np.ndarray:
     """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
     # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
     # central differences inside, one-sided at the ends)
+    # (in place into preallocated arrays, no np.stack: -(ty / n) is -ty / n bit for bit)
     p = np.asarray(pts, np.float64)
     tang = np.empty_like(p)
-    tang[1:-1] = (p[2:] - p[:-2]) / 2.0
+    np.subtract(p[2:], p[:-2], out=tang[1:-1])
+    tang[1:-1] /= 2.0
     tang[0] = p[1] - p[0]
     tang[-1] = p[-1] - p[-2]
     tx, ty = tang[:, 0], tang[:, 1]
-    n = np.maximum(np.sqrt(tx * tx + ty * ty), 1e-9)
-    out = np.empty_like(p)  # (np.stack's values without its overhead)
+    n = np.sqrt(tx * tx + ty * ty)
+    np.maximum(n, 1e-9, out=n)
+    out = np.empty_like(p)
     np.divide(ty, n, out=out[:, 0])
     np.negative(out[:, 0], out=out[:, 0])
     np.divide(tx, n, out=out[:, 1])

@@ -389,24 +389,29 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     cnt = np.searchsorted(key, kb, "right") - r0
     pt_t = np.repeat(tt, cnt)
     pt_p = order[np.arange(len(pt_t)) - np.repeat(np.cumsum(cnt) - cnt - r0, cnt)]
-    qx, qy = px[pt_p], py[pt_p]
-    keep = (qx >= lo[pt_t, 0]) & (qx <= hi[pt_t, 0]) & (qy >= lo[pt_t, 1]) & (qy <= hi[pt_t, 1])
+    # (the columns gathered with take from contiguous copies: the same values, without the
+    # cost of fancy indexing into (n, 2) arrays)
+    qx, qy = px.take(pt_p), py.take(pt_p)
+    keep = (qx >= np.ascontiguousarray(lo[:, 0]).take(pt_t)) & \
+        (qx <= np.ascontiguousarray(hi[:, 0]).take(pt_t)) & \
+        (qy >= np.ascontiguousarray(lo[:, 1]).take(pt_t)) & \
+        (qy <= np.ascontiguousarray(hi[:, 1]).take(pt_t))
     pt_t, pt_p = pt_t[keep], pt_p[keep]
     thin = np.flatnonzero(np.abs(det) < 1.0)
     if len(thin):
         pt_t = np.concatenate([pt_t, np.repeat(thin, n)])
         pt_p = np.concatenate([pt_p, np.tile(np.arange(n), len(thin))])
     srt = np.argsort(pt_p * T + pt_t)  # by point, then triangle (unique keys)
-    pt_t, pt_p = pt_t[srt], pt_p[srt]
+    pt_t, pt_p = pt_t.take(srt), pt_p.take(srt)
     # the same arithmetic as _locate_all, pair by pair
-    dx = points[pt_p, 0] - a[pt_t, 0]
-    dy = points[pt_p, 1] - a[pt_t, 1]
-    dt = det[pt_t]
-    l1 = dx * e2[pt_t, 1]
-    l1 -= dy * e2[pt_t, 0]
+    dx = px.take(pt_p) - np.ascontiguousarray(a[:, 0]).take(pt_t)
+    dy = py.take(pt_p) - np.ascontiguousarray(a[:, 1]).take(pt_t)
+    dt = det.take(pt_t)
+    l1 = dx * np.ascontiguousarray(e2[:, 1]).take(pt_t)
+    l1 -= dy * np.ascontiguousarray(e2[:, 0]).take(pt_t)
     l1 /= dt
-    l2 = e1[pt_t, 0] * dy
-    l2 -= e1[pt_t, 1] * dx
+    l2 = np.ascontiguousarray(e1[:, 0]).take(pt_t) * dy
+    l2 -= np.ascontiguousarray(e1[:, 1]).take(pt_t) * dx
     l2 /= dt
     l0 = 1.0 - l1
     l0 -= l2

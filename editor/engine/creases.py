@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, linspace, luminance, median, pad_edge
+from .fitting import channel_median, clamp, is_grey, linspace, luminance, median, pad_edge
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -559,9 +559,9 @@ def _build_plan(face: Face) -> CreasePlan:
     m = 0.06 * iod
     skin = np.zeros((len(kinds), 3))
     # (each fold's samples are consecutive: every box at once)
-    lo = np.clip(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
+    lo = clamp(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
                  [w - 1, h - 1]).tolist()
-    hi = np.clip(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
+    hi = clamp(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
                  [w, h]).tolist()
     for f, ((x0, y0), (x1, y1)) in enumerate(zip(lo, hi, strict=True)):
         skin[f] = channel_median(img[y0:y1, x0:x1])
@@ -637,8 +637,8 @@ def _fast(face: Face) -> _Fast:
     n = len(p.fold)
     edge = np.zeros(n, bool)
     for off in (0, 1):
-        edge[np.clip(p.start[:-1] + off, 0, n - 1)] = True
-        edge[np.clip(p.start[1:] - 1 - off, 0, n - 1)] = True
+        edge[clamp(p.start[:-1] + off, 0, n - 1)] = True
+        edge[clamp(p.start[1:] - 1 - off, 0, n - 1)] = True
     seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
     seg_g = p.group[p.fold[seg_a]]
     order = np.argsort(seg_g, kind="stable")
@@ -678,7 +678,7 @@ def _fast(face: Face) -> _Fast:
         f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
         f.own_div = np.maximum(f.own_sum, 1e-9)
-        f.own_fade = np.clip((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
+        f.own_fade = clamp((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
     # published only when complete: the editor's render thread and its GUI thread may ask for
     # the same face's constants at once (published before the own folds' fields were set, a
     # render on the other thread could draw no unfold: a rare preview differing from a
@@ -1076,8 +1076,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         r = int(math.ceil(_VALLEY_WIDTH * sig))
         q = pos[a:b]
         pad = reach + 2 * r + 3
-        x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
-        x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
+        x0, y0 = clamp(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
+        x1, y1 = clamp(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
         # the luminance of this fold's box only (bit for bit the whole photo's, cut); on a
         # large face its wq x wq block means (the valley is then still >= ~3 px wide)
         if wq == 1:
@@ -1106,7 +1106,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         kern = _VALLEY_KERN
         num = np.convolve(pad_edge(off * w, 4), kern, mode="valid")
         den = np.convolve(pad_edge(w, 4), kern, mode="valid")
-        off = np.clip(num / den, -reach, reach)
+        off = clamp(num / den, -reach, reach)
         todo.append((a, b, q + off[:, None] * nrm))
     if todo:  # located on the mesh in one batch
         ti, bc = _locate(np.concatenate([t[2] for t in todo]), V, face.mesh.triangles[cand])
@@ -1546,8 +1546,8 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     n = np.sqrt(fc * fc + fs * fs)
     np.maximum(n, np.float32(1e-30), out=n)
     c2 = fc / n
-    ux = np.sqrt(np.clip(0.5 + 0.5 * c2, 0.0, 1.0))
-    uy = np.sqrt(np.clip(0.5 - 0.5 * c2, 0.0, 1.0))
+    ux = np.sqrt(clamp(0.5 + 0.5 * c2, 0.0, 1.0))
+    uy = np.sqrt(clamp(0.5 - 0.5 * c2, 0.0, 1.0))
     np.copysign(uy, fs, out=uy)
     h = 3.0 * along
     step = _TAP_STEP * along
@@ -1627,7 +1627,7 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
     np.multiply(d, d, out=d)
     dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))
     ref_l = np.float32(1.0 / max(float(np.mean(ref)), 20.0))
-    wgt = np.clip((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
+    wgt = clamp((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
     return cv2.merge([C, wgt.astype(np.float32)])
 
 

@@ -560,6 +560,15 @@ def clamp(x: ArrayLike, lo: ArrayLike, hi: ArrayLike) -> np.ndarray:
     return np.minimum(np.maximum(x, lo), hi)
 
 
+def gather_px(img: np.ndarray, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
+    """``img[rows, cols]`` of an (h, w) or (h, w, c) array for in-range (non-negative)
+    integer index arrays (broadcast): the same pixels by ``take`` on the flattened pixels,
+    several times faster than numpy's two-array fancy indexing of a colour image."""
+    h, w = img.shape[:2]
+    flat = np.asarray(rows) * w + np.asarray(cols)
+    return img.reshape((h * w,) + img.shape[2:]).take(flat, axis=0)
+
+
 def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """``np.median(img[mask > 0], axis=0)`` (every pixel without ``mask``) of an (h, w, 3)
     uint8 image, float64 (3,), the same values from each channel's histogram: the middle rank's

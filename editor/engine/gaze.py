@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import linspace, median, pad_edge, percentile
+from .fitting import gather_px, linspace, median, pad_edge, percentile
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -215,7 +215,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
                                                  labelType=cv2.DIST_LABEL_PIXEL)
         iy, ix = np.nonzero(inner)  # labels number the zero pixels in this (row-major) order
         near = lab[margin] - 1
-        out[margin] = out[iy[near], ix[near]]
+        out[margin] = gather_px(out, iy[near], ix[near])
     ph, pw = opening.shape
     full = np.flatnonzero(opening.any(0))
     if len(full):
@@ -225,7 +225,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         bot = ph - 1 - np.argmax(opening[::-1], 0)
         src = full[np.abs(np.arange(pw)[:, None] - full[None, :]).argmin(1)]
         yy = np.arange(ph)[:, None]
-        out = out[_clamp(yy, top[src][None, :], bot[src][None, :]), src[None, :]]
+        out = gather_px(out, _clamp(yy, top[src][None, :], bot[src][None, :]), src[None, :])
     return out
 
 
@@ -278,8 +278,8 @@ def _row_interp(tel: np.ndarray, out: np.ndarray, known: np.ndarray, disc: np.nd
     iy, ix = np.nonzero(disc & ok[:, None])
     if len(iy):
         kl, kr = left[iy, ix], right[iy, ix]  # kl < ix < kr: the disc is not known
-        yl = out[iy, kl].astype(np.float64)
-        yr = out[iy, kr].astype(np.float64)
+        yl = gather_px(out, iy, kl).astype(np.float64)
+        yr = gather_px(out, iy, kr).astype(np.float64)
         x, xl, xr = ix.astype(np.float64), kl.astype(np.float64), kr.astype(np.float64)
         slope = (yr - yl) / (xr - xl)[:, None]
         rows[iy, ix] = slope * (x - xl)[:, None] + yl

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, clamp, median, pad_edge
+from .fitting import channel_median, clamp, gather_px, median, pad_edge
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
@@ -557,7 +557,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         yi, ji = np.nonzero(np.arange(ph)[:, None] < top[None, :])
         j = span[ji]
         g = _smoothstep((top[ji] - yi - hidden) / fade)[:, None]
-        rgb_up[yi, j] = (1.0 - g) * patch[first[near[ji]], near[ji]] + g * gum
+        rgb_up[yi, j] = (1.0 - g) * gather_px(patch, first[near[ji]], near[ji]) + g * gum
         own_up[yi, j] = np.maximum(own_up[yi, j], ext_w[j])
         ext_mask[yi, j] = 1.0
     below = ys >= split[None, :]
@@ -655,10 +655,10 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
         r = clamp(rows - dy[None, :], 0, ph - 1)
         dim = (1.0 - 0.35 * _smoothstep(d / max(0.5 * span, 1.0)))[None, :]
         cols_t = slice(0, lo) if side < 0 else slice(hi + 1, pw)  # tgt, as a slice
-        own_up[:, cols_t] = teeth_a[r, src[None, :]]
+        own_up[:, cols_t] = gather_px(teeth_a, r, src[None, :])
         own_low[:, cols_t] = 0.0
         # (float64 products rounded into the float32 colours, without a float64 copy)
-        np.multiply(rgb_up[r, src[None, :]], dim[..., None], out=rgb_up[:, cols_t],
+        np.multiply(gather_px(rgb_up, r, src[None, :]), dim[..., None], out=rgb_up[:, cols_t],
                     casting="same_kind")
         ext_mask[:, cols_t] = 1.0
     return own_up, own_low, rgb_up, ext_mask

@@ -151,10 +151,13 @@ def _catmull(ctrl: np.ndarray, n: int) -> np.ndarray:
 
 def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
     """Taper along a line: rises over [0, a], falls over [1 - b, 1] (smoothstep)."""
-    def ss(x: np.ndarray) -> np.ndarray:
-        x = np.minimum(np.maximum(x, 0.0), 1.0)  # (np.clip's values, without its overhead)
-        return x * x * (3.0 - 2.0 * x)
-    return ss(t / max(a, 1e-6)) * ss((1.0 - t) / max(b, 1e-6))
+    # (both ramps in one array: the same values with half the small-array operations;
+    # the clip as minimum / maximum, np.clip's values without its dispatch)
+    n = len(t)
+    x = np.concatenate([t / max(a, 1e-6), (1.0 - t) / max(b, 1e-6)])
+    x = np.minimum(np.maximum(x, 0.0), 1.0)
+    x = x * x * (3.0 - 2.0 * x)
+    return x[:n] * x[n:]
 
 
 @dataclass

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, linspace, luminance, median, pad_edge
+from .fitting import channel_median, clamp, is_grey, linspace, luminance, median, pad_edge
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -151,10 +151,13 @@ def _catmull(ctrl: np.ndarray, n: int) -> np.ndarray:
 
 def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
     """Taper along a line: rises over [0, a], falls over [1 - b, 1] (smoothstep)."""
-    def ss(x: np.ndarray) -> np.ndarray:
-        x = np.minimum(np.maximum(x, 0.0), 1.0)  # (np.clip's values, without its overhead)
-        return x * x * (3.0 - 2.0 * x)
-    return ss(t / max(a, 1e-6)) * ss((1.0 - t) / max(b, 1e-6))
+    # (both ramps in one array: the same values with half the small-array operations;
+    # the clip as minimum / maximum, np.clip's values without its dispatch)
+    n = len(t)
+    x = np.concatenate([t / max(a, 1e-6), (1.0 - t) / max(b, 1e-6)])
+    x = np.minimum(np.maximum(x, 0.0), 1.0)
+    x = x * x * (3.0 - 2.0 * x)
+    return x[:n] * x[n:]
 
 
 @dataclass
@@ -321,14 +324,17 @@ def _normals(pts: np.ndarray) -> np.ndarray:
     """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
     # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
     # central differences inside, one-sided at the ends)
+    # (in place into preallocated arrays, no np.stack: -(ty / n) is -ty / n bit for bit)
     p = np.asarray(pts, np.float64)
     tang = np.empty_like(p)
-    tang[1:-1] = (p[2:] - p[:-2]) / 2.0
+    np.subtract(p[2:], p[:-2], out=tang[1:-1])
+    tang[1:-1] /= 2.0
     tang[0] = p[1] - p[0]
     tang[-1] = p[-1] - p[-2]
     tx, ty = tang[:, 0], tang[:, 1]
-    n = np.maximum(np.sqrt(tx * tx + ty * ty), 1e-9)
-    out = np.empty_like(p)  # (np.stack's values without its overhead)
+    n = np.sqrt(tx * tx + ty * ty)
+    np.maximum(n, 1e-9, out=n)
+    out = np.empty_like(p)
     np.divide(ty, n, out=out[:, 0])
     np.negative(out[:, 0], out=out[:, 0])
     np.divide(tx, n, out=out[:, 1])
@@ -386,24 +392,29 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     cnt = np.searchsorted(key, kb, "right") - r0
     pt_t = np.repeat(tt, cnt)
     pt_p = order[np.arange(len(pt_t)) - np.repeat(np.cumsum(cnt) - cnt - r0, cnt)]
-    qx, qy = px[pt_p], py[pt_p]
-    keep = (qx >= lo[pt_t, 0]) & (qx <= hi[pt_t, 0]) & (qy >= lo[pt_t, 1]) & (qy <= hi[pt_t, 1])
+    # (the columns gathered with take from contiguous copies: the same values, without the
+    # cost of fancy indexing into (n, 2) arrays)
+    qx, qy = px.take(pt_p), py.take(pt_p)
+    keep = (qx >= np.ascontiguousarray(lo[:, 0]).take(pt_t)) & \
+        (qx <= np.ascontiguousarray(hi[:, 0]).take(pt_t)) & \
+        (qy >= np.ascontiguousarray(lo[:, 1]).take(pt_t)) & \
+        (qy <= np.ascontiguousarray(hi[:, 1]).take(pt_t))
     pt_t, pt_p = pt_t[keep], pt_p[keep]
     thin = np.flatnonzero(np.abs(det) < 1.0)
     if len(thin):
         pt_t = np.concatenate([pt_t, np.repeat(thin, n)])
         pt_p = np.concatenate([pt_p, np.tile(np.arange(n), len(thin))])
     srt = np.argsort(pt_p * T + pt_t)  # by point, then triangle (unique keys)
-    pt_t, pt_p = pt_t[srt], pt_p[srt]
+    pt_t, pt_p = pt_t.take(srt), pt_p.take(srt)
     # the same arithmetic as _locate_all, pair by pair
-    dx = points[pt_p, 0] - a[pt_t, 0]
-    dy = points[pt_p, 1] - a[pt_t, 1]
-    dt = det[pt_t]
-    l1 = dx * e2[pt_t, 1]
-    l1 -= dy * e2[pt_t, 0]
+    dx = px.take(pt_p) - np.ascontiguousarray(a[:, 0]).take(pt_t)
+    dy = py.take(pt_p) - np.ascontiguousarray(a[:, 1]).take(pt_t)
+    dt = det.take(pt_t)
+    l1 = dx * np.ascontiguousarray(e2[:, 1]).take(pt_t)
+    l1 -= dy * np.ascontiguousarray(e2[:, 0]).take(pt_t)
     l1 /= dt
-    l2 = e1[pt_t, 0] * dy
-    l2 -= e1[pt_t, 1] * dx
+    l2 = np.ascontiguousarray(e1[:, 0]).take(pt_t) * dy
+    l2 -= np.ascontiguousarray(e1[:, 1]).take(pt_t) * dx
     l2 /= dt
     l0 = 1.0 - l1
     l0 -= l2
@@ -551,9 +562,9 @@ def _build_plan(face: Face) -> CreasePlan:
     m = 0.06 * iod
     skin = np.zeros((len(kinds), 3))
     # (each fold's samples are consecutive: every box at once)
-    lo = np.clip(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
+    lo = clamp(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
                  [w - 1, h - 1]).tolist()
-    hi = np.clip(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
+    hi = clamp(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
                  [w, h]).tolist()
     for f, ((x0, y0), (x1, y1)) in enumerate(zip(lo, hi, strict=True)):
         skin[f] = channel_median(img[y0:y1, x0:x1])
@@ -629,8 +640,8 @@ def _fast(face: Face) -> _Fast:
     n = len(p.fold)
     edge = np.zeros(n, bool)
     for off in (0, 1):
-        edge[np.clip(p.start[:-1] + off, 0, n - 1)] = True
-        edge[np.clip(p.start[1:] - 1 - off, 0, n - 1)] = True
+        edge[clamp(p.start[:-1] + off, 0, n - 1)] = True
+        edge[clamp(p.start[1:] - 1 - off, 0, n - 1)] = True
     seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
     seg_g = p.group[p.fold[seg_a]]
     order = np.argsort(seg_g, kind="stable")
@@ -670,7 +681,7 @@ def _fast(face: Face) -> _Fast:
         f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
         f.own_div = np.maximum(f.own_sum, 1e-9)
-        f.own_fade = np.clip((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
+        f.own_fade = clamp((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
     # published only when complete: the editor's render thread and its GUI thread may ask for
     # the same face's constants at once (published before the own folds' fields were set, a
     # render on the other thread could draw no unfold: a rare preview differing from a
@@ -1068,8 +1079,8 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         r = int(math.ceil(_VALLEY_WIDTH * sig))
         q = pos[a:b]
         pad = reach + 2 * r + 3
-        x0, y0 = np.clip(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
-        x1, y1 = np.clip(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
+        x0, y0 = clamp(np.floor(q.min(0) - pad).astype(int), 0, (W - 1, H - 1))
+        x1, y1 = clamp(np.ceil(q.max(0) + pad).astype(int) + 1, 1, (W, H))
         # the luminance of this fold's box only (bit for bit the whole photo's, cut); on a
         # large face its wq x wq block means (the valley is then still >= ~3 px wide)
         if wq == 1:
@@ -1098,7 +1109,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         kern = _VALLEY_KERN
         num = np.convolve(pad_edge(off * w, 4), kern, mode="valid")
         den = np.convolve(pad_edge(w, 4), kern, mode="valid")
-        off = np.clip(num / den, -reach, reach)
+        off = clamp(num / den, -reach, reach)
         todo.append((a, b, q + off[:, None] * nrm))
     if todo:  # located on the mesh in one batch
         ti, bc = _locate(np.concatenate([t[2] for t in todo]), V, face.mesh.triangles[cand])
@@ -1531,13 +1542,15 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
 
     The direction is continuous (half the angle of the doubled-angle field ``(fc, fs)``),
     not quantised; each tap is one ``cv2.remap`` of the box, so the cost is the taps times
-    the box, not the kernel's area times the box per direction used."""
+    the box, not the kernel's area times the box per direction used. (All taps' maps are
+    made at once and resampled by one ``cv2.remap`` of the taps stacked as rows: the same
+    values per tap, without a dozen small array operations and calls per tap.)"""
     hb, wb = fc.shape
     n = np.sqrt(fc * fc + fs * fs)
     np.maximum(n, np.float32(1e-30), out=n)
     c2 = fc / n
-    ux = np.sqrt(np.clip(0.5 + 0.5 * c2, 0.0, 1.0))
-    uy = np.sqrt(np.clip(0.5 - 0.5 * c2, 0.0, 1.0))
+    ux = np.sqrt(clamp(0.5 + 0.5 * c2, 0.0, 1.0))
+    uy = np.sqrt(clamp(0.5 - 0.5 * c2, 0.0, 1.0))
     np.copysign(uy, fs, out=uy)
     h = 3.0 * along
     step = _TAP_STEP * along
@@ -1551,23 +1564,17 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     # (a 3-channel image resampled as four channels: OpenCV's 4-channel remap is faster, with
     # the same values per channel)
     src = cv2.cvtColor(sub, cv2.COLOR_RGB2RGBA) if nc == 3 else sub
+    k = len(ts)
+    t32 = ts.astype(np.float32)[:, None, None]
+    mx = ux * t32
+    mx += bx
+    my = uy * t32
+    my += by
+    got = cv2.remap(src, mx.reshape(k * hb, wb), my.reshape(k * hb, wb), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
-    # the taps are symmetric (ts[nt + k] = -ts[nt - k]): u * t once per pair, added to and
-    # subtracted from the pixel's position (u * -t + b is b - u * t exactly); the middle
-    # tap's map is the pixels themselves, whose bilinear sample is the pixel (weights 1, 0)
-    off = {k: (ux * np.float32(t), uy * np.float32(t)) for k, t in enumerate(ts.tolist())
-           if k > nt}
-    for k, wt in enumerate(wts.tolist()):
-        if k == nt:
-            got = src[at[1]:at[1] + hb, at[0]:at[0] + wb]
-        else:
-            ox, oy = off[k] if k > nt else off[2 * nt - k]
-            if k > nt:
-                mx, my = ox + bx, oy + by
-            else:
-                mx, my = bx - ox, by - oy
-            got = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        cv2.scaleAdd(got, wt, acc, dst=acc)
+    for i, wt in enumerate(wts.tolist()):  # (accumulated in the taps' order, as before)
+        cv2.scaleAdd(got[i * hb:(i + 1) * hb], wt, acc, dst=acc)
     return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
 
 
@@ -1623,7 +1630,7 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
     np.multiply(d, d, out=d)
     dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))
     ref_l = np.float32(1.0 / max(float(np.mean(ref)), 20.0))
-    wgt = np.clip((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
+    wgt = clamp((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
     return cv2.merge([C, wgt.astype(np.float32)])
 
 

@@ -445,8 +445,8 @@ class Face:
     @cached_property
     def _fap_px(self) -> np.ndarray:
         """(68,) pixels per unit of each FAP (its FAPU on the neutral; 0 for FAPs 1-2)."""
-        return np.array([self.fapu.get(FAPS[i + 1].unit, 0.0) if i >= 2 else 0.0
-                         for i in range(68)])
+        fapu = self.fapu
+        return np.array([fapu.get(u, 0.0) if u is not None else 0.0 for u in _fap_units()])
 
     @cached_property
     def warp_plan(self) -> WarpPlan:
@@ -637,6 +637,13 @@ def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,
         v[sel] += 0.5 * (avg[sel] - v[sel])
         v[pairs[:, 1]] = v[pairs[:, 0]]  # the lower inner lip stays on the upper one
     return v
+
+
+@lru_cache(maxsize=1)
+def _fap_units() -> tuple[str | None, ...]:
+    """The FAPU name of each FAP (index i = FAP i+1; None for FAPs 1-2) from the static
+    table, looked up once (not through ``FAPS[...]``'s key checks for every face)."""
+    return tuple(FAPS[i + 1].unit if i >= 2 else None for i in range(68))
 
 
 @lru_cache(maxsize=4)

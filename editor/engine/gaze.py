@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import linspace, median, pad_edge, percentile
+from .fitting import gather_px, linspace, median, pad_edge, percentile
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -131,12 +131,14 @@ def limbus_widths(patch: np.ndarray, opening: np.ndarray, cx: float, cy: float, 
         if lo - li < 15.0:
             continue
         idx = np.flatnonzero(ok & side & (a >= 0.6 * r) & (a <= 1.4 * r))
-        if len(idx) < 4 or np.any(np.diff(idx) != 1):
+        # (np.diff's values as a slice difference, without its Python-level overhead)
+        if len(idx) < 4 or np.any(idx[1:] - idx[:-1] != 1):
             continue
         order = np.argsort(a[idx])
         u, t = a[idx][order], (prof[idx][order] - li) / (lo - li)
-        c10 = np.flatnonzero(np.diff(np.sign(t - 0.1)) != 0)
-        c90 = np.flatnonzero(np.diff(np.sign(t - 0.9)) != 0)
+        s10, s90 = np.sign(t - 0.1), np.sign(t - 0.9)
+        c10 = np.flatnonzero(s10[1:] - s10[:-1] != 0)
+        c90 = np.flatnonzero(s90[1:] - s90[:-1] != 0)
         if not len(c10) or not len(c90):
             continue
         k1, k9 = int(c10[-1]), int(c90[0])
@@ -199,10 +201,10 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         c0, c1 = max(int(xs[0]) - reach, 0), min(int(xs[-1]) + 1 + reach, pw)
         rows, wrow = _row_interp(tel[r0:r1], out[r0:r1], known[r0:r1], disc[r0:r1])
         box = (slice(r0, r1), slice(c0, c1))
-        wv = (np.clip((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
+        wv = (_clamp((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
         fill = wv * rows[:, c0:c1] + (1.0 - wv) * tel[box]
         fill = cv2.GaussianBlur(fill, (0, 0), sigma)
-        w = (np.clip(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
+        w = (_clamp(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
         out[box] = w * fill + (1.0 - w) * out[box]
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
@@ -215,7 +217,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
                                                  labelType=cv2.DIST_LABEL_PIXEL)
         iy, ix = np.nonzero(inner)  # labels number the zero pixels in this (row-major) order
         near = lab[margin] - 1
-        out[margin] = out[iy[near], ix[near]]
+        out[margin] = gather_px(out, iy[near], ix[near])
     ph, pw = opening.shape
     full = np.flatnonzero(opening.any(0))
     if len(full):
@@ -225,7 +227,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         bot = ph - 1 - np.argmax(opening[::-1], 0)
         src = full[np.abs(np.arange(pw)[:, None] - full[None, :]).argmin(1)]
         yy = np.arange(ph)[:, None]
-        out = out[np.clip(yy, top[src][None, :], bot[src][None, :]), src[None, :]]
+        out = gather_px(out, _clamp(yy, top[src][None, :], bot[src][None, :]), src[None, :])
     return out
 
 
@@ -278,8 +280,8 @@ def _row_interp(tel: np.ndarray, out: np.ndarray, known: np.ndarray, disc: np.nd
     iy, ix = np.nonzero(disc & ok[:, None])
     if len(iy):
         kl, kr = left[iy, ix], right[iy, ix]  # kl < ix < kr: the disc is not known
-        yl = out[iy, kl].astype(np.float64)
-        yr = out[iy, kr].astype(np.float64)
+        yl = gather_px(out, iy, kl).astype(np.float64)
+        yr = gather_px(out, iy, kr).astype(np.float64)
         x, xl, xr = ix.astype(np.float64), kl.astype(np.float64), kr.astype(np.float64)
         slope = (yr - yl) / (xr - xl)[:, None]
         rows[iy, ix] = slope * (x - xl)[:, None] + yl
@@ -303,8 +305,9 @@ def _column_percentile(vals: np.ndarray, valid: np.ndarray, q: float) -> np.ndar
     prev[top], nxt[top] = last[top], last[top]
     low = vi < 0
     prev[low], nxt[low] = 0, 0
-    a = np.take_along_axis(s, prev[None], 0)[0]
-    b = np.take_along_axis(s, nxt[None], 0)[0]
+    jj = np.arange(s.shape[1])  # (s[prev[j], j]: np.take_along_axis's values, less overhead)
+    a = s[prev, jj]
+    b = s[nxt, jj]
     with np.errstate(invalid="ignore"):  # (inf - inf in a column without valid values)
         d = b - a
         out = a + d * gamma.astype(vals.dtype)
@@ -410,7 +413,7 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     if strict:
         mirror_ok = np.zeros_like(need)
     else:
-        my = np.broadcast_to(np.clip(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
+        my = np.broadcast_to(_clamp(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
                              .astype(np.int64), (ph, pw))
         xx = np.broadcast_to(np.arange(pw)[None, :], (ph, pw))
         mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
@@ -442,8 +445,9 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
 
 
 def _clamp(x, lo, hi):
-    """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
-    (several microseconds a call, as much as the arithmetic on a small layer box)."""
+    """``np.clip`` for the per-frame code and the plans' builds: the same values without its
+    Python-level dispatch (several microseconds a call, as much as the arithmetic on a small
+    layer box)."""
     return np.minimum(np.maximum(x, lo), hi)
 
 
@@ -476,8 +480,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     iris radius, 0.87 over the next; the photo's mesh puts the lid line inside the lash band,
     so its lower half lies in the opening.)"""
     ph, pw = rho.shape
-    cover = np.clip((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
-        np.clip(r + 1.0 - rho, 0.0, 1.0)
+    cover = _clamp((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
+        _clamp(r + 1.0 - rho, 0.0, 1.0)
     a = cover.astype(np.float32)[..., None]
     bare = plate + a * (iris - plate)
     # both smoothed (a shading field; the completed iris's edge is not exactly the photo's:
@@ -489,8 +493,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     # of the luminance ratio (where the completed iris and the photo's differ in hue, free
     # channel ratios tinted the iris yellow)
     lum = np.array([0.299, 0.587, 0.114], np.float32)
-    rl = np.clip((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0)[..., None]
-    ratio = np.clip(src / np.maximum(bare, 1.0), 0.75 * rl, np.minimum(1.25 * rl, 1.0))
+    rl = _clamp((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0)[..., None]
+    ratio = _clamp(src / np.maximum(bare, 1.0), 0.75 * rl, np.minimum(1.25 * rl, 1.0))
     ex, ey = axes
     xs = np.arange(pw, dtype=np.float64) + org[0]
     ys = np.arange(ph, dtype=np.float64) + org[1]
@@ -502,8 +506,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     ramp = max(soft, 1.0)
     # (one map per lid: each is sampled with its own lid's shift, which would carry the
     # other lid's band too)
-    w_up = np.clip((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)[..., None]
-    w_lo = np.clip((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)[..., None]
+    w_up = _clamp((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)[..., None]
+    w_lo = _clamp((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)[..., None]
     dark = 1.0 - ratio  # (float32, shared by both maps)
     return ((1.0 - w_up * dark).astype(np.float32), (1.0 - w_lo * dark).astype(np.float32))
 

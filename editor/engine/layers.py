@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, median, pad_edge
+from .fitting import channel_median, clamp, gather_px, median, pad_edge
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
@@ -106,8 +106,8 @@ def layer_plan(face: Face) -> LayerPlan:
         q = np.round(v[mesh.triangles[cheek]] * 16).astype(np.int32)  # (n, 3, 2)
         h, w = img.shape[:2]
         if len(q):
-            bx0, by0 = np.clip(q.reshape(-1, 2).min(0) // 16 - 1, 0, (w, h))
-            bx1, by1 = np.clip(q.reshape(-1, 2).max(0) // 16 + 2, 0, (w, h))
+            bx0, by0 = clamp(q.reshape(-1, 2).min(0) // 16 - 1, 0, (w, h))
+            bx1, by1 = clamp(q.reshape(-1, 2).max(0) // 16 + 2, 0, (w, h))
         else:
             bx0 = by0 = bx1 = by1 = 0
         skin_mask = np.zeros((max(by1 - by0, 0), max(bx1 - bx0, 0)), np.uint8)
@@ -117,7 +117,7 @@ def layer_plan(face: Face) -> LayerPlan:
         skin = (channel_median(img[by0:by1, bx0:bx1], skin_mask).astype(np.float32)
                 if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
         skin_l = max(float(_lum(skin)), 20.0)
-        sat = float(np.clip(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
+        sat = float(clamp(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
         poly = v[mesh.holes["mouth"]]
         mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l),
                                 skin, face.neutral_vertices)
@@ -559,7 +559,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     else:
         split[:] = ph
     ys = np.arange(ph, dtype=np.float64)[:, None]
-    up = np.clip(split[None, :] - ys + 0.5, 0.0, 1.0)
+    up = clamp(split[None, :] - ys + 0.5, 0.0, 1.0)
     own_up = cov * up * weight[None, :]
     own_low = cov * (1.0 - up) * weight[None, :]
     rgb_up = patch.copy()
@@ -586,7 +586,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         yi, ji = np.nonzero(np.arange(ph)[:, None] < top[None, :])
         j = span[ji]
         g = _smoothstep((top[ji] - yi - hidden) / fade)[:, None]
-        rgb_up[yi, j] = (1.0 - g) * patch[first[near[ji]], near[ji]] + g * gum
+        rgb_up[yi, j] = (1.0 - g) * gather_px(patch, first[near[ji]], near[ji]) + g * gum
         own_up[yi, j] = np.maximum(own_up[yi, j], ext_w[j])
         ext_mask[yi, j] = 1.0
     below = ys >= split[None, :]
@@ -668,7 +668,7 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
     k = max(2, span // 6)
     # only teeth (rows above the split) are mirrored, with their upward continuation
     ys = np.arange(ph, dtype=np.float64)[:, None]
-    teeth_a = own_up * np.clip(split[None, :] - ys + 1.0, 0.0, 1.0)
+    teeth_a = own_up * clamp(split[None, :] - ys + 1.0, 0.0, 1.0)
     rows = np.arange(ph)[:, None]
     for side in (-1, 1):
         edge = lo if side < 0 else hi
@@ -679,15 +679,15 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
         src = edge - side * (d % (span - 1))  # mirrored into the teeth row (repeating)
         # per column outwards, at most a gentle rise (the last teeth's tips turn up steeply
         # into the photo's raised corner; extrapolated, the row would leave the opening)
-        slope = float(np.clip((split[edge] - split[edge - side * k]) / k, -0.2, 0.2))
+        slope = float(clamp((split[edge] - split[edge - side * k]) / k, -0.2, 0.2))
         dy = np.round(split[edge] + slope * d - split[src]).astype(np.int64)
-        r = np.clip(rows - dy[None, :], 0, ph - 1)
+        r = clamp(rows - dy[None, :], 0, ph - 1)
         dim = (1.0 - 0.35 * _smoothstep(d / max(0.5 * span, 1.0)))[None, :]
         cols_t = slice(0, lo) if side < 0 else slice(hi + 1, pw)  # tgt, as a slice
-        own_up[:, cols_t] = teeth_a[r, src[None, :]]
+        own_up[:, cols_t] = gather_px(teeth_a, r, src[None, :])
         own_low[:, cols_t] = 0.0
         # (float64 products rounded into the float32 colours, without a float64 copy)
-        np.multiply(rgb_up[r, src[None, :]], dim[..., None], out=rgb_up[:, cols_t],
+        np.multiply(gather_px(rgb_up, r, src[None, :]), dim[..., None], out=rgb_up[:, cols_t],
                     casting="same_kind")
         ext_mask[:, cols_t] = 1.0
     return own_up, own_low, rgb_up, ext_mask

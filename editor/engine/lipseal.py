@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey, luminance, median
+from .fitting import channel_median, clamp, is_grey, luminance, median
 from .layers import _blur, _rebox, _union, layer_plan
 from .warp import WarpResult, box_maps
 
@@ -420,7 +420,7 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
         d = np.hypot(xx - p0[0], yy - p0[1])
         side = ((xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1] + 0.02 * iod) \
             / max(0.05 * iod, 1.0)
-        wgt = np.clip((R - d) / (R / 3.0), 0.0, 1.0) * np.clip(side, 0.0, 1.0)
+        wgt = clamp((R - d) / (R / 3.0), 0.0, 1.0) * clamp(side, 0.0, 1.0)
         filled = patch + (wgt * wgt * (3.0 - 2.0 * wgt))[..., None].astype(np.float32) \
             * (filled - patch.astype(np.float32))
     return _Corner(vertex, p0, disp, _Patch(_difference(filled, patch, soft), (x0, y0)))

@@ -36,6 +36,7 @@ import numpy as np
 from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
+from .fitting import clamp
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -242,9 +243,9 @@ def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | Non
         c = 0.5 * tc + 0.5 * TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0))
         lim = float(np.abs(chroma).max()) * TEETH_CAST * 1.5 + 1e-6
         c = c * min(1.0, lim / max(float(np.abs(c).max()), 1e-6))
-        return np.clip(lt + c, 0.0, 255.0)
+        return clamp(lt + c, 0.0, 255.0)
     lt = TEETH_L * skin_l
-    return np.clip(lt + TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0)), 0.0, 255.0)
+    return clamp(lt + TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0)), 0.0, 255.0)
 
 
 def _poly_mask(shape: tuple[int, int], poly: np.ndarray, off: np.ndarray) -> np.ndarray:
@@ -362,7 +363,7 @@ class MouthPlan:
             tex[name] = _tinted_at(name, sat, gain * shade, (tw_, th_))
         # the gum: the tinted upper teeth's top band (alpha > 0.5), unpremultiplied
         lum_g, chroma_g = _texture_parts()["upper_teeth"][9:11]
-        gum_rgb = (np.clip((lum_g[:, None] + sat * chroma_g) * gain_t.astype(np.float64), 0.0,
+        gum_rgb = (clamp((lum_g[:, None] + sat * chroma_g) * gain_t.astype(np.float64), 0.0,
                            255.0).mean(0) if len(lum_g) else 0.6 * target)
         cav_l = float(_lum(CAVITY_RGB))
         cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)

@@ -250,7 +250,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
     new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    new = _even_out(face, res, new, mx, my, xc, y0c)
+    new = _even_out(face, res, new, mx, my, [b for b, _, _ in jobs])
     bbox = res.bbox
     c = 0
     for (x0, y0, x1, y1), _, _ in jobs:
@@ -276,7 +276,8 @@ _GRAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def _grain(face: Face) -> tuple[float, float, np.ndarray]:
     """The photo's skin grain around the upper lids (robust std of the luminance's
     high-pass, grey levels), the photo's edge ramp (:func:`layers.layer_plan`) and a static
-    unit-variance noise tile blurred as the photo is (kept per face)."""
+    noise tile blurred as the photo is, at :data:`GRAIN_SHARE` of that grain, repeated 2 x 2
+    (any window up to the tile's side is one slice; kept per face)."""
     got = _GRAIN.get(face)
     if got is not None:
         return got
@@ -302,17 +303,17 @@ def _grain(face: Face) -> tuple[float, float, np.ndarray]:
     p = min(int(math.ceil(4 * sig)), _TILE)
     blurred = np.asarray(cv2.GaussianBlur(np.pad(tile, p, mode="wrap"), (0, 0), sig),
                          np.float32)[p:-p, p:-p]
-    tile = np.ascontiguousarray(blurred / max(float(blurred.std()), 1e-6), np.float32)
-    got = (g, soft, tile)
+    tile = blurred * np.float32(GRAIN_SHARE * g / max(float(blurred.std()), 1e-6))
+    got = (g, soft, np.ascontiguousarray(np.tile(tile, (2, 2)), np.float32))
     _GRAIN[face] = got
     return got
 
 
 def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: np.ndarray,
-              xc: np.ndarray, y0c: np.ndarray) -> np.ndarray:
-    """The lid strips ``new`` (uint8, the boxes side by side; ``mx, my`` where each pixel was
-    read in the warped image, ``xc`` / ``y0c`` each column's image x and first row) with the
-    skin evened out where it is stretched vertically by more than :data:`STRETCH_FROM`.
+              boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """The lid strips ``new`` (uint8, the image ``boxes`` side by side; ``mx, my`` where each
+    pixel was read in the warped image) with the skin evened out where it is stretched
+    vertically by more than :data:`STRETCH_FROM`.
 
     A closing lid draws the photo's thin band of lid skin (between its margin and the crease
     or the brow) over the whole eyeball, two to three times taller: the skin's grain and the
@@ -328,37 +329,52 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     # resampling reads the warped image); outside the warp's box the map is the identity
     sy = cv2.remap(map_y, mx - np.float32(a0), my - np.float32(b0), cv2.INTER_LINEAR,
                    borderMode=cv2.BORDER_REPLICATE)
-    inside = (mx >= a0) & (mx <= a1 - 1) & (my >= b0) & (my <= b1 - 1)
     d = np.empty_like(sy)
     d[:-1] = sy[1:] - sy[:-1]
     d[-1] = d[-2] if len(d) > 1 else 1.0
-    stretch = 1.0 / np.maximum(np.abs(d), np.float32(0.05))
-    w = (stretch - np.float32(STRETCH_FROM)) * np.float32(1.0 / (STRETCH_FULL - STRETCH_FROM))
+    # w = (1 / |d| - STRETCH_FROM) / (STRETCH_FULL - STRETCH_FROM), in [0, 1]
+    np.abs(d, out=d)
+    np.maximum(d, np.float32(0.05), out=d)
+    w = np.float32(1.0) / d
+    w -= np.float32(STRETCH_FROM)
+    w *= np.float32(1.0 / (STRETCH_FULL - STRETCH_FROM))
     np.clip(w, 0.0, 1.0, out=w)
-    w *= inside
+    w *= (mx >= a0) & (mx <= a1 - 1) & (my >= b0) & (my <= b1 - 1)
     # (only the rows and columns that are stretched, with the blurs' margins)
-    hit_r, hit_c = np.flatnonzero(w.max(1) >= 0.02), np.flatnonzero(w.max(0) >= 0.02)
+    hot = w >= np.float32(0.02)
+    hit_r, hit_c = np.flatnonzero(hot.any(1)), np.flatnonzero(hot.any(0))
     if not len(hit_r):
         return new
-    g, soft, tile = _grain(face)
+    g, soft, tile2 = _grain(face)
     sx = max(1.0, 0.5 * soft)
     pad = int(math.ceil(3.0 * sx)) + 3
     h, wd = w.shape
     r0, r1 = max(int(hit_r[0]) - 3, 0), min(int(hit_r[-1]) + 4, h)
     c0, c1 = max(int(hit_c[0]) - pad, 0), min(int(hit_c[-1]) + pad + 1, wd)
-    wb: np.ndarray = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(w[r0:r1, c0:c1]), (0, 0),
-                                                 1.0), np.float32)
+    wb = np.asarray(cv2.blur(np.ascontiguousarray(w[r0:r1, c0:c1]), (3, 3)), np.float32)
     f = new[r0:r1, c0:c1].astype(np.float32)
     k = cv2.getGaussianKernel(int(round(8 * sx + 1)) | 1, sx, cv2.CV_32F)
     sm: np.ndarray = np.asarray(cv2.sepFilter2D(f, -1, k, np.ones((1, 1), np.float32),
                                                 borderType=cv2.BORDER_REFLECT), np.float32)
-    rows = np.arange(r0, r1)[:, None]
-    ix = (np.rint(xc[c0:c1]).astype(np.int64) % _TILE)[None, :]
-    iy = (y0c[c0:c1].astype(np.int64)[None, :] + rows) % _TILE
-    noise = tile[iy, ix] * np.float32(GRAIN_SHARE * g)
-    sm += noise[..., None]
+    # the grain, static in the image: each box's window of the repeated tile
+    noise = np.empty((r1 - r0, c1 - c0), np.float32)
+    T = _TILE
+    c = 0
+    for x0, y0, x1, _y1 in boxes:
+        lo, hi = max(c, c0), min(c + x1 - x0, c1)
+        if hi > lo:
+            ys = (y0 + r0) % T
+            xs = (x0 + lo - c) % T
+            if r1 - r0 <= T and hi - lo <= T:
+                noise[:, lo - c0:hi - c0] = tile2[ys:ys + r1 - r0, xs:xs + hi - lo]
+            else:  # (a window larger than the tile: gathered)
+                iy = (y0 + np.arange(r0, r1))[:, None] % T
+                ix = (x0 + np.arange(lo - c, hi - c))[None, :] % T
+                noise[:, lo - c0:hi - c0] = tile2[iy, ix]
+        c += x1 - x0
+    sm += cv2.merge([noise, noise, noise])
     sm -= f
-    sm *= wb[..., None]
+    sm *= cv2.merge([wb, wb, wb])
     f += sm
     out = new.copy()
     out[r0:r1, c0:c1] = _u8(f)

@@ -167,7 +167,7 @@ def test_evening_out_removes_vertical_streaks_and_keeps_horizontal_lines(sample_
     row = np.where(yy < 130, 100.0 + (yy - 100.0) / 3.0, yy - 20.0).astype(np.float32)
     map_y = np.ascontiguousarray(np.broadcast_to(row[:, None], (300, 300)))
     res = WarpResult(f.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
-    out = _even_out(f, res, new, mx, my, xs, np.full(w, 100.0))
+    out = _even_out(f, res, new, mx, my, [(100, 100, 100 + w, 100 + h)])
     L = lambda a: a.astype(np.float32).mean(2)  # noqa: E731
     # the stripes: the columns' means over the stretched rows (the grain averages out)
     cols = L(out)[5:22, 10:70].mean(0)

@@ -319,3 +319,24 @@ def test_opening_masks_match_one_opening_at_a_time():
                 assert np.array_equal(cov, _coverage(poly, (x0, y0, x1, y1)))
             else:
                 assert cov is None
+
+
+def test_soft_edge_continues_the_face_without_a_step_at_the_outline():
+    """On a soft photo the face is continued into an opening by the nearest lid or lip pixel,
+    smoothed further in: at the outline it is that pixel itself (smoothed up to the outline,
+    it stepped against the lid beside it: a staircase along the opening's pixel raster on a
+    soft photo's lower lid), a few pixels in it is smooth (no streaks of single pixels)."""
+    from editor.engine.layers import _soft_edge
+
+    h, w = 40, 60
+    out = np.zeros((h, w, 3), np.uint8)
+    out[:, ::2] = 200  # a lid margin with fine structure
+    out[:, 1::2] = 100
+    hole = np.zeros((h, w), bool)
+    hole[20:, :] = True  # the opening below row 20
+    alpha = hole.astype(np.float32)
+    _, inside = _soft_edge(out, (0, 0, w, h), hole, alpha, 6.0, 1.0)
+    edge = inside[20, 10:50, 0]  # first row inside: the row above it, pixel for pixel
+    assert np.abs(edge - out[19, 10:50, 0]).max() < 15, edge
+    deep = inside[30, 10:50, 0]  # well inside: smoothed
+    assert np.ptp(deep) < 20, deep

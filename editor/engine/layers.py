@@ -313,7 +313,20 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         margin = face[~hole].astype(np.float32)  # labels number the zero pixels row by row
         rim = np.take(margin, labels - 1, axis=0, mode="clip") \
             if len(margin) else face.astype(np.float32)
-    rim = _blur(np.ascontiguousarray(rim, np.float32), max(0.5 * soft, 0.8))
+    raw = np.ascontiguousarray(rim, np.float32)
+    rim = _blur(raw, max(0.5 * soft, 0.8))
+    if known is None:
+        # an eye: at the outline the nearest margin pixel itself, smoothed further in (blurred
+        # up to the outline, the continued face stepped against the lid beside it: a staircase
+        # along the warp's pixel raster of the opening on a soft photo's lower lid). depth is 1
+        # on the opening's first pixel row. (The mouth's outline is blurred as a whole, below,
+        # and a re-detection of its lips reads this colour: cloning's round trip of fear on
+        # the 3x sample fell below its bar with it.)
+        wgt = np.clip((np.asarray(depth, np.float32) - np.float32(1.0)) * np.float32(2.0 / soft),
+                      0.0, 1.0)
+        rim -= raw
+        rim *= cv2.merge([wgt, wgt, wgt])
+        rim += raw
     if known is not None:
         # the mouth: its coverage seen through the photo's blur (a Gaussian of ramp / 2.56, as
         # the folds' in :mod:`creases`), centred on the outline. The lips' inner edge darkens

@@ -217,3 +217,19 @@ def test_median_and_percentile_are_numpys():
         nan = np.array([1.0, np.nan, 2.0], np.float32)
         assert _same(fitting.median(nan), np.median(nan))
         assert _same(fitting.percentile(nan, 30.0), np.percentile(nan, 30.0))
+
+
+def test_unmasked_median_abs_is_the_median_of_the_unmasked():
+    from editor.engine import lipseal
+
+    rng = np.random.default_rng(11)
+    for trial, h, w, masked in _random_masks(rng, 400):
+        hp = (rng.normal(0.0, 3.0, (h, w, 3)) * (1.0, 10.0)[trial % 2]).astype(np.float32)
+        if trial % 3 == 0:
+            hp = np.round(hp)  # ties and zeros
+        mask = masked.astype(np.uint8) * 255
+        free = ~masked
+        if not free.any():
+            continue
+        ref = float(np.median(np.abs(hp[free])))
+        assert lipseal._unmasked_median_abs(hp, mask) == ref, trial

@@ -652,7 +652,13 @@ def _fast(face: Face) -> _Fast:
     first = [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)]
     sig = np.array([max(x.sigma * p.iod, 0.6) for x in first])
     dsig = _draw_sigma(face, sig)
-    skin = np.array([p.skin[p.group == g].mean(0) for g in range(G)], np.float32)
+    # (each group's mean of its folds' skin colours, all groups at once: the colours are
+    # medians of uint8 values, multiples of 0.5, whose few sums are exact in any order)
+    cnt = np.bincount(p.group, minlength=G)
+    skin = np.empty((G, 3))
+    for ch in range(3):
+        skin[:, ch] = np.bincount(p.group, p.skin[:, ch], minlength=G)
+    skin = (skin / cnt[:, None]).astype(np.float32)
     f = _Fast(used, inv.reshape(p.probe_tri.shape), depth, c0, spread, edge, seg_a, rng, sig,
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * dsig,
               skin, dead)
@@ -666,8 +672,13 @@ def _fast(face: Face) -> _Fast:
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
     f.keep = 1.0 - spread
     f.seg_b = f.seg_a + 1
-    f.ref_l = np.array([max(float(x.mean()), 20.0) for x in skin])
-    f.skin_shift = [np.hstack([np.eye(3), -x[:, None]]).astype(np.float32) for x in skin]
+    # (per row, as ``max(float(x.mean()), 20.0)`` of each; the transforms (3, 4): identity
+    # and the negated colour, views of one array)
+    f.ref_l = np.maximum(skin.mean(1).astype(np.float64), 20.0)
+    shift = np.zeros((G, 3, 4), np.float32)
+    shift[:, [0, 1, 2], [0, 1, 2]] = 1.0
+    shift[:, :, 3] = -skin
+    f.skin_shift = list(shift)
     # the blurred line and ridge canvases integrate to their weights: scaled back by the
     # Gaussians' 1-D integrals (sqrt(2 pi) sigma; the ridge's is 1.6 times wider). With the
     # line's own sigma, not the drawn one: a soft photo's fold is as dark in all (its

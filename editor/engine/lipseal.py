@@ -247,18 +247,20 @@ def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
 def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     """``median(np.abs(hp[mask == 0]))`` of a finite float32 (h, w, 3) ``hp``, the same value:
     the masked pixels set to +inf in a copy, which sorts them after every value the median
-    reads (a whole-array sort costs less than gathering the unmasked pixels first)."""
+    reads (a whole-array selection costs less than gathering the unmasked pixels first): the
+    middle order statistic from one single-kth ``np.partition`` (a third of a full sort's time
+    on a mouth's box), the lower one of an even count the largest value partitioned below it."""
     free = int(np.count_nonzero(mask == 0))
     if free == 0:
         return float(median(np.abs(hp[mask == 0])))
     a = np.abs(hp)
     np.copyto(a, np.float32(np.inf), where=(mask > 0)[..., None])
-    s = np.sort(a.reshape(-1))
     n = hp.shape[2] * free
     h = n // 2
+    s = np.partition(a.reshape(-1), h)
     if n % 2:
         return float(s[h])
-    return float((s[h - 1] + s[h]) / np.float32(2))
+    return float((s[:h].max() + s[h]) / np.float32(2))
 
 
 def _build(face: Face) -> SealPlan | None:

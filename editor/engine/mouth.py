@@ -151,13 +151,24 @@ def _tinted_at(name: str, sat: float, gain: np.ndarray, size: tuple[int, int]
               > 255.0):
         return np.asarray(cv2.resize(_with_gaps(_tint(name, sat, gain), name, size), size,
                                      interpolation=cv2.INTER_AREA), np.float32)
-    small = np.asarray(cv2.resize(_with_gaps(parts[5], name, size), size,
-                                  interpolation=cv2.INTER_AREA), np.float32)
+    small = _premul_at(name, size)
     ca = small[..., :3]
     c = ca * np.float32(sat)
     c += (np.float32(1.0 - sat) * _lum(ca))[..., None]
     c *= g
     return np.concatenate([c, small[..., 3:4]], 2)
+
+
+@lru_cache(maxsize=16)
+def _premul_at(name: str, size: tuple[int, int]) -> np.ndarray:
+    """The premultiplied texture ``name`` (with :func:`_with_gaps`) resized to ``size``
+    (INTER_AREA), float32, read-only: it depends on the texture and the size only (kept, as
+    :func:`_gap_factor`: a face's size recurs when its plans are rebuilt, ~0.3-0.6 ms a
+    texture at 1920x1080)."""
+    small = np.asarray(cv2.resize(_with_gaps(_texture_parts()[name][5], name, size), size,
+                                  interpolation=cv2.INTER_AREA), np.float32)
+    small.setflags(write=False)
+    return small
 
 
 #: the width (output pixels) the gaps between drawn teeth keep when the texture is shrunk
@@ -192,14 +203,26 @@ def _gap_factor(name: str, size: tuple[int, int]) -> np.ndarray | None:
     return f
 
 
-def _with_gaps(pre: np.ndarray, name: str, size: tuple[int, int]) -> np.ndarray:
-    """``pre`` (h, w, 4, premultiplied) with :func:`_gap_factor` on its colour."""
+@lru_cache(maxsize=16)
+def _gap_factor4(name: str, size: tuple[int, int]) -> np.ndarray | None:
+    """:func:`_gap_factor` spread over four channels, the 4th one 1: ``(f, f, f, 1)``."""
     f = _gap_factor(name, size)
     if f is None:
+        return None
+    f4 = np.ones(f.shape[:2] + (4,), np.float32)
+    f4[..., :3] = f
+    f4.setflags(write=False)
+    return f4
+
+
+def _with_gaps(pre: np.ndarray, name: str, size: tuple[int, int]) -> np.ndarray:
+    """``pre`` (h, w, 4, premultiplied) with :func:`_gap_factor` on its colour (one contiguous
+    multiply by ``(f, f, f, 1)``: the same values as ``out[..., :3] *= f`` on a copy, alpha
+    times 1 itself, ~20x faster than numpy's broadcast over a channel view)."""
+    f4 = _gap_factor4(name, size)
+    if f4 is None:
         return pre
-    out = pre.copy()
-    out[..., :3] *= f
-    return out
+    return np.multiply(pre, f4, dtype=np.float32)
 
 
 def _tint(name: str, sat: float, gain: np.ndarray) -> np.ndarray:

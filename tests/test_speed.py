@@ -49,8 +49,8 @@ def test_landmark_map_reproduces_the_landmarks(sample_neutral):
 
 
 def test_clamp_is_clip():
+    from editor.engine.fitting import clamp as clamp_m
     from editor.engine.gaze import _clamp as clamp_g
-    from editor.engine.mouth import _clamp as clamp_m
 
     x = np.linspace(-2.0, 3.0, 101, dtype=np.float32).reshape(1, -1)
     for clamp in (clamp_g, clamp_m):

@@ -43,7 +43,6 @@ from .mouth import (
     CROWN,
     GUM_FADE,
     MouthPlan,
-    _clamp,
     _lum,
     _poly_mask,
     _sat,
@@ -239,7 +238,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3 if k == 3 else 2 * k - 1, cv2.LINE_8, _SHIFT)
-    w = band.astype(np.float32) * _clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
+    w = band.astype(np.float32) * clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
     if not np.count_nonzero(w):
         return
     patch = out[y0:y1, x0:x1]

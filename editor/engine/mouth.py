@@ -468,7 +468,7 @@ class MouthPlan:
         hw = max(0.5 * float(hi_h - lo_h), 1.0)
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
         cym = 0.5 * (lo_v + hi_v)
-        side = _clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        side = clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
         side2 = side * side
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
         corner = 1.0 - 0.35 * side2  # the darker corners
@@ -716,12 +716,6 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     return res
 
 
-def _clamp(x, lo, hi):
-    """``np.clip`` for the per-frame code: the same values without its Python-level dispatch
-    (several microseconds a call, as much as the arithmetic on a small layer box)."""
-    return np.minimum(np.maximum(x, lo), hi)
-
-
 def _smoothstep1(t: float) -> np.float64:
     """:func:`_smoothstep` of one number in Python arithmetic (the same value and type)."""
     t = min(max(t, 0.0), 1.0)
@@ -729,7 +723,7 @@ def _smoothstep1(t: float) -> np.float64:
 
 
 def _smoothstep(t: np.ndarray | float) -> np.ndarray:
-    c: np.ndarray = _clamp(t, 0.0, 1.0)
+    c: np.ndarray = clamp(t, 0.0, 1.0)
     return c * c * (3.0 - 2.0 * c)
 
 

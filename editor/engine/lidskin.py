@@ -36,7 +36,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .layers import _rebox, _union
+from .layers import _rebox, _to_uint8, _union
+from .mouth import _lum
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -276,11 +277,11 @@ GRAIN_SIGMA, GRAIN_SHARE = 0.6, 0.6
 _GRAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _grain(face: Face) -> tuple[float, float, np.ndarray]:
-    """The photo's skin grain around the upper lids (robust std of the luminance's
-    high-pass, grey levels), the photo's edge ramp (:func:`layers.layer_plan`) and a static
-    noise tile blurred as the photo is, at :data:`GRAIN_SHARE` of that grain, repeated 2 x 2
-    (any window up to the tile's side is one slice; kept per face)."""
+def _grain(face: Face) -> tuple[float, np.ndarray]:
+    """The photo's edge ramp (:func:`layers.layer_plan`) and a static noise tile blurred as
+    the photo is, at :data:`GRAIN_SHARE` of the skin's grain around the upper lids (robust std
+    of the luminance's high-pass, grey levels), repeated 2 x 2 (any window up to the tile's
+    side is one slice; kept per face)."""
     got = _GRAIN.get(face)
     if got is not None:
         return got
@@ -296,7 +297,7 @@ def _grain(face: Face) -> tuple[float, float, np.ndarray]:
         x1, y1 = min(int(C[:, 0].max()) + 1, W), min(int(C[:, 1].max()) + 1, H)
         if x1 - x0 < 4 or y1 - y0 < 4:
             continue
-        L = img[y0:y1, x0:x1].astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+        L = _lum(img[y0:y1, x0:x1])
         vals.append(np.abs(L - cv2.GaussianBlur(L, (0, 0), max(1.0, soft / 2.56))).ravel())
     g = 1.4826 * float(np.median(np.concatenate(vals))) if vals else 0.0
     tile = np.random.default_rng(20261128).standard_normal((_TILE, _TILE)).astype(np.float32)
@@ -307,7 +308,7 @@ def _grain(face: Face) -> tuple[float, float, np.ndarray]:
     blurred = np.asarray(cv2.GaussianBlur(np.pad(tile, p, mode="wrap"), (0, 0), sig),
                          np.float32)[p:-p, p:-p]
     tile = blurred * np.float32(GRAIN_SHARE * g / max(float(blurred.std()), 1e-6))
-    got = (g, soft, np.ascontiguousarray(np.tile(tile, (2, 2)), np.float32))
+    got = (soft, np.ascontiguousarray(np.tile(tile, (2, 2)), np.float32))
     _GRAIN[face] = got
     return got
 
@@ -348,7 +349,7 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     hit_r, hit_c = np.flatnonzero(hot.any(1)), np.flatnonzero(hot.any(0))
     if not len(hit_r):
         return new
-    g, soft, tile2 = _grain(face)
+    soft, tile2 = _grain(face)
     sx = max(1.0, 0.5 * soft)
     pad = int(math.ceil(3.0 * sx)) + 3
     h, wd = w.shape
@@ -380,10 +381,5 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     sm *= cv2.merge([wb, wb, wb])
     f += sm
     out = new.copy()
-    out[r0:r1, c0:c1] = _u8(f)
+    _to_uint8(f, out[r0:r1, c0:c1])
     return out
-
-
-def _u8(f: np.ndarray) -> np.ndarray:
-    """Rounded to the nearest integer and saturated to uint8."""
-    return np.asarray(np.clip(np.rint(f), 0.0, 255.0), np.uint8)

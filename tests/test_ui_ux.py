@@ -181,68 +181,59 @@ def test_old_version_1_project_still_opens(window, tmp_path):
 
 
 # ---------------------------------------------------------------- defect 1
-class GapMeter:
-    """A 10 ms QTimer on the GUI thread: the longest time between two of its ticks is how long
-    the event loop was blocked."""
+def test_opening_a_large_photo_never_blocks_the_event_loop(window, qtbot, tmp_path, monkeypatch):
+    """Decoding, fitting and rendering a 12 MP photo happen off the GUI thread, and the GUI
+    thread's event loop runs meanwhile (a timer keeps ticking). Not a timing test: it asks
+    *where* the work runs; how long the loop may stall is the bench row ``gui_open_gap_ms``."""
+    import threading
 
-    def __init__(self) -> None:
-        import time
-
-        from PySide6.QtCore import Qt, QTimer
-
-        self._now = time.perf_counter
-        self.last = self._now()
-        self.worst = 0.0
-        self.timer = QTimer()
-        self.timer.setTimerType(Qt.TimerType.PreciseTimer)
-        self.timer.timeout.connect(self._tick)
-        self.timer.start(10)
-
-    def _tick(self) -> None:
-        now = self._now()
-        self.worst = max(self.worst, now - self.last)
-        self.last = now
-
-    def stop(self) -> float:
-        self.timer.stop()
-        self._tick()
-        return self.worst * 1000
-
-
-def test_opening_a_large_photo_never_blocks_the_event_loop(window, qtbot, tmp_path):
     import cv2
+    from PySide6.QtCore import QTimer
 
+    from editor.engine.face import Face
     from editor.engine.imageio import load_image
+    from editor.ui import documents
 
     big = tmp_path / "big.png"  # 12 MP
     rgb = cv2.resize(load_image(SAMPLE_FACE), (3000, 4000), interpolation=cv2.INTER_CUBIC)
     cv2.imwrite(str(big), rgb[:, :, ::-1])
     assert window.scheduler.wait(5000)
-    # what earlier tests left behind (thumbnail jobs, widgets to delete, garbage) is not this
-    # test's business: measure the opening alone
-    import gc
 
-    from PySide6.QtCore import QThreadPool
+    gui = threading.get_ident()
+    threads: dict[str, set[int]] = {"fit": set(), "render": set()}
+    fit, render = documents._face_from_image, Face.render
 
-    QThreadPool.globalInstance().waitForDone(20000)
-    qtbot.wait(50)
-    gc.collect()
-    gc.freeze()  # the objects of 500 earlier tests are not scanned again (as in a fresh app)
-    try:
-        meter = GapMeter()
-        qtbot.wait(30)
-        assert window.docs.open_photo(str(big), ask=False)
-        qtbot.waitUntil(lambda: window.last_result is not None
-                        and window.last_result.image.shape[:2] == (4000, 3000), timeout=20000)
-        qtbot.wait(50)
-        worst = meter.stop()
-    finally:
-        gc.unfreeze()
+    def spy_fit(path):
+        threads["fit"].add(threading.get_ident())
+        return fit(path)
+
+    def spy_render(self, *args, **kwargs):
+        if self.image.shape[:2] == (4000, 3000):
+            threads["render"].add(threading.get_ident())
+        return render(self, *args, **kwargs)
+
+    monkeypatch.setattr(documents, "_face_from_image", spy_fit)
+    monkeypatch.setattr(Face, "render", spy_render)
+    ticks: list[int] = []
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(len(threads["fit"])))
+    timer.start(10)
+    assert window.docs.open_photo(str(big), ask=False)
+    opened = len(ticks)
+    qtbot.waitUntil(lambda: window.last_result is not None
+                    and window.last_result.image.shape[:2] == (4000, 3000), timeout=20000)
+    timer.stop()
     assert window.model.face.image.shape[:2] == (4000, 3000)
-    assert worst < 100, f"the event loop was blocked for {worst:.0f} ms"
+    assert threads["fit"] and gui not in threads["fit"]  # detect + fit on a worker
+    assert threads["render"] and gui not in threads["render"]  # the render too
+    # the loop ran while the fit worked (the timer fired), and after it while the render did
+    assert opened >= 3 and len(ticks) > opened
 
 
 def test_long_task_shows_progress_and_cancel_stops_it(window, qtbot):
+    """A long task's dialog shows real progress and its Cancel stops the work -- even while
+    background jobs (the preset thumbnails the window started) keep Qt's global pool busy."""
+    import threading
     import time
 
     from PySide6.QtCore import QTimer
@@ -253,33 +244,52 @@ def test_long_task_shows_progress_and_cancel_stops_it(window, qtbot):
 
     steps: list[int] = []
     seen: list[tuple[int, int]] = []
+    ended = threading.Event()
 
     def work(progress) -> str:
-        for i in range(500):
-            progress(i, 500, f"step {i}")
-            steps.append(i)
-            time.sleep(0.01)
-        return "done"
+        try:
+            for i in range(500):
+                progress(i, 500, f"step {i}")
+                steps.append(i)
+                time.sleep(0.01)
+            return "done"
+        finally:
+            ended.set()
+
+    tries: list[int] = []
 
     def press_cancel() -> None:
+        tries.append(1)
         dialogs = [d for d in window.findChildren(QProgressDialog) if d.isVisible()]
-        if dialogs:
+        # wait for the first progress (at most ~10 s; then press anyway and fail below)
+        if dialogs and (dialogs[0].maximum() == 500 or len(tries) > 500):
             seen.append((dialogs[0].value(), dialogs[0].maximum()))
             dialogs[0].findChild(QPushButton).click()  # the user's Cancel
         else:
-            QTimer.singleShot(50, press_cancel)
+            QTimer.singleShot(20, press_cancel)
 
-    QTimer.singleShot(500, press_cancel)
-    t0 = time.perf_counter()
-    with pytest.raises(Cancelled):
-        run_task(window, "Working…", work)
-    assert time.perf_counter() - t0 < 2.5
-    assert seen and seen[0][1] == 500 and 0 < seen[0][0] < 500  # a real progress bar
-    qtbot.wait(50)
-    n = len(steps)
-    qtbot.wait(100)
-    assert len(steps) == n < 500  # the work saw the cancel and stopped
-    assert run_task(window, "Quick", lambda _p: 42) == 42  # short work: no dialog at all
+    from PySide6.QtCore import QRunnable, QThreadPool
+
+    release = threading.Event()
+
+    class Busy(QRunnable):  # background work filling the global pool, as thumbnails do
+        def run(self) -> None:
+            release.wait(60)
+
+    pool = QThreadPool.globalInstance()
+    for _ in range(pool.maxThreadCount()):
+        pool.start(Busy())
+    try:
+        QTimer.singleShot(450, press_cancel)
+        with pytest.raises(Cancelled):
+            run_task(window, "Working…", work)
+        assert seen and seen[0][1] == 500 and 0 < seen[0][0] < 500  # a real progress bar
+        qtbot.waitUntil(ended.is_set, timeout=10000)
+        assert 0 < len(steps) < 500  # the work saw the cancel and stopped
+        assert run_task(window, "Quick", lambda _p: 42) == 42  # short work: no dialog at all
+    finally:
+        release.set()
+        pool.waitForDone(10000)
 
 
 # ---------------------------------------------------------------- defect 9

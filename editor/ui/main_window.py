@@ -36,6 +36,7 @@ from .gaze_pad import GazePad
 from .help_panel import AboutDialog, FirstRunHint, HelpPanel
 from .qt_utils import settings
 from .render_scheduler import RenderResult, RenderScheduler
+from .tasks import cancel_all
 
 if TYPE_CHECKING:  # the renderer (editor.engine.face, OpenCV) is imported when a photo is opened,
     # on the thread pool after the window is shown (issue 15, gui_ready_s)
@@ -438,6 +439,7 @@ class MainWindow(QMainWindow):
             s.setValue("window/geometry", self.saveGeometry())
             s.setValue("window/state", self.saveState())
         self.scheduler.shutdown()
+        cancel_all()  # a task still running (an export, a study) stops at its next step
         e.accept()
 
     def close_without_prompt(self) -> None:

@@ -71,6 +71,20 @@ class _Job(QRunnable):
             self.signals.done.emit(True, result)
 
 
+#: The user's own tasks run on a pool of their own: an Open never waits behind background work
+#: (preset thumbnails) that fills Qt's global pool. Created on first use.
+_POOL: list[QThreadPool] = []
+
+
+def task_pool() -> QThreadPool:
+    """The thread pool of :func:`run_task` (tests and the Quit path wait on it)."""
+    if not _POOL:
+        pool = QThreadPool()
+        pool.setMaxThreadCount(4)  # nested tasks (a task that starts a task) never deadlock
+        _POOL.append(pool)
+    return _POOL[0]
+
+
 #: Signal objects of jobs still running (a cancelled job finishes later and emits into it).
 _ALIVE: set[_Signals] = set()
 
@@ -121,7 +135,7 @@ def run_task(parent: QWidget | None, label: str, fn: Callable[[Progress], T], *,
     RUNNING.append(cancel)
     _ALIVE.add(signals)
     try:
-        QThreadPool.globalInstance().start(_Job(fn, signals, cancel))
+        task_pool().start(_Job(fn, signals, cancel))
         # first: no user input (it waits in the queue), so nothing starts a second change
         show = QTimer()
         show.setSingleShot(True)

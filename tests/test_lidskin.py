@@ -59,27 +59,34 @@ def test_lid_skin_leaves_rest_and_compression_alone(sample_neutral, sample_face,
                           _render(sample_neutral, vec, False, monkeypatch))
 
 
-def test_closing_lids_leave_the_brow_where_it_is(sample_neutral, monkeypatch):
-    """A blink (upper lids down, brows still) unfolds the lid's own skin: just under the brow
-    the column shows the photo's skin at the same depth below the brow (closer than the plain,
-    uniformly stretched warp), so the brow's lower edge stays put. Taking the stretch under the
-    brow, as for raised brows, dragged the brow's lower edge over the eye into an "M"."""
+def test_closing_lids_leave_the_brow_where_it_is(sample_neutral):
+    """A blink (upper lids down, brows still) unfolds the lid's own skin from the crease: the
+    eye ring above the lid (the crease line) moves by at most a sixth of the margin, and the
+    band from the brow's lower edge 60 % of the way down to the ring shows the photo as it is
+    (sample: mean |difference| 3.6-3.9 grey levels). With the ring riding half-way with the
+    lid (its sides as far as the margin) that band stretched and the brow hair in it was pulled
+    down into a wave (15.8-17.3; JAFFE 8-15, now 2-4)."""
     f = sample_neutral
-    vec = {"close_t_l_eyelid": 960, "close_t_r_eyelid": 960,
-           "close_b_l_eyelid": 64, "close_b_r_eyelid": 64}
-    v = f.frame.to_frame(f.deform(vec).astype(np.float64))
-    v0 = f.frame.to_frame(f.vertices.astype(np.float64))
-    new, plain = (_render(f, vec, k, monkeypatch) for k in (True, False))
-    n = f.mesh.index
-    for side in "lr":
-        mid, brow = n(f"eye_{side}_u3"), n(f"brow_{side}_d2")
-        assert abs(v[brow, 1] - v0[brow, 1]) < 0.05  # the brow itself does not move
-        hs = v0[mid, 1] - v0[brow, 1]
-        ds = -np.linspace(0.5, 0.4 * hs, 12)  # below the brow (negative heights above it)
-        src = _profile(f.image, f, v0[brow, 0], v0[brow, 1], ds)
-        e_new = np.abs(_profile(new, f, v[brow, 0], v[brow, 1], ds) - src).mean()
-        e_plain = np.abs(_profile(plain, f, v[brow, 0], v[brow, 1], ds) - src).mean()
-        assert e_new < 0.7 * e_plain, (side, e_new, e_plain)
+    vec = {"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080}
+    v, v0, n = f.deform(vec), f.vertices, f.mesh.index
+    img, src = _lum(f.render(vec, creases=False)), _lum(f.image)
+    for s in "lr":
+        margin = v[n(f"eye_{s}_u3"), 1] - v0[n(f"eye_{s}_u3"), 1]
+        ring = [n(f"eyering_{s}_u{k}") for k in range(1, 6)]
+        assert margin > 5.0 and np.abs(v[ring] - v0[ring]).max() < margin / 6
+        brow = [n(f"brow_{s}_e0"), *(n(f"brow_{s}_d{k}") for k in (1, 2, 3)), n(f"brow_{s}_e1")]
+        assert np.abs(v[brow] - v0[brow]).max() < 0.05  # the brow itself does not move
+        B = v0[brow][np.argsort(v0[brow, 0])]
+        ring_c = [n(f"eyering_{s}_c0"), *ring, n(f"eyering_{s}_c1")]
+        R = v0[ring_c][np.argsort(v0[ring_c, 0])]
+        xs = np.arange(int(max(B[0, 0], R[0, 0])) + 1, int(min(B[-1, 0], R[-1, 0])))
+        yb, yr = np.interp(xs, B[:, 0], B[:, 1]), np.interp(xs, R[:, 0], R[:, 1])
+        band = np.zeros(img.shape, bool)
+        for x, a, b in zip(xs, yb, yb + 0.6 * (yr - yb), strict=True):
+            band[int(round(a)):int(round(b)) + 1, x] = True
+        assert band.sum() > 100
+        err = float(np.abs(img[band] - src[band]).mean())
+        assert err < 7.0, (s, err)
 
 
 def _lum(img: np.ndarray) -> np.ndarray:
@@ -89,9 +96,10 @@ def _lum(img: np.ndarray) -> np.ndarray:
 def test_closed_lid_is_skin_not_smeared_lashes(sample_neutral):
     """A fully closed eye shows the lid's skin over the eye, with the lashes a thin line at its
     edge: above that line, over the photo's eye opening, the lid is at least 80 % as bright as
-    the photo's lid skin between crease and brow (0.84-0.97 on the sample and four JAFFE
-    women). Freezing the lid's edge row (rigid at the brow only) smeared the lashes into a
-    dark band over the eye (0.50-0.73)."""
+    the photo's lid skin between crease and brow (sample 0.84 / 0.84). Freezing the lid's edge
+    row (rigid at the brow only) smeared the lashes into a dark band over the eye (0.50-0.73);
+    unfolding the photo's shadowed band above the lashes without moving it towards the skin
+    above the crease (lidskin.TONE_SHARE 0) left a grey bag (0.74-0.78)."""
     f = sample_neutral
     vec = {"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080}
     img, src = _lum(f.render(vec, creases=False)), _lum(f.image)
@@ -167,7 +175,7 @@ def test_evening_out_removes_vertical_streaks_and_keeps_horizontal_lines(sample_
     row = np.where(yy < 130, 100.0 + (yy - 100.0) / 3.0, yy - 20.0).astype(np.float32)
     map_y = np.ascontiguousarray(np.broadcast_to(row[:, None], (300, 300)))
     res = WarpResult(f.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
-    out = _even_out(f, res, new, mx, my, [(100, 100, 100 + w, 100 + h)])
+    out = _even_out(f, res, new, mx, my, [((100, 100, 100 + w, 100 + h), 0)])
     L = lambda a: a.astype(np.float32).mean(2)  # noqa: E731
     # the stripes: the columns' means over the stretched rows (the grain averages out)
     cols = L(out)[5:22, 10:70].mean(0)

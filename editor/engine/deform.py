@@ -24,6 +24,7 @@ from .influence import (
     BROW_FDPS,
     OUTLINE_FDPS,
     brow_weights,
+    closing_lid_share,
     face_mask,
     rectangles,
     side_tags,
@@ -54,6 +55,9 @@ _BROW_FDPS = frozenset(k for v in BROW_FDPS.values() for k in v)
 #: its own point by value x FAPU; together, the part of the face both reach is moved by the
 #: larger common value once, not twice: D = w_in v_in + w_out v_out - min(w_in, w_out) m, with
 #: m the common same-sign part of the two values (0 when their signs differ).
+#: FAP rows (0-based) of close_t_l/r_eyelid (19, 20): their closing part has its own basis.
+CLOSING_LIDS = [18, 19]
+
 LIP_PAIRS = np.array([(4, 51), (5, 52), (6, 53), (7, 54), (8, 55), (9, 56), (10, 57), (11, 58),
                       (12, 59), (13, 60)]) - 1
 
@@ -73,6 +77,7 @@ class DeformPlan:
     neutral: np.ndarray
     basis: np.ndarray
     pair_basis: np.ndarray  # (10, N*2) shared influence of the inner/outer lip FAP pairs
+    close_basis: np.ndarray  # (2, N*2) upper lids closing (FAPs 19/20 > 0) minus the basis
     n_vertices: int
     triangles: np.ndarray
     incidence: np.ndarray  # (V, maxdeg) triangle ids, padded with T (a dummy)
@@ -235,9 +240,19 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     ia = np.array([row_of[int(a)] for a in LIP_PAIRS[:, 0]])
     shared = np.minimum(single_w[ia], single_w[[row_of[int(b)] for b in LIP_PAIRS[:, 1]]])
     pair_basis = units[ia, None, None] * shared[:, :, None] * lin.dirs[ia, None, :]
+    # a closing upper lid leaves the skin above its crease (influence.closing_lid_rects): for
+    # positive values its basis row is the basis plus this difference
+    share = closing_lid_share(names)
+    close_basis = np.zeros((len(CLOSING_LIDS), N, 2))
+    for j, fap in enumerate(CLOSING_LIDS):
+        i = row_of[fap]
+        w = single_w[i]
+        close_basis[j] = units[i] * (w * share[lin.fdps[lin.fdp_of[i]]] - w)[:, None] \
+            * lin.dirs[i][None, :]
     # frame -> image directions
     basis = basis @ frame.rot.T
     pair_basis = pair_basis @ frame.rot.T
+    close_basis = close_basis @ frame.rot.T
 
     # head rotation: face 1, margin 0.4, border 0 (topo.head_w); dome depth for pitch/yaw
     chin = P[mesh.fdp["2.1"]]
@@ -254,6 +269,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
         neutral=pts_img.astype(np.float32),
         basis=basis.astype(np.float32),
         pair_basis=pair_basis.reshape(len(LIP_PAIRS), -1),
+        close_basis=close_basis.reshape(len(CLOSING_LIDS), -1),
         n_vertices=V,
         triangles=tri,
         incidence=inc,
@@ -584,6 +600,9 @@ def _linear(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
     common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
     if common.any():
         lin -= common @ plan.pair_basis
+    closing = np.maximum(f[:, CLOSING_LIDS], 0.0)
+    if closing.any():
+        lin += closing @ plan.close_basis
     return plan.neutral64[None] + lin.reshape(f.shape[0], -1, 2)
 
 

@@ -115,6 +115,33 @@ def side_tags(names: list[str]) -> dict[str, np.ndarray]:
     }
 
 
+#: share of an upper lid's motion the eye ring above it (the crease line) takes when the lid
+#: closes (:func:`closing_lid_share`)
+RING_CLOSING_SHARE = 0.15
+
+
+def closing_lid_share(names: Sequence[str]) -> dict[str, np.ndarray]:
+    """Per upper-lid feature point (3.1, 3.2): the factor (N,) on its weights when the lid
+    *closes* (positive FAPs 19/20): 1 on the lid's margin, :data:`RING_CLOSING_SHARE` on the
+    eye ring, 0 elsewhere.
+
+    An opening lid takes the skin up to the brow with it (the ramp of :func:`rectangles` runs
+    from the brow's lower edge to the margin). A closing lid does not: in a blink the skin
+    above the lid crease stays where it is and the lid's own skin unfolds from the crease. With
+    the brow ramp the ring came down half-way with the lid (its sides, low on the curve, as far
+    as the margin): the triangles from the brow's lower edge to the ring stretched, and the
+    brow hair that lies in them (most photos' brows reach below the mesh's brow line) was
+    pulled down into a wave.
+    """
+    n = np.array(names)
+    out = {}
+    for s, fdp in (("l", "3.1"), ("r", "3.2")):
+        margin = np.char.startswith(n, f"eye_{s}_u")
+        ring = np.char.startswith(n, f"eyering_{s}_u")
+        out[fdp] = np.where(margin, 1.0, np.where(ring, RING_CLOSING_SHARE, 0.0))
+    return out
+
+
 def rectangles(P: dict[str, np.ndarray], iod: float) -> dict[str, Rect]:
     """The influence rectangle of every FAP-driven feature point, from frame positions ``P``."""
 

@@ -11,8 +11,10 @@ at height ``d`` above the deformed lid (strip height ``Hd``, ``Hs`` in the photo
 shows the skin at source height ``f(d) = t Hs + m (Hd - Hs) t (1 - t)`` (``t = d / Hd``): rigid
 at the lid (``f'(0) = 1`` for ``m = 1``), the stretch moving up towards the brow, exact at both
 edges (``f(0) = 0``, ``f(Hd) = Hs``). That is for a rising brow; a closing lid (the lid pulled
-down, the brow still) keeps both ends rigid and stretches the middle of the strip, ``f = Hd (s t
-+ lam (1 - s) t (1 - t) (1 - 2 t))`` (``s = Hs / Hd``). ``m`` and ``lam`` fade to 0 towards
+down, the brow still) leaves the skin above its crease (the eye ring, which the deformation
+keeps nearly still: :func:`~editor.engine.influence.closing_lid_share`), so its strip ends at
+the ring; it keeps both ends rigid and stretches the middle, ``f = Hd (s t + lam (1 - s) t
+(1 - t) (1 - 2 t))`` (``s = Hs / Hd``). ``m`` and ``lam`` fade to 0 towards
 the ends of the strip (no seam with the warp beside it) and are bounded so that ``f`` stays
 monotonic. Only columns stretched
 by more than a tenth of a pixel are touched: at rest, on the photo's own expression and where
@@ -21,7 +23,8 @@ small box per eye; it runs between the warp and the layers (the lash line is dra
 
 Where a closing lid stretches the strip to more than 1.4 x (it draws the photo's thin lid band
 over the whole eyeball) its rows are evened out along x and the photo's grain is put back
-(:func:`_even_out`): the stretched grain and lash roots would read as vertical streaks. (A
+(:func:`_even_out`): the stretched grain and lash roots would read as vertical streaks, and
+the unfolded skin takes the tone of the lid skin above the crease. (A
 rising brow's stretch under the brow is left as it is: side by side no difference showed at
 surprise 150 %, and the evening-out costs ~0.4 ms a frame at 431 x 591.)
 """
@@ -55,8 +58,10 @@ _STEP = 0.25
 class _Strip:
     lid: np.ndarray  # vertex indices of the upper lid edge, corner to corner (by frame x)
     brow: np.ndarray  # vertex indices of the brow's lower edge (by frame x)
+    ring: np.ndarray  # vertex indices of the eye ring above the lid (the crease line, by x)
     lid_s: np.ndarray  # (n, 2) frame coordinates on the photo's mesh
     brow_s: np.ndarray  # (m, 2)
+    ring_s: np.ndarray  # (r, 2)
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -74,8 +79,11 @@ def _strips(face: Face) -> list[_Strip]:
                        + [m.index(f"eye_{side}_u{k}") for k in range(1, 6)])
         brow = np.array([m.index(f"brow_{side}_e0"), m.index(f"brow_{side}_e1")]
                         + [m.index(f"brow_{side}_d{k}") for k in range(1, 4)])
+        ring = np.array([m.index(f"eyering_{side}_c0"), m.index(f"eyering_{side}_c1")]
+                        + [m.index(f"eyering_{side}_u{k}") for k in range(1, 6)])
         lid, brow = lid[np.argsort(P[lid, 0])], brow[np.argsort(P[brow, 0])]
-        out.append(_Strip(lid, brow, P[lid], P[brow]))
+        ring = ring[np.argsort(P[ring, 0])]
+        out.append(_Strip(lid, brow, ring, P[lid], P[brow], P[ring]))
     _PLANS[face] = out
     return out
 
@@ -83,16 +91,18 @@ def _strips(face: Face) -> list[_Strip]:
 _INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, slice]]]:
-    """Every strip's lid and brow vertices concatenated, and each strip's two slices of it."""
+def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, slice, slice]]]:
+    """Every strip's lid, brow and ring vertices concatenated, and each strip's three slices
+    of it."""
     got = _INDEX.get(strips[0]) if strips else None
     if got is None:
         idx, parts, k = [], [], 0
         for st in strips:
-            n, m = len(st.lid), len(st.brow)
-            idx += [st.lid, st.brow]
-            parts.append((slice(k, k + n), slice(k + n, k + n + m)))
-            k += n + m
+            n, m, r = len(st.lid), len(st.brow), len(st.ring)
+            idx += [st.lid, st.brow, st.ring]
+            parts.append((slice(k, k + n), slice(k + n, k + n + m),
+                          slice(k + n + m, k + n + m + r)))
+            k += n + m + r
         got = (np.concatenate(idx) if idx else np.zeros(0, np.intp), parts)
         if strips:
             _INDEX[strips[0]] = got
@@ -130,7 +140,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     P = fr.to_frame(np.asarray(vertices).take(idx, 0).astype(np.float64))
     # each strip's image box from its points mapped back (one mapping, one reduction each)
     C = fr.to_image(P)
-    starts = [a.start for a, _ in parts]
+    starts = [a.start for a, _, _ in parts]
     c_lo = np.minimum.reduceat(C, starts).tolist() if starts else []
     c_hi = np.maximum.reduceat(C, starts).tolist() if starts else []
     img = res.image
@@ -141,9 +151,9 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
     cand = []
-    for st, (sl_lid, sl_brow), (ix0, iy0), (ix1, iy1) in zip(strips, parts, c_lo, c_hi,
-                                                              strict=True):
-        L, B = P[sl_lid], P[sl_brow]
+    for si, (st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1)) in enumerate(
+            zip(strips, parts, c_lo, c_hi, strict=True)):
+        L, B, Rg = P[sl_lid], P[sl_brow], P[sl_ring]
         x_lo = max(L[0, 0], B[0, 0])
         x_hi = min(L[-1, 0], B[-1, 0])
         if x_hi - x_lo < 2.0:
@@ -163,13 +173,15 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         # height now and in the photo)
         u = lo + _STEP * np.arange(math.ceil((max(bx) - lo) / _STEP) + 2)
         lines = (np.interp(u, L[:, 0], L[:, 1]), np.interp(u, B[:, 0], B[:, 1]),
-                 np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]))
-        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines))
+                 np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]),
+                 np.interp(u, Rg[:, 0], Rg[:, 1]), np.interp(u, Rg[:, 0], st.ring_s[:, 1]))
+        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines, si))
     if not cand:
         return res
     n_u = [len(c[2]) for c in cand]
     u = np.concatenate([c[2] for c in cand])
-    lid_y, brow_y, lid_s, brow_s = (np.concatenate([c[5][i] for c in cand]) for i in range(4))
+    lid_y, brow_y, lid_s, brow_s, ring_y, ring_s = (np.concatenate([c[5][i] for c in cand])
+                                                    for i in range(6))
     if len(cand) == 1:
         x_lo, x_hi = cand[0][3], cand[0][4]
     else:  # (both rows in one call)
@@ -193,6 +205,14 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # closing lid: rigid at both ends, f' = s + lam (1 - s) (1 - 6 t (1 - t)) (s = Hs / Hd the
     # mean slope), f = Hd (s t + lam (1 - s) t (1 - t) (1 - 2 t)); lam <= 2 s / (1 - s) keeps
     # it monotonic (f' >= 0 at t = 1/2)
+    # (a closing lid leaves the skin above its crease, the eye ring, where it is
+    # (influence.closing_lid_rects): its strip ends at the ring, which the warp kept still)
+    closing = pull < 0.0
+    if closing.any():
+        Hd = np.where(closing, lid_y - ring_y, Hd)
+        Hs = np.where(closing, lid_s - ring_s, Hs)
+        ex = Hd - Hs
+        hs = np.maximum(Hs, 1e-6)
     s_bar = Hs / np.maximum(Hd, 1e-6)
     lam = np.maximum(-pull, 0.0) * fade * _clip01(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6))
     live = (ex > _MIN_STRETCH) & (Hs > 0.5) & ((m != 0) | (lam != 0))
@@ -207,20 +227,20 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     a = 0
     for cd, n in zip(cand, n_u, strict=True):
         if np.count_nonzero(live[a:a + n]):
-            jobs.append((cd[0], tab_all[a:a + n], cd[1]))
+            jobs.append((cd[0], tab_all[a:a + n], cd[1], cd[6]))
         a += n
     if not jobs:
         return res
     # the boxes side by side: per column its image x, first row, table row and first frame x
-    hmax = max(b[3] - b[1] for b, _, _ in jobs)
-    n_tab = max(len(t) for _, t, _ in jobs)
+    hmax = max(b[3] - b[1] for b, _, _, _ in jobs)
+    n_tab = max(len(t) for _, t, _, _ in jobs)
     # (4 channels: lid line, 1 / Hd, k, k2; one more row, a copy of the last, which the rows'
     # exact integer positions weigh by 0: without it every pixel of the last strip takes
     # OpenCV's slow border path)
     table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
     widths, shifts, y0s, los = [], [], [], []
     c = 0
-    for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
+    for j, ((x0, y0, x1, _y1), tab, lo, _si) in enumerate(jobs):
         table[j, :len(tab)] = tab
         table[j, len(tab):] = tab[-1]
         widths.append(x1 - x0)
@@ -254,10 +274,10 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
     new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     if np.count_nonzero(k2):  # a closing lid (the evening-out is for its band over the eye)
-        new = _even_out(face, res, new, mx, my, [b for b, _, _ in jobs])
+        new = _even_out(face, res, new, mx, my, [(b, si) for b, _, _, si in jobs])
     bbox = res.bbox
     c = 0
-    for (x0, y0, x1, y1), _, _ in jobs:
+    for (x0, y0, x1, y1), _, _, _ in jobs:
         img[y0:y1, x0:x1] = new[:y1 - y0, c:c + x1 - x0]
         c += x1 - x0
         bbox = _union(bbox, (x0, y0, x1, y1))
@@ -274,6 +294,8 @@ _TILE = 128
 #: the grain's smallest blur (px) and its share of the photo's grain level: the stretched
 #: skin keeps part of its own grain along the columns; the noise adds the rest
 GRAIN_SIGMA, GRAIN_SHARE = 0.6, 0.6
+#: how far the stretched lid skin goes towards the tone of the skin above the crease
+TONE_SHARE = 0.7
 _GRAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -313,11 +335,38 @@ def _grain(face: Face) -> tuple[float, np.ndarray]:
     return got
 
 
+_TONE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _skin_tone(face: Face) -> list[np.ndarray]:
+    """Per strip, the photo's lid skin above the crease: the median colour (3,) float32 of the
+    pixels between the eye ring and the brow's lower edge over the middle half of the eye
+    (kept per face)."""
+    got = _TONE.get(face)
+    if got is not None:
+        return got
+    img = face.image
+    got = []
+    for st in _strips(face):
+        lo, hi = st.lid_s[0, 0], st.lid_s[-1, 0]
+        u = np.linspace(lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo), 9)
+        top = np.stack([u, np.interp(u, st.brow_s[:, 0], st.brow_s[:, 1])], 1)
+        bot = np.stack([u, np.interp(u, st.ring_s[:, 0], st.ring_s[:, 1])], 1)
+        poly = face.frame.to_image(np.vstack([top, bot[::-1]]))
+        mask = np.zeros(img.shape[:2], np.uint8)
+        cv2.fillPoly(mask, [np.round(poly).astype(np.int32)], 1)
+        px = img[mask > 0]
+        got.append(np.median(px, 0).astype(np.float32) if len(px) >= 4
+                   else np.full(3, np.nan, np.float32))
+    _TONE[face] = got
+    return got
+
+
 def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: np.ndarray,
-              boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
-    """The lid strips ``new`` (uint8, the image ``boxes`` side by side; ``mx, my`` where each
-    pixel was read in the warped image) with the skin evened out where it is stretched
-    vertically by more than :data:`STRETCH_FROM`.
+              boxes: list[tuple[tuple[int, int, int, int], int]]) -> np.ndarray:
+    """The lid strips ``new`` (uint8, the image ``boxes`` side by side, each with its strip's
+    index; ``mx, my`` where each pixel was read in the warped image) with the skin evened out
+    where it is stretched vertically by more than :data:`STRETCH_FROM`.
 
     A closing lid draws the photo's thin band of lid skin (between its margin and the crease
     or the brow) over the whole eyeball, two to three times taller: the skin's grain and the
@@ -325,7 +374,10 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     closed lid's horizontal gradient energy 1.4-3.6 x its vertical one, the photo's lid skin
     0.3-1.4). Where stretched, each row is smoothed along x (streaks go, horizontal lines such
     as the lash line and the crease stay) and the photo's own grain level comes back as a
-    static noise (isotropic, as soft as the photo's), faded in from 1.4 to 2.2 x stretch."""
+    static noise (isotropic, as soft as the photo's), faded in from 1.4 to 2.2 x stretch. The
+    stretched skin also takes :data:`TONE_SHARE` of the way to the tone of the lid skin above
+    the crease (:func:`_skin_tone`): the unfolded skin is that skin, while the photo's band
+    above the lashes is the shadowed edge of the fold (stretched, a dark bag over the eye)."""
     if res.maps is None:
         return new
     map_y, (a0, b0, a1, b1) = res.maps[1], res.maps[2]
@@ -364,8 +416,12 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     noise = np.empty((r1 - r0, c1 - c0), np.float32)
     T = _TILE
     c = 0
-    for x0, y0, x1, _y1 in boxes:
+    tone = _skin_tone(face)
+    shift = np.zeros((1, c1 - c0, 3), np.float32)
+    for (x0, y0, x1, _y1), si in boxes:
         lo, hi = max(c, c0), min(c + x1 - x0, c1)
+        if hi > lo and np.isfinite(tone[si]).all():
+            shift[0, lo - c0:hi - c0] = TONE_SHARE * tone[si]
         if hi > lo:
             ys = (y0 + r0) % T
             xs = (x0 + lo - c) % T
@@ -377,6 +433,11 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 noise[:, lo - c0:hi - c0] = tile2[iy, ix]
         c += x1 - x0
     sm += cv2.merge([noise, noise, noise])
+    # towards the skin tone above the crease: sm + share (tone - sm) (per box; share 0 where
+    # the tone is unknown)
+    keep = np.where(shift.any(2, keepdims=True), np.float32(1.0 - TONE_SHARE), np.float32(1.0))
+    sm *= keep
+    sm += shift
     sm -= f
     sm *= cv2.merge([wb, wb, wb])
     f += sm

@@ -146,10 +146,11 @@ def test_a_closed_lid_is_skin_not_a_combed_curtain(jaffe_faces):
     """A closing lid draws the photo's thin band of lid skin over the whole eyeball: its
     grain and the lashes' roots became vertical streaks (five JAFFE women, ten eyes: the
     horizontal / vertical gradient energy up to 6.1, median 1.16). Where the skin is stretched
-    the rows are smoothed along x and the photo's grain comes back: at most 1.38, median 0.95
-    (the photos' own lid skin: 0.3-1.4)."""
+    the rows are smoothed along x and the photo's grain comes back: at most 1.34, median 1.05
+    (the photos' own lid skin: 0.3-1.4; the unfolded skin takes the colour of the skin above
+    it column by column, which flattens it vertically a little: the median was 0.95)."""
     vals = [a for f in jaffe_faces for a in _closed_lid_streaks(f)]
-    assert max(vals) <= 1.6 and float(np.median(vals)) <= 1.05, np.round(vals, 2)
+    assert max(vals) <= 1.6 and float(np.median(vals)) <= 1.1, np.round(vals, 2)
 
 
 def test_evening_out_removes_vertical_streaks_and_keeps_horizontal_lines(sample_face):
@@ -175,10 +176,86 @@ def test_evening_out_removes_vertical_streaks_and_keeps_horizontal_lines(sample_
     row = np.where(yy < 130, 100.0 + (yy - 100.0) / 3.0, yy - 20.0).astype(np.float32)
     map_y = np.ascontiguousarray(np.broadcast_to(row[:, None], (300, 300)))
     res = WarpResult(f.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
-    out = _even_out(f, res, new, mx, my, [((100, 100, 100 + w, 100 + h), 0)])
+    out = _even_out(f, res, new, mx, my, [(100, 100, 100 + w, 100 + h)])
     L = lambda a: a.astype(np.float32).mean(2)  # noqa: E731
     # the stripes: the columns' means over the stretched rows (the grain averages out)
     cols = L(out)[5:22, 10:70].mean(0)
     assert cols.std() < 0.25 * L(new)[5:22, 10:70].mean(0).std(), cols
     assert L(out)[40:42, 20:60].mean() < 70  # the line stays dark
     assert np.array_equal(out[48:], new[48:])  # 1:1 below: untouched
+
+
+def test_unfolded_lid_takes_the_colour_of_the_skin_above(sample_face, monkeypatch):
+    """:func:`lidskin._even_out`: a closing lid's stretched band (the photo's dark edge of the
+    fold, drawn three times taller) goes most of the way to the colour of the skin just above
+    it; without that (TONE_SHARE 0) it stays the dark band, a grey bag over the eye."""
+    import editor.engine.lidskin as ls
+    from editor.engine.warp import WarpResult
+
+    f = sample_face
+    h, w = 70, 80
+    new = np.zeros((h, w, 3), np.uint8)
+    new[:20] = (200, 170, 150)  # skin above the crease
+    new[20:] = (90, 70, 60)  # the stretched band
+    xs = np.arange(w, dtype=np.float32) + 100.0
+    ys = np.arange(h, dtype=np.float32) + 100.0
+    mx = np.ascontiguousarray(np.broadcast_to(xs[None, :], (h, w)))
+    my = np.ascontiguousarray(np.broadcast_to(ys[:, None], (h, w)))
+    map_x = np.ascontiguousarray(np.broadcast_to(np.arange(300, dtype=np.float32)[None],
+                                                 (300, 300)))
+    yy = np.arange(300, dtype=np.float32)
+    # photo row: 1:1 above 120, stretched 3x from 120 to 160, 1:1 below
+    row = np.where(yy < 120, yy, np.where(yy < 160, 120.0 + (yy - 120.0) / 3.0, yy - 26.67))
+    map_y = np.ascontiguousarray(np.broadcast_to(row.astype(np.float32)[:, None], (300, 300)))
+    res = WarpResult(f.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
+
+    def band(share: float) -> np.ndarray:
+        with monkeypatch.context() as m:
+            m.setattr(ls, "TONE_SHARE", share)
+            out = ls._even_out(f, res, new, mx, my, [(100, 100, 100 + w, 100 + h)])
+        return out[32:52, 20:60].reshape(-1, 3).astype(np.float32).mean(0)
+
+    skin = np.array([200, 170, 150], np.float32)
+    assert np.abs(band(ls.TONE_SHARE) - skin).max() < 25, band(ls.TONE_SHARE)
+    assert np.abs(band(0.0) - np.array([90, 70, 60], np.float32)).max() < 15
+
+
+def test_a_closed_eyes_lash_line_is_a_smooth_curve_as_soft_as_the_photo(sample_neutral):
+    """The lash line of a closed eye follows a smooth curve through the lid's vertices (no
+    polyline corners on a large face: its centre line within 0.35 px of a smooth polynomial,
+    the polyline 0.42) and its edge is as soft as the photo's: across the line the alpha rises
+    from 10 % to 90 % over a pixel or two on a sharp photo and over at least 5 px at a 12 px
+    edge ramp (it was a 1 px edge at any size)."""
+    from editor.engine.layers import layer_plan
+
+    f = sample_neutral
+    vec = {"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080}
+    v = f.deform(vec)
+    poly = v[f.mesh.holes["eye_l"]].astype(np.float64) * 6.0  # a face six times larger
+    eye = layer_plan(f).eyes["eye_l"]
+    eye_r0, eye_a0 = eye.r0, eye.area0
+    try:
+        eye.r0, eye.area0 = eye_r0 * 6.0, eye_a0 * 36.0
+        x0, y0 = np.floor(poly.min(0)).astype(int) - 20
+        x1, y1 = np.ceil(poly.max(0)).astype(int) + 20
+        widths = {}
+        for soft in (1.0, 12.0):
+            got = eye.lash_line((x0, y0, x1, y1), poly, soft)
+            assert got is not None
+            alpha = got[0]
+            # the middle column: the alpha's profile across the line
+            col = alpha[:, alpha.shape[1] // 2]
+            peak = int(col.argmax())
+            below = col[peak:]
+            widths[soft] = int((below > 0.1).sum() - (below > 0.9).sum())
+            if soft == 1.0:
+                # the ridge (the line's centre per column) turns smoothly: no corners
+                cols = np.flatnonzero(alpha.max(0) > 0.95)
+                ridge = np.array([np.average(np.arange(alpha.shape[0]), weights=alpha[:, c])
+                                  for c in cols[5:-5]])
+                xs = cols[5:-5].astype(np.float64)
+                fit = np.polyval(np.polyfit(xs, ridge, 6), xs)
+                assert np.abs(ridge - fit).max() < 0.35, np.abs(ridge - fit).max()
+        assert widths[1.0] <= 2 and widths[12.0] >= 5, widths
+    finally:
+        eye.r0, eye.area0 = eye_r0, eye_a0

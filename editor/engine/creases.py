@@ -47,7 +47,16 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-from .fitting import channel_median, clamp, is_grey, linspace, luminance, median, pad_edge
+from .fitting import (
+    catmull_rom,
+    channel_median,
+    clamp,
+    is_grey,
+    linspace,
+    luminance,
+    median,
+    pad_edge,
+)
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -137,18 +146,6 @@ def crease_plan(face: Face) -> CreasePlan:
 
 
 # ---------------------------------------------------------------------------- layout
-def _catmull(ctrl: np.ndarray, n: int) -> np.ndarray:
-    """n points on a Catmull-Rom curve through the control points (uniform in parameter)."""
-    c = np.vstack([2 * ctrl[0] - ctrl[1], ctrl, 2 * ctrl[-1] - ctrl[-2]])
-    m = len(ctrl) - 1
-    t = linspace(0.0, m, n)
-    i = np.minimum(t.astype(int), m - 1)
-    u = (t - i)[:, None]
-    p0, p1, p2, p3 = c[i], c[i + 1], c[i + 2], c[i + 3]
-    return 0.5 * (2 * p1 + (-p0 + p2) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u ** 2
-                  + (-p0 + 3 * p1 - 3 * p2 + p3) * u ** 3)
-
-
 def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
     """Taper along a line: rises over [0, a], falls over [1 - b, 1] (smoothstep)."""
     # (both ramps in one array: the same values with half the small-array operations;
@@ -200,7 +197,7 @@ def _fold_lines(face: Face) -> list[_Line]:
         d = mid - top
         bow = np.array([-d[1], d[0]]) * (0.12 * sg)  # slightly convex towards the cheek
         ctrl = np.array([top, 0.5 * (top + mid) - bow, mid, bot])  # mirror images
-        pts = _catmull(ctrl, 28)
+        pts = catmull_rom(ctrl, 28)
         t = linspace(0.0, 1.0, len(pts))
         # a smiling photo's own fold reaches from the nose wing down past the corner
         lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),

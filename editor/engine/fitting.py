@@ -500,6 +500,18 @@ def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
 _ONE_KTH_MIN = 6000
 
 
+def catmull_rom(ctrl: np.ndarray, n: int) -> np.ndarray:
+    """n points on a Catmull-Rom curve through the control points (uniform in parameter)."""
+    c = np.vstack([2 * ctrl[0] - ctrl[1], ctrl, 2 * ctrl[-1] - ctrl[-2]])
+    m = len(ctrl) - 1
+    t = linspace(0.0, m, n)
+    i = np.minimum(t.astype(int), m - 1)
+    u = (t - i)[:, None]
+    p0, p1, p2, p3 = c[i], c[i + 1], c[i + 2], c[i + 3]
+    return 0.5 * (2 * p1 + (-p0 + p2) * u + (2 * p0 - 5 * p1 + 4 * p2 - p3) * u ** 2
+                  + (-p0 + 3 * p1 - 3 * p2 + p3) * u ** 3)
+
+
 def linspace(start: float, stop: float, num: int) -> np.ndarray:
     """``np.linspace(start, stop, num)`` of two float64 (or Python) numbers, ``num`` >= 2, bit
     for bit (numpy's arithmetic: ``arange * step + start``, the last value ``stop``) without

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import gather_px, linspace, median, pad_edge, percentile
+from .fitting import catmull_rom, gather_px, linspace, median, pad_edge, percentile
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -862,15 +862,17 @@ class EyePlan:
         return col
 
 
-    def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray
+    def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray, soft: float = 1.0
                   ) -> tuple[np.ndarray, np.ndarray] | None:
         """A closing eye's lash line over ``box``: (alpha (h, w) float32, colour (3,)), or None.
 
         The opening's area against the neutral one gives the closure c; from c = 0.6 to 0.9
         a dark line fades in along the deformed upper lid's edge (where the lids meet when
-        closed), anti-aliased, ``0.35 r`` thick in the middle (at least 1.2 px) tapering to
-        40 % at the corners, in the photo's lash colour. It replaces the stretched, broken lash and
-        lid-margin texture of the warp by one clean, slightly curved line.
+        closed; a Catmull-Rom curve through its vertices: the polyline's corners showed on large
+        faces), ``0.35 r`` thick in the middle (at least 1.2 px) tapering to 40 % at the
+        corners, in the photo's lash colour, its edges as soft as the photo's (``soft``: the
+        photo's edge ramp, px; anti-aliased over a pixel on a sharp photo). It replaces the
+        stretched, broken lash and lid-margin texture of the warp by one clean, curved line.
         """
         x, y = poly[:, 0], poly[:, 1]
         nxt = _NEXT if len(poly) == len(_NEXT) else np.roll(np.arange(len(poly)), -1)
@@ -883,7 +885,8 @@ class EyePlan:
             return None
         x0, y0, x1, y1 = box
         up = np.asarray(poly, np.float64)[[0, 1, 2, 3, 4, 5, 6]]
-        line = up  # the upper lid's margin (where the lids meet once closed)
+        # the upper lid's margin (where the lids meet once closed), three segments per edge
+        line = catmull_rom(up, 3 * (len(up) - 1) + 1)
         px = np.arange(x0, x1, dtype=np.float64)[:, None, None]
         py = np.arange(y0, y1, dtype=np.float64)[None, :, None]
         a, b = line[:-1], line[1:]  # segments
@@ -896,7 +899,8 @@ class EyePlan:
         k = dist.argmin(-1)
         s = (k + np.take_along_axis(tt, k[..., None], -1)[..., 0]) / len(a)  # 0..1 along
         thick = max(1.2, 0.35 * self.r0) * (0.4 + 0.6 * np.sin(np.pi * s))
-        alpha = _clamp(0.5 * thick + 0.5 - dist.min(-1), 0.0, 1.0) * fade
+        ramp = max(1.0, 0.5 * soft)  # the edge's width, px
+        alpha = _clamp((0.5 * thick + 0.5 * ramp - dist.min(-1)) / ramp, 0.0, 1.0) * fade
         return alpha.T.astype(np.float32), self.lash
 
 

@@ -496,7 +496,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 cross = x * y[nx] - y * x[nx]
                 closure = 1.0 - 0.5 * np.abs(np.add.reduceat(cross, cuts[:2])) \
                     / np.maximum([lp.eyes["eye_l"].area0, lp.eyes["eye_r"].area0], 1e-6)
-            lash = lp.eyes[name].lash_line(box, poly) if closure[k_open] > 0.59 else None
+            lash = lp.eyes[name].lash_line(box, poly, lp.soft) if closure[k_open] > 0.59 \
+                else None
             if lash is not None:  # a closing eye: one clean lash line where the lids meet
                 la, col = lash
                 x0, y0, x1, y1 = box

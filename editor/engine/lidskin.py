@@ -151,8 +151,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
     cand = []
-    for si, (st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1)) in enumerate(
-            zip(strips, parts, c_lo, c_hi, strict=True)):
+    for st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1) in zip(strips, parts, c_lo,
+                                                                       c_hi, strict=True):
         L, B, Rg = P[sl_lid], P[sl_brow], P[sl_ring]
         x_lo = max(L[0, 0], B[0, 0])
         x_hi = min(L[-1, 0], B[-1, 0])
@@ -175,7 +175,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         lines = (np.interp(u, L[:, 0], L[:, 1]), np.interp(u, B[:, 0], B[:, 1]),
                  np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]),
                  np.interp(u, Rg[:, 0], Rg[:, 1]), np.interp(u, Rg[:, 0], st.ring_s[:, 1]))
-        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines, si))
+        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines))
     if not cand:
         return res
     n_u = [len(c[2]) for c in cand]
@@ -227,20 +227,20 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     a = 0
     for cd, n in zip(cand, n_u, strict=True):
         if np.count_nonzero(live[a:a + n]):
-            jobs.append((cd[0], tab_all[a:a + n], cd[1], cd[6]))
+            jobs.append((cd[0], tab_all[a:a + n], cd[1]))
         a += n
     if not jobs:
         return res
     # the boxes side by side: per column its image x, first row, table row and first frame x
-    hmax = max(b[3] - b[1] for b, _, _, _ in jobs)
-    n_tab = max(len(t) for _, t, _, _ in jobs)
+    hmax = max(b[3] - b[1] for b, _, _ in jobs)
+    n_tab = max(len(t) for _, t, _ in jobs)
     # (4 channels: lid line, 1 / Hd, k, k2; one more row, a copy of the last, which the rows'
     # exact integer positions weigh by 0: without it every pixel of the last strip takes
     # OpenCV's slow border path)
     table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
     widths, shifts, y0s, los = [], [], [], []
     c = 0
-    for j, ((x0, y0, x1, _y1), tab, lo, _si) in enumerate(jobs):
+    for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
         table[j, :len(tab)] = tab
         table[j, len(tab):] = tab[-1]
         widths.append(x1 - x0)
@@ -274,10 +274,10 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
     new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     if np.count_nonzero(k2):  # a closing lid (the evening-out is for its band over the eye)
-        new = _even_out(face, res, new, mx, my, [(b, si) for b, _, _, si in jobs])
+        new = _even_out(face, res, new, mx, my, [b for b, _, _ in jobs])
     bbox = res.bbox
     c = 0
-    for (x0, y0, x1, y1), _, _, _ in jobs:
+    for (x0, y0, x1, y1), _, _ in jobs:
         img[y0:y1, x0:x1] = new[:y1 - y0, c:c + x1 - x0]
         c += x1 - x0
         bbox = _union(bbox, (x0, y0, x1, y1))
@@ -294,8 +294,10 @@ _TILE = 128
 #: the grain's smallest blur (px) and its share of the photo's grain level: the stretched
 #: skin keeps part of its own grain along the columns; the noise adds the rest
 GRAIN_SIGMA, GRAIN_SHARE = 0.6, 0.6
+#: blur of the evening-out weight: a share of the interocular distance, at least (px)
+WEIGHT_BLUR, WEIGHT_BLUR_MIN = 0.025, 0.8
 #: how far the stretched lid skin goes towards the tone of the skin above the crease
-TONE_SHARE = 0.7
+TONE_SHARE = 0.9
 _GRAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -335,38 +337,37 @@ def _grain(face: Face) -> tuple[float, np.ndarray]:
     return got
 
 
-_TONE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _skin_tone(face: Face) -> list[np.ndarray]:
-    """Per strip, the photo's lid skin above the crease: the median colour (3,) float32 of the
-    pixels between the eye ring and the brow's lower edge over the middle half of the eye
-    (kept per face)."""
-    got = _TONE.get(face)
-    if got is not None:
-        return got
-    img = face.image
-    got = []
-    for st in _strips(face):
-        lo, hi = st.lid_s[0, 0], st.lid_s[-1, 0]
-        u = np.linspace(lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo), 9)
-        top = np.stack([u, np.interp(u, st.brow_s[:, 0], st.brow_s[:, 1])], 1)
-        bot = np.stack([u, np.interp(u, st.ring_s[:, 0], st.ring_s[:, 1])], 1)
-        poly = face.frame.to_image(np.vstack([top, bot[::-1]]))
-        mask = np.zeros(img.shape[:2], np.uint8)
-        cv2.fillPoly(mask, [np.round(poly).astype(np.int32)], 1)
-        px = img[mask > 0]
-        got.append(np.median(px, 0).astype(np.float32) if len(px) >= 4
-                   else np.full(3, np.nan, np.float32))
-    _TONE[face] = got
-    return got
+def _tone_above(new: np.ndarray, hot: np.ndarray, r0: int, c0: int, rw: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Per column of ``hot`` (the window of ``new`` at ``r0, c0``): the mean colour (n, 3) of
+    the ``rw + 2`` rows of ``new`` above the window's first hot row, past the weight's blur
+    (``rw`` rows), smoothed along x over the columns that have one (0 elsewhere), and which
+    columns have one (n,) bool."""
+    n = hot.shape[1]
+    has: np.ndarray = np.asarray(hot.any(0))
+    top = r0 + hot.argmax(0) - rw - 1  # the first row past the blur, per column
+    k = rw + 2
+    ok = has & (top - k >= 0)
+    if not ok.any():
+        return np.zeros((n, 3), np.float32), np.zeros(n, bool)
+    cs = np.zeros((new.shape[0] + 1, n, 3), np.float32)
+    np.cumsum(new[:, c0:c0 + n].astype(np.float32), 0, out=cs[1:])
+    cols = np.arange(n)
+    t = np.clip(top, k, None)
+    mean = (cs[t, cols] - cs[t - k, cols]) * np.float32(1.0 / k)
+    okf = ok.astype(np.float32)[:, None]
+    sig = max(2.0, 2.0 * rw)
+    num = cv2.GaussianBlur((mean * okf)[None], (0, 0), sig)[0]
+    den = cv2.GaussianBlur(np.repeat(okf, 3, 1)[None], (0, 0), sig)[0]
+    tone = np.where(den > 1e-3, num / np.maximum(den, 1e-3), 0.0).astype(np.float32)
+    return tone * has[:, None], has & (den[:, 0] > 1e-3)
 
 
 def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: np.ndarray,
-              boxes: list[tuple[tuple[int, int, int, int], int]]) -> np.ndarray:
-    """The lid strips ``new`` (uint8, the image ``boxes`` side by side, each with its strip's
-    index; ``mx, my`` where each pixel was read in the warped image) with the skin evened out
-    where it is stretched vertically by more than :data:`STRETCH_FROM`.
+              boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """The lid strips ``new`` (uint8, the image ``boxes`` side by side; ``mx, my`` where each
+    pixel was read in the warped image) with the skin evened out where it is stretched
+    vertically by more than :data:`STRETCH_FROM`.
 
     A closing lid draws the photo's thin band of lid skin (between its margin and the crease
     or the brow) over the whole eyeball, two to three times taller: the skin's grain and the
@@ -375,9 +376,10 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     0.3-1.4). Where stretched, each row is smoothed along x (streaks go, horizontal lines such
     as the lash line and the crease stay) and the photo's own grain level comes back as a
     static noise (isotropic, as soft as the photo's), faded in from 1.4 to 2.2 x stretch. The
-    stretched skin also takes :data:`TONE_SHARE` of the way to the tone of the lid skin above
-    the crease (:func:`_skin_tone`): the unfolded skin is that skin, while the photo's band
-    above the lashes is the shadowed edge of the fold (stretched, a dark bag over the eye)."""
+    stretched skin also takes :data:`TONE_SHARE` of the way to the colour of the skin just
+    above it, column by column (the crease's skin, which the closing lid leaves in place;
+    smoothed along x): the unfolded skin is that skin, while the photo's band above the lashes
+    is the shadowed edge of the fold (stretched, a dark bag over the eye)."""
     if res.maps is None:
         return new
     map_y, (a0, b0, a1, b1) = res.maps[1], res.maps[2]
@@ -403,11 +405,17 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
         return new
     soft, tile2 = _grain(face)
     sx = max(1.0, 0.5 * soft)
-    pad = int(math.ceil(3.0 * sx)) + 3
+    # the weight changes from triangle to triangle of the warp: blurred over a share of the
+    # face's size (a 3 x 3 box left polygon edges on a 700 px face)
+    sw = max(WEIGHT_BLUR_MIN, WEIGHT_BLUR * float(face.interocular))
+    rw = int(math.ceil(3.0 * sw))
+    pad = max(int(math.ceil(3.0 * sx)), rw) + 3
     h, wd = w.shape
-    r0, r1 = max(int(hit_r[0]) - 3, 0), min(int(hit_r[-1]) + 4, h)
+    r0, r1 = max(int(hit_r[0]) - rw - 1, 0), min(int(hit_r[-1]) + rw + 2, h)
     c0, c1 = max(int(hit_c[0]) - pad, 0), min(int(hit_c[-1]) + pad + 1, wd)
-    wb = np.asarray(cv2.blur(np.ascontiguousarray(w[r0:r1, c0:c1]), (3, 3)), np.float32)
+    kw = 2 * rw + 1
+    wb = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(w[r0:r1, c0:c1]), (kw, kw), sw,
+                                     borderType=cv2.BORDER_REPLICATE), np.float32)
     f = new[r0:r1, c0:c1].astype(np.float32)
     k = cv2.getGaussianKernel(int(round(8 * sx + 1)) | 1, sx, cv2.CV_32F)
     sm: np.ndarray = np.asarray(cv2.sepFilter2D(f, -1, k, np.ones((1, 1), np.float32),
@@ -416,12 +424,8 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     noise = np.empty((r1 - r0, c1 - c0), np.float32)
     T = _TILE
     c = 0
-    tone = _skin_tone(face)
-    shift = np.zeros((1, c1 - c0, 3), np.float32)
-    for (x0, y0, x1, _y1), si in boxes:
+    for x0, y0, x1, _y1 in boxes:
         lo, hi = max(c, c0), min(c + x1 - x0, c1)
-        if hi > lo and np.isfinite(tone[si]).all():
-            shift[0, lo - c0:hi - c0] = TONE_SHARE * tone[si]
         if hi > lo:
             ys = (y0 + r0) % T
             xs = (x0 + lo - c) % T
@@ -432,12 +436,11 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 ix = (x0 + np.arange(lo - c, hi - c))[None, :] % T
                 noise[:, lo - c0:hi - c0] = tile2[iy, ix]
         c += x1 - x0
+    # towards the skin above the stretched band: sm + share (tone - sm), per column
+    tone, known = _tone_above(new, w[r0:r1, c0:c1] >= np.float32(0.5), r0, c0, rw)
+    sm *= np.where(known, np.float32(1.0 - TONE_SHARE), np.float32(1.0))[None, :, None]
+    sm += np.float32(TONE_SHARE) * tone[None]
     sm += cv2.merge([noise, noise, noise])
-    # towards the skin tone above the crease: sm + share (tone - sm) (per box; share 0 where
-    # the tone is unknown)
-    keep = np.where(shift.any(2, keepdims=True), np.float32(1.0 - TONE_SHARE), np.float32(1.0))
-    sm *= keep
-    sm += shift
     sm -= f
     sm *= cv2.merge([wb, wb, wb])
     f += sm

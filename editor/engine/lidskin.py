@@ -341,15 +341,15 @@ def _tone_above(new: np.ndarray, hot: np.ndarray, r0: int, c0: int, rw: int
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Per column of ``hot`` (the window of ``new`` at ``r0, c0``): the mean colour (n, 3) of
     the ``rw + 2`` rows of ``new`` above the window's first hot row, past the weight's blur
-    (``rw`` rows), smoothed along x over the columns that have one (0 elsewhere), and which
-    columns have one (n,) bool."""
+    (``rw`` rows), smoothed along x over the columns that have one, and how much of it to use
+    (n,) in [0, 1]: 1 over the hot columns, fading out beside them (0 where none is near)."""
     n = hot.shape[1]
     has: np.ndarray = np.asarray(hot.any(0))
     top = r0 + hot.argmax(0) - rw - 1  # the first row past the blur, per column
     k = rw + 2
     ok = has & (top - k >= 0)
     if not ok.any():
-        return np.zeros((n, 3), np.float32), np.zeros(n, bool)
+        return np.zeros((n, 3), np.float32), np.zeros(n, np.float32)
     cs = np.zeros((new.shape[0] + 1, n, 3), np.float32)
     np.cumsum(new[:, c0:c0 + n].astype(np.float32), 0, out=cs[1:])
     cols = np.arange(n)
@@ -360,7 +360,14 @@ def _tone_above(new: np.ndarray, hot: np.ndarray, r0: int, c0: int, rw: int
     num = cv2.GaussianBlur((mean * okf)[None], (0, 0), sig)[0]
     den = cv2.GaussianBlur(np.repeat(okf, 3, 1)[None], (0, 0), sig)[0]
     tone = np.where(den > 1e-3, num / np.maximum(den, 1e-3), 0.0).astype(np.float32)
-    return tone * has[:, None], has & (den[:, 0] > 1e-3)
+    # the share: 1 over the hot columns and as far beside them as the weight's blur reaches,
+    # fading out further (a step where the hot columns end showed as a seam)
+    reach = int(math.ceil(rw + sig))
+    wide = cv2.dilate(has.astype(np.uint8)[None], np.ones((1, 2 * reach + 1), np.uint8))[0]
+    share = cv2.GaussianBlur(wide.astype(np.float32)[None], (0, 0), 0.5 * sig)[0]
+    np.maximum(share, has, out=share)
+    share *= den[:, 0] > 1e-3
+    return tone, share.astype(np.float32)
 
 
 def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: np.ndarray,
@@ -437,9 +444,10 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 noise[:, lo - c0:hi - c0] = tile2[iy, ix]
         c += x1 - x0
     # towards the skin above the stretched band: sm + share (tone - sm), per column
-    tone, known = _tone_above(new, w[r0:r1, c0:c1] >= np.float32(0.5), r0, c0, rw)
-    sm *= np.where(known, np.float32(1.0 - TONE_SHARE), np.float32(1.0))[None, :, None]
-    sm += np.float32(TONE_SHARE) * tone[None]
+    tone, share = _tone_above(new, w[r0:r1, c0:c1] >= np.float32(0.5), r0, c0, rw)
+    share *= np.float32(TONE_SHARE)
+    sm *= (np.float32(1.0) - share)[None, :, None]
+    sm += (share[:, None] * tone)[None]
     sm += cv2.merge([noise, noise, noise])
     sm -= f
     sm *= cv2.merge([wb, wb, wb])

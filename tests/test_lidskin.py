@@ -125,8 +125,9 @@ def test_closed_lid_is_skin_not_smeared_lashes(sample_neutral):
 
 def _closed_lid_streaks(face) -> list[float]:
     """Per eye, closed (19/20 at 1080): over the middle half of the eye, from the photo's
-    upper lid down to two thirds of the way to the closed lids' line, the luminance's mean
-    squared horizontal difference over its vertical one (vertical streaks: large)."""
+    upper lid down to two thirds of the way to the closed lids' line, the structure of the
+    luminance's column means (their std after a 3 px high-pass along x, grey levels): vertical
+    streaks keep it, grain averages out."""
     vec = face.fap_vector({"close_t_l_eyelid": 1080, "close_t_r_eyelid": 1080})
     L = face.render(vec).astype(np.float32) @ np.float32([0.299, 0.587, 0.114])
     v = face.deform(vec)
@@ -136,21 +137,19 @@ def _closed_lid_streaks(face) -> list[float]:
         xs = h0[:, 0]
         x0, x1 = int(xs.min() + 0.25 * np.ptp(xs)), int(xs.max() - 0.25 * np.ptp(xs))
         top, low = h0[:, 1].min(), h1[:, 1].max()
-        p = L[int(top):int(low - 0.35 * (low - top)), x0:x1]
-        gx, gy = np.diff(p, axis=1)[:-1], np.diff(p, axis=0)[:, :-1]
-        out.append(float(np.mean(gx ** 2) / np.mean(gy ** 2)))
+        m = L[int(top):int(low - 0.35 * (low - top)), x0:x1].mean(0)
+        out.append(float(np.std(m - cv2.GaussianBlur(m[None], (0, 0), 3)[0])))
     return out
 
 
 def test_a_closed_lid_is_skin_not_a_combed_curtain(jaffe_faces):
     """A closing lid draws the photo's thin band of lid skin over the whole eyeball: its
     grain and the lashes' roots became vertical streaks (five JAFFE women, ten eyes: the
-    horizontal / vertical gradient energy up to 6.1, median 1.16). Where the skin is stretched
-    the rows are smoothed along x and the photo's grain comes back: at most 1.34, median 1.05
-    (the photos' own lid skin: 0.3-1.4; the unfolded skin takes the colour of the skin above
-    it column by column, which flattens it vertically a little: the median was 0.95)."""
+    column structure up to 7.4 grey levels, median 4.8). Where the skin is stretched the rows
+    are smoothed along x, the photo's grain comes back and the skin takes the colour of the
+    skin above it: at most 4.4, median 3.0 (the evening-out alone: 7.5 / 4.5)."""
     vals = [a for f in jaffe_faces for a in _closed_lid_streaks(f)]
-    assert max(vals) <= 1.6 and float(np.median(vals)) <= 1.1, np.round(vals, 2)
+    assert max(vals) <= 5.5 and float(np.median(vals)) <= 4.0, np.round(vals, 2)
 
 
 def test_evening_out_removes_vertical_streaks_and_keeps_horizontal_lines(sample_face):

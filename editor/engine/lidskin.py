@@ -296,6 +296,9 @@ _TILE = 128
 GRAIN_SIGMA, GRAIN_SHARE = 0.6, 0.6
 #: blur of the evening-out weight: a share of the interocular distance, at least (px)
 WEIGHT_BLUR, WEIGHT_BLUR_MIN = 0.025, 0.8
+#: the stretch from which the closing lid's skin takes the colour of the skin above it, and
+#: from which fully (:data:`TONE_SHARE` of the way)
+TONE_FROM, TONE_FULL = 1.15, 1.6
 #: how far the stretched lid skin goes towards the tone of the skin above the crease
 TONE_SHARE = 0.9
 _GRAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -400,13 +403,16 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     # w = (1 / |d| - STRETCH_FROM) / (STRETCH_FULL - STRETCH_FROM), in [0, 1]
     np.abs(d, out=d)
     np.maximum(d, np.float32(0.05), out=d)
-    w = np.float32(1.0) / d
-    w -= np.float32(STRETCH_FROM)
-    w *= np.float32(1.0 / (STRETCH_FULL - STRETCH_FROM))
-    np.clip(w, 0.0, 1.0, out=w)
-    w *= (mx >= a0) & (mx <= a1 - 1) & (my >= b0) & (my <= b1 - 1)
+    stretch = np.float32(1.0) / d
+    inside = (mx >= a0) & (mx <= a1 - 1) & (my >= b0) & (my <= b1 - 1)
+    # w = (stretch - STRETCH_FROM) / (STRETCH_FULL - STRETCH_FROM), in [0, 1]; wt the same
+    # from TONE_FROM to TONE_FULL (the colour of the skin above comes in at a lower stretch)
+    w = np.clip((stretch - np.float32(STRETCH_FROM))
+                * np.float32(1.0 / (STRETCH_FULL - STRETCH_FROM)), 0.0, 1.0) * inside
+    wt = np.clip((stretch - np.float32(TONE_FROM))
+                 * np.float32(1.0 / (TONE_FULL - TONE_FROM)), 0.0, 1.0) * inside
     # (only the rows and columns that are stretched, with the blurs' margins)
-    hot = w >= np.float32(0.02)
+    hot = wt >= np.float32(0.02)
     hit_r, hit_c = np.flatnonzero(hot.any(1)), np.flatnonzero(hot.any(0))
     if not len(hit_r):
         return new
@@ -421,9 +427,14 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     r0, r1 = max(int(hit_r[0]) - rw - 1, 0), min(int(hit_r[-1]) + rw + 2, h)
     c0, c1 = max(int(hit_c[0]) - pad, 0), min(int(hit_c[-1]) + pad + 1, wd)
     kw = 2 * rw + 1
-    wb = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(w[r0:r1, c0:c1]), (kw, kw), sw,
-                                     borderType=cv2.BORDER_REPLICATE), np.float32)
+    wb, wtb = (np.asarray(cv2.GaussianBlur(np.ascontiguousarray(a[r0:r1, c0:c1]), (kw, kw), sw,
+                                           borderType=cv2.BORDER_REPLICATE), np.float32)
+               for a in (w, wt))
     f = new[r0:r1, c0:c1].astype(np.float32)
+    # towards the skin above the stretched band: f + share (tone - f), per column
+    tone, share = _tone_above(new, wt[r0:r1, c0:c1] >= np.float32(0.5), r0, c0, rw)
+    wtb *= np.float32(TONE_SHARE) * share[None, :]
+    f += (tone[None] - f) * wtb[..., None]
     k = cv2.getGaussianKernel(int(round(8 * sx + 1)) | 1, sx, cv2.CV_32F)
     sm: np.ndarray = np.asarray(cv2.sepFilter2D(f, -1, k, np.ones((1, 1), np.float32),
                                                 borderType=cv2.BORDER_REFLECT), np.float32)
@@ -443,11 +454,6 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 ix = (x0 + np.arange(lo - c, hi - c))[None, :] % T
                 noise[:, lo - c0:hi - c0] = tile2[iy, ix]
         c += x1 - x0
-    # towards the skin above the stretched band: sm + share (tone - sm), per column
-    tone, share = _tone_above(new, w[r0:r1, c0:c1] >= np.float32(0.5), r0, c0, rw)
-    share *= np.float32(TONE_SHARE)
-    sm *= (np.float32(1.0) - share)[None, :, None]
-    sm += (share[:, None] * tone)[None]
     sm += cv2.merge([noise, noise, noise])
     sm -= f
     sm *= cv2.merge([wb, wb, wb])

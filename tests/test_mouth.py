@@ -393,3 +393,30 @@ def test_drawn_teeth_keep_their_gaps_at_a_small_face(width, least):
     crowns = a > 0.9
     assert abs(mouth._lum(t[..., :3])[crowns].mean() / mouth._lum(plain[..., :3])[crowns].mean()
                - 1.0) < 0.03
+
+
+def test_a_smile_shows_its_upper_teeth_towards_the_corners(jaffe_faces):
+    """Drawn upper teeth in a smile reach towards the mouth's corners as real ones do: the
+    share of teeth-bright pixels (over 0.55 of the cheek's light) in the outer thirds of the
+    opening (landmarks re-detected on the render) of joy on five JAFFE neutrals, median >= 0.1
+    (0.14 here; the real smiles of the ten women 0.18). With the lower teeth's narrow, dark
+    arch the upper teeth ended in dark wedges: 0.05."""
+    from editor.engine.landmarks import detect_landmarks
+
+    def lum(im):
+        return im.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+
+    vals = []
+    for face in jaffe_faces:
+        c = face.vertices[face.mesh.fdp["5.3"]]
+        skin = float(np.median(lum(face.image)[int(c[1]) - 5:int(c[1]) + 5,
+                                               int(c[0]) - 5:int(c[0]) + 5]))
+        img = face.render(apply_preset("joy", 1.0))
+        L, lm = lum(img), detect_landmarks(img).points
+        mask = np.zeros(L.shape, np.uint8)
+        cv2.fillPoly(mask, [np.round(lm[60:68]).astype(np.int32)], 1)
+        ys, xs = np.nonzero(mask)
+        t = (xs - xs.min()) / max(np.ptp(xs), 1)
+        outer = (t < 0.3) | (t > 0.7)
+        vals.append(float((L[ys, xs] > 0.55 * skin)[outer].mean()))
+    assert float(np.median(vals)) >= 0.1, np.round(vals, 2)

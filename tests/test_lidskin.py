@@ -152,29 +152,37 @@ def test_a_closed_lid_is_skin_not_a_combed_curtain(jaffe_faces):
     assert max(vals) <= 5.5 and float(np.median(vals)) <= 4.0, np.round(vals, 2)
 
 
+def _strip_maps(face, h: int, w: int, row: np.ndarray):
+    """A synthetic strip for :func:`lidskin._even_out`: the box (100, 100) + (w, h) read 1:1
+    from the warped image (``mx, my``), and a warp whose backward map gives photo row
+    ``row[y]`` at every x (300 x 300)."""
+    from editor.engine.warp import WarpResult
+
+    xs = np.arange(w, dtype=np.float32) + 100.0
+    ys = np.arange(h, dtype=np.float32) + 100.0
+    mx = np.ascontiguousarray(np.broadcast_to(xs[None, :], (h, w)))
+    my = np.ascontiguousarray(np.broadcast_to(ys[:, None], (h, w)))
+    map_x = np.ascontiguousarray(np.broadcast_to(np.arange(300, dtype=np.float32)[None],
+                                                 (300, 300)))
+    map_y = np.ascontiguousarray(np.broadcast_to(row.astype(np.float32)[:, None], (300, 300)))
+    res = WarpResult(face.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
+    return res, mx, my
+
+
 def test_evening_out_removes_vertical_streaks_and_keeps_horizontal_lines(sample_face):
     """:func:`lidskin._even_out` on a strip stretched 3x: vertical stripes (the streaks) lose
     most of their contrast, a horizontal dark line (a lash line, a crease) keeps its own, and
     nothing changes where the stretch is below 1.4."""
     from editor.engine.lidskin import _even_out
-    from editor.engine.warp import WarpResult
 
     f = sample_face
     h, w = 60, 80
     new = np.full((h, w, 3), 170, np.uint8)
     new[:, ::4] = 120  # streaks
     new[40:42] = 40  # a lash line
-    xs = np.arange(w, dtype=np.float32) + 100.0
-    ys = np.arange(h, dtype=np.float32) + 100.0
-    mx = np.ascontiguousarray(np.broadcast_to(xs[None, :], (h, w)))
-    my = np.ascontiguousarray(np.broadcast_to(ys[:, None], (h, w)))
     # the warp's map: photo row = 100 + (y - 100) / 3 (stretched 3x) in the top half, 1:1 below
-    map_x = np.ascontiguousarray(np.broadcast_to(np.arange(300, dtype=np.float32)[None],
-                                                 (300, 300)))
     yy = np.arange(300, dtype=np.float32)
-    row = np.where(yy < 130, 100.0 + (yy - 100.0) / 3.0, yy - 20.0).astype(np.float32)
-    map_y = np.ascontiguousarray(np.broadcast_to(row[:, None], (300, 300)))
-    res = WarpResult(f.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
+    res, mx, my = _strip_maps(f, h, w, np.where(yy < 130, 100.0 + (yy - 100.0) / 3.0, yy - 20.0))
     out = _even_out(f, res, new, mx, my, [(100, 100, 100 + w, 100 + h)])
     L = lambda a: a.astype(np.float32).mean(2)  # noqa: E731
     # the stripes: the columns' means over the stretched rows (the grain averages out)
@@ -189,24 +197,16 @@ def test_unfolded_lid_takes_the_colour_of_the_skin_above(sample_face, monkeypatc
     fold, drawn three times taller) goes most of the way to the colour of the skin just above
     it; without that (TONE_SHARE 0) it stays the dark band, a grey bag over the eye."""
     import editor.engine.lidskin as ls
-    from editor.engine.warp import WarpResult
 
     f = sample_face
     h, w = 70, 80
     new = np.zeros((h, w, 3), np.uint8)
     new[:20] = (200, 170, 150)  # skin above the crease
     new[20:] = (90, 70, 60)  # the stretched band
-    xs = np.arange(w, dtype=np.float32) + 100.0
-    ys = np.arange(h, dtype=np.float32) + 100.0
-    mx = np.ascontiguousarray(np.broadcast_to(xs[None, :], (h, w)))
-    my = np.ascontiguousarray(np.broadcast_to(ys[:, None], (h, w)))
-    map_x = np.ascontiguousarray(np.broadcast_to(np.arange(300, dtype=np.float32)[None],
-                                                 (300, 300)))
     yy = np.arange(300, dtype=np.float32)
     # photo row: 1:1 above 120, stretched 3x from 120 to 160, 1:1 below
-    row = np.where(yy < 120, yy, np.where(yy < 160, 120.0 + (yy - 120.0) / 3.0, yy - 26.67))
-    map_y = np.ascontiguousarray(np.broadcast_to(row.astype(np.float32)[:, None], (300, 300)))
-    res = WarpResult(f.image.copy(), (0, 0, 300, 300), maps=(map_x, map_y, (0, 0, 300, 300)))
+    res, mx, my = _strip_maps(f, h, w, np.where(
+        yy < 120, yy, np.where(yy < 160, 120.0 + (yy - 120.0) / 3.0, yy - 26.67)))
 
     def band(share: float) -> np.ndarray:
         with monkeypatch.context() as m:

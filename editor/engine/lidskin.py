@@ -151,8 +151,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
     cand = []
-    for st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1) in zip(strips, parts, c_lo,
-                                                                       c_hi, strict=True):
+    for si, (st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1)) in enumerate(
+            zip(strips, parts, c_lo, c_hi, strict=True)):
         L, B, Rg = P[sl_lid], P[sl_brow], P[sl_ring]
         x_lo = max(L[0, 0], B[0, 0])
         x_hi = min(L[-1, 0], B[-1, 0])
@@ -175,7 +175,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         lines = (np.interp(u, L[:, 0], L[:, 1]), np.interp(u, B[:, 0], B[:, 1]),
                  np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]),
                  np.interp(u, Rg[:, 0], Rg[:, 1]), np.interp(u, Rg[:, 0], st.ring_s[:, 1]))
-        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines))
+        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines, si))
     if not cand:
         return res
     n_u = [len(c[2]) for c in cand]
@@ -225,9 +225,11 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     tab_all[:, 3] = k2
     jobs = []  # per stretched strip: box, table, its first frame x
     a = 0
+    sides = []  # each job's strip (0 left eye, 1 right)
     for cd, n in zip(cand, n_u, strict=True):
         if np.count_nonzero(live[a:a + n]):
             jobs.append((cd[0], tab_all[a:a + n], cd[1]))
+            sides.append(cd[6])
         a += n
     if not jobs:
         return res
@@ -263,6 +265,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     ly, inv_hd, kk, kk2 = cv2.split(got)
     ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
+    closing = bool(np.count_nonzero(k2))
+    above = ly.copy() if closing else None  # px above the lid's edge (its lashes: kept)
     t = ly
     t *= inv_hd
     np.clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
@@ -273,8 +277,16 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
     new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    if np.count_nonzero(k2):  # a closing lid (the evening-out is for its band over the eye)
-        new = _even_out(face, res, new, mx, my, [b for b, _, _ in jobs])
+    if above is not None:  # a closing lid (the evening-out is for its band over the eye)
+        # the lashes' band kept above the lid's edge, per column: LASH_KEEP of the interocular
+        # distance while the eye is open, none once it is closed (from a closure of 0.6 to 0.9
+        # the drawn lash line fades in, layers / gaze.EyePlan.lash_line; the band goes as its
+        # square, so that a half-drawn line still has the photo's lashes behind it)
+        band = np.repeat(np.array([LASH_KEEP * float(face.interocular)
+                                   * (1.0 - _lash_fade(face, vertices, si) ** 2)
+                                   for si in sides],
+                                  np.float32), [b[2] - b[0] for b, _, _ in jobs])
+        new = _even_out(face, res, new, mx, my, [b for b, _, _ in jobs], above, band)
     bbox = res.bbox
     c = 0
     for (x0, y0, x1, y1), _, _ in jobs:
@@ -296,6 +308,10 @@ _TILE = 128
 GRAIN_SIGMA, GRAIN_SHARE = 0.6, 0.6
 #: blur of the evening-out weight: a share of the interocular distance, at least (px)
 WEIGHT_BLUR, WEIGHT_BLUR_MIN = 0.025, 0.8
+#: the band above a closing lid's edge that keeps the photo's texture (its lashes) while the
+#: eye is open, a share of the interocular distance: untouched over its first half, fully
+#: evened out above it
+LASH_KEEP = 0.08
 #: the stretch from which the closing lid's skin takes the colour of the skin above it, and
 #: from which fully (:data:`TONE_SHARE` of the way)
 TONE_FROM, TONE_FULL = 1.15, 1.6
@@ -340,6 +356,20 @@ def _grain(face: Face) -> tuple[float, np.ndarray]:
     return got
 
 
+def _lash_fade(face: Face, vertices: np.ndarray, side: int) -> float:
+    """How far the drawn lash line of eye ``side`` (0 ``eye_l``, 1 ``eye_r``) has faded in:
+    0 up to a closure (1 - the opening's area over the photo's) of 0.6, 1 from 0.9, as in
+    :meth:`~editor.engine.gaze.EyePlan.lash_line`."""
+    hole = face.mesh.holes["eye_l" if side == 0 else "eye_r"]
+
+    def area(p: np.ndarray) -> float:
+        x, y = p[:, 0].astype(np.float64), p[:, 1].astype(np.float64)
+        return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+    c = 1.0 - area(np.asarray(vertices)[hole]) / max(area(face.vertices[hole]), 1e-6)
+    return float(_smooth01(np.array((c - 0.6) / 0.3)))
+
+
 def _tone_above(new: np.ndarray, hot: np.ndarray, r0: int, c0: int, rw: int
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Per column of ``hot`` (the window of ``new`` at ``r0, c0``): the mean colour (n, 3) of
@@ -374,7 +404,8 @@ def _tone_above(new: np.ndarray, hot: np.ndarray, r0: int, c0: int, rw: int
 
 
 def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: np.ndarray,
-              boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+              boxes: list[tuple[int, int, int, int]], above: np.ndarray | None = None,
+              band: np.ndarray | None = None) -> np.ndarray:
     """The lid strips ``new`` (uint8, the image ``boxes`` side by side; ``mx, my`` where each
     pixel was read in the warped image) with the skin evened out where it is stretched
     vertically by more than :data:`STRETCH_FROM`.
@@ -411,6 +442,13 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 * np.float32(1.0 / (STRETCH_FULL - STRETCH_FROM)), 0.0, 1.0) * inside
     wt = np.clip((stretch - np.float32(TONE_FROM))
                  * np.float32(1.0 / (TONE_FULL - TONE_FROM)), 0.0, 1.0) * inside
+    if above is not None and band is not None:
+        # the lid's edge (its lashes: ``band`` px above it, per column) keeps the photo's own
+        # texture: evened out and toned, a half-closed eye lost its lash line
+        near = np.clip(above / np.maximum(band, np.float32(1e-3))[None, :] - np.float32(0.5),
+                       0.0, 1.0)
+        w *= near
+        wt *= near
     # (only the rows and columns that are stretched, with the blurs' margins)
     hot = wt >= np.float32(0.02)
     hit_r, hit_c = np.flatnonzero(hot.any(1)), np.flatnonzero(hot.any(0))

@@ -941,7 +941,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = sa[g0:g1], sb[g0:g1]
         w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        ridge = pts + np.repeat(n_all[g0:g1] * fa.off[g], K, 0)  # the ridge beside the line
+        ridge = pts + (n_all[g0:g1] * fa.off[g]).repeat(K, 0)  # the ridge beside the line
         lines += [pts, ridge]
         lines.append(w)
     # the extent of each line and ridge in one pass
@@ -1020,7 +1020,7 @@ def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bo
     inside = all(c[3] for c in canvases)
     if inside:
         top = np.array(list(itertools.accumulate([0, *rows[:-1]])))  # (np.cumsum costs more)
-        base = ip[:, 1] * wide + ip[:, 0] + np.repeat(top * wide, n)
+        base = ip[:, 1] * wide + ip[:, 0] + (top * wide).repeat(n)
         idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
         total = int(sum(rows)) * wide
         acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import gather_px, linspace, median, pad_edge, percentile
+from .fitting import gather_px, interp, linspace, median, pad_edge, percentile
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -770,10 +770,10 @@ class EyePlan:
         if poly is not None:
             up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
-            w_up = np.interp(U, up[:, 0], up[:, 1])
-            w_up0 = np.interp(U, su[:, 0], su[:, 1])
-            w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
-            w_lo = np.interp(U, low[:, 0], low[:, 1])
+            w_up = interp(U, up[:, 0], up[:, 1])
+            w_up0 = interp(U, su[:, 0], su[:, 1])
+            w_lo0 = interp(U, sl[:, 0], sl[:, 1])
+            w_lo = interp(U, low[:, 0], low[:, 1])
             d_up = w_up0 - w_up  # how far each column's lid moved away (frame px)
             d_lo = w_lo - w_lo0
             s_up = _smooth01(d_up)

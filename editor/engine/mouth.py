@@ -36,7 +36,7 @@ import numpy as np
 from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
-from .fitting import clamp
+from .fitting import clamp, interp
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -439,13 +439,13 @@ class MouthPlan:
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
         lip = fp[2:2 + n_lip]
-        lip = lip.take(np.argsort(lip[:, 0]), 0)
-        y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
+        lip = lip.take(lip[:, 0].argsort(), 0)
+        y_up = interp(Qx, lip[:, 0], lip[:, 1])
         low = fp[2 + n_lip:2 + 2 * n_lip]
-        low = low.take(np.argsort(low[:, 0]), 0)
+        low = low.take(low[:, 0].argsort(), 0)
         # light on the teeth through the opening: the local gap between the lips (per column)
         # against how deep behind them the teeth lie
-        gap = np.maximum(np.interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
+        gap = np.maximum(interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
         g2 = gap * gap
         zt = (APERTURE_TEETH * D) ** 2
         a_t = (gap / np.sqrt(g2 + zt + 1e-9)).astype(np.float32)

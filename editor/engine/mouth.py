@@ -542,7 +542,7 @@ class MouthPlan:
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
-            m = (1.0 - e * (1.0 - k.astype(np.float32))).astype(np.float32)
+            m = np.asarray(1.0 - e * (1.0 - k.astype(np.float32)), np.float32)  # (no copy)
             p_up = p_up * cv2.merge([m, m, m])
         if a_up is not None or a_lo is not None:
             rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import interp
+from .fitting import clip, interp
 from .layers import _rebox, _to_uint8, _union
 from .mouth import _lum
 from .warp import WarpResult
@@ -179,7 +179,13 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     Hs = lid_s - brow_s
     ex = Hd - Hs
     span = END_FADE * (x_hi - x_lo)
-    fade = _smooth01((u - x_lo) / span) * _smooth01((x_hi - u) / span)
+    # the fades from both ends in one array (rows: u - x_lo, x_hi - u; the same values)
+    q = np.empty((2, len(u)))
+    np.subtract(u, x_lo, out=q[0])
+    np.subtract(x_hi, u, out=q[1])
+    q /= span
+    q = _smooth01(q)
+    fade = q[0] * q[1]
     # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (rigid at
     # the lid); a closing lid unfolds the lid's own skin between its margin and the brow
     # (rigid at both ends: the lashes stay a thin line on the lid's edge, and the brow's lower
@@ -246,7 +252,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
     t = ly
     t *= inv_hd
-    np.clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
+    clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
     kk2 *= 1.0 - 2.0 * t
     kk += kk2  # k + k2 (1 - 2 t)
     t -= t * t  # t (1 - t)

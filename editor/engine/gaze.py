@@ -774,20 +774,23 @@ class EyePlan:
             w_up0 = interp(U, su[:, 0], su[:, 1])
             w_lo0 = interp(U, sl[:, 0], sl[:, 1])
             w_lo = interp(U, low[:, 0], low[:, 1])
-            d_up = w_up0 - w_up  # how far each column's lid moved away (frame px)
-            d_lo = w_lo - w_lo0
-            s_up = _smooth01(d_up)
-            s_lo = _smooth01(d_lo)
-            up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
+            # both lids at once, rows (upper, lower) (the same values as lid by lid): how far
+            # each column's lid moved away (frame px) and its fade-in
+            dd = np.empty((2, *U.shape))
+            np.subtract(w_up0, w_up, out=dd[0])
+            np.subtract(w_lo, w_lo0, out=dd[1])
+            ss = _smooth01(dd)
+            up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
             if up_moved or low_moved:
-                # (a lid that did not open contributes a factor of exactly 1: skipped)
-                sk = 1.0 / soft
-                keep = 1.0 - s_up * (1.0 - _clamp(_ramp(W - w_up0 - self.band_up, sk), 0, 1)) \
-                    if up_moved else None
-                if low_moved:
-                    k_lo = 1.0 - s_lo * (1.0 - _clamp(_ramp(w_lo0 - W - self.band_low, sk), 0, 1))
-                    keep = k_lo if keep is None else keep * k_lo
-                assert keep is not None  # up_moved or low_moved
+                # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'
+                # product (a lid that did not open contributes a factor of exactly 1: skipped)
+                kk = np.empty_like(dd)
+                np.subtract(W, w_up0, out=kk[0])
+                kk[0] -= self.band_up
+                np.subtract(w_lo0, W, out=kk[1])
+                kk[1] -= self.band_low
+                kk = 1.0 - ss * (1.0 - _clamp(_ramp(kk, 1.0 / soft), 0, 1))
+                keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
                 keep = keep.astype(np.float32)
                 ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
                                              borderMode=cv2.BORDER_REPLICATE)
@@ -802,14 +805,17 @@ class EyePlan:
                 # opening, and their shadow; not wiped off with the white). The pixel's image
                 # position is ox + U ex + Wb ey: its U part is the same for both lids
                 bu = (ox + U * ex[0], oy + U * ex[1])
-                for moved_lid, s_lid, Wb, bmap in ((up_moved, s_up, W + d_up, self.bands[0]),
-                                                   (low_moved, s_lo, W - d_lo, self.bands[1])):
+                wb = np.empty_like(dd)  # rows: W + d_up, W - d_lo (both lids' maps at once)
+                np.add(W, dd[0], out=wb[0])
+                np.subtract(W, dd[1], out=wb[1])
+                bx = (bu[0] + wb * ey[0]).astype(np.float32)
+                by = (bu[1] + wb * ey[1]).astype(np.float32)
+                for j, moved_lid in enumerate((up_moved, low_moved)):
                     if not moved_lid:
                         continue
-                    got = cv2.remap(bmap, (bu[0] + Wb * ey[0]).astype(np.float32),
-                                    (bu[1] + Wb * ey[1]).astype(np.float32), cv2.INTER_LINEAR,
+                    got = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR,
                                     borderMode=cv2.BORDER_CONSTANT, borderValue=(1.0, 1.0, 1.0))
-                    got = (1.0 - s_lid[..., None] * (1.0 - got)).astype(np.float32)
+                    got = (1.0 - ss[j][..., None] * (1.0 - got)).astype(np.float32)
                     band3 = got if band3 is None else np.minimum(band3, got)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du if du else U

@@ -721,11 +721,11 @@ class EyePlan:
         xs = np.arange(x0, x1, dtype=np.float64)
         ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
-        # (u, w) of every pixel: affine in x and y, so one row plus one column each
+        # (u, w) of every pixel: affine in x and y, so one row plus one column each (u and
+        # w stacked: rows (2, w), columns (2, h); the same values as each alone)
         cu = self._exy.T @ inv[:, :2]  # (u, w) per unit of x (column 0) and of y (column 1)
         c0 = (inv[:, 2] - self.centre) @ self._exy
-        U = (cu[0, 0] * xs + c0[0])[None, :] + (cu[0, 1] * ys)[:, None]
-        W = (cu[1, 0] * xs + c0[1])[None, :] + (cu[1, 1] * ys)[:, None]
+        U, W = (cu[:, 0, None] * xs + c0[:, None])[:, None, :] + (cu[:, 1, None] * ys)[:, :, None]
         du, dw = float(shift[0]), float(shift[1])
         ox = self.centre[0] - self.off[0]
         oy = self.centre[1] - self.off[1]
@@ -747,11 +747,9 @@ class EyePlan:
         else:
             # unmoved white: the photo patch through the inverse similarity (ex, ey are
             # orthonormal: centre + U ex + W ey is the inverse-mapped pixel), one row plus
-            # one column per coordinate
-            mx = ((inv[0, 0] * xs + (inv[0, 2] - self.off[0]))[None, :]
-                  + (inv[0, 1] * ys)[:, None]).astype(np.float32)
-            my = ((inv[1, 0] * xs + (inv[1, 2] - self.off[1]))[None, :]
-                  + (inv[1, 1] * ys)[:, None]).astype(np.float32)
+            # one column per coordinate (x and y stacked)
+            mx, my = ((inv[:, 0, None] * xs + (inv[:, 2] - self.off)[:, None])[:, None, :]
+                      + (inv[:, 1, None] * ys)[:, :, None]).astype(np.float32)
         # at rest the white is the photo itself (the composite is then exactly the photo); it
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))

@@ -802,12 +802,12 @@ class EyePlan:
                 # d below the photo's lid (the lashes' lower half, which lay inside the photo's
                 # opening, and their shadow; not wiped off with the white). The pixel's image
                 # position is ox + U ex + Wb ey: its U part is the same for both lids
-                bu = (ox + U * ex[0], oy + U * ex[1])
+                # (x and y stacked, then both lids: the U part (2, h, w), the maps (2, 2, h, w))
+                bu = U * ex[:, None, None] + np.array([ox, oy])[:, None, None]
                 wb = np.empty_like(dd)  # rows: W + d_up, W - d_lo (both lids' maps at once)
                 np.add(W, dd[0], out=wb[0])
                 np.subtract(W, dd[1], out=wb[1])
-                bx = (bu[0] + wb * ey[0]).astype(np.float32)
-                by = (bu[1] + wb * ey[1]).astype(np.float32)
+                bx, by = (bu[:, None] + wb * ey[:, None, None, None]).astype(np.float32)
                 for j, moved_lid in enumerate((up_moved, low_moved)):
                     if not moved_lid:
                         continue

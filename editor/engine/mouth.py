@@ -479,7 +479,9 @@ class MouthPlan:
         else:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
-            g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))
+            # (with the drawn layers' falloff below: both at once, the same values as each)
+            g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
+                [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
             deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
             out = 0.45 * np.asarray(rim, np.float32) - deep
@@ -487,7 +489,6 @@ class MouthPlan:
             out += deep
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
             # reads as a dark edge, not as a bright sliver
-            g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
             shade *= 1.0 - 0.3 * g1
         shade_g = (a_g * shade) * corner.astype(np.float32)
         shade_g = cv2.merge([shade_g, shade_g, shade_g])

@@ -685,7 +685,9 @@ class EyePlan:
             inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
         f = n @ self._exy
-        return f.take(_UP, 0), f.take(_LOW, 0)  # (take: fancy indexing of rows costs more)
+        # (one take of both lids' rows: fancy indexing of rows costs more)
+        lids = f.take(_UP_LOW, 0)
+        return lids[:7], lids[7:]
 
     def lid_opening(self, poly: np.ndarray, sim: np.ndarray,
                     lids: tuple[np.ndarray, np.ndarray] | None = None) -> float:
@@ -906,6 +908,7 @@ class EyePlan:
 
 _UP = np.array([0, 1, 2, 3, 4, 5, 6])  # opening loop -> upper lid c0, u1..u5, c1
 _LOW = np.array([0, 11, 10, 9, 8, 7, 6])  # -> lower lid c0, d1..d5, c1
+_UP_LOW = np.concatenate([_UP, _LOW])  # both, for one gather
 _NEXT = np.roll(np.arange(12), -1)  # next vertex along the opening's loop
 
 

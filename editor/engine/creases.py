@@ -51,6 +51,7 @@ from .fitting import (
     catmull_rom,
     channel_median,
     clamp,
+    clip,
     is_grey,
     linspace,
     luminance,
@@ -315,6 +316,16 @@ def _on_mesh(V: np.ndarray, tri: tuple[np.ndarray, ...], bary: tuple[np.ndarray,
     barycentric weights (rows gathered with ``take``: fancy indexing costs more)."""
     (t0, t1, t2), (b0, b1, b2) = tri, bary
     return V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
+
+
+def _segments(pos: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every segment ``seg_a`` -> ``seg_b`` of the samples ``pos`` at once: its start (M, 2),
+    direction (M, 2) and length (M,)."""
+    a = pos.take(seg_a, 0)
+    d = pos.take(seg_b, 0) - a
+    dx, dy = d[:, 0], d[:, 1]
+    return a, d, np.sqrt(dx * dx + dy * dy)  # (an axis-1 sum of (n, 2) costs more)
 
 
 def _normals(pts: np.ndarray) -> np.ndarray:
@@ -866,8 +877,19 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     H, W = out.shape[:2]
     bbox = res.bbox
     canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]] = []
-    unfolds = _unfold_layout(face, V, un, (H, W), res.maps, canvases) if any_unfold else []
-    folds = _fold_layout(face, V, s, (H, W), canvases)
+    # the segments of the fold samples and of the valley's on the deformed mesh (both sets
+    # in one gather and one measurement when both are drawn: the same values row by row)
+    fold_segs = valley_segs = None
+    if any_unfold:
+        tri, bary, seg_a, seg_b = _both_samples(face)
+        a, d, L = _segments(_on_mesh(V, tri, bary), seg_a, seg_b)
+        m = len(fa.seg_a)
+        fold_segs, valley_segs = (a[:m], d[:m], L[:m]), (a[m:], d[m:], L[m:])
+    elif any_fold:
+        fold_segs = _segments(_on_mesh(V, fa.sample_tri, fa.bary), fa.seg_a, fa.seg_b)
+    unfolds = _unfold_layout(face, valley_segs, un, (H, W), res.maps, canvases) \
+        if valley_segs is not None else []
+    folds = _fold_layout(face, fold_segs, s, (H, W), canvases)
     if not canvases:
         return res
     drawn = _splat_many(canvases)
@@ -911,23 +933,22 @@ def _live_groups(fa, live: np.ndarray) -> list[tuple[int, int, int]]:
 _GROUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int],
+def _fold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                 s: np.ndarray, shape: tuple[int, int],
                  canvases: list) -> list[tuple[int, tuple[int, int, int, int], int]]:
     """Each fold group with a sample above :data:`_MIN_STRENGTH`: its box and two canvases
     (the dark line's samples, then the ridge's beside it) appended to ``canvases``. Returns
-    ``(group, box, index of its first canvas)`` per group."""
+    ``(group, box, index of its first canvas)`` per group. ``segs``: :func:`_segments` of
+    the fold samples on the deformed mesh (None: no sample is above the minimum)."""
     fa = _fast(face)
     H, W = shape
     sa, sb = s.take(fa.seg_a), s.take(fa.seg_b)
     groups = _live_groups(fa, np.maximum(sa, sb) > _MIN_STRENGTH)
     if not groups:
         return []
-    pos = _on_mesh(V, fa.sample_tri, fa.bary)  # the samples on the deformed mesh
+    assert segs is not None  # (a live group has a sample above the minimum)
     # every segment at once: start, direction, length, normal (-dy, dx) / L
-    a_all = pos.take(fa.seg_a, 0)
-    d_all = pos.take(fa.seg_b, 0) - a_all
-    dx, dy = d_all[:, 0], d_all[:, 1]
-    L_all = np.sqrt(dx * dx + dy * dy)
+    a_all, d_all, L_all = segs
     n_all = d_all[:, ::-1] * _TURN / np.maximum(L_all, 1e-9)[:, None]
     lines = []
     for g, g0, g1 in groups:
@@ -938,7 +959,7 @@ def _fold_layout(face: Face, V: np.ndarray, s: np.ndarray, shape: tuple[int, int
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
         ga, gb = sa[g0:g1], sb[g0:g1]
         w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        ridge = pts + np.repeat(n_all[g0:g1] * fa.off[g], K, 0)  # the ridge beside the line
+        ridge = pts + (n_all[g0:g1] * fa.off[g]).repeat(K, 0)  # the ridge beside the line
         lines += [pts, ridge]
         lines.append(w)
     # the extent of each line and ridge in one pass
@@ -982,7 +1003,7 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
     wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
     wskin += np.float32(1.8)  # (0.45 - distance / ref_l) * 4
-    np.clip(wskin, 0.0, 1.0, out=wskin)
+    clip(wskin, 0.0, 1.0, out=wskin)
     # gain per channel 1 + wskin (k2 light - k1 tint dark), one transform of (light, dark)
     light *= wskin
     dark *= wskin
@@ -1017,7 +1038,7 @@ def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bo
     inside = all(c[3] for c in canvases)
     if inside:
         top = np.array(list(itertools.accumulate([0, *rows[:-1]])))  # (np.cumsum costs more)
-        base = ip[:, 1] * wide + ip[:, 0] + np.repeat(top * wide, n)
+        base = ip[:, 1] * wide + ip[:, 0] + (top * wide).repeat(n)
         idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
         total = int(sum(rows)) * wide
         acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
@@ -1156,23 +1177,21 @@ def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
     return (k / k.sum()).astype(np.float32)
 
 
-def _unfold_layout(face: Face, V: np.ndarray, un: np.ndarray, shape: tuple[int, int],
+def _unfold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray],
+                   un: np.ndarray, shape: tuple[int, int],
                    maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
                    canvases: list) -> list[tuple]:
     """The bands of :func:`_unfold_draw`: per group with a live own fold, its band's canvas
     appended to ``canvases`` and ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``
-    (:func:`_band_samples` of the group's segments, all segments measured at once)."""
+    (:func:`_band_samples` of the group's segments, all segments measured at once: ``segs``,
+    :func:`_segments` of the valley's samples on the deformed mesh)."""
     fa = _fast(face)
     H, W = shape
     ua, ub = un.take(fa.seg_a), un.take(fa.seg_b)
     groups = _live_groups(fa, np.maximum(ua, ub) > _MIN_UNFOLD)
     if not groups:
         return []
-    pos = _on_mesh(V, *_valley_samples(face))  # the valley's samples on the deformed mesh
-    a_all = pos.take(fa.seg_a, 0)
-    d_all = pos.take(fa.seg_b, 0) - a_all
-    dx, dy = d_all[:, 0], d_all[:, 1]
-    L_all = np.sqrt(dx * dx + dy * dy)  # (an axis-1 sum of (n, 2) costs more)
+    a_all, d_all, L_all = segs
     bands = []
     for g, g0, g1 in groups:
         sb = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
@@ -1274,7 +1293,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             np.maximum(S, 1.0, out=S)
             g4 = np.divide(Cw, S, out=S)
             band *= g4[..., 3]
-            np.clip(g4, 1.0, 4.0, out=g4)
+            clip(g4, 1.0, 4.0, out=g4)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         gain -= 1.0
         gain *= cv2.merge([band, band, band])
@@ -1300,6 +1319,25 @@ def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 _VALLEY_SAMPLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_BOTH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _both_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...],
+                                       np.ndarray, np.ndarray]:
+    """The fold samples followed by the valley's (:func:`_valley_samples`) as one set for
+    :func:`_on_mesh` (3 x (2N,) vertex indices, 3 x (2N, 1) weights) and the segments of both
+    halves (``seg_a``, ``seg_b`` and the same shifted by N): a frame that draws folds and
+    unfolds places and measures both in one pass (once per face)."""
+    got = _BOTH.get(face)
+    if got is None:
+        fa = _fast(face)
+        tri, bary = _valley_samples(face)
+        n = len(fa.sample_tri[0])
+        got = (tuple(np.concatenate([a, b]) for a, b in zip(fa.sample_tri, tri, strict=True)),
+               tuple(np.concatenate([a, b]) for a, b in zip(fa.bary, bary, strict=True)),
+               np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]))
+        _BOTH[face] = got
+    return got
 
 
 def _valley_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:

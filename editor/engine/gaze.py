@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import catmull_rom, gather_px, linspace, median, pad_edge, percentile
+from .fitting import catmull_rom, gather_px, interp, linspace, median, pad_edge, percentile
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -685,7 +685,9 @@ class EyePlan:
             inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
         n = np.asarray(poly, np.float64) @ inv[:, :2].T + inv[:, 2] - self.centre
         f = n @ self._exy
-        return f.take(_UP, 0), f.take(_LOW, 0)  # (take: fancy indexing of rows costs more)
+        # (one take of both lids' rows: fancy indexing of rows costs more)
+        lids = f.take(_UP_LOW, 0)
+        return lids[:7], lids[7:]
 
     def lid_opening(self, poly: np.ndarray, sim: np.ndarray,
                     lids: tuple[np.ndarray, np.ndarray] | None = None) -> float:
@@ -721,11 +723,11 @@ class EyePlan:
         xs = np.arange(x0, x1, dtype=np.float64)
         ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
-        # (u, w) of every pixel: affine in x and y, so one row plus one column each
+        # (u, w) of every pixel: affine in x and y, so one row plus one column each (u and
+        # w stacked: rows (2, w), columns (2, h); the same values as each alone)
         cu = self._exy.T @ inv[:, :2]  # (u, w) per unit of x (column 0) and of y (column 1)
         c0 = (inv[:, 2] - self.centre) @ self._exy
-        U = (cu[0, 0] * xs + c0[0])[None, :] + (cu[0, 1] * ys)[:, None]
-        W = (cu[1, 0] * xs + c0[1])[None, :] + (cu[1, 1] * ys)[:, None]
+        U, W = (cu[:, 0, None] * xs + c0[:, None])[:, None, :] + (cu[:, 1, None] * ys)[:, :, None]
         du, dw = float(shift[0]), float(shift[1])
         ox = self.centre[0] - self.off[0]
         oy = self.centre[1] - self.off[1]
@@ -747,11 +749,9 @@ class EyePlan:
         else:
             # unmoved white: the photo patch through the inverse similarity (ex, ey are
             # orthonormal: centre + U ex + W ey is the inverse-mapped pixel), one row plus
-            # one column per coordinate
-            mx = ((inv[0, 0] * xs + (inv[0, 2] - self.off[0]))[None, :]
-                  + (inv[0, 1] * ys)[:, None]).astype(np.float32)
-            my = ((inv[1, 0] * xs + (inv[1, 2] - self.off[1]))[None, :]
-                  + (inv[1, 1] * ys)[:, None]).astype(np.float32)
+            # one column per coordinate (x and y stacked)
+            mx, my = ((inv[:, 0, None] * xs + (inv[:, 2] - self.off)[:, None])[:, None, :]
+                      + (inv[:, 1, None] * ys)[:, :, None]).astype(np.float32)
         # at rest the white is the photo itself (the composite is then exactly the photo); it
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))
@@ -770,24 +770,27 @@ class EyePlan:
         if poly is not None:
             up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
-            w_up = np.interp(U, up[:, 0], up[:, 1])
-            w_up0 = np.interp(U, su[:, 0], su[:, 1])
-            w_lo0 = np.interp(U, sl[:, 0], sl[:, 1])
-            w_lo = np.interp(U, low[:, 0], low[:, 1])
-            d_up = w_up0 - w_up  # how far each column's lid moved away (frame px)
-            d_lo = w_lo - w_lo0
-            s_up = _smooth01(d_up)
-            s_lo = _smooth01(d_lo)
-            up_moved, low_moved = np.count_nonzero(s_up) > 0, np.count_nonzero(s_lo) > 0
+            w_up = interp(U, up[:, 0], up[:, 1])
+            w_up0 = interp(U, su[:, 0], su[:, 1])
+            w_lo0 = interp(U, sl[:, 0], sl[:, 1])
+            w_lo = interp(U, low[:, 0], low[:, 1])
+            # both lids at once, rows (upper, lower) (the same values as lid by lid): how far
+            # each column's lid moved away (frame px) and its fade-in
+            dd = np.empty((2, *U.shape))
+            np.subtract(w_up0, w_up, out=dd[0])
+            np.subtract(w_lo, w_lo0, out=dd[1])
+            ss = _smooth01(dd)
+            up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
             if up_moved or low_moved:
-                # (a lid that did not open contributes a factor of exactly 1: skipped)
-                sk = 1.0 / soft
-                keep = 1.0 - s_up * (1.0 - _clamp(_ramp(W - w_up0 - self.band_up, sk), 0, 1)) \
-                    if up_moved else None
-                if low_moved:
-                    k_lo = 1.0 - s_lo * (1.0 - _clamp(_ramp(w_lo0 - W - self.band_low, sk), 0, 1))
-                    keep = k_lo if keep is None else keep * k_lo
-                assert keep is not None  # up_moved or low_moved
+                # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'
+                # product (a lid that did not open contributes a factor of exactly 1: skipped)
+                kk = np.empty_like(dd)
+                np.subtract(W, w_up0, out=kk[0])
+                kk[0] -= self.band_up
+                np.subtract(w_lo0, W, out=kk[1])
+                kk[1] -= self.band_low
+                kk = 1.0 - ss * (1.0 - _clamp(_ramp(kk, 1.0 / soft), 0, 1))
+                keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
                 keep = keep.astype(np.float32)
                 ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
                                              borderMode=cv2.BORDER_REPLICATE)
@@ -801,15 +804,18 @@ class EyePlan:
                 # d below the photo's lid (the lashes' lower half, which lay inside the photo's
                 # opening, and their shadow; not wiped off with the white). The pixel's image
                 # position is ox + U ex + Wb ey: its U part is the same for both lids
-                bu = (ox + U * ex[0], oy + U * ex[1])
-                for moved_lid, s_lid, Wb, bmap in ((up_moved, s_up, W + d_up, self.bands[0]),
-                                                   (low_moved, s_lo, W - d_lo, self.bands[1])):
+                # (x and y stacked, then both lids: the U part (2, h, w), the maps (2, 2, h, w))
+                bu = U * ex[:, None, None] + np.array([ox, oy])[:, None, None]
+                wb = np.empty_like(dd)  # rows: W + d_up, W - d_lo (both lids' maps at once)
+                np.add(W, dd[0], out=wb[0])
+                np.subtract(W, dd[1], out=wb[1])
+                bx, by = (bu[:, None] + wb * ey[:, None, None, None]).astype(np.float32)
+                for j, moved_lid in enumerate((up_moved, low_moved)):
                     if not moved_lid:
                         continue
-                    got = cv2.remap(bmap, (bu[0] + Wb * ey[0]).astype(np.float32),
-                                    (bu[1] + Wb * ey[1]).astype(np.float32), cv2.INTER_LINEAR,
+                    got = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR,
                                     borderMode=cv2.BORDER_CONSTANT, borderValue=(1.0, 1.0, 1.0))
-                    got = (1.0 - s_lid[..., None] * (1.0 - got)).astype(np.float32)
+                    got = (1.0 - ss[j][..., None] * (1.0 - got)).astype(np.float32)
                     band3 = got if band3 is None else np.minimum(band3, got)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du if du else U
@@ -906,6 +912,7 @@ class EyePlan:
 
 _UP = np.array([0, 1, 2, 3, 4, 5, 6])  # opening loop -> upper lid c0, u1..u5, c1
 _LOW = np.array([0, 11, 10, 9, 8, 7, 6])  # -> lower lid c0, d1..d5, c1
+_UP_LOW = np.concatenate([_UP, _LOW])  # both, for one gather
 _NEXT = np.roll(np.arange(12), -1)  # next vertex along the opening's loop
 
 

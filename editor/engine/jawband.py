@@ -31,6 +31,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from .fitting import interp
+
 if TYPE_CHECKING:
     from .face import Face
     from .fitting import FaceFrame
@@ -133,11 +135,11 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     ext = (min(bx), min(by), max(bx), max(by))
     fr = face.frame
     new = fr.to_frame(vv.take(b.idx, 0))
-    order = np.argsort(new[:, 0])
+    order = new[:, 0].argsort()
     new = new.take(order, 0)
     drop = new[:, 1] - b.rest_frame[:, 1].take(order)
     ring = fr.to_frame(vv.take(b.ring, 0))
-    ring = ring.take(np.argsort(ring[:, 0]), 0)
+    ring = ring.take(ring[:, 0].argsort(), 0)
     ramp = max(1.5 * max(drop.tolist()), 2.0)
     return partial(_hook, fr, b, ext, new, drop, ring, ramp)
 
@@ -213,12 +215,12 @@ def _jaw_table(fr: FaceFrame, b: _Band, box: tuple[int, int, int, int], new: np.
     lo_x = min(bx)
     u = lo_x + _STEP * np.arange(math.ceil((max(bx) - lo_x) / _STEP) + 2)
     table = np.empty((2, len(u), 4), np.float32)  # 2 rows: no border path on the last
-    jaw = np.interp(u, new[:, 0], new[:, 1])
+    jaw = interp(u, new[:, 0], new[:, 1])
     table[:, :, 0] = jaw
-    table[:, :, 1] = np.interp(u, new[:, 0], drop)
+    table[:, :, 1] = interp(u, new[:, 0], drop)
     # the room below the jaw line down to the margin ring: the strip and the fade fit in
     # it, so that the map is the photo's own where the band meets the ring
-    room = np.interp(u, ring[:, 0], ring[:, 1])
+    room = interp(u, ring[:, 0], ring[:, 1])
     room -= table[0, :, 0]
     np.maximum(room, 1.0, out=room)
     t_strip = np.minimum(b.tau, 0.3 * room)

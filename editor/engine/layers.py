@@ -728,9 +728,9 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
     shift[:, 0] = cols
     # the pixel sets (as warp fills an opening: float32 outline minus box origin, 4 fractional
     # bits)
-    q = np.rint((P.astype(np.float32) - np.repeat(org.astype(np.float32), lens, 0))
+    q = np.rint((P.astype(np.float32) - org.astype(np.float32).repeat(lens, 0))
                 * (1 << _SHIFT)).astype(np.int32)
-    q += np.repeat(shift << _SHIFT, lens, 0)
+    q += (shift << _SHIFT).repeat(lens, 0)
     m = np.zeros((max(hs), sum(ws)), np.uint8)
     cv2.fillPoly(m, [q[a:b] for a, b in parts], 1, cv2.LINE_8, _SHIFT)
     holes = [m[:h, c:c + w].view(bool) for h, w, c in zip(hs, ws, cols, strict=True)]
@@ -738,9 +738,9 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
         return [(hole, None) for hole in holes]
     # the coverages (as _coverage: the sample grid, 4 fractional bits, from float64)
     k = 16.0 * ss
-    qc = np.rint(P.astype(np.float64) * k + (8.0 * ss - 8.0 - k * np.repeat(org, lens, 0))
+    qc = np.rint(P.astype(np.float64) * k + (8.0 * ss - 8.0 - k * org.repeat(lens, 0))
                  ).astype(np.int32)
-    qc += np.repeat(shift * (16 * ss), lens, 0)
+    qc += (shift * (16 * ss)).repeat(lens, 0)
     big: np.ndarray = np.zeros((max(hs) * ss, sum(ws) * ss), np.uint8)
     cv2.fillPoly(big, [qc[a:b] for a, b in parts], 255, cv2.LINE_8, 4)
     big = cv2.erode(big, _CROSS)

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from .fitting import clip, interp
 from .layers import _rebox, _to_uint8, _union
 from .mouth import _lum
 from .warp import WarpResult
@@ -172,9 +173,9 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         # the table along the frame's x over the box: lid line, 1 / Hd, k (from the strip's
         # height now and in the photo)
         u = lo + _STEP * np.arange(math.ceil((max(bx) - lo) / _STEP) + 2)
-        lines = (np.interp(u, L[:, 0], L[:, 1]), np.interp(u, B[:, 0], B[:, 1]),
-                 np.interp(u, L[:, 0], st.lid_s[:, 1]), np.interp(u, B[:, 0], st.brow_s[:, 1]),
-                 np.interp(u, Rg[:, 0], Rg[:, 1]), np.interp(u, Rg[:, 0], st.ring_s[:, 1]))
+        lines = (interp(u, L[:, 0], L[:, 1]), interp(u, B[:, 0], B[:, 1]),
+                 interp(u, L[:, 0], st.lid_s[:, 1]), interp(u, B[:, 0], st.brow_s[:, 1]),
+                 interp(u, Rg[:, 0], Rg[:, 1]), interp(u, Rg[:, 0], st.ring_s[:, 1]))
         cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines, si))
     if not cand:
         return res
@@ -185,12 +186,18 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     if len(cand) == 1:
         x_lo, x_hi = cand[0][3], cand[0][4]
     else:  # (both rows in one call)
-        x_lo, x_hi = np.repeat(np.array([[c[3] for c in cand], [c[4] for c in cand]]), n_u, 1)
+        x_lo, x_hi = np.array([[c[3] for c in cand], [c[4] for c in cand]]).repeat(n_u, 1)
     Hd = lid_y - brow_y
     Hs = lid_s - brow_s
     ex = Hd - Hs
     span = END_FADE * (x_hi - x_lo)
-    fade = _smooth01((u - x_lo) / span) * _smooth01((x_hi - u) / span)
+    # the fades from both ends in one array (rows: u - x_lo, x_hi - u; the same values)
+    q = np.empty((2, len(u)))
+    np.subtract(u, x_lo, out=q[0])
+    np.subtract(x_hi, u, out=q[1])
+    q /= span
+    q = _smooth01(q)
+    fade = q[0] * q[1]
     # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (rigid at
     # the lid); a closing lid unfolds the lid's own skin between its margin and the brow
     # (rigid at both ends: the lashes stay a thin line on the lid's edge, and the brow's lower
@@ -252,7 +259,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         c += x1 - x0
     table[-1] = table[-2]
     # per column (the boxes side by side): its image x, first row, table row and first frame x
-    sh_c, y0c, lo_c = np.repeat(np.array([shifts, y0s, los], np.float64), widths, 1)
+    sh_c, y0c, lo_c = np.array([shifts, y0s, los], np.float64).repeat(widths, 1)
     xc = np.arange(c, dtype=np.float64) + sh_c
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)
@@ -260,7 +267,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     xo, yo = xc - org[0], y0c - org[1]
     tx = (xo * R[0, 0] + yo * R[1, 0] - lo_c) * (1.0 / _STEP)
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
-    ty = np.repeat(np.repeat(np.arange(len(jobs), dtype=np.float32), widths)[None, :], hmax, 0)
+    ty = np.arange(len(jobs), dtype=np.float32).repeat(widths)[None, :].repeat(hmax, 0)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     ly, inv_hd, kk, kk2 = cv2.split(got)
     ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]
@@ -269,7 +276,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     above = ly.copy() if closing else None  # px above the lid's edge (its lashes: kept)
     t = ly
     t *= inv_hd
-    np.clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
+    clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
     kk2 *= 1.0 - 2.0 * t
     kk += kk2  # k + k2 (1 - 2 t)
     t -= t * t  # t (1 - t)

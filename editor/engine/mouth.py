@@ -36,7 +36,7 @@ import numpy as np
 from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
-from .fitting import clamp
+from .fitting import clamp, interp
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -431,10 +431,10 @@ class MouthPlan:
         ys = np.arange(y0, y1, dtype=np.float64)[:, None]
         O = v[self.i93].astype(np.float64)
         # (one row plus one column each: the layer frame is affine in x and y; the textures
-        # below are sampled from these parts too)
-        Q = ((xs - O[0]) * ex[0], (ys - O[1]) * ex[1], (xs - O[0]) * ey[0], (ys - O[1]) * ey[1])
-        Qx = Q[0] + Q[1]
-        Qy = Q[2] + Q[3]
+        # below are sampled from these parts too. Rows (2, 1, w): x ex[0], x ey[0]; columns
+        # (2, h, 1): y ex[1], y ey[1]; the frame's x and y stacked, the same values as each)
+        Q = ((xs - O[0]) * E[0, :, None, None], (ys - O[1]) * E[1, :, None, None])
+        Qx, Qy = Q[0] + Q[1]
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
@@ -444,13 +444,13 @@ class MouthPlan:
         D = self.mouth_nose * sc
         # shading of the synthetic layers: shadow under the upper lip, darker corners
         lip = fp[2:2 + n_lip]
-        lip = lip.take(np.argsort(lip[:, 0]), 0)
-        y_up = np.interp(Qx, lip[:, 0], lip[:, 1])
+        lip = lip.take(lip[:, 0].argsort(), 0)
+        y_up = interp(Qx, lip[:, 0], lip[:, 1])
         low = fp[2 + n_lip:2 + 2 * n_lip]
-        low = low.take(np.argsort(low[:, 0]), 0)
+        low = low.take(low[:, 0].argsort(), 0)
         # light on the teeth through the opening: the local gap between the lips (per column)
         # against how deep behind them the teeth lie
-        gap = np.maximum(np.interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
+        gap = np.maximum(interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
         g2 = gap * gap
         zt = (APERTURE_TEETH * D) ** 2
         a_t = (gap / np.sqrt(g2 + zt + 1e-9)).astype(np.float32)
@@ -485,7 +485,9 @@ class MouthPlan:
         else:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
-            g = np.exp(-np.asarray(depth, np.float32) / np.float32(0.08 * D + 0.5))
+            # (with the drawn layers' falloff below: both at once, the same values as each)
+            g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
+                [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
             deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
             out = 0.45 * np.asarray(rim, np.float32) - deep
@@ -493,7 +495,6 @@ class MouthPlan:
             out += deep
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
             # reads as a dark edge, not as a bright sliver
-            g1 = np.exp(-np.asarray(depth, np.float32) / np.float32(0.05 * D + 0.5))
             shade *= 1.0 - 0.3 * g1
         shade_g = (a_g * shade) * corner.astype(np.float32)
         shade_g = cv2.merge([shade_g, shade_g, shade_g])
@@ -524,10 +525,10 @@ class MouthPlan:
         # where each pixel samples the photo's own interior (its patch's pixels): skull part
         if self.own_off is None or self.ext is None:
             raise RuntimeError("MouthPlan.render needs the photo's interior (attach_own)")
-        ofx, ofy = self.own_off
-        sx = Si[0, 0] * xs + Si[0, 1] * ys + (Si[0, 2] - ofx)
-        sy = Si[1, 0] * xs + Si[1, 1] * ys + (Si[1, 2] - ofy)
-        mx, my = sx.astype(np.float32), sy.astype(np.float32)
+        # (x and y stacked (2, h, w): rows plus columns plus offsets, the same values as each)
+        sxy = (Si[:, 0, None, None] * xs + Si[:, 1, None, None] * ys) \
+            + (Si[:, 2] - self.own_off)[:, None, None]
+        mx, my = sxy.astype(np.float32)
         anchor = O + q21[0] * ex + y_lb * ey
         tj = anchor - (L @ self.anchor0 + S[:, 2])
         tjs = Si[:, :2] @ tj
@@ -540,8 +541,8 @@ class MouthPlan:
         gap = (v.take(lp_d, 0) - v.take(lp_u, 0)).astype(np.float64) @ ey
         fade = 1.0 - _smoothstep1(max((gap - self.gap0).tolist()) / 2.0)
         a_up, p_up = self._own(mx, my, 0, fade)
-        a_lo, p_lo = self._own((sx - tjs[0]).astype(np.float32),
-                               (sy - tjs[1]).astype(np.float32), 1, fade)
+        lx, ly = (sxy - tjs[:, None, None]).astype(np.float32)
+        a_lo, p_lo = self._own(lx, ly, 1, fade)
         if a_up is not None and self.photo_upper:
             # the continued teeth: a light shadow right under the lip (the photo's own top
             # row, which they repeat, already carries the photo's lip shadow) and the drawn
@@ -549,7 +550,7 @@ class MouthPlan:
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
-            m = (1.0 - e * (1.0 - k.astype(np.float32))).astype(np.float32)
+            m = np.asarray(1.0 - e * (1.0 - k.astype(np.float32)), np.float32)  # (no copy)
             p_up = p_up * cv2.merge([m, m, m])
         if a_up is not None or a_lo is not None:
             rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
@@ -615,19 +616,20 @@ class MouthPlan:
 
     def _over(self, out, name, q, left, top, ww, hh, shade, gum=False):
         """``out`` under texture ``name`` placed at ``left``, ``top`` (``ww`` x ``hh``) in the
-        layer frame; ``q``: the pixels' frame coordinates (x, y), or their parts
-        (x row, x column, y row, y column) whose sums they are."""
+        layer frame; ``q``: the pixels' frame coordinates (x, y), or their parts (rows
+        (2, 1, w), columns (2, h, 1): x and y stacked) whose sums they are."""
         t = self.tex[name]
         th, tw = t.shape[:2]
         kx, ky = tw / ww, th / hh
-        if len(q) == 4:  # (affine: scaled and shifted as a row plus a column)
-            xr, xc, yr, yc = q
-            mx = (((xr - left) * kx - 0.5) + xc * kx).astype(np.float32)
-            my = (((yr - top) * ky - 0.5) + yc * ky).astype(np.float32)
+        rows, cols = q
+        if rows.ndim == 3:  # (affine: scaled and shifted as a row plus a column, x and y)
+            k = np.array([kx, ky])[:, None, None]
+            m = (((rows - np.array([left, top])[:, None, None]) * k - 0.5) + cols * k
+                 ).astype(np.float32)
+            mx, my = m[0], m[1]
         else:
-            qx, qy = q
-            mx = ((qx - left) * kx - 0.5).astype(np.float32)
-            my = ((qy - top) * ky - 0.5).astype(np.float32)
+            mx = ((rows - left) * kx - 0.5).astype(np.float32)
+            my = ((cols - top) * ky - 0.5).astype(np.float32)
         if gum:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,

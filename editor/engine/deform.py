@@ -50,14 +50,16 @@ _DEPTH = {
 _NONLINEAR = {23, 24, 25, 26, 27, 28, 29, 30, 47, 48, 49, 50}
 _NONLINEAR_IDX = np.array(sorted(x - 1 for x in _NONLINEAR))
 _BROW_FDPS = frozenset(k for v in BROW_FDPS.values() for k in v)
+#: FAP rows (0-based) of close_t_l/r_eyelid (19, 20): their closing part (positive values) has
+#: its own basis (:func:`~editor.engine.influence.closing_lid_share`); ``_CLOSING`` the same
+#: rows as a slice (a view of a batch of FAP rows)
+CLOSING_LIDS = (18, 19)
+_CLOSING = slice(18, 20)
 
 #: Inner/outer lip FAP pairs that drive (almost) the same part of the lips. Alone, each moves
 #: its own point by value x FAPU; together, the part of the face both reach is moved by the
 #: larger common value once, not twice: D = w_in v_in + w_out v_out - min(w_in, w_out) m, with
 #: m the common same-sign part of the two values (0 when their signs differ).
-#: FAP rows (0-based) of close_t_l/r_eyelid (19, 20): their closing part has its own basis.
-CLOSING_LIDS = [18, 19]
-
 LIP_PAIRS = np.array([(4, 51), (5, 52), (6, 53), (7, 54), (8, 55), (9, 56), (10, 57), (11, 58),
                       (12, 59), (13, 60)]) - 1
 
@@ -119,6 +121,7 @@ class _Topology:
     triangles: np.ndarray  # (T, 3) int64
     incidence: np.ndarray  # (V, maxdeg) triangle ids per vertex, padded with T
     pairs: np.ndarray  # (P, 2) int64
+    close_share: dict[str, np.ndarray]  # influence.closing_lid_share(names)
 
 
 @lru_cache(maxsize=4)
@@ -140,9 +143,9 @@ def _topology(mesh: StandardMesh) -> _Topology:
     inc = np.full((V, int(deg.max())), T, np.int64)
     inc[corner_v[order], slot] = order // 3
     topo = _Topology(names, side_tags(names), regions, movable, movable & ~iris_mask, head_w,
-                     tri, inc, mesh.pairs.astype(np.int64))
+                     tri, inc, mesh.pairs.astype(np.int64), closing_lid_share(names))
     for a in (regions, movable, topo.movable_lin, head_w, tri, inc, topo.pairs,
-              *topo.sides.values()):
+              *topo.sides.values(), *topo.close_share.values()):
         a.setflags(write=False)
     return topo
 
@@ -240,9 +243,9 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
     ia = np.array([row_of[int(a)] for a in LIP_PAIRS[:, 0]])
     shared = np.minimum(single_w[ia], single_w[[row_of[int(b)] for b in LIP_PAIRS[:, 1]]])
     pair_basis = units[ia, None, None] * shared[:, :, None] * lin.dirs[ia, None, :]
-    # a closing upper lid leaves the skin above its crease (influence.closing_lid_rects): for
+    # a closing upper lid leaves the skin above its crease (influence.closing_lid_share): for
     # positive values its basis row is the basis plus this difference
-    share = closing_lid_share(names)
+    share = topo.close_share
     close_basis = np.zeros((len(CLOSING_LIDS), N, 2))
     for j, fap in enumerate(CLOSING_LIDS):
         i = row_of[fap]
@@ -600,7 +603,7 @@ def _linear(plan: DeformPlan, f: np.ndarray) -> np.ndarray:
     common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
     if common.any():
         lin -= common @ plan.pair_basis
-    closing = np.maximum(f[:, CLOSING_LIDS], 0.0)
+    closing = np.maximum(f[:, _CLOSING], 0.0)
     if closing.any():
         lin += closing @ plan.close_basis
     return plan.neutral64[None] + lin.reshape(f.shape[0], -1, 2)

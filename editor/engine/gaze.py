@@ -868,6 +868,17 @@ class EyePlan:
         return col
 
 
+    def lash_fade(self, poly: np.ndarray) -> float:
+        """How far the lash line of the opening ``poly`` (its 12 vertices, deformed) has faded
+        in: 0 up to a closure c (1 - its area over the neutral one) of 0.6, 1 from 0.9."""
+        x, y = poly[:, 0].astype(np.float64), poly[:, 1].astype(np.float64)
+        nxt = _NEXT if len(poly) == len(_NEXT) else np.roll(np.arange(len(poly)), -1)
+        area = 0.5 * abs(float(np.dot(x, y[nxt]) - np.dot(y, x[nxt])))
+        c = 1.0 - area / max(self.area0, 1e-6)
+        if c <= 0.6:
+            return 0.0
+        return float(_smooth01(np.array((c - 0.6) / 0.3)))
+
     def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray, soft: float = 1.0
                   ) -> tuple[np.ndarray, np.ndarray] | None:
         """A closing eye's lash line over ``box``: (alpha (h, w) float32, colour (3,)), or None.
@@ -880,14 +891,8 @@ class EyePlan:
         photo's edge ramp, px; anti-aliased over a pixel on a sharp photo). It replaces the
         stretched, broken lash and lid-margin texture of the warp by one clean, curved line.
         """
-        x, y = poly[:, 0], poly[:, 1]
-        nxt = _NEXT if len(poly) == len(_NEXT) else np.roll(np.arange(len(poly)), -1)
-        area = 0.5 * abs(float(np.dot(x, y[nxt]) - np.dot(y, x[nxt])))
-        c = 1.0 - area / max(self.area0, 1e-6)
-        if c <= 0.6:  # no closure yet: no lash line (the fade below is 0)
-            return None
-        fade = float(_smooth01(np.array((c - 0.6) / 0.3)))
-        if fade <= 0.0:
+        fade = self.lash_fade(poly)
+        if fade <= 0.0:  # no closure yet: no lash line
             return None
         x0, y0, x1, y1 = box
         up = np.asarray(poly, np.float64)[[0, 1, 2, 3, 4, 5, 6]]

@@ -213,7 +213,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # mean slope), f = Hd (s t + lam (1 - s) t (1 - t) (1 - 2 t)); lam <= 2 s / (1 - s) keeps
     # it monotonic (f' >= 0 at t = 1/2)
     # (a closing lid leaves the skin above its crease, the eye ring, where it is
-    # (influence.closing_lid_rects): its strip ends at the ring, which the warp kept still)
+    # (influence.closing_lid_share): its strip ends at the ring, which the warp kept still)
     closing = pull < 0.0
     if closing.any():
         Hd = np.where(closing, lid_y - ring_y, Hd)
@@ -289,10 +289,15 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         # distance while the eye is open, none once it is closed (from a closure of 0.6 to 0.9
         # the drawn lash line fades in, layers / gaze.EyePlan.lash_line; the band goes as its
         # square, so that a half-drawn line still has the photo's lashes behind it)
-        band = np.repeat(np.array([LASH_KEEP * float(face.interocular)
-                                   * (1.0 - _lash_fade(face, vertices, si) ** 2)
-                                   for si in sides],
-                                  np.float32), [b[2] - b[0] for b, _, _ in jobs])
+        from .layers import layer_plan  # (built for the layers anyway; imported late: a cycle)
+
+        eyes = layer_plan(face).eyes
+        v = np.asarray(vertices)
+        fades = [eyes[name].lash_fade(v[face.mesh.holes[name]])
+                 for name in ("eye_l", "eye_r")]
+        band = np.repeat(np.array([LASH_KEEP * float(face.interocular) * (1.0 - fades[si] ** 2)
+                                   for si in sides], np.float32),
+                         [b[2] - b[0] for b, _, _ in jobs])
         new = _even_out(face, res, new, mx, my, [b for b, _, _ in jobs], above, band)
     bbox = res.bbox
     c = 0
@@ -363,20 +368,6 @@ def _grain(face: Face) -> tuple[float, np.ndarray]:
     return got
 
 
-def _lash_fade(face: Face, vertices: np.ndarray, side: int) -> float:
-    """How far the drawn lash line of eye ``side`` (0 ``eye_l``, 1 ``eye_r``) has faded in:
-    0 up to a closure (1 - the opening's area over the photo's) of 0.6, 1 from 0.9, as in
-    :meth:`~editor.engine.gaze.EyePlan.lash_line`."""
-    hole = face.mesh.holes["eye_l" if side == 0 else "eye_r"]
-
-    def area(p: np.ndarray) -> float:
-        x, y = p[:, 0].astype(np.float64), p[:, 1].astype(np.float64)
-        return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-
-    c = 1.0 - area(np.asarray(vertices)[hole]) / max(area(face.vertices[hole]), 1e-6)
-    return float(_smooth01(np.array((c - 0.6) / 0.3)))
-
-
 def _tone_above(new: np.ndarray, hot: np.ndarray, r0: int, c0: int, rw: int
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Per column of ``hot`` (the window of ``new`` at ``r0, c0``): the mean colour (n, 3) of
@@ -415,7 +406,9 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
               band: np.ndarray | None = None) -> np.ndarray:
     """The lid strips ``new`` (uint8, the image ``boxes`` side by side; ``mx, my`` where each
     pixel was read in the warped image) with the skin evened out where it is stretched
-    vertically by more than :data:`STRETCH_FROM`.
+    vertically by more than :data:`STRETCH_FROM`; ``above`` (the pixels' height over the lid's
+    edge) and ``band`` (per column) keep the lashes' band above a closing lid's edge as the
+    photo shows it.
 
     A closing lid draws the photo's thin band of lid skin (between its margin and the crease
     or the brow) over the whole eyeball, two to three times taller: the skin's grain and the

@@ -32,12 +32,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-try:  # numpy >= 2
+try:  # numpy >= 2 (private modules: any other layout falls back to the public functions)
     from numpy._core.multiarray import interp as _compiled_interp
     from numpy._core.umath import clip as _clip_ufunc  # type: ignore[attr-defined]
-except ImportError:  # numpy 1.x
-    from numpy.core.multiarray import interp as _compiled_interp  # type: ignore[no-redef]
-    from numpy.core.umath import clip as _clip_ufunc  # type: ignore[no-redef]
+except ImportError:
+    try:  # numpy 1.x
+        from numpy.core.multiarray import interp as _compiled_interp  # type: ignore[no-redef]
+        from numpy.core.umath import clip as _clip_ufunc  # type: ignore[no-redef]
+    except ImportError:
+        _compiled_interp, _clip_ufunc = np.interp, np.clip
 
 #: ``np.interp(x, xp, fp)`` for real ``fp`` (no ``left``, ``right``, ``period``): the compiled
 #: function ``np.interp`` calls, the same values, without its Python wrapper (its complex-type

@@ -591,6 +591,12 @@ def clamp(x: ArrayLike, lo: ArrayLike, hi: ArrayLike) -> np.ndarray:
     return np.minimum(np.maximum(x, lo), hi)
 
 
+def smooth01(t: ArrayLike) -> np.ndarray:
+    """The smoothstep ``3 c^2 - 2 c^3`` of ``t`` clamped to [0, 1] (fades and weights)."""
+    c = clamp(t, 0.0, 1.0)
+    return c * c * (3.0 - 2.0 * c)
+
+
 def gather_px(img: np.ndarray, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
     """``img[rows, cols]`` of an (h, w) or (h, w, c) array for in-range (non-negative)
     integer index arrays (broadcast): the same pixels by ``take`` on the flattened pixels,

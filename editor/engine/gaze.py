@@ -35,7 +35,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .fitting import catmull_rom, gather_px, interp, linspace, median, pad_edge, percentile
+from .fitting import (
+    catmull_rom,
+    clamp,
+    gather_px,
+    interp,
+    linspace,
+    median,
+    pad_edge,
+    percentile,
+    smooth01,
+)
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -201,10 +211,10 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         c0, c1 = max(int(xs[0]) - reach, 0), min(int(xs[-1]) + 1 + reach, pw)
         rows, wrow = _row_interp(tel[r0:r1], out[r0:r1], known[r0:r1], disc[r0:r1])
         box = (slice(r0, r1), slice(c0, c1))
-        wv = (_clamp((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
+        wv = (clamp((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
         fill = wv * rows[:, c0:c1] + (1.0 - wv) * tel[box]
         fill = cv2.GaussianBlur(fill, (0, 0), sigma)
-        w = (_clamp(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
+        w = (clamp(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
         out[box] = w * fill + (1.0 - w) * out[box]
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
@@ -227,7 +237,7 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         bot = ph - 1 - np.argmax(opening[::-1], 0)
         src = full[np.abs(np.arange(pw)[:, None] - full[None, :]).argmin(1)]
         yy = np.arange(ph)[:, None]
-        out = gather_px(out, _clamp(yy, top[src][None, :], bot[src][None, :]), src[None, :])
+        out = gather_px(out, clamp(yy, top[src][None, :], bot[src][None, :]), src[None, :])
     return out
 
 
@@ -413,7 +423,7 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     if strict:
         mirror_ok = np.zeros_like(need)
     else:
-        my = np.broadcast_to(_clamp(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
+        my = np.broadcast_to(clamp(np.rint(2 * cy - np.arange(ph)[:, None]), 0, ph - 1)
                              .astype(np.int64), (ph, pw))
         xx = np.broadcast_to(np.arange(pw)[None, :], (ph, pw))
         mirror_ok = need & vis[my, xx] & (like[my, xx] | ~disc)
@@ -444,13 +454,6 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
     return out
 
 
-def _clamp(x, lo, hi):
-    """``np.clip`` for the per-frame code and the plans' builds: the same values without its
-    Python-level dispatch (several microseconds a call, as much as the arithmetic on a small
-    layer box)."""
-    return np.minimum(np.maximum(x, lo), hi)
-
-
 def _ramp(d: np.ndarray, sk: float) -> np.ndarray:
     """``d * sk + 0.5`` (the same values: on a sharp photo ``sk`` is 1, by which a product is
     exact, and the multiplication is skipped)."""
@@ -460,11 +463,6 @@ def _ramp(d: np.ndarray, sk: float) -> np.ndarray:
     d *= sk
     d += 0.5
     return d
-
-
-def _smooth01(t: np.ndarray) -> np.ndarray:
-    t = _clamp(t, 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
 
 
 def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.ndarray,
@@ -480,8 +478,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     iris radius, 0.87 over the next; the photo's mesh puts the lid line inside the lash band,
     so its lower half lies in the opening.)"""
     ph, pw = rho.shape
-    cover = _clamp((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
-        _clamp(r + 1.0 - rho, 0.0, 1.0)
+    cover = clamp((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
+        clamp(r + 1.0 - rho, 0.0, 1.0)
     a = cover.astype(np.float32)[..., None]
     bare = plate + a * (iris - plate)
     # both smoothed (a shading field; the completed iris's edge is not exactly the photo's:
@@ -493,8 +491,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     # of the luminance ratio (where the completed iris and the photo's differ in hue, free
     # channel ratios tinted the iris yellow)
     lum = np.array([0.299, 0.587, 0.114], np.float32)
-    rl = _clamp((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0)[..., None]
-    ratio = _clamp(src / np.maximum(bare, 1.0), 0.75 * rl, np.minimum(1.25 * rl, 1.0))
+    rl = clamp((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0)[..., None]
+    ratio = clamp(src / np.maximum(bare, 1.0), 0.75 * rl, np.minimum(1.25 * rl, 1.0))
     ex, ey = axes
     xs = np.arange(pw, dtype=np.float64) + org[0]
     ys = np.arange(ph, dtype=np.float64) + org[1]
@@ -506,8 +504,8 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     ramp = max(soft, 1.0)
     # (one map per lid: each is sampled with its own lid's shift, which would carry the
     # other lid's band too)
-    w_up = _clamp((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)[..., None]
-    w_lo = _clamp((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)[..., None]
+    w_up = clamp((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)[..., None]
+    w_lo = clamp((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)[..., None]
     dark = 1.0 - ratio  # (float32, shared by both maps)
     return ((1.0 - w_up * dark).astype(np.float32), (1.0 - w_lo * dark).astype(np.float32))
 
@@ -779,7 +777,7 @@ class EyePlan:
             dd = np.empty((2, *U.shape))
             np.subtract(w_up0, w_up, out=dd[0])
             np.subtract(w_lo, w_lo0, out=dd[1])
-            ss = _smooth01(dd)
+            ss = smooth01(dd)
             up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
             if up_moved or low_moved:
                 # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'
@@ -789,7 +787,7 @@ class EyePlan:
                 kk[0] -= self.band_up
                 np.subtract(w_lo0, W, out=kk[1])
                 kk[1] -= self.band_low
-                kk = 1.0 - ss * (1.0 - _clamp(_ramp(kk, 1.0 / soft), 0, 1))
+                kk = 1.0 - ss * (1.0 - clamp(_ramp(kk, 1.0 / soft), 0, 1))
                 keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
                 keep = keep.astype(np.float32)
                 ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
@@ -822,8 +820,8 @@ class EyePlan:
         Dw = W - dw if dw else W
         rho = np.sqrt(Di * Di + Dw * Dw)
         # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
-        a = _clamp(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
-            _clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
+        a = clamp(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
+            clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
         if not np.count_nonzero(a):
             return white if band3 is None else white * band3
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
@@ -846,7 +844,7 @@ class EyePlan:
             # a dilated pupil: the photo's pupil, radially stretched, may be faint (brown
             # irises); a dark disc of the pupil's colour fades in, sparing the catch-lights
             w = min((p_new - p_rest) / max(1.0, 0.3 * p_rest), 1.0)
-            ap = _clamp(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
+            ap: np.ndarray = clamp(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
             # catch-lights are reflections on the cornea: they keep their size while the
             # pupil grows, so they are found on the iris without the pupil's radial stretch
             # (the stretched sprite spreads a central catch-light over the new pupil)
@@ -877,7 +875,7 @@ class EyePlan:
         c = 1.0 - area / max(self.area0, 1e-6)
         if c <= 0.6:
             return 0.0
-        return float(_smooth01(np.array((c - 0.6) / 0.3)))
+        return float(smooth01(np.array((c - 0.6) / 0.3)))
 
     def lash_line(self, box: tuple[int, int, int, int], poly: np.ndarray, soft: float = 1.0
                   ) -> tuple[np.ndarray, np.ndarray] | None:
@@ -895,7 +893,7 @@ class EyePlan:
         if fade <= 0.0:  # no closure yet: no lash line
             return None
         x0, y0, x1, y1 = box
-        up = np.asarray(poly, np.float64)[[0, 1, 2, 3, 4, 5, 6]]
+        up = np.asarray(poly, np.float64)[_UP]
         # the upper lid's margin (where the lids meet once closed), three segments per edge
         line = catmull_rom(up, 3 * (len(up) - 1) + 1)
         px = np.arange(x0, x1, dtype=np.float64)[:, None, None]
@@ -903,7 +901,7 @@ class EyePlan:
         a, b = line[:-1], line[1:]  # segments
         d = b - a
         L2 = np.maximum((d * d).sum(1), 1e-9)
-        tt = _clamp(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / L2, 0.0, 1.0)
+        tt = clamp(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / L2, 0.0, 1.0)
         qx = a[:, 0] + tt * d[:, 0] - px
         qy = a[:, 1] + tt * d[:, 1] - py
         dist = np.sqrt(qx * qx + qy * qy)  # (w, h, segments)
@@ -911,7 +909,7 @@ class EyePlan:
         s = (k + np.take_along_axis(tt, k[..., None], -1)[..., 0]) / len(a)  # 0..1 along
         thick = max(1.2, 0.35 * self.r0) * (0.4 + 0.6 * np.sin(np.pi * s))
         ramp = max(1.0, 0.5 * soft)  # the edge's width, px
-        alpha = _clamp((0.5 * thick + 0.5 * ramp - dist.min(-1)) / ramp, 0.0, 1.0) * fade
+        alpha = clamp((0.5 * thick + 0.5 * ramp - dist.min(-1)) / ramp, 0.0, 1.0) * fade
         return alpha.T.astype(np.float32), self.lash
 
 

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, clamp, gather_px, median, pad_edge
+from .fitting import channel_median, clamp, gather_px, median, pad_edge, smooth01
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
 from .mouth import (
     CROWN,
@@ -46,7 +46,6 @@ from .mouth import (
     _lum,
     _poly_mask,
     _sat,
-    _smoothstep,
     _smoothstep1,
 )
 from .warp import WarpResult
@@ -598,7 +597,7 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         top = col_top[span]  # first row of the opening in each column
         yi, ji = np.nonzero(np.arange(ph)[:, None] < top[None, :])
         j = span[ji]
-        g = _smoothstep((top[ji] - yi - hidden) / fade)[:, None]
+        g = smooth01((top[ji] - yi - hidden) / fade)[:, None]
         rgb_up[yi, j] = (1.0 - g) * gather_px(patch, first[near[ji]], near[ji]) + g * gum
         own_up[yi, j] = np.maximum(own_up[yi, j], ext_w[j])
         ext_mask[yi, j] = 1.0
@@ -695,7 +694,7 @@ def _extend_sideways(own_up: np.ndarray, own_low: np.ndarray, rgb_up: np.ndarray
         slope = float(clamp((split[edge] - split[edge - side * k]) / k, -0.2, 0.2))
         dy = np.round(split[edge] + slope * d - split[src]).astype(np.int64)
         r = clamp(rows - dy[None, :], 0, ph - 1)
-        dim = (1.0 - 0.35 * _smoothstep(d / max(0.5 * span, 1.0)))[None, :]
+        dim = (1.0 - 0.35 * smooth01(d / max(0.5 * span, 1.0)))[None, :]
         cols_t = slice(0, lo) if side < 0 else slice(hi + 1, pw)  # tgt, as a slice
         own_up[:, cols_t] = gather_px(teeth_a, r, src[None, :])
         own_low[:, cols_t] = 0.0

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import clip, interp
+from .fitting import clamp, clip, interp, smooth01
 from .layers import _rebox, _to_uint8, _union
 from .mouth import _lum
 from .warp import WarpResult
@@ -108,17 +108,6 @@ def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, sl
         if strips:
             _INDEX[strips[0]] = got
     return got
-
-
-def _smooth01(x: np.ndarray) -> np.ndarray:
-    x = _clip01(x)
-    return x * x * (3.0 - 2.0 * x)
-
-
-def _clip01(x: np.ndarray) -> np.ndarray:
-    """``np.clip(x, 0, 1)`` (the same values) for the per-strip tables: on ~100 values the
-    wrapper of np.clip costs more than its two passes (on a box of pixels it is faster)."""
-    return np.minimum(np.maximum(x, 0.0), 1.0)
 
 
 def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
@@ -196,7 +185,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     np.subtract(u, x_lo, out=q[0])
     np.subtract(x_hi, u, out=q[1])
     q /= span
-    q = _smooth01(q)
+    q = smooth01(q)
     fade = q[0] * q[1]
     # which end pulled: a rising brow (AU1+2) stretches the thin skin under the brow (rigid at
     # the lid); a closing lid unfolds the lid's own skin between its margin and the brow
@@ -208,7 +197,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         (brow_up - lid_down) / (np.abs(brow_up) + np.abs(lid_down) + 1e-6), -1.0), 1.0)
     hs = np.maximum(Hs, 1e-6)
     # rising brow: f = t Hs + m ex t (1 - t), rigid at the lid
-    m = np.maximum(pull, 0.0) * fade * _clip01(Hs / np.maximum(ex, 1e-6))
+    m = np.maximum(pull, 0.0) * fade * clamp(Hs / np.maximum(ex, 1e-6), 0.0, 1.0)
     # closing lid: rigid at both ends, f' = s + lam (1 - s) (1 - 6 t (1 - t)) (s = Hs / Hd the
     # mean slope), f = Hd (s t + lam (1 - s) t (1 - t) (1 - 2 t)); lam <= 2 s / (1 - s) keeps
     # it monotonic (f' >= 0 at t = 1/2)
@@ -221,7 +210,8 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         ex = Hd - Hs
         hs = np.maximum(Hs, 1e-6)
     s_bar = Hs / np.maximum(Hd, 1e-6)
-    lam = np.maximum(-pull, 0.0) * fade * _clip01(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6))
+    lam = np.maximum(-pull, 0.0) * fade * clamp(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6),
+                                                0.0, 1.0)
     live = (ex > _MIN_STRETCH) & (Hs > 0.5) & ((m != 0) | (lam != 0))
     k = np.where(live, m * ex * Hd / hs, 0.0)
     k2 = np.where(live, lam * ex * Hd / hs, 0.0)

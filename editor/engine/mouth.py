@@ -36,7 +36,7 @@ import numpy as np
 from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
-from .fitting import clamp, interp
+from .fitting import clamp, interp, smooth01
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -470,10 +470,7 @@ class MouthPlan:
         shade = (1.0 - 0.3 * lip_sh).astype(np.float32)
         # the dental arch turns away from the light towards the corners (and into the cheeks'
         # shadow): lit like the normal of an arch of half-width ARCH_W MW / 2 facing the camera
-        arch, arch_up = (
-            (amb + (1.0 - amb) * np.sqrt(np.maximum(1.0 - u * u, 0.0))).astype(np.float32)
-            for amb, u in ((ARCH_AMBIENT, Qx * (2.0 / (ARCH_W * self.mw * sc))),
-                           (ARCH_AMBIENT_UP, Qx * (2.0 / (ARCH_W_UP * self.mw * sc)))))
+        arch = _arch_light(Qx, ARCH_W * self.mw * sc, ARCH_AMBIENT)
         # (per-pixel weights are spread over the 3 channels with cv2.merge / cv2.transform:
         # numpy's broadcasting of (h, w, 1) over 3 channels is several times slower here)
         cav_rgb = self.cavity.reshape(3, 1)
@@ -499,7 +496,8 @@ class MouthPlan:
         shade_g = (a_g * shade) * corner.astype(np.float32)
         shade_g = cv2.merge([shade_g, shade_g, shade_g])
         shade *= a_t
-        shade_up = None if self.photo_upper else cv2.merge([shade * arch_up] * 3)
+        shade_up = None if self.photo_upper else cv2.merge(
+            [shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP)] * 3)
         shade *= arch
         shade = cv2.merge([shade, shade, shade])
         cav = out
@@ -706,7 +704,7 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     h /= np.float32(3.0)
     h -= lo
     h /= ramp
-    vis = _smoothstep(h).astype(np.float32, copy=False)
+    vis = smooth01(h).astype(np.float32, copy=False)
     if gain is not None:  # in shadow: darker and warmer (not greyed towards the cavity)
         out = out * gain
     res = out - cav
@@ -715,15 +713,18 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     return res
 
 
+def _arch_light(qx: np.ndarray, width: float, ambient: float) -> np.ndarray:
+    """The light (float32) on a dental arch of ``width`` (px, both sides) facing the camera,
+    at frame x ``qx`` from its middle: ``ambient`` where its sides face sideways."""
+    u = qx * (2.0 / width)
+    return (ambient + (1.0 - ambient) * np.sqrt(np.maximum(1.0 - u * u, 0.0))).astype(np.float32)
+
+
 def _smoothstep1(t: float) -> np.float64:
-    """:func:`_smoothstep` of one number in Python arithmetic (the same value and type)."""
+    """:func:`~editor.engine.fitting.smooth01` of one number in Python arithmetic (the same
+    value, as a float64)."""
     t = min(max(t, 0.0), 1.0)
     return np.float64(t * t * (3.0 - 2.0 * t))
-
-
-def _smoothstep(t: np.ndarray | float) -> np.ndarray:
-    c: np.ndarray = clamp(t, 0.0, 1.0)
-    return c * c * (3.0 - 2.0 * c)
 
 
 def _jaw_anchor(v: np.ndarray, i21: int, i23: int, ex: np.ndarray, ey: np.ndarray) -> np.ndarray:

@@ -57,6 +57,7 @@ from .fitting import (
     luminance,
     median,
     pad_edge,
+    smooth01,
 )
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
@@ -149,12 +150,9 @@ def crease_plan(face: Face) -> CreasePlan:
 # ---------------------------------------------------------------------------- layout
 def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
     """Taper along a line: rises over [0, a], falls over [1 - b, 1] (smoothstep)."""
-    # (both ramps in one array: the same values with half the small-array operations;
-    # the clip as minimum / maximum, np.clip's values without its dispatch)
+    # (both ramps in one array: the same values with half the small-array operations)
     n = len(t)
-    x = np.concatenate([t / max(a, 1e-6), (1.0 - t) / max(b, 1e-6)])
-    x = np.minimum(np.maximum(x, 0.0), 1.0)
-    x = x * x * (3.0 - 2.0 * x)
+    x = smooth01(np.concatenate([t / max(a, 1e-6), (1.0 - t) / max(b, 1e-6)]))
     return x[:n] * x[n:]
 
 

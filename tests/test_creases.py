@@ -545,3 +545,26 @@ def test_per_face_constants_are_published_only_when_complete():
     fa = creases._fast(f)
     assert seen and not any(seen)
     assert fa.own_gap is not None and creases._FAST[f] is fa
+
+
+def test_wide_folds_drawn_at_a_coarser_resolution_look_the_same(monkeypatch):
+    """On a large face (the sample at 8x, about 350 px between the eyes) folds as wide as
+    several pixels are blurred on a grid f times coarser and resized back: the render is within
+    one grey level of drawing them at full resolution (a wrong weight per coarse pixel, f^2,
+    or a half-pixel shift of the grid shows as tens of grey levels along the lines)."""
+    import cv2
+
+    from editor.engine import creases
+
+    img = cv2.resize(load_image(SAMPLE), None, fx=8, fy=8, interpolation=cv2.INTER_CUBIC)
+    f = Face.from_image(img, own_expression=False)
+    fa = creases._fast(f)
+    assert max(creases._fold_scale(float(s)) for s in fa.dsig) > 1  # drawn coarsely here
+    for emotion in ("anger", "surprise"):
+        vec = apply_preset(emotion, 1.5)
+        coarse = f.render(vec).astype(np.int16)
+        monkeypatch.setattr(creases, "_fold_scale", lambda dsig: 1)
+        fine = f.render(vec).astype(np.int16)
+        monkeypatch.undo()
+        assert (_lum(f.render(vec, creases=False)) - _lum(fine)).max() > 10  # folds are drawn
+        assert np.abs(coarse - fine).max() <= 1, emotion

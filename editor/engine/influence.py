@@ -106,7 +106,11 @@ def side_tags(names: list[str]) -> dict[str, np.ndarray]:
         return np.array([any(x.startswith(p) for p in prefixes) for x in n])
 
     return {
-        "mouth_up": starts("lipi_u", "lipo_u", "lipb_u", "phil_", "nose"),
+        # (nlab_*_1: the nasolabial fold's lowest point, above the upper lip beside the
+        # philtrum, rides with the maxilla as the philtrum does; pulled down by the jaw it
+        # squeezed the skin above the upper lip into a seam on an open mouth)
+        "mouth_up": starts("lipi_u", "lipo_u", "lipb_u", "phil_", "nose", "nlab_l_1",
+                           "nlab_r_1"),
         "mouth_low": starts("lipi_d", "lipo_d", "lipb_d", "tongue"),
         "eye_l_up": starts("eye_l_u", "eyering_l_u"),
         "eye_l_low": starts("eye_l_d", "eyering_l_d"),

@@ -77,6 +77,32 @@ def test_the_photo_and_wider_openings_are_left_alone(sample_face):
     assert lipseal.closing_share(p, f.deform({"open_jaw": 600})) == 0.0
     assert lipseal.closing_share(p, f.neutral_vertices) == pytest.approx(1.0, abs=0.02)
     assert np.array_equal(f.render(f.expression), f.image)
+    # the corners: still at the photo's, or smiling wider, nothing goes back; neutral: all
+    assert lipseal.back_share(p, f.vertices) == 0.0
+    assert lipseal.back_share(p, f.deform(f.expression + apply_preset("joy", 0.5))) == 0.0
+    assert lipseal.back_share(p, f.neutral_vertices) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("preset", ["surprise:1", "surprise:1.5", "fear:1", "fear:1.5"])
+def test_a_narrower_opening_leaves_no_dark_smear_beside_its_corners(sample_face, preset):
+    """Surprise or fear on the smiling sample: the mouth opens with its corners back near the
+    neutral face's, and the photo's dark commissures (outside its inner-lip polygon) must not
+    stay on the lips beside the new corners as brown smears. Within 0.12 IOD of each corner,
+    outside the opening, the darkest 5 % are at least 0.8 of the skin around the corner
+    (0.2-0.3 IOD away); with the photo's rim left in place: 0.64-0.69 beside its left corner."""
+    f = sample_face
+    name, k = preset.split(":")
+    vec = f.fap_vector(apply_preset(name, float(k)))
+    res = f.render_full(vec)
+    L = luminance(res.image)
+    opening = cv2.dilate(res.mouth_mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    v = f.deform(vec)
+    yy, xx = np.mgrid[0:L.shape[0], 0:L.shape[1]]
+    for c in ("lipo_c0", "lipo_c1"):
+        p = v[f.mesh.index(c)]
+        d = np.hypot(xx - p[0], yy - p[1]) / f.interocular
+        near, ring = (d < 0.12) & ~opening, (d > 0.2) & (d < 0.3)
+        assert np.percentile(L[near], 5) >= 0.8 * np.median(L[ring]), c
 
 
 def test_sealed_box_is_the_sealed_photo_cut(sample_face):

@@ -114,6 +114,10 @@ class SealPlan:
     iod: float
     tint: np.ndarray  # (3,) float32 per-channel weights of the contact line's darkening
     hole: np.ndarray  # (n,) the mouth opening's vertex indices, in order
+    corner_idx: np.ndarray  # (2,) the outer lip corners' vertex indices
+    corner_p0: np.ndarray  # (2, 2) where the photo has them
+    corner_way: np.ndarray  # (2, 2) from there to the neutral mesh's (0: closer than
+    #                         CORNER_MOVE, nothing to go back)
     #: the sealed photo over the box of every fill, ``(box, pixels)`` (:func:`sealed_box`;
     #: made on its first call)
     region: tuple[tuple[int, int, int, int], np.ndarray] | None = field(
@@ -292,7 +296,12 @@ def _build(face: Face) -> SealPlan | None:
     # on a colour photo the line darkens towards the lips' deep red (blue and green more)
     tint = (np.full(3, 1.5, np.float32) if is_grey(img)
             else np.array([0.8, 1.0, 1.12], np.float32))
-    return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole)
+    corner_idx = np.array([m.index("lipo_c0"), m.index("lipo_c1")])
+    p0 = V[corner_idx]
+    way = face.neutral_vertices[corner_idx].astype(np.float64) - p0
+    way[np.hypot(way[:, 0], way[:, 1]) < CORNER_MOVE * iod] = 0.0
+    return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole, corner_idx,
+                    p0, way)
 
 
 def _box(img: np.ndarray, lo: np.ndarray, hi: np.ndarray
@@ -436,6 +445,16 @@ def closing_share(plan: SealPlan, vertices: np.ndarray) -> float:
     return min(max(1.0 - _area(poly) / plan.area0, 0.0), 1.0)
 
 
+def back_share(plan: SealPlan, vertices: np.ndarray) -> float:
+    """How far the mouth corners of ``vertices`` went back from the photo's place towards the
+    neutral mesh's, on average (each as :func:`corner_share`; 0 for a corner the photo has
+    where the neutral mesh puts it)."""
+    d = np.asarray(vertices, np.float64).take(plan.corner_idx, 0) - plan.corner_p0
+    t = np.einsum("ij,ij->i", d, plan.corner_way) / np.maximum(
+        np.einsum("ij,ij->i", plan.corner_way, plan.corner_way), 1e-12)
+    return float(np.clip(t, 0.0, 1.0).mean())
+
+
 def corner_share(corner: _Corner, vertices: np.ndarray) -> float:
     """How far a mouth corner of ``vertices`` went from the photo's place towards the
     neutral mesh's (its projection on that way, clipped to [0, 1])."""
@@ -454,8 +473,14 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # the shares ramp in from _MIN_SHARE (continuous in the FAPs; nothing to do below it)
     s = _ramp(closing_share(plan, vertices))
     jobs: list[tuple[float, _Patch, np.ndarray]] = []  # share, fill, its offset on the frame
-    if s > 0.0 and plan.opening is not None:
-        jobs.append((s, plan.opening, np.zeros(2)))
+    if plan.opening is not None:
+        # the photo's dark or bright rim of its opening also goes where its mouth corners go
+        # back towards the neutral face (a smile's dark commissures and the teeth beside
+        # them, outside the inner-lip polygon, dragged onto the lips of an opening that is
+        # narrower at the corners: surprise or fear on a smiling photo)
+        so = max(s, _ramp(back_share(plan, vertices)))
+        if so > 0.0:
+            jobs.append((so, plan.opening, np.zeros(2)))
     for c in plan.corners:
         cs = _ramp(corner_share(c, vertices))
         if cs > 0.0:

@@ -63,9 +63,12 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                      "point is noisy (median 38 MNS, p10..p90 -176..322, noise 92): fixed so the "
                      "fit cannot trade the corner lift for jaw drop (more jaw pulls the corners "
                      "down, and they are at the limit 150 % allows)"),
-        "c_raise": (420, "AU12, joy's defining action: set so the outer corners rise ~0.11 "
+        "c_raise": (390, "AU12, joy's defining action: set so the outer corners rise ~0.11 "
                          "pupil distances, the real median (the plain fit gave 355, held down "
-                         "by the inner corners' smaller rise)"),
+                         "by the inner corners' smaller rise); 420 before the jaw's taper on "
+                         "the lower lip (the corners drop less with joy's small jaw: at 420 "
+                         "the inner corners rose 530 at 150 %, past the real max 519; 400-410 "
+                         "still 532)"),
         "b_mid": (-60, "AU25 parts the lips: set so that the inner lips part (2.3 - 2.2) by "
                        "the real median; JAFFE smiles are closed (at most 175 MNS, 15 of 31) "
                        "or open (at least 331, 16 of 31), median 332: the plain fit (55, the "

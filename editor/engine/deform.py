@@ -26,6 +26,7 @@ from .influence import (
     brow_weights,
     closing_lid_share,
     face_mask,
+    jaw_lip_taper,
     rectangles,
     side_tags,
     weights_many,
@@ -222,6 +223,7 @@ def build_plan(mesh: StandardMesh, vertices: np.ndarray, frame: FaceFrame,
                           np.array([fdp_pos[k] for k in lin.rect_fdps]), P, sides, movable_lin)
     W = np.empty((len(lin.fdps), N))
     W[:len(lin.rect_fdps)] = rect_w
+    W[list(lin.rect_fdps).index("2.1")] *= jaw_lip_taper(byname, names)
     for j, fdp in enumerate(lin.fdps[len(lin.rect_fdps):], len(lin.rect_fdps)):
         if fdp.startswith("6."):
             W[j] = 0.0

@@ -949,11 +949,12 @@ def _fold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray] | N
     # every segment at once: start, direction, length, normal (-dy, dx) / L
     a_all, d_all, L_all = segs
     n_all = d_all[:, ::-1] * _TURN / np.maximum(L_all, 1e-9)[:, None]
-    lines = []
+    lines, scales = [], []
     for g, g0, g1 in groups:
         a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
         sig = float(fa.sig[g])
         f = _fold_scale(float(fa.dsig[g]))
+        scales.append(f)
         K = int(min(max(math.ceil(max(L.tolist()) / (min(0.5, 0.5 * sig) * f)), 1), 64))
         u = _sub_steps(K)
         pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
@@ -977,7 +978,7 @@ def _fold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray] | N
         x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        f = _fold_scale(float(fa.dsig[g]))
+        f = scales[j]
         jobs.append((g, (x0, y0, x1, y1), len(canvases), f))
         safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (pad >= 2 px around the points)
         if f == 1:
@@ -995,8 +996,8 @@ def _fold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray] | N
 
 #: A fold line is drawn at 1/f of the photo's resolution when its drawn half-width (sigma,
 #: px) is at least this times f: a Gaussian that wide is smooth on the coarse grid, and its
-#: linear interpolation back is within 2 % of its peak (the full-resolution blur of a fold
-#: 1000 px face, sigma 9 px and 14 px for its ridge, cost 8 ms a frame)
+#: linear interpolation back is within 2 % of its peak (at full resolution the blur of a fold on
+#: a face 1000 px wide, sigma 9 px and 14 px for its ridge, cost 8 ms a frame)
 FOLD_COARSE_SIGMA = 2.5
 
 

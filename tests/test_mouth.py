@@ -420,3 +420,25 @@ def test_a_smile_shows_its_upper_teeth_towards_the_corners(jaffe_faces):
         outer = (t < 0.3) | (t > 0.7)
         vals.append(float((L[ys, xs] > 0.55 * skin)[outer].mean()))
     assert float(np.median(vals)) >= 0.1, np.round(vals, 2)
+
+
+def test_a_wider_smile_continues_the_photos_teeth_as_crowns(sample_face):
+    """Joy at 150 % on the smiling sample (3x, so that the teeth are several pixels tall)
+    raises the upper lip above the photo's own teeth: what shows there is the crowns continued
+    (tooth-coloured, the gaps between teeth as thin lines), not each column's pixel under the
+    photo's lip (lip shadow, pink papillae, dark embrasures) drawn upwards as stripes. In the
+    upper 30 % of the opening (its middle half): mean luminance >= 0.85 of the teeth's (p90),
+    column-to-column change <= 6 grey levels on average (stripes: 0.80 and 7.4)."""
+    from editor.engine.fitting import luminance
+
+    img = cv2.resize(sample_face.image, None, fx=3, fy=3, interpolation=cv2.INTER_CUBIC)
+    f = Face.from_image(img)
+    res = f.render_full(f.fap_vector(apply_preset("joy", 1.5)))
+    mm, L = res.mouth_mask, luminance(res.image)
+    xs = np.nonzero(mm)[1]
+    cols = np.arange(int(np.percentile(xs, 25)), int(np.percentile(xs, 75)))
+    top = np.argmax(mm[:, cols], 0)
+    h = mm.shape[0] - np.argmax(mm[::-1, cols], 0) - top
+    rows = [L[t:t + max(int(0.3 * hh), 1), c] for t, hh, c in zip(top, h, cols, strict=True)]
+    assert np.concatenate(rows).mean() >= 0.85 * np.percentile(L[mm], 90)
+    assert np.abs(np.diff([r.mean() for r in rows])).mean() <= 6.0

@@ -598,9 +598,21 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         yi, ji = np.nonzero(np.arange(ph)[:, None] < top[None, :])
         j = span[ji]
         g = smooth01((top[ji] - yi - hidden) / fade)[:, None]
-        rgb_up[yi, j] = (1.0 - g) * gather_px(patch, first[near[ji]], near[ji]) + g * gum
+        crown = _crown_colours(patch, bright, first, split)
+        rgb_up[yi, j] = (1.0 - g) * crown[near[ji]] + g * gum
         own_up[yi, j] = np.maximum(own_up[yi, j], ext_w[j])
         ext_mask[yi, j] = 1.0
+        # the photo's first rows of teeth under its lip are in the lip's shadow (the renderer
+        # draws that shadow where the lip is): lightened towards the crown colour, so that
+        # they do not stay as a dark line across teeth whose lip has risen
+        r = max(LIP_SHADOW_ROWS * D, 2.0)
+        yi, ji = np.nonzero((np.arange(ph)[:, None] >= top[None, :])
+                            & (np.arange(ph)[:, None] < top[None, :] + r))
+        j = span[ji]
+        t = smooth01(1.0 - (yi - top[ji] + 0.5) / r)[:, None]
+        c = crown[near[ji]]
+        rgb_up[yi, j] = np.maximum(rgb_up[yi, j], rgb_up[yi, j] + t * (c - rgb_up[yi, j]))
+        ext_mask[yi, j] = np.maximum(ext_mask[yi, j], t[:, 0])
     below = ys >= split[None, :]
     has_low = int((bright & below & gap[None, :]).sum()) >= 12
     if not has_low:
@@ -625,6 +637,29 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     return (off, own, rgb, bool(ext.sum() >= 3), has_low, sliver.astype(np.float32), ext_mask)
 
 
+
+
+#: Rows (in D) of the photo's upper teeth under its lip lightened towards the crown colour
+LIP_SHADOW_ROWS = 0.08
+
+
+def _crown_colours(patch: np.ndarray, bright: np.ndarray, first: np.ndarray,
+                   split: np.ndarray) -> np.ndarray:
+    """(w, 3) per column: the median colour of its upper teeth (the teeth-like pixels from the
+    run's first row to the tips, ``split``), what the crown is continued upwards with. The
+    run's first pixel alone (right under the photo's lip) is the lip's shadow, a gum papilla
+    or an embrasure's dark corner as often as tooth: continued upwards, every column's own
+    first pixel drew the crowns as vertical stripes of pink, grey and white."""
+    ph = patch.shape[0]
+    ys = np.arange(ph)[:, None]
+    run = bright & (ys >= first[None, :]) & (ys < split[None, :]) & (first >= 0)[None, :]
+    out = np.zeros((patch.shape[1], 3))
+    has = run.any(0)
+    if has.any():
+        vals = np.where(run[..., None], patch, np.nan)[:, has]
+        out[has] = np.nanmedian(vals, axis=0)
+    out[~has] = gather_px(patch, np.maximum(first, 0), np.arange(patch.shape[1]))[~has]
+    return out
 
 
 def _teeth_columns(binary: np.ndarray, bright: np.ndarray):

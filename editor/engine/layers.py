@@ -226,7 +226,7 @@ def _nearest_outside(face: np.ndarray, hole: np.ndarray, labels: np.ndarray,
 
     (One gather of rows by flat indices composed from the labels: a boolean mask of a
     3-channel view, ``face[~hole]``, costs several times more on these small boxes.)"""
-    outside = np.flatnonzero(~hole)
+    outside = (~hole).ravel().nonzero()[0]  # (np.flatnonzero's values, without its wrappers)
     if not len(outside):
         return np.zeros(face.shape, np.float32) if empty is None else empty.astype(np.float32)
     rows = np.ascontiguousarray(face).reshape(-1, 3)

@@ -38,6 +38,7 @@ import numpy as np
 from .fitting import (
     catmull_rom,
     clamp,
+    clip,
     gather_px,
     interp,
     linspace,
@@ -787,7 +788,11 @@ class EyePlan:
                 kk[0] -= self.band_up
                 np.subtract(w_lo0, W, out=kk[1])
                 kk[1] -= self.band_low
-                kk = 1.0 - ss * (1.0 - clamp(_ramp(kk, 1.0 / soft), 0, 1))
+                # 1 - ss (1 - clip(ramp)), in place (the same float64 operations)
+                clip(_ramp(kk, 1.0 / soft), 0.0, 1.0, out=kk)
+                np.subtract(1.0, kk, out=kk)
+                kk *= ss
+                np.subtract(1.0, kk, out=kk)
                 keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
                 keep = keep.astype(np.float32)
                 ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
@@ -813,7 +818,12 @@ class EyePlan:
                         continue
                     got = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR,
                                     borderMode=cv2.BORDER_CONSTANT, borderValue=(1.0, 1.0, 1.0))
-                    got = (1.0 - ss[j][..., None] * (1.0 - got)).astype(np.float32)
+                    # 1 - s (1 - got) in float64, s spread over the channels with cv2.merge
+                    # (numpy's broadcasting of (h, w, 1) is several times slower here)
+                    np.subtract(1.0, got, out=got)
+                    s3 = cv2.merge([ss[j], ss[j], ss[j]])
+                    s3 *= got
+                    got = np.subtract(1.0, s3, out=s3).astype(np.float32)
                     band3 = got if band3 is None else np.minimum(band3, got)
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du if du else U

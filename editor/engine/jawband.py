@@ -162,7 +162,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     if w * h <= _COARSE_AREA:
         # a small box: the table is read and the shift evaluated at the band's pixels only
         # (their flat indices: np.nonzero of a 2-d mask costs several times more)
-        k = np.flatnonzero(sel)
+        k = sel.ravel().nonzero()[0]
         if len(k):
             _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
                          k, sub, (x0, y0, x1, y1), map_x, map_y)
@@ -273,5 +273,11 @@ def _hook_pixels(fr: FaceFrame, tab: tuple[np.ndarray, float], sel: np.ndarray,
     mx -= shift * np.float32(r01)
     my = np.arange(y0, y1, dtype=np.float32).take(yi)
     my -= shift * np.float32(r11)
-    map_x[sub][sel] = mx
-    map_y[sub][sel] = my
+    if map_x.flags.c_contiguous and map_y.flags.c_contiguous:
+        # (by flat indices into the whole maps: a boolean mask of a 2-d window costs more)
+        flat = (yi + sub[0].start) * map_x.shape[1] + (xi + sub[1].start)
+        map_x.reshape(-1)[flat] = mx
+        map_y.reshape(-1)[flat] = my
+    else:
+        map_x[sub][sel] = mx
+        map_y[sub][sel] = my

@@ -204,7 +204,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # (a closing lid leaves the skin above its crease, the eye ring, where it is
     # (influence.closing_lid_share): its strip ends at the ring, which the warp kept still)
     closing = pull < 0.0
-    if closing.any():
+    if np.count_nonzero(closing):  # (ndarray.any's Python-level wrapper costs more)
         Hd = np.where(closing, lid_y - ring_y, Hd)
         Hs = np.where(closing, lid_s - ring_s, Hs)
         ex = Hd - Hs

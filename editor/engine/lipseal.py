@@ -118,10 +118,19 @@ class SealPlan:
     corner_p0: np.ndarray  # (2, 2) where the photo has them
     corner_way: np.ndarray  # (2, 2) from there to the neutral mesh's (0: closer than
     #                         CORNER_MOVE, nothing to go back)
+    #: :attr:`corner_way` as Python floats and each way's squared norm (at least 1e-12), for
+    #: :func:`back_share`
+    way_list: list[list[float]] = field(init=False, repr=False)
+    way_norm2: list[float] = field(init=False, repr=False)
     #: the sealed photo over the box of every fill, ``(box, pixels)`` (:func:`sealed_box`;
     #: made on its first call)
     region: tuple[tuple[int, int, int, int], np.ndarray] | None = field(
         default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        w = np.asarray(self.corner_way, np.float64)
+        self.way_list = w.tolist()
+        self.way_norm2 = [max(wx * wx + wy * wy, 1e-12) for wx, wy in self.way_list]
 
     @property
     def patches(self) -> list[_Patch]:
@@ -449,10 +458,13 @@ def back_share(plan: SealPlan, vertices: np.ndarray) -> float:
     """How far the mouth corners of ``vertices`` went back from the photo's place towards the
     neutral mesh's, on average (each as :func:`corner_share`; 0 for a corner the photo has
     where the neutral mesh puts it)."""
-    d = np.asarray(vertices, np.float64).take(plan.corner_idx, 0) - plan.corner_p0
-    t = np.einsum("ij,ij->i", d, plan.corner_way) / np.maximum(
-        np.einsum("ij,ij->i", plan.corner_way, plan.corner_way), 1e-12)
-    return float(np.clip(t, 0.0, 1.0).mean())
+    # (two corners: Python floats, the same float64 arithmetic as on arrays without their
+    # per-call cost; the ways' squared norms are the plan's)
+    d = (np.asarray(vertices).take(plan.corner_idx, 0).astype(np.float64)
+         - plan.corner_p0).tolist()
+    t = [min(max((dx * wx + dy * wy) / n, 0.0), 1.0)
+         for (dx, dy), (wx, wy), n in zip(d, plan.way_list, plan.way_norm2, strict=True)]
+    return sum(t) / len(t)
 
 
 def corner_share(corner: _Corner, vertices: np.ndarray) -> float:

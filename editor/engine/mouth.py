@@ -636,8 +636,11 @@ class MouthPlan:
         # channel view)
         res = cv2.cvtColor(s, cv2.COLOR_RGBA2RGB)
         res *= shade  # shade (h, w, 3)
-        a = 1.0 - s[..., 3]
-        res += cv2.merge([a, a, a]) * out
+        # (the alpha channel extracted contiguous, the under-layer's weight in place)
+        a = np.subtract(1.0, cv2.extractChannel(s, 3), dtype=np.float32)
+        a3 = cv2.merge([a, a, a])
+        a3 *= out
+        res += a3
         return res
 
     def _own(self, mx, my, k, fade):

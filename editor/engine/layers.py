@@ -657,19 +657,19 @@ LIP_SHADOW_ROWS = 0.08
 
 def _crown_colours(patch: np.ndarray, bright: np.ndarray, first: np.ndarray,
                    split: np.ndarray) -> np.ndarray:
-    """(w, 3) per column: the median colour of its upper teeth (the teeth-like pixels from the
+    """(w, 3) per column: the mean colour of its upper teeth (the teeth-like pixels from the
     run's first row to the tips, ``split``), what the crown is continued upwards with. The
     run's first pixel alone (right under the photo's lip) is the lip's shadow, a gum papilla
     or an embrasure's dark corner as often as tooth: continued upwards, every column's own
     first pixel drew the crowns as vertical stripes of pink, grey and white."""
     ph = patch.shape[0]
     ys = np.arange(ph)[:, None]
-    run = bright & (ys >= first[None, :]) & (ys < split[None, :]) & (first >= 0)[None, :]
-    out = np.zeros((patch.shape[1], 3))
-    has = run.any(0)
-    if has.any():
-        vals = np.where(run[..., None], patch, np.nan)[:, has]
-        out[has] = np.nanmedian(vals, axis=0)
+    run = (bright & (ys >= first[None, :]) & (ys < split[None, :])
+           & (first >= 0)[None, :]).astype(np.float32)
+    n = run.sum(0)
+    has = n > 0
+    # (the run's mean: a median over every column of a large face's patch cost ~10 ms)
+    out = np.einsum("yx,yxc->xc", run, patch, dtype=np.float64) / np.maximum(n, 1.0)[:, None]
     out[~has] = gather_px(patch, np.maximum(first, 0), np.arange(patch.shape[1]))[~has]
     return out
 

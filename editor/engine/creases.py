@@ -981,17 +981,35 @@ def _fold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray] | N
         f = scales[j]
         jobs.append((g, (x0, y0, x1, y1), len(canvases), f))
         safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (pad >= 2 px around the points)
-        if f == 1:
-            o = np.array([x0, y0], np.float64)
-            cs = (y1 - y0 + 1, x1 - x0 + 1)
-            canvases.append((cs, pts - o, w, safe))
-            canvases.append((cs, ridge - o, w * fa.ridge[g], safe))
-        else:  # coarse pixel k's centre lies at x0 + (k + 0.5) f - 0.5 (cv2.resize's)
-            o = np.array([x0 - 0.5, y0 - 0.5], np.float64)
-            cs = (-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1)
-            canvases.append((cs, (pts - o) / f - 0.5, w, safe))
-            canvases.append((cs, (ridge - o) / f - 0.5, w * fa.ridge[g], safe))
+        cs, on = _on_canvas(pts, (x0, y0, x1, y1), f)
+        canvases.append((cs, on, w, safe))
+        canvases.append((cs, _on_canvas(ridge, (x0, y0, x1, y1), f)[1], w * fa.ridge[g], safe))
     return jobs
+
+
+def _on_canvas(pts: np.ndarray, box: tuple[int, int, int, int], f: int
+               ) -> tuple[tuple[int, int], np.ndarray]:
+    """The canvas shape (h, w) for the box ``box`` at 1/``f`` resolution (one extra row and
+    column for the splat's corners) and the points ``pts`` (n, 2) in its pixels: coarse pixel
+    k's centre lies at ``x0 + (k + 0.5) f - 0.5`` (where ``cv2.resize`` by f puts it, see
+    :func:`_blur_back`)."""
+    x0, y0, x1, y1 = box
+    if f == 1:
+        return (y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0)
+    return ((-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1),
+            (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5)
+
+
+def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int) -> np.ndarray:
+    """A splatted canvas of :func:`_on_canvas` (without its extra row and column) blurred by
+    ``sigma`` px of the photo and, when it is coarse (``f`` > 1), resized back to the box
+    (``h`` x ``w``): float32. The weight a line leaves per coarse pixel is ``f^2`` times the
+    full-resolution one (the caller scales)."""
+    if f == 1:
+        return np.asarray(_blur(canvas[:-1, :-1], sigma), np.float32)
+    hc, wc = canvas.shape[0] - 1, canvas.shape[1] - 1
+    return np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f),
+                                 interpolation=cv2.INTER_LINEAR)[:h, :w], np.float32)
 
 
 #: A fold line is drawn at 1/f of the photo's resolution when its drawn half-width (sigma,
@@ -1015,17 +1033,12 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     :func:`_fold_scale`); returns ``bbox`` grown by the box."""
     x0, y0, x1, y1 = box
     sig = float(fa.dsig[g])
-    if f == 1:
-        dark = np.asarray(_blur(dark[:-1, :-1], sig), np.float32)
-        light = np.asarray(_blur(light[:-1, :-1], 1.6 * sig), np.float32)
-    else:  # blurred on the coarse grid, resized back (a line's weight per coarse pixel: f^2)
-        hb, wb = y1 - y0, x1 - x0
-        size = (dark.shape[1] - 1) * f, (dark.shape[0] - 1) * f
+    dark = _blur_back(dark, sig, f, y1 - y0, x1 - x0)
+    light = _blur_back(light, 1.6 * sig, f, y1 - y0, x1 - x0)
+    if f > 1:  # (a line's weight per coarse pixel: f^2 times its own)
         k = np.float32(1.0 / (f * f))
-        dark = cv2.resize(_blur(dark[:-1, :-1], sig / f), size,
-                          interpolation=cv2.INTER_LINEAR)[:hb, :wb] * k
-        light = cv2.resize(_blur(light[:-1, :-1], 1.6 * sig / f), size,
-                           interpolation=cv2.INTER_LINEAR)[:hb, :wb] * k
+        dark *= k
+        light *= k
     view = out[y0:y1, x0:x1]
     patch = view.astype(np.float32)
     # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -1249,12 +1262,7 @@ def _unfold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray],
             continue
         jobs.append((g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), len(canvases)))
         safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (3 sb >= 1.5 f px around them)
-        if f == 1:
-            canvases.append(((y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0), w, safe))
-        else:
-            hc, wc = -(-(y1 - y0) // f), -(-(x1 - x0) // f)
-            canvases.append(((hc + 1, wc + 1), (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5, w,
-                             safe))
+        canvases.append((*_on_canvas(pts, (x0, y0, x1, y1), f), w, safe))
     return jobs
 
 
@@ -1284,15 +1292,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         sb = max(2.5 * sig, 1.0)
         # flat across the valley, falling off over the band's edge
         k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
-        band = drawn[ci]
-        if f == 1:
-            band = np.asarray(_blur(band[:-1, :-1], sb), np.float32)
-        else:
-            hb, wb = y1 - y0, x1 - x0
-            hc, wc = -(-hb // f), -(-wb // f)
-            band = _blur(band[:-1, :-1], sb / f)
-            band = np.asarray(cv2.resize(band, (wc * f, hc * f),
-                                         interpolation=cv2.INTER_LINEAR)[:hb, :wb], np.float32)
+        band = _blur_back(drawn[ci], sb, f, y1 - y0, x1 - x0)
         band *= k
         np.minimum(band, 1.0, out=band)
         view = out[y0:y1, x0:x1]

@@ -116,21 +116,13 @@ class SealPlan:
     hole: np.ndarray  # (n,) the mouth opening's vertex indices, in order
     corner_idx: np.ndarray  # (2,) the outer lip corners' vertex indices
     corner_p0: np.ndarray  # (2, 2) where the photo has them
-    corner_way: np.ndarray  # (2, 2) from there to the neutral mesh's (0: closer than
-    #                         CORNER_MOVE, nothing to go back)
-    #: :attr:`corner_way` as Python floats and each way's squared norm (at least 1e-12), for
-    #: :func:`back_share`
-    way_list: list[list[float]] = field(init=False, repr=False)
-    way_norm2: list[float] = field(init=False, repr=False)
+    #: per corner, (x, y) from there to the neutral mesh's (0, 0: closer than CORNER_MOVE,
+    #: nothing to go back); Python floats (:func:`back_share` reads two of them a frame)
+    corner_way: list[list[float]]
     #: the sealed photo over the box of every fill, ``(box, pixels)`` (:func:`sealed_box`;
     #: made on its first call)
     region: tuple[tuple[int, int, int, int], np.ndarray] | None = field(
         default=None, init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        w = np.asarray(self.corner_way, np.float64)
-        self.way_list = w.tolist()
-        self.way_norm2 = [max(wx * wx + wy * wy, 1e-12) for wx, wy in self.way_list]
 
     @property
     def patches(self) -> list[_Patch]:
@@ -310,7 +302,7 @@ def _build(face: Face) -> SealPlan | None:
     way = face.neutral_vertices[corner_idx].astype(np.float64) - p0
     way[np.hypot(way[:, 0], way[:, 1]) < CORNER_MOVE * iod] = 0.0
     return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole, corner_idx,
-                    p0, way)
+                    p0, way.tolist())
 
 
 def _box(img: np.ndarray, lo: np.ndarray, hi: np.ndarray
@@ -459,11 +451,11 @@ def back_share(plan: SealPlan, vertices: np.ndarray) -> float:
     neutral mesh's, on average (each as :func:`corner_share`; 0 for a corner the photo has
     where the neutral mesh puts it)."""
     # (two corners: Python floats, the same float64 arithmetic as on arrays without their
-    # per-call cost; the ways' squared norms are the plan's)
+    # per-call cost)
     d = (np.asarray(vertices).take(plan.corner_idx, 0).astype(np.float64)
          - plan.corner_p0).tolist()
-    t = [min(max((dx * wx + dy * wy) / n, 0.0), 1.0)
-         for (dx, dy), (wx, wy), n in zip(d, plan.way_list, plan.way_norm2, strict=True)]
+    t = [min(max((dx * wx + dy * wy) / max(wx * wx + wy * wy, 1e-12), 0.0), 1.0)
+         for (dx, dy), (wx, wy) in zip(d, plan.corner_way, strict=True)]
     return sum(t) / len(t)
 
 

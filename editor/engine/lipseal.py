@@ -11,11 +11,11 @@ which no pixel of an open photo provides.
 
 * **Once per face** (:func:`seal_plan`): the opening's pixels on the lips are found on the
   photo (darker than :data:`DARK` of the lips' median luminance, or teeth: brighter than
-  :data:`BRIGHT` of it and paler; within :data:`REACH` of the inner-lip polygon, outside it)
-  and filled: the colour from the lips around them
-  (``cv2.inpaint``), the grain from the photo's own high-pass mirrored across the nearest lip
-  pixel (a flat fill reads as paint on a grainy photo). Kept: the difference fill - photo over
-  the mouth's box.
+  :data:`BRIGHT` of it and paler; within :data:`REACH` of the inner-lip polygon, outside it,
+  and joined to those within the lips up to twice as far) and filled: the colour from the
+  lips around them (``cv2.inpaint``), the grain from the photo's own high-pass mirrored
+  across the nearest lip pixel (a flat fill reads as paint on a grainy photo). Kept: the
+  difference fill - photo over the mouth's box.
 * **Per frame** (:func:`apply_lip_seal`): the share ``s`` by which the target closes the photo's
   opening (1 - area of the deformed inner polygon / the photo's, clipped to [0, 1]): 0 at the
   photo's own expression (the photo exactly) and wherever the lips open as far or further,
@@ -350,9 +350,22 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     # lips; on a grey photo bright alone; only within the lips: beyond them, skin is as
     # bright on a grey photo)
     teeth = (L > BRIGHT * ref) & (sat <= 0.6 * lip_sat) & (lips > 0)
-    opening = (near > 0) & (inside == 0) & ((L < DARK * ref) | teeth)
+    cand = (inside == 0) & ((L < DARK * ref) | teeth)
+    opening = (near > 0) & cand
     if not opening.any():
         return None
+    # and what joins them within the lips up to twice as far (a toothy smile's lower teeth
+    # and the dark gap above them, below a lower inner lip the detector put on the upper
+    # teeth's edge: JAFFE KA, KM, NA); a lip's own gloss, apart from the opening, stays
+    far = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (4 * r + 1,
+                                                                          4 * r + 1)))
+    cand &= (lips > 0) & (far > 0)
+    cand |= opening
+    n, lab = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
+    keep = np.zeros(n, bool)
+    keep[lab[opening]] = True
+    keep[0] = False
+    opening = keep[lab]
     if soft > 1.0:
         opening = (_grow(opening, soft) > 0) & (near > 0) & (inside == 0)
     # inside the polygon: the lips' median colour (the warp's bilinear taps along a closed lip

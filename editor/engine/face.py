@@ -47,7 +47,7 @@ from .jawband import jaw_map
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
-from .lipseal import apply_lip_seal
+from .lipseal import apply_contact_line, apply_lip_seal
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .transform import similarity
 from .warp import WarpPlan, WarpResult, map_step, warp
@@ -536,7 +536,7 @@ class Face:
         w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v))
         w = apply_lid_skin(self, w, v)
         w = apply_lip_seal(self, w, v)
-        res = render_layers(self, w, v, extra, vec, tf)
+        res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
         return apply_creases(self, res, v) if creases else res
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:

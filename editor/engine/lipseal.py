@@ -21,7 +21,8 @@ which no pixel of an open photo provides.
   photo's own expression (the photo exactly) and wherever the lips open as far or further,
   1 on a closed mouth. The difference is carried to the frame by the warp's own backward map
   and added times ``s``; along the lips where they meet (their gap under :data:`SHUT` of the
-  inter-ocular distance) a soft contact line darkens the lips by up to :data:`LINE_DEPTH`.
+  inter-ocular distance) a soft contact line darkens the lips by up to :data:`LINE_DEPTH`
+  (:func:`apply_contact_line`, after the mouth layer).
 * **The corners.** A smile also leaves a dark notch beside each mouth corner (the commissure
   fold; a grin's cavity corner beyond the lips' corner point), which stays where the photo
   has it when the corner goes back (a detached dark tick beside a neutral mouth). Where the
@@ -506,7 +507,6 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         return res
     out = res.image
     H, W = out.shape[:2]
-    v = np.asarray(vertices, np.float64)
     bbox = res.bbox
     m = 2
     for share, patch, shift in jobs:
@@ -529,21 +529,39 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         view = out[y0:y1, x0:x1]
         cv2.add(view, d3, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
-    if s > 0.0:  # the contact line where the lips meet
-        pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
-        q = v[plan.upper]
-        x0, y0 = max(int(q[:, 0].min()) - pad, 0), max(int(q[:, 1].min()) - pad, 0)
-        x1, y1 = min(int(q[:, 0].max()) + pad + 1, W), min(int(q[:, 1].max()) + pad + 1, H)
-        line = None if x1 - x0 < 2 or y1 - y0 < 2 else _contact_line(plan, v, (x0, y0, x1,
-                                                                                  y1), s)
-        if line is not None:
-            view = out[y0:y1, x0:x1]
-            acc = view.astype(np.float32)
-            acc *= 1.0 - line[..., None] * plan.tint
-            view[:] = (acc + 0.5).astype(np.uint8)
-            bbox = _union(bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 
+
+
+def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
+    """Darken the lips of ``res.image`` where they meet (in place), by the share the deformed
+    mesh ``vertices`` closes the photo's opening; the result's ``bbox`` grown to what was
+    written. Runs after the mouth layer (:func:`~editor.engine.layers.render_layers`): a
+    mouth closed to a sliver still has an opening there, which the layer continues with the
+    lips' colour beside it on a soft photo (``layers._soft_edge``): drawn before, the line
+    was erased along the sliver and read as a light line between the lips."""
+    plan = seal_plan(face)
+    if plan is None:
+        return res
+    s = _ramp(closing_share(plan, vertices))
+    if s <= 0.0:
+        return res
+    out = res.image
+    H, W = out.shape[:2]
+    v = np.asarray(vertices, np.float64)
+    pad = max(int(math.ceil(3 * LINE_SIGMA * plan.iod)), 2) + 2
+    q = v[plan.upper]
+    x0, y0 = max(int(q[:, 0].min()) - pad, 0), max(int(q[:, 1].min()) - pad, 0)
+    x1, y1 = min(int(q[:, 0].max()) + pad + 1, W), min(int(q[:, 1].max()) + pad + 1, H)
+    line = None if x1 - x0 < 2 or y1 - y0 < 2 else _contact_line(plan, v, (x0, y0, x1, y1), s)
+    if line is None:
+        return res
+    view = out[y0:y1, x0:x1]
+    acc = view.astype(np.float32)
+    acc *= 1.0 - line[..., None] * plan.tint
+    view[:] = (acc + 0.5).astype(np.uint8)
+    bbox = _union(res.bbox, (x0, y0, x1, y1))
+    return res if bbox == res.bbox else _rebox(res, bbox, {})
 
 def _ramp(share: float) -> float:
     return max(share - _MIN_SHARE, 0.0) / (1.0 - _MIN_SHARE)

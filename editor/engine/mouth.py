@@ -326,10 +326,17 @@ class MouthPlan:
         """Ramp the photo's own interior parts (upper teeth with the skull, the rest with the
         jaw) in over ``soft`` px (the photo's edge ramp, ``layers.LayerPlan.soft``): on a soft
         photo their masks' one-pixel edges cut the teeth from the dark cavity with a step
-        harder than anything in the photo. Their colours are the photo's own on both sides."""
-        if soft <= 1.0 or self.own is None:
+        harder than anything in the photo. Their colours are the photo's own on both sides.
+        The drawn teeth and tongue are blurred as much (premultiplied, fading to nothing at
+        their rectangles' edges): crisp, their gaps read as black slits between grey blocks
+        on a face whose own edges ramp over 10 px."""
+        if soft <= 1.0:
             return
         sigma = 0.31 * soft  # (a Gaussian's 10-90 % width, 2.56 sigma, as 0.8 soft)
+        self.tex = {k: cv2.GaussianBlur(t, (0, 0), sigma, borderType=cv2.BORDER_CONSTANT)
+                    for k, t in self.tex.items()}
+        if self.own is None:
+            return
         self._own_a = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_a]
         self._own_keep = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_keep]
 

@@ -402,7 +402,9 @@ def _ids(plan: WarpPlan, dst: np.ndarray, moved_t: np.ndarray, tri_pts: np.ndarr
     moved triangle there (its row in :func:`_table`), ``T`` the identity (static triangles,
     uncovered pixels), ``T + 1 + k`` the opening ``LAYERS[k]``."""
     T = len(plan.triangles)
-    ids = np.full((ny, nx), T, np.int32)
+    # int16 while the ids fit (half the memory of int32 to fill, gather and compare: the 4K
+    # face's box is 3 MP)
+    ids = np.full((ny, nx), T, np.int16 if T + len(LAYERS) < 1 << 15 else np.int32)
     off = np.array([x0, y0], np.float32)
     for k, name in enumerate(LAYERS):
         poly = np.round((dst[plan.holes[name]] - off) * (_ONE / step)).astype(np.int32)
@@ -478,10 +480,8 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     rows = max(1, _MAP_BAND_PX // max(nx, 1))
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        fid = ids[r0:r1].astype(np.float32)
-        zero = np.zeros_like(fid)
-        cx = cv2.remap(tx, fid, zero, cv2.INTER_NEAREST)
-        cy = cv2.remap(ty, fid, zero, cv2.INTER_NEAREST)
+        gather = _gather(ids[r0:r1])
+        cx, cy = gather(tx), gather(ty)
         yr = ys[r0:r1]
         mx, my = map_x[r0:r1], map_y[r0:r1]
         np.multiply(cx[..., 0], xs, out=mx)
@@ -490,10 +490,23 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
         np.multiply(cy[..., 0], xs, out=my)
         my += cy[..., 1] * yr
         my += cy[..., 2]
-        box = cv2.remap(tb, fid, zero, cv2.INTER_NEAREST)
+        box = gather(tb)
         np.clip(mx, box[..., 0], box[..., 2], out=mx)
         np.clip(my, box[..., 1], box[..., 3], out=my)
     return map_x, map_y
+
+
+def _gather(ids: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``table -> table[0, ids]`` (a 1 x rows table of up to 4 channels) by a nearest-neighbour
+    ``cv2.remap``: int16 ids as OpenCV's own fixed-point map of (x, y) int16 pairs (the
+    gathers cost 30 % less than from a float map), others as a float map."""
+    if ids.dtype == np.int16:
+        m1 = np.zeros((*ids.shape, 2), np.int16)
+        m1[..., 0] = ids
+        return lambda t: cv2.remap(t, m1, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
+    fid = ids.astype(np.float32)
+    zero = np.zeros_like(fid)
+    return lambda t: cv2.remap(t, fid, zero, cv2.INTER_NEAREST)
 
 
 def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
@@ -616,10 +629,28 @@ def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
     h, w = out.shape[:2]
     x0, y0, x1, y1 = bbox
 
-    mouth = ids == T + 1 + LAYERS.index("mouth")
-    eyes = (ids == T + 1) | (ids == T + 2)
+    # each opening's id lies within its loop's box only (compared there, not over the whole
+    # box: 2 ms of the face 1000 px wide's 3 MP box)
+    masks, at = [], (0, 0, 0, 0)
+    for k, name in enumerate(LAYERS):
+        m = np.zeros(ids.shape, bool)
+        loop = dst[plan.holes[name]]
+        a0 = int(np.clip(np.floor(loop[:, 0].min()) - 1 - x0, 0, ids.shape[1]))
+        b0 = int(np.clip(np.floor(loop[:, 1].min()) - 1 - y0, 0, ids.shape[0]))
+        a1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2 - x0, a0, ids.shape[1]))
+        b1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2 - y0, b0, ids.shape[0]))
+        np.equal(ids[b0:b1, a0:a1], T + 1 + k, out=m[b0:b1, a0:a1])
+        masks.append(m)
+        at = (a0, b0, a1, b1)
+    eyes = masks[0]
+    eyes |= masks[1]
+    mouth = masks[2]
     # mouth pixels whose source lies outside the photo's own opening: the dark cavity
-    yy, xx = np.nonzero(mouth) if cavity else ((), ())
+    yy = xx = np.zeros(0, np.intp)
+    if cavity:
+        a0, b0, a1, b1 = at
+        yy, xx = np.nonzero(mouth[b0:b1, a0:a1])
+        yy, xx = yy + b0, xx + a0
     if len(yy):
         sx = np.clip(np.rint(map_x[yy, xx]).astype(np.int32), 0, w - 1)
         sy = np.clip(np.rint(map_y[yy, xx]).astype(np.int32), 0, h - 1)

@@ -193,8 +193,11 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     mx += np.arange(x0, x1, dtype=np.float32)[None, :]
     my = np.multiply(shift, np.float32(-r11))
     my += np.arange(y0, y1, dtype=np.float32)[:, None]
-    np.copyto(map_x[sub], mx, where=sel)
-    np.copyto(map_y[sub], my, where=sel)
+    # (OpenCV's masked copy, into the maps' own memory: np.copyto with where= costs 3 times
+    # more on this box, many times more on a ragged mask)
+    m8 = sel.view(np.uint8)
+    cv2.copyTo(mx, m8, map_x[sub])
+    cv2.copyTo(my, m8, map_y[sub])
 
 
 def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, float]:

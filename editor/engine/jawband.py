@@ -187,10 +187,17 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
     shift = _shift(d, got)
     shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
-    mx = np.arange(x0, x1, dtype=np.float32)[None, :] - shift * np.float32(r01)
-    my = np.arange(y0, y1, dtype=np.float32)[:, None] - shift * np.float32(r11)
-    np.copyto(map_x[sub], mx, where=sel)
-    np.copyto(map_y[sub], my, where=sel)
+    # x - shift r01 as shift (-r01) + x: the same float32 values (IEEE negation is exact),
+    # one temporary of the box fewer each
+    mx = np.multiply(shift, np.float32(-r01))
+    mx += np.arange(x0, x1, dtype=np.float32)[None, :]
+    my = np.multiply(shift, np.float32(-r11))
+    my += np.arange(y0, y1, dtype=np.float32)[:, None]
+    # (OpenCV's masked copy, into the maps' own memory: np.copyto with where= costs 3 times
+    # more on this box, many times more on a ragged mask)
+    m8 = sel.view(np.uint8)
+    cv2.copyTo(mx, m8, map_x[sub])
+    cv2.copyTo(my, m8, map_y[sub])
 
 
 def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, float]:

@@ -476,38 +476,19 @@ def test_own_fold_leaves_no_dark_stub_above_the_mouth_corner(sample_face, emotio
     the skin around it (a closing of 9 px). The photo's own: 87 and 42; before the lift
     reached the valley's narrow core (the along-fold mean divided the gain): 29-35 on the
     image-left fold, a dark stub beside the mouth under every preset."""
-    import cv2
-
-    from editor.engine.creases import _own_valleys, crease_plan
-
     f = sample_face
-    p = crease_plan(f)
-    tri, bary = _own_valleys(f)
     vec = None if emotion is None else apply_preset(emotion, 1.0)
-    V = f.deform(vec).astype(np.float64)
-    pos = (V[f.mesh.triangles[tri]] * bary[..., None]).sum(1).astype(np.float32)
-    L = _lum(f.render(vec)).astype(np.float32)
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
-    dip = cv2.morphologyEx(L, cv2.MORPH_CLOSE, ker) - L
-    steps = np.linspace(-1.5, 1.5, 7, dtype=np.float32)
-    deepest = []
-    for k, kind in enumerate(p.kinds):
-        if kind != "nasolabial":
-            continue
-        a, b = p.start[k], p.start[k + 1]
-        q = pos[a:b][p.utaper[a:b] > 0.5]
-        near = [cv2.remap(dip, (q[:, 0] + dx)[None], (q[:, 1] + dy)[None], cv2.INTER_LINEAR)[0]
-                for dx in steps for dy in steps]  # the deepest point within 1.5 px
-        deepest.append(float(np.max(near)))
+    deepest = [float(d.max()) for d in _own_fold_dips(f, _lum(f.render(vec)), f.deform(vec),
+                                                      middle=0.5)]
     assert len(deepest) == 2
     assert max(deepest) <= 23.0, deepest
 
 
 def _own_fold_dips(f, img_lum: np.ndarray, verts: np.ndarray, middle: float = 0.9
-                   ) -> list[float]:
-    """Per own nasolabial fold of ``f`` (on the mesh ``verts``): the mean, over the samples of
-    its middle part (fade-in above ``middle``), of the deepest valley within 1.5 px of it in
-    ``img_lum`` (grey levels below a closing of 9 px)."""
+                   ) -> list[np.ndarray]:
+    """Per own nasolabial fold of ``f`` (on the mesh ``verts``), at each sample of its part
+    faded in above ``middle``: the deepest valley within 1.5 px of it in ``img_lum`` (grey
+    levels below a closing of 9 px)."""
     import cv2
 
     from editor.engine.creases import _own_valleys, crease_plan
@@ -528,7 +509,7 @@ def _own_fold_dips(f, img_lum: np.ndarray, verts: np.ndarray, middle: float = 0.
         q = pos[a:b][p.utaper[a:b] > middle]
         near = [cv2.remap(dip, (q[:, 0] + dx)[None], (q[:, 1] + dy)[None], cv2.INTER_LINEAR)[0]
                 for dx in steps for dy in steps]
-        out.append(float(np.max(near, 0).mean()))
+        out.append(np.max(near, 0))
     return out
 
 
@@ -557,8 +538,9 @@ def test_a_sharp_dark_own_fold_is_lifted_to_the_skin(sample_face):
     paint = np.clip(cv2.GaussianBlur(paint, (0, 0), 0.5), 0.0, 1.0)[..., None]
     img = (f.image * (1.0 - 0.85 * paint)).astype(np.uint8)
     g = Face.from_image(img)
-    assert min(_own_fold_dips(g, _lum(img), g.vertices)) > 120  # painted: a deep valley
-    dips = _own_fold_dips(g, _lum(g.render(None)), g.deform(None))
+    painted = [float(d.mean()) for d in _own_fold_dips(g, _lum(img), g.vertices)]
+    assert min(painted) > 120  # a deep valley
+    dips = [float(d.mean()) for d in _own_fold_dips(g, _lum(g.render(None)), g.deform(None))]
     assert len(dips) == 2 and max(dips) <= 60.0, dips
 
 

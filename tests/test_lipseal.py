@@ -16,6 +16,14 @@ OUTER = (["lipo_c0"] + [f"lipo_u{k}" for k in range(1, 8)] + ["lipo_c1"]
          + [f"lipo_d{k}" for k in range(7, 0, -1)])
 
 
+def _lip_middle(face: Face, v: np.ndarray) -> np.ndarray:
+    """(9, 2) the middle between the inner upper and lower lips of ``v``, corner to corner."""
+    m = face.mesh
+    up = [m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)] + [m.index("lipi_c1")]
+    lo = [m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)] + [m.index("lipi_c1")]
+    return 0.5 * (v[up] + v[lo])
+
+
 def _lips(face: Face, v: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     m = np.zeros(shape, np.uint8)
     q = np.round(v[[face.mesh.index(n) for n in OUTER]] * 16).astype(np.int32)
@@ -165,14 +173,9 @@ def test_jaffe_toothy_smiles_close_without_a_dark_band():
 def _lip_specks(face: Face) -> int:
     """Pixels of the neutralised lips (the outer-lip polygon, 2 px in) standing out as small
     bright specks: over 25 grey levels above a grey-level opening of 7 px."""
-    v = face.deform(None)
-    m = face.mesh
-    outer = ([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
-             + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
     L = luminance(face.render(None)).astype(np.float32)
-    mask = np.zeros(L.shape, np.uint8)
-    cv2.fillPoly(mask, [np.round(v[outer] * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
-    mask = cv2.erode(mask, np.ones((5, 5), np.uint8))
+    mask = cv2.erode(_lips(face, face.deform(None), L.shape).view(np.uint8),
+                     np.ones((5, 5), np.uint8))
     hat = L - cv2.morphologyEx(L, cv2.MORPH_OPEN,
                                cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
     return int(np.count_nonzero((hat > 25) & (mask > 0)))
@@ -233,15 +236,11 @@ def test_closed_lips_on_a_soft_photo_show_no_teeth(sample_face, preset):
     fills, which also showed their pink outlines at the corners)."""
     f = Face.from_image(cv2.resize(sample_face.image, None, fx=4, fy=4,
                                    interpolation=cv2.INTER_CUBIC))
-    m = f.mesh
-    up = [m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)] + [m.index("lipi_c1")]
-    lo = [m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)] + [m.index("lipi_c1")]
-    outer = ([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
-             + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
+    outer = [f.mesh.index(n) for n in OUTER]
     vec = f.fap_vector(None) if preset is None else apply_preset(preset, 1.0)
     out, v = f.render(vec), f.deform(vec)
     band = np.zeros(out.shape[:2], np.uint8)
-    mid = 0.5 * (v[up] + v[lo])
+    mid = _lip_middle(f, v)
     cv2.polylines(band, [np.round(mid[1:-1]).astype(np.int32)], False, 1,
                   max(3, int(0.06 * f.interocular)))
     lips = np.zeros(out.shape[:2], np.uint8)
@@ -254,10 +253,7 @@ def _light_core(lum: np.ndarray, face: Face, v: np.ndarray) -> np.ndarray:
     """Per column between the inner lip corners: how far a light line inside the dark
     contact line rises (grey levels). From the darkest pixel within 0.03 IOD of the line's
     middle, walking up and down as far again: the largest rise that falls back below itself."""
-    m = face.mesh
-    up = [m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)] + [m.index("lipi_c1")]
-    lo = [m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)] + [m.index("lipi_c1")]
-    mid = 0.5 * (v[up] + v[lo])
+    mid = _lip_middle(face, v)
     xs = np.arange(int(mid[1:-1, 0].min()), int(mid[1:-1, 0].max()))
     k = max(int(0.03 * face.interocular), 2)
     cores = []

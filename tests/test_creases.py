@@ -241,19 +241,22 @@ def test_jaffe_surprise_forehead_lines_as_dark_as_real_ones():
 
 #: per fold kind, the valley's search window across its line (IOD): how far from the line its
 #: bottom is looked for, the half-length of the profile and the bottom's own half-width
-_WINDOWS = {"nasolabial": (0.1, 0.18, 0.035), "bridge": (0.03, 0.06, 0.015)}
+_WINDOWS = {"nasolabial": (0.1, 0.18, 0.035), "bridge": (0.03, 0.06, 0.015),
+            "upper_lip": (0.06, 0.12, 0.03)}
 
 
 @pytest.mark.parametrize(("kind", "emotion", "code", "real_median"), [
-    ("nasolabial", "joy", "HA", 0.17), ("bridge", "disgust", "DI", 0.02)])
+    ("nasolabial", "joy", "HA", 0.17), ("bridge", "disgust", "DI", 0.02),
+    ("upper_lip", "disgust", "DI", 0.17), ("upper_lip", "joy", "HA", 0.25)])
 def test_jaffe_folds_as_deep_as_real_ones(kind, emotion, code, real_median):
     """JAFFE's ten women: the folds an emotion draws on each one's neutral face are as deep as
     her own photos of it show. Depth: the valley below its shoulders across the middle of the
     fold line (:func:`_valley`, each kind's window) over the image's median luminance; at
     100 % the median over the women within 0.7-1.5 x the real photos' (two each), at 150 % no
     deeper than the deeper real ones (their p90). Real medians: joy's nasolabial folds 0.17,
-    disgust's nasal-root lines 0.02. Before they were calibrated so: 0.043 and 0.073 (a smile
-    without its folds; scratches across the nose)."""
+    disgust's nasal-root lines 0.02, the furrow beside the nose wing 0.17 under disgust and
+    0.25 in a smile. Before they were calibrated so: 0.043, 0.073 and 0.034 (a smile without
+    its folds; scratches across the nose; a lip raiser without its furrow)."""
     from editor.formats.presets import apply_preset as shipped
 
     def depths(f, img, v) -> list[float]:

@@ -248,3 +248,41 @@ def test_viseme_u_rounds_the_lips(faces):
         assert w1 < 0.85 * w0  # corners pulled in
         g = _inner_gaps(face, apply_preset("viseme_u"))
         assert g.min() > 0.5 and g[3] > 1.4 * g[[1, 5]].mean()  # small, round opening
+
+
+def test_recogniser_learns_separable_emotions_and_needs_all_six():
+    """The classifier of editor/synthesis/recognise.py on synthetic motion: six clusters in a
+    102-dimensional feature space, 20 samples each, are labelled right when new samples of
+    them come; a training set without one emotion is refused."""
+    from editor.synthesis.recognise import CODES, Classifier
+
+    rng = np.random.default_rng(4)
+    centres = rng.normal(0, 1, (len(CODES), 102))
+    X = np.concatenate([c + rng.normal(0, 0.3, (20, 102)) for c in centres])
+    y = [c for c in CODES for _ in range(20)]
+    clf = Classifier.fit(X, y)
+    new = np.concatenate([c + rng.normal(0, 0.3, (5, 102)) for c in centres])
+    assert clf.predict(new) == [c for c in CODES for _ in range(5)]
+    with pytest.raises(ValueError, match="no training photo"):
+        Classifier.fit(X[20:], y[20:])
+
+
+def test_a_recogniser_of_real_faces_names_the_presets():
+    """Would a recogniser name them? A classifier of the landmark motion of real JAFFE
+    expressions (editor/synthesis/recognise.py), trained on nine women, labels the presets at
+    100 % rendered on the tenth woman's neutral photo (and detected again), for each woman.
+    On unseen women's real photos it is right 66 % of the time (chance: 17 %). Joy, sadness,
+    surprise, anger and fear are named right on at least 8 of the 10 women (measured: 10, 10,
+    10, 9, 9). Disgust is not asserted: it is labelled anger on 9 of 10 (its raised upper lip,
+    the picture's cue of FACS AU9/AU10, moves the inner-lip landmarks up as JAFFE's anger raises
+    the whole mouth; JAFFE's disgust keeps the inner lips at rest, median)."""
+    if not _have_jaffe():
+        pytest.skip("../shared/data/jaffe is not available")
+    from editor.synthesis.recognise import recognise
+
+    res = recognise(JAFFE / "images")
+    assert res.women == 10
+    assert res.accuracy(res.real) >= 0.55, res.table()
+    for code in ("HA", "SA", "SU", "AN", "FE"):
+        right, n = res.hits(code)
+        assert n == 10 and right >= 8, (code, res.table())

@@ -84,6 +84,11 @@ class FoldStyle:
     probe: float  # distance of the compression probes either side of the line
     spread: float = 0.5  # share of the fold's strongest compression given to the whole line
     dead: float = 0.0  # compression that does not fold yet (subtracted first)
+    # -1: the fold deepens where the skin across it is spread relative to along it (the
+    # mentolabial sulcus: in 2-D the lower lip pushed up over the still chin spreads the skin
+    # between them, where in 3-D the chin boss bulges and the groove above it deepens); the
+    # measure is 1 under any similarity, so a scaled or turned face is no pout (_spread)
+    sign: float = 1.0
 
 
 STYLES: dict[str, FoldStyle] = {
@@ -111,6 +116,13 @@ STYLES: dict[str, FoldStyle] = {
                           probe=0.06),
     "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
                           probe=0.05),
+    # the mentolabial sulcus under an angry pout (AU17 + AU24 push the lower lip up over the
+    # chin). JAFFE: the deepest dip down the lip-to-chin band 0.178 of the median light in the
+    # anger photos (median of 20; 0.043 on the neutral ones, 0.049 disgust, 0.077 sadness);
+    # drawn 0.022 before this fold existed, now 0.154 / 0.243 at 100 / 150 % (p90 0.304;
+    # tests). The dead zone keeps the little spread a smile leaves there from drawing it
+    "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.35, ridge_off=2.4,
+                      probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the
     # image's median luminance; 0.006 on the neutral ones). Depth 0.13 drew 0.073 (scratches
     # across the nose under disgust and anger); now 0.025
@@ -320,6 +332,20 @@ def _fold_lines(face: Face) -> list[_Line]:
         even = k_b * (1.0 + 0.2 * np.sin(2 * np.pi * 1.1 * t_b + rng.uniform(0, 6.3)))
         lines.append(_Line("bridge", "bridge", pts, _fade(t_b, 0.35, 0.35) * even,
                            (0.0, -1.0), probes, (0.0, 1.0)))
+    # ---- mentolabial sulcus: the groove between the lower lip and the chin, deepened when the
+    # chin raiser (AU17, anger and disgust) pushes the chin boss up against the lower lip.
+    # JAFFE's anger photos show it 0.45 of the way from the lower lip's middle (8.2) to the
+    # chin (2.1), 0.04 IOD wide (half depth), following the chin's round top
+    lip_m, chin = q("lipo_d4"), q("contour_16")
+    mouth_w = abs(q("lipo_c1")[0] - q("lipo_c0")[0])
+    half_w = 0.34 * mouth_w
+    c = lip_m + 0.45 * (chin - lip_m)
+    t_c = linspace(0.0, 1.0, 18)
+    xs_c = (2.0 * t_c - 1.0) * half_w
+    y_c = c[1] - 0.05 * (xs_c / half_w) ** 2 + 0.003 * np.sin(2 * np.pi * 0.9 * t_c
+                                                              + rng.uniform(0, 6.3))
+    lines.append(_Line("chin", "chin", np.stack([c[0] + xs_c, y_c], 1),
+                       _fade(t_c, 0.35, 0.35), (0.0, 1.0), utaper=np.zeros(len(t_c))))
     return lines
 
 
@@ -613,6 +639,18 @@ class _Fast:
     off: np.ndarray  # (G,) ridge offset, px
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
     dead: np.ndarray  # (N,) compression that does not fold yet
+    # the samples of folds with FoldStyle.sign < 0 and what _spread reads for them: 3 x (M, 4)
+    # vertex indices of their probe triangles, 4 x (M, 4) entries of those triangles' inverse
+    # edge matrices and (M, 1) the line's tangent, both on the neutral mesh (the photo's, or
+    # its neutralised face when it shows an expression: a smiling photo's neutral pushes the
+    # lower lip back up, and is no pout)
+    neg: np.ndarray = field(init=False)
+    neg_tri: tuple[np.ndarray, ...] = ()
+    neg_inv: tuple[np.ndarray, ...] = ()
+    neg_t: tuple[np.ndarray, np.ndarray] = field(init=False)
+    # (M,) their taper: a sample where the line fades out does not drive it (towards the
+    # mouth corners a smile spreads that skin a little too)
+    neg_fade: np.ndarray = field(init=False)
     # samples of folds that lie on the first samples of another fold of their group (the
     # upper_lip furrow on the nasolabial line) and those samples: one furrow, see _twins
     twin_a: np.ndarray = field(init=False)
@@ -662,6 +700,7 @@ def _fast(face: Face) -> _Fast:
     c0 = np.array([x.c0 for x in st])[p.fold]
     spread = np.array([x.spread for x in st])[p.fold]
     dead = np.array([x.dead for x in st])[p.fold]
+    neg = np.flatnonzero(np.array([x.sign for x in st])[p.fold] < 0)
     n = len(p.fold)
     edge = np.zeros(n, bool)
     for off in (0, 1):
@@ -688,6 +727,22 @@ def _fast(face: Face) -> _Fast:
               np.array([x.ridge for x in first]), np.array([x.ridge_off for x in first]) * dsig,
               skin, dead)
     f.dsig = dsig
+    f.neg = neg
+    ptri = face.mesh.triangles[p.probe_tri[neg]]  # (M, 4, 3)
+    f.neg_tri = tuple(np.ascontiguousarray(ptri[..., k]) for k in range(3))
+    tang = np.stack([-p.normal[neg, 1], p.normal[neg, 0]], 1)  # (M, 2) on the photo's mesh
+    pinv = p.tri_inv[p.probe_tri[neg]]  # (M, 4, 2, 2)
+    if face.has_expression and len(neg):
+        N = np.asarray(face.deform(None), np.float64)
+        E = np.stack([N[ptri[..., 1]] - N[ptri[..., 0]], N[ptri[..., 2]] - N[ptri[..., 0]]],
+                     -1)  # (M, 4, 2, 2) columns: the edges
+        # the tangent carried onto the neutral mesh by the sample's first probe triangle
+        tn = np.einsum("mij,mjk,mk->mi", E[:, 0], pinv[:, 0], tang)
+        tang = tn / np.maximum(np.linalg.norm(tn, axis=1, keepdims=True), 1e-12)
+        pinv = np.linalg.inv(E)
+    f.neg_inv = tuple(np.ascontiguousarray(pinv[..., i, j]) for i in (0, 1) for j in (0, 1))
+    f.neg_t = (np.ascontiguousarray(tang[:, :1]), np.ascontiguousarray(tang[:, 1:]))
+    f.neg_fade = p.taper[neg]
     f.used_tri = face.mesh.triangles[used]
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
@@ -754,6 +809,25 @@ def _twins(fa: _Fast, s: np.ndarray) -> np.ndarray:
     return s
 
 
+def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
+    """(M,) for the samples ``fa.neg`` (folds with FoldStyle.sign < 0): the spacing of skin
+    lines parallel to the fold over the stretch along it, relative to the neutral mesh (see
+    ``_Fast.neg_inv``), mean over the 4 probes: ``det(A) / |A t|^2`` (1 at rest and under any
+    similarity; > 1 where the skin across the line is spread more than along it)."""
+    V = np.asarray(vertices, np.float64)
+    t0, t1, t2 = (V.take(k, 0) for k in fa.neg_tri)  # (M, 4, 2) each
+    e1, e2 = t1 - t0, t2 - t0
+    i00, i01, i10, i11 = fa.neg_inv
+    a00 = e1[..., 0] * i00 + e2[..., 0] * i10
+    a01 = e1[..., 0] * i01 + e2[..., 0] * i11
+    a10 = e1[..., 1] * i00 + e2[..., 1] * i10
+    a11 = e1[..., 1] * i01 + e2[..., 1] * i11
+    tx, ty = fa.neg_t
+    ax, ay = a00 * tx + a01 * ty, a10 * tx + a11 * ty
+    r = (a00 * a11 - a01 * a10) / np.maximum(ax * ax + ay * ay, 1e-12)
+    return r.mean(1)
+
+
 def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.ndarray:
     """(N,) spacing of skin lines parallel to each fold on ``vertices``, relative to the photo's
     mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes (``fa``:
@@ -797,6 +871,8 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
     p = crease_plan(face)
     fa = _fast(face)
     c = 1.0 - (_spacing(face, vertices) if spacing is None else spacing)
+    if len(fa.neg):
+        c[fa.neg] = (_spread(fa, vertices) - 1.0) * fa.neg_fade
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -844,6 +920,8 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     edge = fa.edge
     # fold_strength
     c = 1.0 - sp
+    if len(fa.neg):
+        c[fa.neg] = (_spread(fa, vertices) - 1.0) * fa.neg_fade
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(p.fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)

@@ -120,7 +120,9 @@ STYLES: dict[str, FoldStyle] = {
     # chin). JAFFE: the deepest dip down the lip-to-chin band 0.178 of the median light in the
     # anger photos (median of 20; 0.043 on the neutral ones, 0.049 disgust, 0.077 sadness);
     # drawn 0.022 before this fold existed, now 0.154 / 0.243 at 100 / 150 % (p90 0.304;
-    # tests). The dead zone keeps the little spread a smile leaves there from drawing it
+    # tests). Drawn only with the chin boss raised and the lips together (_closed_lips): the
+    # JAFFE closed loop's estimates of smiles and sad faces drew it too (lips 2.37 -> 2.50 %
+    # IOD; now 2.41: the detector reads the groove a little as the lower lip's edge)
     "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.35, ridge_off=2.4,
                       probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the
@@ -651,6 +653,15 @@ class _Fast:
     # (M,) their taper: a sample where the line fades out does not drive it (towards the
     # mouth corners a smile spreads that skin a little too)
     neg_fade: np.ndarray = field(init=False)
+    # the inner lips' middle (2.2, 2.3) and their gap on the neutral mesh, IOD: lips that part
+    # are no pout (the mentalis pushes the lower lip up against the upper one)
+    lips_mid: tuple[int, int] = (0, 0)
+    lips_gap0: float = 0.0
+    # the chin boss 2.10 and the chin 2.1 and their distance on the neutral mesh, IOD: the
+    # groove needs the chin raiser (AU17: the boss pushed up over the chin)
+    boss: tuple[int, int] = (0, 0)
+    boss_gap0: float = 0.0
+    iod: float = 1.0
     # samples of folds that lie on the first samples of another fold of their group (the
     # upper_lip furrow on the nasolabial line) and those samples: one furrow, see _twins
     twin_a: np.ndarray = field(init=False)
@@ -743,6 +754,12 @@ def _fast(face: Face) -> _Fast:
     f.neg_inv = tuple(np.ascontiguousarray(pinv[..., i, j]) for i in (0, 1) for j in (0, 1))
     f.neg_t = (np.ascontiguousarray(tang[:, :1]), np.ascontiguousarray(tang[:, 1:]))
     f.neg_fade = p.taper[neg]
+    f.lips_mid = (face.mesh.fdp["2.2"], face.mesh.fdp["2.3"])
+    base = face.deform(None) if face.has_expression else face.vertices
+    f.iod = float(face.interocular)
+    f.lips_gap0 = _gap(f, f.lips_mid, base)
+    f.boss = (face.mesh.fdp["2.10"], face.mesh.fdp["2.1"])
+    f.boss_gap0 = _gap(f, f.boss, base)
     f.used_tri = face.mesh.triangles[used]
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
@@ -809,6 +826,30 @@ def _twins(fa: _Fast, s: np.ndarray) -> np.ndarray:
     return s
 
 
+#: parting of the lips (IOD, beyond the neutral's) at which the chin groove is gone
+_POUT_OPEN = 0.04
+
+
+#: rise of the chin boss over the chin (IOD, beyond the neutral's) at which the groove is full
+_POUT_BOSS = 0.02
+
+
+def _gap(fa: _Fast, pair: tuple[int, int], vertices: np.ndarray) -> float:
+    """Distance (IOD) between two points of the mesh."""
+    a, b = np.asarray(vertices, np.float64).take(pair, 0)
+    return float(math.hypot(*(b - a))) / fa.iod
+
+
+def _closed_lips(fa: _Fast, vertices: np.ndarray) -> float:
+    """How much of a pout the mesh shows, for the folds of kind chin: the chin boss raised
+    (up to full at :data:`_POUT_BOSS`) with the lips together (fading out as they part by
+    :data:`_POUT_OPEN`: an open mouth is no pout)."""
+    opened = (_gap(fa, fa.lips_mid, vertices) - fa.lips_gap0) / _POUT_OPEN
+    raised = (_gap(fa, fa.boss, vertices) - fa.boss_gap0) / _POUT_BOSS
+    return float((1.0 - smooth01(min(max(opened, 0.0), 1.0)))
+                 * smooth01(min(max(raised, 0.0), 1.0)))
+
+
 def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     """(M,) for the samples ``fa.neg`` (folds with FoldStyle.sign < 0): the spacing of skin
     lines parallel to the fold over the stretch along it, relative to the neutral mesh (see
@@ -872,7 +913,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
     fa = _fast(face)
     c = 1.0 - (_spacing(face, vertices) if spacing is None else spacing)
     if len(fa.neg):
-        c[fa.neg] = (_spread(fa, vertices) - 1.0) * fa.neg_fade
+        c[fa.neg] = (_spread(fa, vertices) - 1.0) * (fa.neg_fade * _closed_lips(fa, vertices))
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -921,7 +962,7 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     # fold_strength
     c = 1.0 - sp
     if len(fa.neg):
-        c[fa.neg] = (_spread(fa, vertices) - 1.0) * fa.neg_fade
+        c[fa.neg] = (_spread(fa, vertices) - 1.0) * (fa.neg_fade * _closed_lips(fa, vertices))
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(p.fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)

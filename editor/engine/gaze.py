@@ -51,6 +51,16 @@ from .fitting import (
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
 EXTRA_INDEX = {"eye_l": 0, "eye_r": 1}  # position among deform's extra points (3.5, 3.6)
+_ONES3 = (1.0, 1.0, 1.0)  # (cv2 calls below take their arguments positionally: keywords cost
+# a few microseconds of parsing per call, as much as the work on an eye's box)
+
+
+def spread3(a: np.ndarray) -> np.ndarray:
+    """``cv2.merge([a, a, a])`` of a float32 (or uint8) (h, w) array: the same values, through
+    ``cv2.cvtColor``'s grey-to-RGB copy, which costs about half a merge's call on the layers'
+    small boxes (per-pixel weights spread over 3 channels: numpy's broadcasting of an (h, w, 1)
+    array is several times slower there)."""
+    return cv2.cvtColor(a, cv2.COLOR_GRAY2RGB)
 
 
 def _lid_point(lid: np.ndarray, f: float) -> np.ndarray:
@@ -761,7 +771,7 @@ class EyePlan:
             t = 0.0
         plate = self.plate if t >= 1.0 else self.photo if t <= 0.0 else \
             self.photo + t * (self.plate - self.photo)
-        white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
         # opened lids: per pixel, how far its column's lid moved away and the weight of the
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep = None
@@ -795,12 +805,12 @@ class EyePlan:
                 np.subtract(1.0, kk, out=kk)
                 keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
                 keep = keep.astype(np.float32)
-                ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR,
-                                             borderMode=cv2.BORDER_REPLICATE)
+                ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR, None,
+                                             cv2.BORDER_REPLICATE)
                 # (weights spread over the channels with cv2.merge: numpy's broadcasting of
                 # (h, w, 1) over 3 channels is several times slower on these small boxes)
                 white -= ball
-                white *= cv2.merge([keep, keep, keep])
+                white *= spread3(keep)
                 white += ball
                 # the photo's own bands ride with their lids: a pixel at depth d below the
                 # raised upper lid (above the lowered lower one) takes the band's share at depth
@@ -816,8 +826,8 @@ class EyePlan:
                 for j, moved_lid in enumerate((up_moved, low_moved)):
                     if not moved_lid:
                         continue
-                    got = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR,
-                                    borderMode=cv2.BORDER_CONSTANT, borderValue=(1.0, 1.0, 1.0))
+                    got = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR, None,
+                                    cv2.BORDER_CONSTANT, _ONES3)
                     # 1 - s (1 - got) in float64, s spread over the channels with cv2.merge
                     # (numpy's broadcasting of (h, w, 1) is several times slower here)
                     np.subtract(1.0, got, out=got)
@@ -848,7 +858,7 @@ class EyePlan:
             k = rs / np.maximum(rho, 1e-6)
             ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
             iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
-        iris = cv2.remap(self.iris, ix, iy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        iris = cv2.remap(self.iris, ix, iy, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
         p_rest = self.p0 * r_new / self.r0
         if p_new > p_rest:
             # a dilated pupil: the photo's pupil, radially stretched, may be faint (brown
@@ -865,11 +875,11 @@ class EyePlan:
             lum = plain @ np.array([0.299, 0.587, 0.114], np.float32)
             ap *= 1.0 - np.clip((lum - 1.3 * self.iris_lum) / (0.3 * self.iris_lum + 1.0),
                                 0.0, 1.0)
-            ap = cv2.merge([ap, ap, ap])
+            ap = spread3(ap)
             iris = iris * (1.0 - ap) + self.pupil * ap
         a = a.astype(np.float32)
         col = iris - white  # a iris + (1 - a) white (white is this frame's own array)
-        col *= cv2.merge([a, a, a])
+        col *= spread3(a)
         col += white
         if band3 is not None:
             col *= band3

@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from .deform import eye_state
 from .fitting import channel_median, clamp, gather_px, median, pad_edge, smooth01
-from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through
+from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through, spread3
 from .mouth import (
     CROWN,
     GUM_FADE,
@@ -266,7 +266,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
 def _to_uint8(res: np.ndarray, dst: np.ndarray) -> None:
     """``dst[:] = res`` rounded to the nearest integer and saturated to uint8, in place (one
     OpenCV conversion; ``res`` float32, ``dst`` a uint8 view of the same shape)."""
-    cv2.add(res, _zeros32(res.shape), dst=dst, dtype=cv2.CV_8U)
+    cv2.add(res, _zeros32(res.shape), dst, None, cv2.CV_8U)  # (positional: cheaper)
 
 
 @lru_cache(maxsize=64)
@@ -335,7 +335,7 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         wgt = np.clip((np.asarray(depth, np.float32) - np.float32(1.0)) * np.float32(2.0 / soft),
                       0.0, 1.0)
         rim -= raw
-        rim *= cv2.merge([wgt, wgt, wgt])
+        rim *= spread3(wgt)
         rim += raw
     if known is not None:
         # the mouth: its coverage seen through the photo's blur (a Gaussian of ramp / 2.56, as
@@ -374,21 +374,22 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     if inside is not None:
         cv2.copyTo(np.asarray(inside, np.float32), hole.view(np.uint8), face)
     if shade is not None:
-        face *= cv2.merge([shade, shade, shade])
+        face *= spread3(shade)
     if inside is None and np.count_nonzero(hole):
         # the face without the hole (zeros there: a masked copy, the same values as face times
         # a 0/1 weight) and the weights' box sums taken straight from the 0/1 byte mask
         keep = (~hole).view(np.uint8)
-        num: np.ndarray = cv2.boxFilter(cv2.copyTo(face, keep), -1, (5, 5), normalize=False,
-                                        borderType=cv2.BORDER_REPLICATE)
-        den = cv2.boxFilter(keep, cv2.CV_32F, (5, 5), normalize=False,
-                            borderType=cv2.BORDER_REPLICATE)
+        # (box sums, not normalised; the arguments positional: keywords cost microseconds)
+        num: np.ndarray = cv2.boxFilter(cv2.copyTo(face, keep), -1, (5, 5), None, (-1, -1),
+                                        False, cv2.BORDER_REPLICATE)
+        den = cv2.boxFilter(keep, cv2.CV_32F, (5, 5), None, (-1, -1), False,
+                            cv2.BORDER_REPLICATE)
         fill = hole & (den > 0.5)
         np.maximum(den, 1e-6, out=den)
-        num /= cv2.merge([den, den, den])
+        num /= spread3(den)
         cv2.copyTo(num, fill.view(np.uint8), face)  # face[fill] = num[fill], in place
     res = interior - face  # alpha * interior + (1 - alpha) * face
-    res *= cv2.merge([alpha, alpha, alpha])
+    res *= spread3(alpha)
     res += face
     _to_uint8(res, view)
 

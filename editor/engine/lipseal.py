@@ -522,12 +522,11 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         if res.maps is None or x1 - x0 < 2 or y1 - y0 < 2:
             continue
         mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))
-        d = cv2.remap(patch.diff, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                      borderValue=0)
+        d = cv2.remap(patch.diff, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
         d3 = np.asarray(cv2.cvtColor(d, cv2.COLOR_RGBA2RGB), np.float32)
         d3 *= np.float32(share)
         view = out[y0:y1, x0:x1]
-        cv2.add(view, d3, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+        cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 

@@ -37,6 +37,7 @@ from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
 from .fitting import clamp, interp, smooth01
+from .gaze import spread3
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -321,6 +322,7 @@ class MouthPlan:
             c4[..., :3] = own_rgb[..., 3 * k:3 * k + 3]
             self._own_c.append(c4)
         self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
+        self._own_span = [a - b for a, b in zip(self._own_a, self._own_keep, strict=True)]
 
     def soften(self, soft: float) -> None:
         """Ramp the photo's own interior parts (upper teeth with the skull, the rest with the
@@ -339,6 +341,7 @@ class MouthPlan:
             return
         self._own_a = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_a]
         self._own_keep = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_keep]
+        self._own_span = [a - b for a, b in zip(self._own_a, self._own_keep, strict=True)]
 
     @classmethod
     def build(cls, vertices: np.ndarray, mesh: StandardMesh, plan: DeformPlan, skin_l: float,
@@ -495,18 +498,18 @@ class MouthPlan:
             back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
             deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
             out = 0.45 * np.asarray(rim, np.float32) - deep
-            out *= cv2.merge([g, g, g])
+            out *= spread3(g)
             out += deep
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
             # reads as a dark edge, not as a bright sliver
             shade *= 1.0 - 0.3 * g1
         shade_g = (a_g * shade) * corner.astype(np.float32)
-        shade_g = cv2.merge([shade_g, shade_g, shade_g])
+        shade_g = spread3(shade_g)
         shade *= a_t
-        shade_up = None if self.photo_upper else cv2.merge(
-            [shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP)] * 3)
+        shade_up = None if self.photo_upper else spread3(
+            shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP))
         shade *= arch
-        shade = cv2.merge([shade, shade, shade])
+        shade = spread3(shade)
         cav = out
         # lower teeth and tongue (jaw), upper teeth (skull)
         y_lb = 0.25 * q21[1] + 0.75 * q23[1]
@@ -552,11 +555,10 @@ class MouthPlan:
             # the continued teeth: a light shadow right under the lip (the photo's own top
             # row, which they repeat, already carries the photo's lip shadow) and the drawn
             # layers' darker corners
-            e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
             m = np.asarray(1.0 - e * (1.0 - k.astype(np.float32)), np.float32)  # (no copy)
-            p_up = p_up * cv2.merge([m, m, m])
+            p_up = p_up * spread3(m)
         if a_up is not None or a_lo is not None:
             rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
             if a_up is not None:
@@ -637,15 +639,14 @@ class MouthPlan:
             my = ((cols - top) * ky - 0.5).astype(np.float32)
         if gum:
             my = np.maximum(my, np.float32(0.0))
-        s = cv2.remap(t, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                      borderValue=(0, 0, 0, 0))
+        s = cv2.remap(t, mx, my, cv2.INTER_LINEAR)  # (zeros outside: OpenCV's default border)
         # (the colour channels as one contiguous array: numpy is several times slower on a
         # channel view)
         res = cv2.cvtColor(s, cv2.COLOR_RGBA2RGB)
         res *= shade  # shade (h, w, 3)
         # (the alpha channel extracted contiguous, the under-layer's weight in place)
         a = np.subtract(1.0, cv2.extractChannel(s, 3), dtype=np.float32)
-        a3 = cv2.merge([a, a, a])
+        a3 = spread3(a)
         a3 *= out
         res += a3
         return res
@@ -653,14 +654,14 @@ class MouthPlan:
     def _own(self, mx, my, k, fade):
         """Coverage (h, w) and colours of the photo's skull (k=0) or jaw (k=1) part;
         ``mx``, ``my`` (h, w) float32: positions in the own interior's patch."""
+        # (``_own_span``: the coverage minus its kept part, once per face)
         src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
-            self._own_keep[k] + fade * (self._own_a[k] - self._own_keep[k])
-        a = cv2.remap(src, mx, my, cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            self._own_keep[k] + fade * self._own_span[k]
+        a = cv2.remap(src, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default border)
         if not np.count_nonzero(a):
             return None, None
-        px = cv2.cvtColor(cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR,
-                                    borderMode=cv2.BORDER_REPLICATE), cv2.COLOR_RGBA2RGB)
+        px = cv2.cvtColor(cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR, None,
+                                    cv2.BORDER_REPLICATE), cv2.COLOR_RGBA2RGB)
         return a, px
 
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
@@ -709,8 +710,8 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     """
     lo, ramp = max(1.0, 0.05 * D), max(1.5, 0.08 * D)
     k = 2 * math.ceil(lo + ramp) + 3
-    h: np.ndarray = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), normalize=False,
-                      borderType=cv2.BORDER_CONSTANT)
+    h: np.ndarray = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), None, (-1, -1),
+                                  False, cv2.BORDER_CONSTANT)  # (not normalised)
     h /= np.float32(3.0)
     h -= lo
     h /= ramp
@@ -718,7 +719,7 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     if gain is not None:  # in shadow: darker and warmer (not greyed towards the cavity)
         out = out * gain
     res = out - cav
-    res *= cv2.merge([vis, vis, vis])
+    res *= spread3(vis)
     res += cav
     return res
 

@@ -823,18 +823,22 @@ class EyePlan:
                 np.add(W, dd[0], out=wb[0])
                 np.subtract(W, dd[1], out=wb[1])
                 bx, by = (bu[:, None] + wb * ey[:, None, None, None]).astype(np.float32)
-                for j, moved_lid in enumerate((up_moved, low_moved)):
-                    if not moved_lid:
-                        continue
-                    got = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR, None,
-                                    cv2.BORDER_CONSTANT, _ONES3)
-                    # 1 - s (1 - got) in float64, s spread over the channels with cv2.merge
-                    # (numpy's broadcasting of (h, w, 1) is several times slower here)
-                    np.subtract(1.0, got, out=got)
-                    s3 = cv2.merge([ss[j], ss[j], ss[j]])
-                    s3 *= got
-                    got = np.subtract(1.0, s3, out=s3).astype(np.float32)
-                    band3 = got if band3 is None else np.minimum(band3, got)
+                # the moved lids' bands sampled into one (n, h, w, 3) array, then for all n at
+                # once 1 - s (1 - got) in float64, s spread over the channels with one
+                # cv2.merge of the lids' rows (numpy's broadcasting of (h, w, 1) is several
+                # times slower here); the lids' minimum (the same values as lid by lid)
+                lids_moved = [j for j, m in enumerate((up_moved, low_moved)) if m]
+                n, (h, w) = len(lids_moved), U.shape
+                got = np.empty((n, h, w, 3), np.float32)
+                for i, j in enumerate(lids_moved):
+                    got[i] = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR, None,
+                                       cv2.BORDER_CONSTANT, _ONES3)
+                np.subtract(1.0, got, out=got)
+                s_rows = (ss if n == 2 else ss[lids_moved[0]]).reshape(n * h, w)
+                s3 = cv2.merge([s_rows, s_rows, s_rows])
+                s3 *= got.reshape(n * h, w, 3)
+                got = np.subtract(1.0, s3, out=s3).astype(np.float32).reshape(n, h, w, 3)
+                band3 = got[0] if n == 1 else np.minimum(got[0], got[1])
         # the iris: rigid, round, radially rescaled for thrust and pupil size
         Di = U - du if du else U
         Dw = W - dw if dw else W

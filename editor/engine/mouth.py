@@ -322,7 +322,15 @@ class MouthPlan:
             c4[..., :3] = own_rgb[..., 3 * k:3 * k + 3]
             self._own_c.append(c4)
         self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
+        self._own_parts()
+
+    def _own_parts(self) -> None:
+        """Per part of the photo's interior (skull, jaw): its coverage minus the kept part
+        (``_own_span``) and whether it covers anything at all (``_own_has``: a part that does
+        not, often the jaw's, samples as zeros everywhere: :meth:`_own` skips it)."""
         self._own_span = [a - b for a, b in zip(self._own_a, self._own_keep, strict=True)]
+        self._own_has = [bool(np.count_nonzero(a) or np.count_nonzero(b))
+                         for a, b in zip(self._own_a, self._own_keep, strict=True)]
 
     def soften(self, soft: float) -> None:
         """Ramp the photo's own interior parts (upper teeth with the skull, the rest with the
@@ -341,7 +349,7 @@ class MouthPlan:
             return
         self._own_a = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_a]
         self._own_keep = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_keep]
-        self._own_span = [a - b for a, b in zip(self._own_a, self._own_keep, strict=True)]
+        self._own_parts()
 
     @classmethod
     def build(cls, vertices: np.ndarray, mesh: StandardMesh, plan: DeformPlan, skin_l: float,
@@ -537,9 +545,6 @@ class MouthPlan:
         sxy = (Si[:, 0, None, None] * xs + Si[:, 1, None, None] * ys) \
             + (Si[:, 2] - self.own_off)[:, None, None]
         mx, my = sxy.astype(np.float32)
-        anchor = O + q21[0] * ex + y_lb * ey
-        tj = anchor - (L @ self.anchor0 + S[:, 2])
-        tjs = Si[:, :2] @ tj
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
             out = self._over(out, "upper_teeth", Q, -0.5 * wu, self.tip_up * sc - hu, wu,
                              hu, shade_up, gum=True)
@@ -549,8 +554,13 @@ class MouthPlan:
         gap = (v.take(lp_d, 0) - v.take(lp_u, 0)).astype(np.float64) @ ey
         fade = 1.0 - _smoothstep1(max((gap - self.gap0).tolist()) / 2.0)
         a_up, p_up = self._own(mx, my, 0, fade)
-        lx, ly = (sxy - tjs[:, None, None]).astype(np.float32)
-        a_lo, p_lo = self._own(lx, ly, 1, fade)
+        a_lo = p_lo = None
+        if self._own_has[1]:  # the jaw part, moved with the jaw anchor (eq. 8)
+            anchor = O + q21[0] * ex + y_lb * ey
+            tj = anchor - (L @ self.anchor0 + S[:, 2])
+            tjs = Si[:, :2] @ tj
+            lx, ly = (sxy - tjs[:, None, None]).astype(np.float32)
+            a_lo, p_lo = self._own(lx, ly, 1, fade)
         if a_up is not None and self.photo_upper:
             # the continued teeth: a light shadow right under the lip (the photo's own top
             # row, which they repeat, already carries the photo's lip shadow) and the drawn
@@ -653,7 +663,10 @@ class MouthPlan:
 
     def _own(self, mx, my, k, fade):
         """Coverage (h, w) and colours of the photo's skull (k=0) or jaw (k=1) part;
-        ``mx``, ``my`` (h, w) float32: positions in the own interior's patch."""
+        ``mx``, ``my`` (h, w) float32: positions in the own interior's patch. (None, None)
+        where the part covers none of them."""
+        if not self._own_has[k]:
+            return None, None
         # (``_own_span``: the coverage minus its kept part, once per face)
         src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
             self._own_keep[k] + fade * self._own_span[k]
@@ -666,9 +679,9 @@ class MouthPlan:
 
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
-        f = np.asarray(faps, np.float64)
-        if not np.count_nonzero(f[42:47]):  # FAPs 43-47
+        if not np.count_nonzero(faps[42:47]):  # FAPs 43-47 (before any conversion)
             return None
+        f = np.asarray(faps, np.float64)
         d = np.tensordot(f[42:46], self.tongue_basis, 1)  # (4, 2) image px
         lift = self.tongue_roll * np.sin(f[46] * 1e-5 * 100.0)
         d[2:] -= lift * self.ey

@@ -561,6 +561,10 @@ class EyePlan:
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
+        # (per-face constants of :meth:`render`, shaped for its stacked arrays)
+        self._ex3, self._ey4 = self.ex[:, None, None], self.ey[:, None, None, None]
+        self._o3 = (self.centre - self.off)[:, None, None]  # the iris centre on the patch
+        self._band_off = np.array([self.band_up, self.band_low])[:, None, None]
 
     @classmethod
     def build(cls, image: np.ndarray, vertices: np.ndarray, hole: np.ndarray, name: str,
@@ -788,16 +792,17 @@ class EyePlan:
             dd = np.empty((2, *U.shape))
             np.subtract(w_up0, w_up, out=dd[0])
             np.subtract(w_lo, w_lo0, out=dd[1])
-            ss = smooth01(dd)
+            # (smooth01's values, its clamp one clip ufunc; dd itself is read below)
+            ss = clip(dd, 0.0, 1.0)
+            ss = ss * ss * (3.0 - 2.0 * ss)
             up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
             if up_moved or low_moved:
                 # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'
                 # product (a lid that did not open contributes a factor of exactly 1: skipped)
                 kk = np.empty_like(dd)
                 np.subtract(W, w_up0, out=kk[0])
-                kk[0] -= self.band_up
                 np.subtract(w_lo0, W, out=kk[1])
-                kk[1] -= self.band_low
+                kk -= self._band_off  # (band_up, band_low)
                 # 1 - ss (1 - clip(ramp)), in place (the same float64 operations)
                 clip(_ramp(kk, 1.0 / soft), 0.0, 1.0, out=kk)
                 np.subtract(1.0, kk, out=kk)
@@ -818,11 +823,11 @@ class EyePlan:
                 # opening, and their shadow; not wiped off with the white). The pixel's image
                 # position is ox + U ex + Wb ey: its U part is the same for both lids
                 # (x and y stacked, then both lids: the U part (2, h, w), the maps (2, 2, h, w))
-                bu = U * ex[:, None, None] + np.array([ox, oy])[:, None, None]
+                bu = U * self._ex3 + self._o3  # (ox, oy)
                 wb = np.empty_like(dd)  # rows: W + d_up, W - d_lo (both lids' maps at once)
                 np.add(W, dd[0], out=wb[0])
                 np.subtract(W, dd[1], out=wb[1])
-                bx, by = (bu[:, None] + wb * ey[:, None, None, None]).astype(np.float32)
+                bx, by = (bu[:, None] + wb * self._ey4).astype(np.float32)
                 # the moved lids' bands sampled into one (n, h, w, 3) array, then for all n at
                 # once 1 - s (1 - got) in float64, s spread over the channels with one
                 # cv2.merge of the lids' rows (numpy's broadcasting of (h, w, 1) is several
@@ -844,7 +849,7 @@ class EyePlan:
         Dw = W - dw if dw else W
         rho = np.sqrt(Di * Di + Dw * Dw)
         # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
-        a = clamp(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
+        a = clip(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
             clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
         if not np.count_nonzero(a):
             return white if band3 is None else white * band3

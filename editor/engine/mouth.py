@@ -481,7 +481,7 @@ class MouthPlan:
         hw = max(0.5 * float(hi_h - lo_h), 1.0)
         hh = max(0.5 * float(hi_v - lo_v), 1.0)
         cym = 0.5 * (lo_v + hi_v)
-        side = clamp(np.abs(Qx - cxm) / hw, 0.0, 1.0)
+        side = np.minimum(np.abs(Qx - cxm) / hw, 1.0)  # (clamped above only: >= 0)
         side2 = side * side
         lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
         corner = 1.0 - 0.35 * side2  # the darker corners

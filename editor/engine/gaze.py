@@ -565,6 +565,8 @@ class EyePlan:
         self._ex3, self._ey4 = self.ex[:, None, None], self.ey[:, None, None, None]
         self._o3 = (self.centre - self.off)[:, None, None]  # the iris centre on the patch
         self._band_off = np.array([self.band_up, self.band_low])[:, None, None]
+        # the neutral lids' heights between the corners (:meth:`lid_opening`)
+        self._lid_w = (self.lid_up[1:-1, 1].tolist(), self.lid_low[1:-1, 1].tolist())
 
     @classmethod
     def build(cls, image: np.ndarray, vertices: np.ndarray, hole: np.ndarray, name: str,
@@ -708,8 +710,10 @@ class EyePlan:
         > 0 when an upper lid was raised or a lower lid lowered. ``lids``: the
         :meth:`lid_frame` of ``poly`` and ``sim`` when the caller has it already."""
         up, low = self.lid_frame(poly, sim) if lids is None else lids
-        return max(np.maximum(self.lid_up[1:-1, 1] - up[1:-1, 1],
-                              low[1:-1, 1] - self.lid_low[1:-1, 1]).tolist())
+        # (five values a lid: Python floats, the same float64 differences and maximum)
+        return max(max(a - b, c - d) for a, b, c, d in zip(
+            self._lid_w[0], up[1:-1, 1].tolist(), low[1:-1, 1].tolist(), self._lid_w[1],
+            strict=True))
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, clamp, gather_px, median, pad_edge, smooth01
+from .fitting import channel_median, clamp, clip, gather_px, median, pad_edge, smooth01
 from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through, spread3
 from .mouth import (
     CROWN,
@@ -251,7 +251,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3 if k == 3 else 2 * k - 1, cv2.LINE_8, _SHIFT)
-    w = band.astype(np.float32) * clamp(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
+    w = band.astype(np.float32) * clip(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
     if not np.count_nonzero(w):
         return
     patch = out[y0:y1, x0:x1]
@@ -768,14 +768,14 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
     ends = list(itertools.accumulate(lens))
     parts = list(zip([0, *ends[:-1]], ends, strict=True))  # (slices: np.split costs more)
     P = np.concatenate([p for p, _, _ in items])
-    org = np.array([b[:2] for _, b, _ in items])
-    shift = np.zeros((len(items), 2), np.int32)
-    shift[:, 0] = cols
+    # per vertex its box's origin and canvas column (one row per opening, repeated)
+    per = np.array([(b[0], b[1], c) for (_, b, _), c in zip(items, cols, strict=True)]
+                   ).repeat(lens, 0)
+    org, col = per[:, :2], per[:, 2]
     # the pixel sets (as warp fills an opening: float32 outline minus box origin, 4 fractional
-    # bits)
-    q = np.rint((P.astype(np.float32) - org.astype(np.float32).repeat(lens, 0))
-                * (1 << _SHIFT)).astype(np.int32)
-    q += (shift << _SHIFT).repeat(lens, 0)
+    # bits), moved to the box's columns by whole pixels
+    q = np.rint((P.astype(np.float32) - org.astype(np.float32)) * (1 << _SHIFT)).astype(np.int32)
+    q[:, 0] += col << _SHIFT
     m = np.zeros((max(hs), sum(ws)), np.uint8)
     cv2.fillPoly(m, [q[a:b] for a, b in parts], 1, cv2.LINE_8, _SHIFT)
     holes = [m[:h, c:c + w].view(bool) for h, w, c in zip(hs, ws, cols, strict=True)]
@@ -783,9 +783,8 @@ def _opening_masks(items: list[tuple[np.ndarray, tuple[int, int, int, int], bool
         return [(hole, None) for hole in holes]
     # the coverages (as _coverage: the sample grid, 4 fractional bits, from float64)
     k = 16.0 * ss
-    qc = np.rint(P.astype(np.float64) * k + (8.0 * ss - 8.0 - k * org.repeat(lens, 0))
-                 ).astype(np.int32)
-    qc += (shift * (16 * ss)).repeat(lens, 0)
+    qc = np.rint(P.astype(np.float64) * k + (8.0 * ss - 8.0 - k * org)).astype(np.int32)
+    qc[:, 0] += col * (16 * ss)
     big: np.ndarray = np.zeros((max(hs) * ss, sum(ws) * ss), np.uint8)
     cv2.fillPoly(big, [qc[a:b] for a, b in parts], 255, cv2.LINE_8, 4)
     big = cv2.erode(big, _CROSS)

@@ -740,15 +740,23 @@ class EyePlan:
         xs = np.arange(x0, x1, dtype=np.float64)
         ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
+        du, dw = float(shift[0]), float(shift[1])
+        still = not abs(du) > 1e-6  # the white is not stretched
         # (u, w) of every pixel: affine in x and y, so one row plus one column each (u and
         # w stacked: rows (2, w), columns (2, h); the same values as each alone)
         cu = self._exy.T @ inv[:, :2]  # (u, w) per unit of x (column 0) and of y (column 1)
         c0 = (inv[:, 2] - self.centre) @ self._exy
-        U, W = (cu[:, 0, None] * xs + c0[:, None])[:, None, :] + (cu[:, 1, None] * ys)[:, :, None]
-        du, dw = float(shift[0]), float(shift[1])
+        if still:
+            # an unmoved white is the photo patch through the inverse similarity (ex, ey are
+            # orthonormal: centre + U ex + W ey is the inverse-mapped pixel): its (x, y) on
+            # the patch, affine too, stacked with (u, w) (rows (4, w), columns (4, h))
+            cu = np.concatenate((cu, inv[:, :2]))
+            c0 = np.concatenate((c0, inv[:, 2] - self.off))
+        grid = (cu[:, 0, None] * xs + c0[:, None])[:, None, :] + (cu[:, 1, None] * ys)[:, :, None]
+        U, W = grid[0], grid[1]
         ox = self.centre[0] - self.off[0]
         oy = self.centre[1] - self.off[1]
-        if abs(du) > 1e-6:
+        if not still:
             # the white: stretch / translate horizontally
             p, q = self.split_r if du > 0 else self.split_l
             corner = self.corner_l if du > 0 else self.corner_r
@@ -763,12 +771,8 @@ class EyePlan:
             Ws = np.where(moved, W, Wa)
             mx = (ox + Us * ex[0] + Ws * ey[0]).astype(np.float32)
             my = (oy + Us * ex[1] + Ws * ey[1]).astype(np.float32)
-        else:
-            # unmoved white: the photo patch through the inverse similarity (ex, ey are
-            # orthonormal: centre + U ex + W ey is the inverse-mapped pixel), one row plus
-            # one column per coordinate (x and y stacked)
-            mx, my = ((inv[:, 0, None] * xs + (inv[:, 2] - self.off)[:, None])[:, None, :]
-                      + (inv[:, 1, None] * ys)[:, :, None]).astype(np.float32)
+        else:  # (the patch's x and y, computed with u and w)
+            mx, my = grid[2:].astype(np.float32)
         # at rest the white is the photo itself (the composite is then exactly the photo); it
         # turns into the clean plate within the first pixel of motion or radius change
         t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))

@@ -36,7 +36,7 @@ import numpy as np
 from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
-from .fitting import clamp, interp, smooth01
+from .fitting import clamp, clip, interp
 from .gaze import spread3
 from .mesh import StandardMesh
 
@@ -483,7 +483,8 @@ class MouthPlan:
         cym = 0.5 * (lo_v + hi_v)
         side = np.minimum(np.abs(Qx - cxm) / hw, 1.0)  # (clamped above only: >= 0)
         side2 = side * side
-        lip_sh = np.exp(-np.maximum(Qy - y_up, 0.0) / (0.05 * D + 0.5))
+        # (exp(-max(Qy - y_up, 0) / ...): the same values, one negation fewer)
+        lip_sh = np.exp(np.minimum(y_up - Qy, 0.0) / (0.05 * D + 0.5))
         corner = 1.0 - 0.35 * side2  # the darker corners
         shade = (1.0 - 0.3 * lip_sh).astype(np.float32)
         # the dental arch turns away from the light towards the corners (and into the cheeks'
@@ -710,6 +711,9 @@ class MouthPlan:
         return Qx - num_x / den, Qy - num_y / den
 
 
+_F32_3 = np.float32(3.0)
+
+
 def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
               gain: np.ndarray | None = None) -> np.ndarray:
     """Teeth and tongue fade into the lips' shadow where the opening is a thin gap.
@@ -725,10 +729,11 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     k = 2 * math.ceil(lo + ramp) + 3
     h: np.ndarray = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), None, (-1, -1),
                                   False, cv2.BORDER_CONSTANT)  # (not normalised)
-    h /= np.float32(3.0)
+    h /= _F32_3
     h -= lo
     h /= ramp
-    vis = smooth01(h).astype(np.float32, copy=False)
+    vis = clip(h, 0.0, 1.0, out=h)  # (smooth01's values, float32: its clamp one ufunc)
+    vis = vis * vis * (3.0 - 2.0 * vis)
     if gain is not None:  # in shadow: darker and warmer (not greyed towards the cavity)
         out = out * gain
     res = out - cav

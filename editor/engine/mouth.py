@@ -530,13 +530,20 @@ class MouthPlan:
         top_l = y_lb + self.low_off * sc
         # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
         top_t = top_l - TONGUE_RISE * D
-        tq: tuple = Q
         dlt = self._tongue_shift(faps, ex, ey)
+        tongue = ("tongue", q21[0] - 0.5 * wt, top_t, wt, ht)
+        # the layers placed in the (affine) frame: their sampling maps all at once
+        flat = ([tongue] if dlt is None else []) \
+            + ([] if self.photo_lower else [("lower_teeth", q21[0] - 0.5 * wl, top_l, wl, hl)]) \
+            + ([] if self.photo_upper else [("upper_teeth", -0.5 * wu, self.tip_up * sc - hu,
+                                               wu, hu)])
+        maps = dict(zip([p[0] for p in flat], self._layer_maps(Q, flat), strict=True))
         if dlt is not None:
-            tq = self._tongue_field(Qx, Qy, dlt, q21[0] - 0.5 * wt, top_t, wt, ht)
-        out = self._over(out, "tongue", tq, q21[0] - 0.5 * wt, top_t, wt, ht, shade_g)
+            maps["tongue"] = self._layer_maps(
+                self._tongue_field(Qx, Qy, dlt, *tongue[1:3], wt, ht), [tongue])[0]
+        out = self._over(out, "tongue", maps["tongue"], shade_g)
         if not self.photo_lower:
-            out = self._over(out, "lower_teeth", Q, q21[0] - 0.5 * wl, top_l, wl, hl, shade)
+            out = self._over(out, "lower_teeth", maps["lower_teeth"], shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
         # where each pixel samples the photo's own interior (its patch's pixels): skull part
@@ -547,8 +554,7 @@ class MouthPlan:
             + (Si[:, 2] - self.own_off)[:, None, None]
         mx, my = sxy.astype(np.float32)
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
-            out = self._over(out, "upper_teeth", Q, -0.5 * wu, self.tip_up * sc - hu, wu,
-                             hu, shade_up, gum=True)
+            out = self._over(out, "upper_teeth", maps["upper_teeth"], shade_up, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
         lp_u, lp_d = self._lip_idx
@@ -632,22 +638,31 @@ class MouthPlan:
         return np.concatenate([[self.i21, self.i23], self.upper_lip, self.lower_lip,
                                self.hole]).astype(np.intp)
 
-    def _over(self, out, name, q, left, top, ww, hh, shade, gum=False):
-        """``out`` under texture ``name`` placed at ``left``, ``top`` (``ww`` x ``hh``) in the
-        layer frame; ``q``: the pixels' frame coordinates (x, y), or their parts (rows
-        (2, 1, w), columns (2, h, 1): x and y stacked) whose sums they are."""
-        t = self.tex[name]
-        th, tw = t.shape[:2]
-        kx, ky = tw / ww, th / hh
+    def _layer_maps(self, q, places) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Where the pixels sample each texture placed at ``places`` (name, left, top, width,
+        height in the layer frame): (mx, my) (h, w) float32 per place. ``q``: the pixels'
+        frame coordinates (x, y), or their parts (rows (2, 1, w), columns (2, h, 1): x and y
+        stacked) whose sums they are; the places' maps from such parts are computed at once
+        (stacked (n, 2, h, w): the same values as place by place)."""
+        if not places:
+            return []
         rows, cols = q
+        # per place the texture's pixels per frame unit (x, y) and its corner
+        k = np.array([(self.tex[n].shape[1] / ww, self.tex[n].shape[0] / hh)
+                      for n, _, _, ww, hh in places])
+        lt = np.array([(left, top) for _, left, top, _, _ in places])
         if rows.ndim == 3:  # (affine: scaled and shifted as a row plus a column, x and y)
-            k = np.array([kx, ky])[:, None, None]
-            m = (((rows - np.array([left, top])[:, None, None]) * k - 0.5) + cols * k
-                 ).astype(np.float32)
-            mx, my = m[0], m[1]
-        else:
-            mx = ((rows - left) * kx - 0.5).astype(np.float32)
-            my = ((cols - top) * ky - 0.5).astype(np.float32)
+            k, lt = k[:, :, None, None], lt[:, :, None, None]
+            m = (((rows - lt) * k - 0.5) + cols * k).astype(np.float32)
+            return [(mm[0], mm[1]) for mm in m]
+        (kx, ky), (left, top) = k[0].tolist(), lt[0].tolist()
+        return [(((rows - left) * kx - 0.5).astype(np.float32),
+                 ((cols - top) * ky - 0.5).astype(np.float32))]
+
+    def _over(self, out, name, maps, shade, gum=False):
+        """``out`` under texture ``name`` sampled at ``maps`` (:meth:`_layer_maps`)."""
+        t = self.tex[name]
+        mx, my = maps
         if gum:
             my = np.maximum(my, np.float32(0.0))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR)  # (zeros outside: OpenCV's default border)

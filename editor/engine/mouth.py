@@ -575,19 +575,18 @@ class MouthPlan:
             e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
             m = np.asarray(1.0 - e * (1.0 - k.astype(np.float32)), np.float32)  # (no copy)
-            p_up = p_up * spread3(m)
-        if a_up is not None or a_lo is not None:
-            rest = None  # (1 where no skull part: then the jaw part's weight is a_lo itself)
-            if a_up is not None:
-                p_up -= out  # out (1 - a) + p a
-                p_up *= cv2.merge([a_up, a_up, a_up])
-                out = out + p_up
+            p_up *= spread3(m)  # (p_up: _own's own array)
+        if a_up is not None:
+            p_up -= out  # out (1 - a) + p a
+            p_up *= cv2.merge([a_up, a_up, a_up])
+            p_up += out  # (the sum out + p_up, in place)
+            out = p_up
+        if a_lo is not None:
+            if a_up is not None:  # (else no skull part: the jaw part's weight is a_lo itself)
                 rest = 1.0 - a_up
-            if a_lo is not None:
-                if rest is not None:
-                    a_lo = np.minimum(a_lo, rest)
-                    a_lo /= np.maximum(rest, 1e-6)
-                out = out + (p_lo - out) * cv2.merge([a_lo, a_lo, a_lo])
+                a_lo = np.minimum(a_lo, rest)
+                a_lo /= np.maximum(rest, 1e-6)
+            out = out + (p_lo - out) * cv2.merge([a_lo, a_lo, a_lo])
         if alpha is not None:
             light = self._aperture_light(faps, hw, hh, sc)
             out = _thin_gap(out, cav, alpha, D, self._shadow_gain(light) if light < 1.0 else None)

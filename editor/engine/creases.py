@@ -673,9 +673,10 @@ class _Fast:
     own_div: np.ndarray | None = None
     own_fade: np.ndarray | None = None
     # per-face constants of the per-frame path (gathered once, not every frame; set by _fast)
-    used_tri: np.ndarray = field(init=False)  # (U, 3) vertex indices of the ``used`` triangles
+    used_tri: np.ndarray = field(init=False)  # (3, U) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
-    tx: np.ndarray = field(init=False)  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
+    probe_t: np.ndarray = field(init=False)  # (4, N) ``probe`` transposed (contiguous)
+    tx: np.ndarray = field(init=False)  # (N,) fold tangent x, y (the normal turned by -90 deg)
     ty: np.ndarray = field(init=False)
     sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
@@ -760,10 +761,11 @@ def _fast(face: Face) -> _Fast:
     f.lips_gap0 = _gap(f, f.lips_mid, base)
     f.boss = (face.mesh.fdp["2.10"], face.mesh.fdp["2.1"])
     f.boss_gap0 = _gap(f, f.boss, base)
-    f.used_tri = face.mesh.triangles[used]
+    f.used_tri = np.ascontiguousarray(face.mesh.triangles[used].T)
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
-    f.tx, f.ty = -p.normal[:, 1, None], p.normal[:, 0, None]
+    f.probe_t = np.ascontiguousarray(f.probe.T)
+    f.tx, f.ty = -p.normal[:, 1], p.normal[:, 0]
     tri = face.mesh.triangles[p.tri]
     f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
@@ -876,23 +878,30 @@ def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.nd
     if fa is None:
         fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    # (gathers with take: numpy's fancy indexing of an (n, 2) array costs several us more)
-    T = V.take(fa.used_tri, 0)
-    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-    # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges,
-    # entry by entry (U,) and then gathered per probe (N, 4)
+    # (laid out as (x / y, ..., triangle or sample): every operation below runs along one
+    # contiguous last axis, the x and y rows of each entry of A together; the same
+    # arithmetic, value by value, as entry by entry)
+    T = V.T.take(fa.used_tri, 1)  # (2, 3, U)
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]  # (2, U): x and y of the edges
+    # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges;
+    # its columns (a00, a10) and (a01, a11) per triangle, then gathered per probe (4, N)
     i00, i01, i10, i11 = fa.used_inv
-    e1x, e1y, e2x, e2y = e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1]
-    a00, a01 = e1x * i00 + e2x * i10, e1x * i01 + e2x * i11
-    a10, a11 = e1y * i00 + e2y * i10, e1y * i01 + e2y * i11
-    det = (a00 * a11 - a01 * a10).take(fa.probe)
+    a0 = e1 * i00
+    a0 += e2 * i10
+    a1 = e1 * i01
+    a1 += e2 * i11
+    pr = fa.probe_t
+    det = (a0[0] * a1[1] - a1[0] * a0[1]).take(pr)
     # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
     # along the fold and stretch along it do not change it
-    pr, tx, ty = fa.probe, fa.tx, fa.ty
-    ax = a00.take(pr) * tx + a01.take(pr) * ty
-    ay = a10.take(pr) * tx + a11.take(pr) * ty
-    r = det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)
-    return (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25  # the mean over the 4 probes
+    at = a0.take(pr, 1)
+    at *= fa.tx
+    at += a1.take(pr, 1) * fa.ty  # (2, 4, N): A t
+    at *= at
+    n = at[0]
+    n += at[1]
+    r = np.divide(det, np.maximum(np.sqrt(n, out=n), 1e-6, out=n), out=det)
+    return (r[0] + r[1] + r[2] + r[3]) * 0.25  # the mean over the 4 probes
 
 
 def _smooth_taper(face: Face, s: np.ndarray, own: bool = False) -> np.ndarray:

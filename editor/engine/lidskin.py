@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import cv2
@@ -63,6 +63,15 @@ class _Strip:
     lid_s: np.ndarray  # (n, 2) frame coordinates on the photo's mesh
     brow_s: np.ndarray  # (m, 2)
     ring_s: np.ndarray  # (r, 2)
+    # (their frame heights as contiguous arrays: np.interp copies a strided column each call)
+    lid_sy: np.ndarray = field(init=False)
+    brow_sy: np.ndarray = field(init=False)
+    ring_sy: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.lid_sy = np.ascontiguousarray(self.lid_s[:, 1])
+        self.brow_sy = np.ascontiguousarray(self.brow_s[:, 1])
+        self.ring_sy = np.ascontiguousarray(self.ring_s[:, 1])
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -140,12 +149,14 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # per strip that spans enough: its box, first frame x, the frame x of its table (u), the
     # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
     # table is computed for both strips at once (one array of their u's)
+    # (the frame coordinates as contiguous columns and the strips' ends as Python floats)
+    Px, Py = np.ascontiguousarray(P[:, 0]), np.ascontiguousarray(P[:, 1])
+    px = Px.tolist()
     cand = []
-    for si, (st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1)) in enumerate(
-            zip(strips, parts, c_lo, c_hi, strict=True)):
-        L, B, Rg = P[sl_lid], P[sl_brow], P[sl_ring]
-        x_lo = max(L[0, 0], B[0, 0])
-        x_hi = min(L[-1, 0], B[-1, 0])
+    for si, ((sl_lid, sl_brow, _), (ix0, iy0), (ix1, iy1)) in enumerate(
+            zip(parts, c_lo, c_hi, strict=True)):
+        x_lo = max(px[sl_lid.start], px[sl_brow.start])
+        x_hi = min(px[sl_lid.stop - 1], px[sl_brow.stop - 1])
         if x_hi - x_lo < 2.0:
             continue
         # image box of the strip
@@ -159,19 +170,30 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         by, cy = (y0 - o1) * r10, (y1 - 1 - o1) * r10
         bx = (ax + by, ay + by, ax + cy, ay + cy)
         lo = min(bx)
-        # the table along the frame's x over the box: lid line, 1 / Hd, k (from the strip's
-        # height now and in the photo)
-        u = lo + _STEP * np.arange(math.ceil((max(bx) - lo) / _STEP) + 2)
-        lines = (interp(u, L[:, 0], L[:, 1]), interp(u, B[:, 0], B[:, 1]),
-                 interp(u, L[:, 0], st.lid_s[:, 1]), interp(u, B[:, 0], st.brow_s[:, 1]),
-                 interp(u, Rg[:, 0], Rg[:, 1]), interp(u, Rg[:, 0], st.ring_s[:, 1]))
-        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines, si))
+        cand.append(((x0, y0, x1, y1), lo, math.ceil((max(bx) - lo) / _STEP) + 2, x_lo, x_hi,
+                     si))
     if not cand:
         return res
-    n_u = [len(c[2]) for c in cand]
-    u = np.concatenate([c[2] for c in cand])
-    lid_y, brow_y, lid_s, brow_s, ring_y, ring_s = (np.concatenate([c[5][i] for c in cand])
-                                                    for i in range(6))
+    # the table along the frame's x over each box (u, every _STEP px from its first frame x):
+    # lid and brow lines now and in the photo, the eye ring now and in the photo (one
+    # interpolation each, written into the rows of one array: both strips' u side by side)
+    n_u = [c[2] for c in cand]
+    tab = np.empty((7, sum(n_u)))
+    a = 0
+    for _, lo, n, _, _, si in cand:
+        st, (sl_lid, sl_brow, sl_ring) = strips[si], parts[si]
+        u = tab[0, a:a + n]
+        np.multiply(np.arange(n), _STEP, out=u)
+        u += lo
+        Lx, Bx, Rx = Px[sl_lid], Px[sl_brow], Px[sl_ring]
+        tab[1, a:a + n] = interp(u, Lx, Py[sl_lid])
+        tab[2, a:a + n] = interp(u, Bx, Py[sl_brow])
+        tab[3, a:a + n] = interp(u, Lx, st.lid_sy)
+        tab[4, a:a + n] = interp(u, Bx, st.brow_sy)
+        tab[5, a:a + n] = interp(u, Rx, Py[sl_ring])
+        tab[6, a:a + n] = interp(u, Rx, st.ring_sy)
+        a += n
+    u, lid_y, brow_y, lid_s, brow_s, ring_y, ring_s = tab
     if len(cand) == 1:
         x_lo, x_hi = cand[0][3], cand[0][4]
     else:  # (both rows in one call)
@@ -226,7 +248,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     for cd, n in zip(cand, n_u, strict=True):
         if np.count_nonzero(live[a:a + n]):
             jobs.append((cd[0], tab_all[a:a + n], cd[1]))
-            sides.append(cd[6])
+            sides.append(cd[5])
         a += n
     if not jobs:
         return res

@@ -641,13 +641,13 @@ class _Fast:
     off: np.ndarray  # (G,) ridge offset, px
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
     dead: np.ndarray  # (N,) compression that does not fold yet
-    # the samples of folds with FoldStyle.sign < 0 and what _spread reads for them: 3 x (M, 4)
+    # the samples of folds with FoldStyle.sign < 0 and what _spread reads for them: (3, M, 4)
     # vertex indices of their probe triangles, 4 x (M, 4) entries of those triangles' inverse
     # edge matrices and (M, 1) the line's tangent, both on the neutral mesh (the photo's, or
     # its neutralised face when it shows an expression: a smiling photo's neutral pushes the
     # lower lip back up, and is no pout)
     neg: np.ndarray = field(init=False)
-    neg_tri: tuple[np.ndarray, ...] = ()
+    neg_tri: np.ndarray = field(init=False)
     neg_inv: tuple[np.ndarray, ...] = ()
     neg_t: tuple[np.ndarray, np.ndarray] = field(init=False)
     # (M,) their taper: a sample where the line fades out does not drive it (towards the
@@ -741,7 +741,7 @@ def _fast(face: Face) -> _Fast:
     f.dsig = dsig
     f.neg = neg
     ptri = face.mesh.triangles[p.probe_tri[neg]]  # (M, 4, 3)
-    f.neg_tri = tuple(np.ascontiguousarray(ptri[..., k]) for k in range(3))
+    f.neg_tri = np.ascontiguousarray(np.moveaxis(ptri, -1, 0))
     tang = np.stack([-p.normal[neg, 1], p.normal[neg, 0]], 1)  # (M, 2) on the photo's mesh
     pinv = p.tri_inv[p.probe_tri[neg]]  # (M, 4, 2, 2)
     if face.has_expression and len(neg):
@@ -846,10 +846,34 @@ def _closed_lips(fa: _Fast, vertices: np.ndarray) -> float:
     """How much of a pout the mesh shows, for the folds of kind chin: the chin boss raised
     (up to full at :data:`_POUT_BOSS`) with the lips together (fading out as they part by
     :data:`_POUT_OPEN`: an open mouth is no pout)."""
-    opened = (_gap(fa, fa.lips_mid, vertices) - fa.lips_gap0) / _POUT_OPEN
-    raised = (_gap(fa, fa.boss, vertices) - fa.boss_gap0) / _POUT_BOSS
-    return float((1.0 - smooth01(min(max(opened, 0.0), 1.0)))
-                 * smooth01(min(max(raised, 0.0), 1.0)))
+    # (both pairs' points in one gather; :func:`_gap`'s arithmetic on Python floats, and the
+    # smoothstep of :func:`smooth01` on them: the same float64 values without a dozen numpy
+    # calls on scalars)
+    i0, i1 = fa.lips_mid
+    j0, j1 = fa.boss
+    (ax, ay), (bx, by), (cx, cy), (dx, dy) = np.asarray(vertices).take(
+        (i0, i1, j0, j1), 0).astype(np.float64).tolist()
+    opened = (math.hypot(bx - ax, by - ay) / fa.iod - fa.lips_gap0) / _POUT_OPEN
+    raised = (math.hypot(dx - cx, dy - cy) / fa.iod - fa.boss_gap0) / _POUT_BOSS
+    return (1.0 - _smooth01_float(opened)) * _smooth01_float(raised)
+
+
+def _smooth01_float(x: float) -> float:
+    """:func:`smooth01` of a Python float (clamped to [0, 1] first)."""
+    c = min(max(x, 0.0), 1.0)
+    return c * c * (3.0 - 2.0 * c)
+
+
+def _neg_compression(fa: _Fast, vertices: np.ndarray) -> np.ndarray | float:
+    """What the folds of kind chin take as their compression (``fa.neg``'s samples): the
+    spread across them less 1 (:func:`_spread`), times their taper and the pout
+    (:func:`_closed_lips`). Without a pout it is 0.0 and the spread is not measured (the
+    product would be a zero of either sign, which the callers' :data:`_C_TOL` turns into 0.0:
+    the same values)."""
+    pout = _closed_lips(fa, vertices)
+    if pout == 0.0:
+        return 0.0
+    return (_spread(fa, vertices) - 1.0) * (fa.neg_fade * pout)
 
 
 def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
@@ -858,16 +882,22 @@ def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     ``_Fast.neg_inv``), mean over the 4 probes: ``det(A) / |A t|^2`` (1 at rest and under any
     similarity; > 1 where the skin across the line is spread more than along it)."""
     V = np.asarray(vertices, np.float64)
-    t0, t1, t2 = (V.take(k, 0) for k in fa.neg_tri)  # (M, 4, 2) each
-    e1, e2 = t1 - t0, t2 - t0
+    # (x and y rows together, as in :func:`_spacing`: a0 = (a00, a10), a1 = (a01, a11) and
+    # at = A t, each (2, M, 4); the same arithmetic, value by value)
+    T = V.T.take(fa.neg_tri, 1)  # (2, 3, M, 4)
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     i00, i01, i10, i11 = fa.neg_inv
-    a00 = e1[..., 0] * i00 + e2[..., 0] * i10
-    a01 = e1[..., 0] * i01 + e2[..., 0] * i11
-    a10 = e1[..., 1] * i00 + e2[..., 1] * i10
-    a11 = e1[..., 1] * i01 + e2[..., 1] * i11
+    a0 = e1 * i00
+    a0 += e2 * i10
+    a1 = e1 * i01
+    a1 += e2 * i11
     tx, ty = fa.neg_t
-    ax, ay = a00 * tx + a01 * ty, a10 * tx + a11 * ty
-    r = (a00 * a11 - a01 * a10) / np.maximum(ax * ax + ay * ay, 1e-12)
+    at = a0 * tx
+    at += a1 * ty
+    at *= at
+    n = at[0]
+    n += at[1]
+    r = (a0[0] * a1[1] - a1[0] * a0[1]) / np.maximum(n, 1e-12, out=n)
     return r.mean(1)
 
 
@@ -922,7 +952,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
     fa = _fast(face)
     c = 1.0 - (_spacing(face, vertices) if spacing is None else spacing)
     if len(fa.neg):
-        c[fa.neg] = (_spread(fa, vertices) - 1.0) * (fa.neg_fade * _closed_lips(fa, vertices))
+        c[fa.neg] = _neg_compression(fa, vertices)
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -971,7 +1001,7 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     # fold_strength
     c = 1.0 - sp
     if len(fa.neg):
-        c[fa.neg] = (_spread(fa, vertices) - 1.0) * (fa.neg_fade * _closed_lips(fa, vertices))
+        c[fa.neg] = _neg_compression(fa, vertices)
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(p.fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)

@@ -47,6 +47,11 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
+try:  # (the compiled function np.convolve calls, without its Python wrapper)
+    from numpy._core.multiarray import correlate as _correlate
+except ImportError:  # numpy 1.x
+    from numpy.core.multiarray import correlate as _correlate  # type: ignore[no-redef]
+
 from .fitting import (
     catmull_rom,
     channel_median,
@@ -672,6 +677,10 @@ class _Fast:
     # (F,) the per-frame path's per-fold constants of the unfold share: its divisor and fade-in
     own_div: np.ndarray | None = None
     own_fade: np.ndarray | None = None
+    # (2N,) ``edge`` twice and ``taper`` followed by ``utaper``: the fold and unfold strengths
+    # smoothed and tapered as one array (see _strengths; set with the own fields)
+    edge2: np.ndarray | None = None
+    taper2: np.ndarray | None = None
     # per-face constants of the per-frame path (gathered once, not every frame; set by _fast)
     used_tri: np.ndarray = field(init=False)  # (3, U) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
@@ -793,6 +802,8 @@ def _fast(face: Face) -> _Fast:
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
         f.own_div = np.maximum(f.own_sum, 1e-9)
         f.own_fade = clamp((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
+        f.edge2 = np.concatenate([f.edge, f.edge])
+        f.taper2 = np.concatenate([p.taper, p.utaper])
     # published only when complete: the editor's render thread and its GUI thread may ask for
     # the same face's constants at once (published before the own folds' fields were set, a
     # render on the other thread could draw no unfold: a rare preview differing from a
@@ -1006,8 +1017,9 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     cmax = np.maximum.reduceat(c, starts).take(p.fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
-    s = _twins(fa, np.where(edge, s, np.convolve(s, _SMOOTH, mode="same")) * p.taper)
-    if fa.own_w is None or fa.own_div is None or fa.own_fade is None:
+    if (fa.own_w is None or fa.own_div is None or fa.own_fade is None or fa.edge2 is None
+            or fa.taper2 is None):
+        s = _twins(fa, np.where(edge, s, _correlate(s, _SMOOTH_REV, "same")) * p.taper)
         return s, np.zeros(len(fa.depth))
     # unfold_strength (its per-fold constants taken once per face)
     e = np.log(np.maximum(sp, 1e-6))
@@ -1015,8 +1027,14 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     esum = np.add.reduceat(e * fa.own_w, starts)
     esum /= fa.own_div
     u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(p.fold)
-    u = np.where(edge, u, np.convolve(u, _SMOOTH, mode="same")) * p.utaper
-    return s, u
+    # both smoothed along their lines and tapered as one array (s then u): each sample's
+    # 5-tap sum is the one of its own array, but for the last two samples of s and the first
+    # two of u, which are line ends (``edge``: not smoothed)
+    su = np.concatenate((s, u))
+    su = np.where(fa.edge2, su, _correlate(su, _SMOOTH_REV, "same"))
+    su *= fa.taper2
+    n = len(s)
+    return _twins(fa, su[:n]), su[n:]
 
 
 #: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
@@ -1025,6 +1043,9 @@ _OWN_MIN = 0.07
 
 
 _SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
+#: ``_SMOOTH`` reversed (contiguous): ``np.convolve(a, _SMOOTH, mode)`` is
+#: ``_correlate(a, _SMOOTH_REV, mode)``, the compiled function it calls (for ``len(a) >= 5``)
+_SMOOTH_REV = np.ascontiguousarray(_SMOOTH[::-1])
 
 
 @functools.lru_cache(maxsize=64)

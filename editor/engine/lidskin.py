@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -99,6 +100,25 @@ def _strips(face: Face) -> list[_Strip]:
 
 
 _INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@lru_cache(maxsize=8)
+def _rows(h: int) -> np.ndarray:
+    """(h, 1) float32 row numbers 0 .. h - 1 (read-only: the boxes' height recurs from frame
+    to frame)."""
+    r = np.arange(h, dtype=np.float32)[:, None]
+    r.setflags(write=False)
+    return r
+
+
+@lru_cache(maxsize=8)
+def _job_rows(widths: tuple[int, ...], h: int) -> np.ndarray:
+    """(h, sum(widths)) float32: per column of the boxes side by side, its box's number (the
+    row of the strips' table it reads; read-only, kept as :func:`_rows`)."""
+    r = np.ascontiguousarray(np.arange(len(widths), dtype=np.float32).repeat(widths)[None, :]
+                             .repeat(h, 0))
+    r.setflags(write=False)
+    return r
 
 
 def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, slice, slice]]]:
@@ -275,11 +295,11 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     xc = np.arange(c, dtype=np.float64) + sh_c
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)
-    rows_f = np.arange(hmax, dtype=np.float32)[:, None]
+    rows_f = _rows(hmax)
     xo, yo = xc - org[0], y0c - org[1]
     tx = (xo * R[0, 0] + yo * R[1, 0] - lo_c) * (1.0 / _STEP)
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
-    ty = np.arange(len(jobs), dtype=np.float32).repeat(widths)[None, :].repeat(hmax, 0)
+    ty = _job_rows(tuple(widths), hmax)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     ly, inv_hd, kk, kk2 = cv2.split(got)
     ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]

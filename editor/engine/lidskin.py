@@ -166,10 +166,9 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     H, W = img.shape[:2]
     R, org = fr.rot, fr.origin
     o0, o1, r00, r10 = float(org[0]), float(org[1]), float(R[0, 0]), float(R[1, 0])
-    # per strip that spans enough: its box, first frame x, the frame x of its table (u), the
-    # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
-    # table is computed for both strips at once (one array of their u's)
-    # (the frame coordinates as contiguous columns and the strips' ends as Python floats)
+    # per strip that spans enough: its box, its first frame x, its table's length and the
+    # frame x of its ends (the frame coordinates as contiguous columns, the ends as Python
+    # floats); the table itself is computed for both strips at once (one array of their u's)
     Px, Py = np.ascontiguousarray(P[:, 0]), np.ascontiguousarray(P[:, 1])
     px = Px.tolist()
     cand = []

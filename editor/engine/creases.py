@@ -1221,9 +1221,21 @@ def _on_canvas(pts: np.ndarray, box: tuple[int, int, int, int], f: int
     :func:`_blur_back`)."""
     x0, y0, x1, y1 = box
     if f == 1:
-        return (y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0)
-    return ((-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1),
-            (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5)
+        return (y1 - y0 + 1, x1 - x0 + 1), _shifted(pts, x0, y0)
+    q = _shifted(pts, x0 - 0.5, y0 - 0.5)
+    q /= f
+    q -= 0.5
+    return (-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1), q
+
+
+def _shifted(pts: np.ndarray, x: float, y: float) -> np.ndarray:
+    """``pts - (x, y)`` of float64 points (n, 2), a new array: the points seen as complex
+    numbers (one contiguous pass; a complex subtraction is the two real ones, exactly) where
+    they are contiguous, several times cheaper than numpy's broadcasting over rows of two."""
+    if pts.flags.c_contiguous and pts.dtype == np.float64 and pts.ndim == 2 \
+            and pts.shape[1] == 2:
+        return np.subtract(pts.view(np.complex128), complex(x, y)).view(np.float64)
+    return pts - (x, y)
 
 
 def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int) -> np.ndarray:

@@ -1290,7 +1290,7 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     light *= wskin
     dark *= wskin
     gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
-    cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+    cv2.multiply(patch, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
     return _union(bbox, box)
 
 
@@ -1410,7 +1410,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         xy = ((q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - org) / wq
               ).astype(np.float32)
         prof = cv2.remap(hat, xy[..., 0], xy[..., 1], cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REPLICATE)
+                         None, cv2.BORDER_REPLICATE)
         score = prof * (1.0 - 0.3 * (ds / reach) ** 2)[None]
         k = np.argmax(score, 1)
         off, depth = ds[k], prof[np.arange(b - a), k]
@@ -1555,24 +1555,24 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             if f > 1:
                 Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
                                cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
-                               cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                               cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
                 Cw = cv2.resize(Cw, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)
                 mx, my = mx[:hb, :wb], my[:hb, :wb]
                 Cw = Cw[:hb, :wb]
             else:
-                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
             # (all four channels at once: numpy is many times slower on a channel view; the
             # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself)
-            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
             np.maximum(S, 1.0, out=S)
             g4 = np.divide(Cw, S, out=S)
             band *= g4[..., 3]
             clip(g4, 1.0, _MAX_GAIN, out=g4)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         gain -= 1.0
-        gain *= cv2.merge([band, band, band])
+        gain *= cv2.cvtColor(band, cv2.COLOR_GRAY2RGB)  # (merge([band] * 3): the same values)
         gain += 1.0
-        cv2.multiply(view, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+        cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
 
@@ -1763,7 +1763,7 @@ def _upsample_box(field: np.ndarray, at: tuple[int, int], origin: tuple[int, int
     my = np.broadcast_to(gy[:, None], (y1 - y0, x1 - x0))
     return np.ascontiguousarray(cv2.remap(field, np.ascontiguousarray(mx),
                                           np.ascontiguousarray(my), cv2.INTER_LINEAR,
-                                          borderMode=cv2.BORDER_REPLICATE), np.float32)
+                                          None, cv2.BORDER_REPLICATE), np.float32)
 
 
 @overload
@@ -1891,7 +1891,7 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     my = uy * t32
     my += by
     got = cv2.remap(src, mx.reshape(k * hb, wb), my.reshape(k * hb, wb), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
+                    None, cv2.BORDER_REPLICATE)
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
     for i, wt in enumerate(wts.tolist()):  # (accumulated in the taps' order, as before)
         cv2.scaleAdd(got[i * hb:(i + 1) * hb], wt, acc, dst=acc)

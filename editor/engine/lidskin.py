@@ -299,7 +299,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     tx = (xo * R[0, 0] + yo * R[1, 0] - lo_c) * (1.0 / _STEP)
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
     ty = _job_rows(tuple(widths), hmax)
-    got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
     ly, inv_hd, kk, kk2 = cv2.split(got)
     ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
@@ -314,7 +314,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     t *= kk
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
-    new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
     if above is not None:  # a closing lid (the evening-out is for its band over the eye)
         # the lashes' band kept above the lid's edge, per column: LASH_KEEP of the interocular
         # distance while the eye is open, none once it is closed (from a closure of 0.6 to 0.9
@@ -458,7 +458,7 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     # the photo row each output pixel shows (the warp's backward map read where the strip
     # resampling reads the warped image); outside the warp's box the map is the identity
     sy = cv2.remap(map_y, mx - np.float32(a0), my - np.float32(b0), cv2.INTER_LINEAR,
-                   borderMode=cv2.BORDER_REPLICATE)
+                   None, cv2.BORDER_REPLICATE)
     d = np.empty_like(sy)
     d[:-1] = sy[1:] - sy[:-1]
     d[-1] = d[-2] if len(d) > 1 else 1.0

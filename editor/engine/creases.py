@@ -1246,8 +1246,8 @@ def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int) -> np.n
     if f == 1:
         return np.asarray(_blur(canvas[:-1, :-1], sigma), np.float32)
     hc, wc = canvas.shape[0] - 1, canvas.shape[1] - 1
-    return np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f),
-                                 interpolation=cv2.INTER_LINEAR)[:h, :w], np.float32)
+    return np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f), None,
+                                 0, 0, cv2.INTER_LINEAR)[:h, :w], np.float32)
 
 
 #: A fold line is drawn at 1/f of the photo's resolution when its drawn half-width (sigma,
@@ -1553,10 +1553,10 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             hc, wc = -(-hb // f), -(-wb // f)
             mx, my = box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
             if f > 1:
-                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
-                               cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
+                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), None, 0, 0, cv2.INTER_AREA),
+                               cv2.resize(my, (wc, hc), None, 0, 0, cv2.INTER_AREA),
                                cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-                Cw = cv2.resize(Cw, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)
+                Cw = cv2.resize(Cw, (wc * f, hc * f), None, 0, 0, cv2.INTER_LINEAR)
                 mx, my = mx[:hb, :wb], my[:hb, :wb]
                 Cw = Cw[:hb, :wb]
             else:

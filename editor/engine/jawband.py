@@ -186,7 +186,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
                     None, cv2.BORDER_REPLICATE)
     d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
     shift = _shift(d, got)
-    shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    shift = cv2.resize(shift, (nw * s, nh * s), None, 0, 0, cv2.INTER_LINEAR)[:h, :w]
     # x - shift r01 as shift (-r01) + x: the same float32 values (IEEE negation is exact),
     # one temporary of the box fewer each
     mx = np.multiply(shift, np.float32(-r01))

@@ -47,6 +47,11 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
+try:  # (the compiled function np.convolve calls, without its Python wrapper)
+    from numpy._core.multiarray import correlate as _correlate
+except ImportError:  # numpy 1.x
+    from numpy.core.multiarray import correlate as _correlate  # type: ignore[no-redef]
+
 from .fitting import (
     catmull_rom,
     channel_median,
@@ -641,13 +646,13 @@ class _Fast:
     off: np.ndarray  # (G,) ridge offset, px
     skin: np.ndarray  # (G, 3) float32 reference skin colour of each group
     dead: np.ndarray  # (N,) compression that does not fold yet
-    # the samples of folds with FoldStyle.sign < 0 and what _spread reads for them: 3 x (M, 4)
+    # the samples of folds with FoldStyle.sign < 0 and what _spread reads for them: (3, M, 4)
     # vertex indices of their probe triangles, 4 x (M, 4) entries of those triangles' inverse
     # edge matrices and (M, 1) the line's tangent, both on the neutral mesh (the photo's, or
     # its neutralised face when it shows an expression: a smiling photo's neutral pushes the
     # lower lip back up, and is no pout)
     neg: np.ndarray = field(init=False)
-    neg_tri: tuple[np.ndarray, ...] = ()
+    neg_tri: np.ndarray = field(init=False)
     neg_inv: tuple[np.ndarray, ...] = ()
     neg_t: tuple[np.ndarray, np.ndarray] = field(init=False)
     # (M,) their taper: a sample where the line fades out does not drive it (towards the
@@ -672,10 +677,15 @@ class _Fast:
     # (F,) the per-frame path's per-fold constants of the unfold share: its divisor and fade-in
     own_div: np.ndarray | None = None
     own_fade: np.ndarray | None = None
+    # (2N,) ``edge`` twice and ``taper`` followed by ``utaper``: the fold and unfold strengths
+    # smoothed and tapered as one array (see _strengths; set with the own fields)
+    edge2: np.ndarray | None = None
+    taper2: np.ndarray | None = None
     # per-face constants of the per-frame path (gathered once, not every frame; set by _fast)
-    used_tri: np.ndarray = field(init=False)  # (U, 3) vertex indices of the ``used`` triangles
+    used_tri: np.ndarray = field(init=False)  # (3, U) vertex indices of the ``used`` triangles
     used_inv: tuple[np.ndarray, ...] = ()  # their inverse edge matrices: 4 x (U,) entries
-    tx: np.ndarray = field(init=False)  # (N, 1) fold tangent x, y (the normal turned by -90 deg)
+    probe_t: np.ndarray = field(init=False)  # (4, N) ``probe`` transposed (contiguous)
+    tx: np.ndarray = field(init=False)  # (N,) fold tangent x, y (the normal turned by -90 deg)
     ty: np.ndarray = field(init=False)
     sample_tri: tuple[np.ndarray, ...] = ()  # 3 x (N,) vertex indices of each sample's
     bary: tuple[np.ndarray, ...] = ()  # triangle and 3 x (N, 1) its barycentric coordinates
@@ -740,7 +750,7 @@ def _fast(face: Face) -> _Fast:
     f.dsig = dsig
     f.neg = neg
     ptri = face.mesh.triangles[p.probe_tri[neg]]  # (M, 4, 3)
-    f.neg_tri = tuple(np.ascontiguousarray(ptri[..., k]) for k in range(3))
+    f.neg_tri = np.ascontiguousarray(np.moveaxis(ptri, -1, 0))
     tang = np.stack([-p.normal[neg, 1], p.normal[neg, 0]], 1)  # (M, 2) on the photo's mesh
     pinv = p.tri_inv[p.probe_tri[neg]]  # (M, 4, 2, 2)
     if face.has_expression and len(neg):
@@ -760,10 +770,11 @@ def _fast(face: Face) -> _Fast:
     f.lips_gap0 = _gap(f, f.lips_mid, base)
     f.boss = (face.mesh.fdp["2.10"], face.mesh.fdp["2.1"])
     f.boss_gap0 = _gap(f, f.boss, base)
-    f.used_tri = face.mesh.triangles[used]
+    f.used_tri = np.ascontiguousarray(face.mesh.triangles[used].T)
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
-    f.tx, f.ty = -p.normal[:, 1, None], p.normal[:, 0, None]
+    f.probe_t = np.ascontiguousarray(f.probe.T)
+    f.tx, f.ty = -p.normal[:, 1], p.normal[:, 0]
     tri = face.mesh.triangles[p.tri]
     f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
@@ -791,6 +802,8 @@ def _fast(face: Face) -> _Fast:
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])
         f.own_div = np.maximum(f.own_sum, 1e-9)
         f.own_fade = clamp((f.own_gap - _OWN_MIN) / (0.7 * _OWN_MIN), 0.0, 1.0)
+        f.edge2 = np.concatenate([f.edge, f.edge])
+        f.taper2 = np.concatenate([p.taper, p.utaper])
     # published only when complete: the editor's render thread and its GUI thread may ask for
     # the same face's constants at once (published before the own folds' fields were set, a
     # render on the other thread could draw no unfold: a rare preview differing from a
@@ -844,10 +857,34 @@ def _closed_lips(fa: _Fast, vertices: np.ndarray) -> float:
     """How much of a pout the mesh shows, for the folds of kind chin: the chin boss raised
     (up to full at :data:`_POUT_BOSS`) with the lips together (fading out as they part by
     :data:`_POUT_OPEN`: an open mouth is no pout)."""
-    opened = (_gap(fa, fa.lips_mid, vertices) - fa.lips_gap0) / _POUT_OPEN
-    raised = (_gap(fa, fa.boss, vertices) - fa.boss_gap0) / _POUT_BOSS
-    return float((1.0 - smooth01(min(max(opened, 0.0), 1.0)))
-                 * smooth01(min(max(raised, 0.0), 1.0)))
+    # (both pairs' points in one gather; :func:`_gap`'s arithmetic on Python floats, and the
+    # smoothstep of :func:`smooth01` on them: the same float64 values without a dozen numpy
+    # calls on scalars)
+    i0, i1 = fa.lips_mid
+    j0, j1 = fa.boss
+    (ax, ay), (bx, by), (cx, cy), (dx, dy) = np.asarray(vertices).take(
+        (i0, i1, j0, j1), 0).astype(np.float64).tolist()
+    opened = (math.hypot(bx - ax, by - ay) / fa.iod - fa.lips_gap0) / _POUT_OPEN
+    raised = (math.hypot(dx - cx, dy - cy) / fa.iod - fa.boss_gap0) / _POUT_BOSS
+    return (1.0 - _smooth01_float(opened)) * _smooth01_float(raised)
+
+
+def _smooth01_float(x: float) -> float:
+    """:func:`smooth01` of a Python float (clamped to [0, 1] first)."""
+    c = min(max(x, 0.0), 1.0)
+    return c * c * (3.0 - 2.0 * c)
+
+
+def _neg_compression(fa: _Fast, vertices: np.ndarray) -> np.ndarray | float:
+    """What the folds of kind chin take as their compression (``fa.neg``'s samples): the
+    spread across them less 1 (:func:`_spread`), times their taper and the pout
+    (:func:`_closed_lips`). Without a pout it is 0.0 and the spread is not measured (the
+    product would be a zero of either sign, which the callers' :data:`_C_TOL` turns into 0.0:
+    the same values)."""
+    pout = _closed_lips(fa, vertices)
+    if pout == 0.0:
+        return 0.0
+    return (_spread(fa, vertices) - 1.0) * (fa.neg_fade * pout)
 
 
 def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
@@ -856,16 +893,22 @@ def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     ``_Fast.neg_inv``), mean over the 4 probes: ``det(A) / |A t|^2`` (1 at rest and under any
     similarity; > 1 where the skin across the line is spread more than along it)."""
     V = np.asarray(vertices, np.float64)
-    t0, t1, t2 = (V.take(k, 0) for k in fa.neg_tri)  # (M, 4, 2) each
-    e1, e2 = t1 - t0, t2 - t0
+    # (x and y rows together, as in :func:`_spacing`: a0 = (a00, a10), a1 = (a01, a11) and
+    # at = A t, each (2, M, 4); the same arithmetic, value by value)
+    T = V.T.take(fa.neg_tri, 1)  # (2, 3, M, 4)
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     i00, i01, i10, i11 = fa.neg_inv
-    a00 = e1[..., 0] * i00 + e2[..., 0] * i10
-    a01 = e1[..., 0] * i01 + e2[..., 0] * i11
-    a10 = e1[..., 1] * i00 + e2[..., 1] * i10
-    a11 = e1[..., 1] * i01 + e2[..., 1] * i11
+    a0 = e1 * i00
+    a0 += e2 * i10
+    a1 = e1 * i01
+    a1 += e2 * i11
     tx, ty = fa.neg_t
-    ax, ay = a00 * tx + a01 * ty, a10 * tx + a11 * ty
-    r = (a00 * a11 - a01 * a10) / np.maximum(ax * ax + ay * ay, 1e-12)
+    at = a0 * tx
+    at += a1 * ty
+    at *= at
+    n = at[0]
+    n += at[1]
+    r = (a0[0] * a1[1] - a1[0] * a0[1]) / np.maximum(n, 1e-12, out=n)
     return r.mean(1)
 
 
@@ -876,23 +919,30 @@ def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.nd
     if fa is None:
         fa = _fast(face)
     V = np.asarray(vertices, np.float64)
-    # (gathers with take: numpy's fancy indexing of an (n, 2) array costs several us more)
-    T = V.take(fa.used_tri, 0)
-    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-    # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges,
-    # entry by entry (U,) and then gathered per probe (N, 4)
+    # (laid out as (x / y, ..., triangle or sample): every operation below runs along one
+    # contiguous last axis, the x and y rows of each entry of A together; the same
+    # arithmetic, value by value, as entry by entry)
+    T = V.T.take(fa.used_tri, 1)  # (2, 3, U)
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]  # (2, U): x and y of the edges
+    # deformed = A @ photo (linear part per triangle): A = [e1 e2] @ inverse photo edges;
+    # its columns (a00, a10) and (a01, a11) per triangle, then gathered per probe (4, N)
     i00, i01, i10, i11 = fa.used_inv
-    e1x, e1y, e2x, e2y = e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1]
-    a00, a01 = e1x * i00 + e2x * i10, e1x * i01 + e2x * i11
-    a10, a11 = e1y * i00 + e2y * i10, e1y * i01 + e2y * i11
-    det = (a00 * a11 - a01 * a10).take(fa.probe)
+    a0 = e1 * i00
+    a0 += e2 * i10
+    a1 = e1 * i01
+    a1 += e2 * i11
+    pr = fa.probe_t
+    det = (a0[0] * a1[1] - a1[0] * a0[1]).take(pr)
     # spacing of material lines parallel to the fold: det(A) / |A t| (t its tangent); shear
     # along the fold and stretch along it do not change it
-    pr, tx, ty = fa.probe, fa.tx, fa.ty
-    ax = a00.take(pr) * tx + a01.take(pr) * ty
-    ay = a10.take(pr) * tx + a11.take(pr) * ty
-    r = det / np.maximum(np.sqrt(ax * ax + ay * ay), 1e-6)
-    return (r[:, 0] + r[:, 1] + r[:, 2] + r[:, 3]) * 0.25  # the mean over the 4 probes
+    at = a0.take(pr, 1)
+    at *= fa.tx
+    at += a1.take(pr, 1) * fa.ty  # (2, 4, N): A t
+    at *= at
+    n = at[0]
+    n += at[1]
+    r = np.divide(det, np.maximum(np.sqrt(n, out=n), 1e-6, out=n), out=det)
+    return (r[0] + r[1] + r[2] + r[3]) * 0.25  # the mean over the 4 probes
 
 
 def _smooth_taper(face: Face, s: np.ndarray, own: bool = False) -> np.ndarray:
@@ -913,7 +963,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
     fa = _fast(face)
     c = 1.0 - (_spacing(face, vertices) if spacing is None else spacing)
     if len(fa.neg):
-        c[fa.neg] = (_spread(fa, vertices) - 1.0) * (fa.neg_fade * _closed_lips(fa, vertices))
+        c[fa.neg] = _neg_compression(fa, vertices)
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -962,13 +1012,14 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     # fold_strength
     c = 1.0 - sp
     if len(fa.neg):
-        c[fa.neg] = (_spread(fa, vertices) - 1.0) * (fa.neg_fade * _closed_lips(fa, vertices))
+        c[fa.neg] = _neg_compression(fa, vertices)
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(p.fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
-    s = _twins(fa, np.where(edge, s, np.convolve(s, _SMOOTH, mode="same")) * p.taper)
-    if fa.own_w is None or fa.own_div is None or fa.own_fade is None:
+    if (fa.own_w is None or fa.own_div is None or fa.own_fade is None or fa.edge2 is None
+            or fa.taper2 is None):
+        s = _twins(fa, np.where(edge, s, _correlate(s, _SMOOTH_REV, "same")) * p.taper)
         return s, np.zeros(len(fa.depth))
     # unfold_strength (its per-fold constants taken once per face)
     e = np.log(np.maximum(sp, 1e-6))
@@ -976,8 +1027,14 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     esum = np.add.reduceat(e * fa.own_w, starts)
     esum /= fa.own_div
     u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(p.fold)
-    u = np.where(edge, u, np.convolve(u, _SMOOTH, mode="same")) * p.utaper
-    return s, u
+    # both smoothed along their lines and tapered as one array (s then u): each sample's
+    # 5-tap sum is the one of its own array, but for the last two samples of s and the first
+    # two of u, which are line ends (``edge``: not smoothed)
+    su = np.concatenate((s, u))
+    su = np.where(fa.edge2, su, _correlate(su, _SMOOTH_REV, "same"))
+    su *= fa.taper2
+    n = len(s)
+    return _twins(fa, su[:n]), su[n:]
 
 
 #: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
@@ -986,6 +1043,9 @@ _OWN_MIN = 0.07
 
 
 _SMOOTH = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
+#: ``_SMOOTH`` reversed (contiguous): ``np.convolve(a, _SMOOTH, mode)`` is
+#: ``_correlate(a, _SMOOTH_REV, mode)``, the compiled function it calls (for ``len(a) >= 5``)
+_SMOOTH_REV = np.ascontiguousarray(_SMOOTH[::-1])
 
 
 @functools.lru_cache(maxsize=64)
@@ -1161,9 +1221,21 @@ def _on_canvas(pts: np.ndarray, box: tuple[int, int, int, int], f: int
     :func:`_blur_back`)."""
     x0, y0, x1, y1 = box
     if f == 1:
-        return (y1 - y0 + 1, x1 - x0 + 1), pts - (x0, y0)
-    return ((-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1),
-            (pts - (x0 - 0.5, y0 - 0.5)) / f - 0.5)
+        return (y1 - y0 + 1, x1 - x0 + 1), _shifted(pts, x0, y0)
+    q = _shifted(pts, x0 - 0.5, y0 - 0.5)
+    q /= f
+    q -= 0.5
+    return (-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1), q
+
+
+def _shifted(pts: np.ndarray, x: float, y: float) -> np.ndarray:
+    """``pts - (x, y)`` of float64 points (n, 2), a new array: the points seen as complex
+    numbers (one contiguous pass; a complex subtraction is the two real ones, exactly) where
+    they are contiguous, several times cheaper than numpy's broadcasting over rows of two."""
+    if pts.flags.c_contiguous and pts.dtype == np.float64 and pts.ndim == 2 \
+            and pts.shape[1] == 2:
+        return np.subtract(pts.view(np.complex128), complex(x, y)).view(np.float64)
+    return pts - (x, y)
 
 
 def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int) -> np.ndarray:
@@ -1174,8 +1246,8 @@ def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int) -> np.n
     if f == 1:
         return np.asarray(_blur(canvas[:-1, :-1], sigma), np.float32)
     hc, wc = canvas.shape[0] - 1, canvas.shape[1] - 1
-    return np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f),
-                                 interpolation=cv2.INTER_LINEAR)[:h, :w], np.float32)
+    return np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f), None,
+                                 0, 0, cv2.INTER_LINEAR)[:h, :w], np.float32)
 
 
 #: A fold line is drawn at 1/f of the photo's resolution when its drawn half-width (sigma,
@@ -1218,7 +1290,7 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     light *= wskin
     dark *= wskin
     gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
-    cv2.multiply(patch, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+    cv2.multiply(patch, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
     return _union(bbox, box)
 
 
@@ -1338,7 +1410,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
         xy = ((q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - org) / wq
               ).astype(np.float32)
         prof = cv2.remap(hat, xy[..., 0], xy[..., 1], cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REPLICATE)
+                         None, cv2.BORDER_REPLICATE)
         score = prof * (1.0 - 0.3 * (ds / reach) ** 2)[None]
         k = np.argmax(score, 1)
         off, depth = ds[k], prof[np.arange(b - a), k]
@@ -1481,26 +1553,26 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             hc, wc = -(-hb // f), -(-wb // f)
             mx, my = box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
             if f > 1:
-                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), interpolation=cv2.INTER_AREA),
-                               cv2.resize(my, (wc, hc), interpolation=cv2.INTER_AREA),
-                               cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-                Cw = cv2.resize(Cw, (wc * f, hc * f), interpolation=cv2.INTER_LINEAR)
+                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), None, 0, 0, cv2.INTER_AREA),
+                               cv2.resize(my, (wc, hc), None, 0, 0, cv2.INTER_AREA),
+                               cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+                Cw = cv2.resize(Cw, (wc * f, hc * f), None, 0, 0, cv2.INTER_LINEAR)
                 mx, my = mx[:hb, :wb], my[:hb, :wb]
                 Cw = Cw[:hb, :wb]
             else:
-                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
             # (all four channels at once: numpy is many times slower on a channel view; the
             # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself)
-            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
             np.maximum(S, 1.0, out=S)
             g4 = np.divide(Cw, S, out=S)
             band *= g4[..., 3]
             clip(g4, 1.0, _MAX_GAIN, out=g4)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         gain -= 1.0
-        gain *= cv2.merge([band, band, band])
+        gain *= cv2.cvtColor(band, cv2.COLOR_GRAY2RGB)  # (merge([band] * 3): the same values)
         gain += 1.0
-        cv2.multiply(view, gain, dst=view, dtype=cv2.CV_8U)  # rounded, saturated
+        cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
 
@@ -1691,7 +1763,7 @@ def _upsample_box(field: np.ndarray, at: tuple[int, int], origin: tuple[int, int
     my = np.broadcast_to(gy[:, None], (y1 - y0, x1 - x0))
     return np.ascontiguousarray(cv2.remap(field, np.ascontiguousarray(mx),
                                           np.ascontiguousarray(my), cv2.INTER_LINEAR,
-                                          borderMode=cv2.BORDER_REPLICATE), np.float32)
+                                          None, cv2.BORDER_REPLICATE), np.float32)
 
 
 @overload
@@ -1819,7 +1891,7 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     my = uy * t32
     my += by
     got = cv2.remap(src, mx.reshape(k * hb, wb), my.reshape(k * hb, wb), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
+                    None, cv2.BORDER_REPLICATE)
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
     for i, wt in enumerate(wts.tolist()):  # (accumulated in the taps' order, as before)
         cv2.scaleAdd(got[i * hb:(i + 1) * hb], wt, acc, dst=acc)

@@ -183,10 +183,10 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
         + ys * np.float32(r10 / _STEP)  # the pixel's frame x, in table steps
     # (the four channels read as views: cheaper than splitting them into new arrays)
     got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
+                    None, cv2.BORDER_REPLICATE)
     d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
     shift = _shift(d, got)
-    shift = cv2.resize(shift, (nw * s, nh * s), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    shift = cv2.resize(shift, (nw * s, nh * s), None, 0, 0, cv2.INTER_LINEAR)[:h, :w]
     # x - shift r01 as shift (-r01) + x: the same float32 values (IEEE negation is exact),
     # one temporary of the box fewer each
     mx = np.multiply(shift, np.float32(-r01))
@@ -274,7 +274,7 @@ def _hook_pixels(fr: FaceFrame, tab: tuple[np.ndarray, float], sel: np.ndarray,
     d = (xs * np.float32(r01)).take(xi)
     d += (ys * np.float32(r11)).take(yi)
     got = cv2.remap(table, tx[None], np.zeros((1, len(tx)), np.float32), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)[0]
+                    None, cv2.BORDER_REPLICATE)[0]
     shift = _shift(d, got)
     mx = np.arange(x0, x1, dtype=np.float32).take(xi)
     mx -= shift * np.float32(r01)

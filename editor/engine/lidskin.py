@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -63,6 +64,15 @@ class _Strip:
     lid_s: np.ndarray  # (n, 2) frame coordinates on the photo's mesh
     brow_s: np.ndarray  # (m, 2)
     ring_s: np.ndarray  # (r, 2)
+    # (their frame heights as contiguous arrays: np.interp copies a strided column each call)
+    lid_sy: np.ndarray = field(init=False)
+    brow_sy: np.ndarray = field(init=False)
+    ring_sy: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.lid_sy = np.ascontiguousarray(self.lid_s[:, 1])
+        self.brow_sy = np.ascontiguousarray(self.brow_s[:, 1])
+        self.ring_sy = np.ascontiguousarray(self.ring_s[:, 1])
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -90,6 +100,25 @@ def _strips(face: Face) -> list[_Strip]:
 
 
 _INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@lru_cache(maxsize=8)
+def _rows(h: int) -> np.ndarray:
+    """(h, 1) float32 row numbers 0 .. h - 1 (read-only: the boxes' height recurs from frame
+    to frame)."""
+    r = np.arange(h, dtype=np.float32)[:, None]
+    r.setflags(write=False)
+    return r
+
+
+@lru_cache(maxsize=8)
+def _job_rows(widths: tuple[int, ...], h: int) -> np.ndarray:
+    """(h, sum(widths)) float32: per column of the boxes side by side, its box's number (the
+    row of the strips' table it reads; read-only, kept as :func:`_rows`)."""
+    r = np.ascontiguousarray(np.arange(len(widths), dtype=np.float32).repeat(widths)[None, :]
+                             .repeat(h, 0))
+    r.setflags(write=False)
+    return r
 
 
 def _strip_index(strips: list[_Strip]) -> tuple[np.ndarray, list[tuple[slice, slice, slice]]]:
@@ -137,15 +166,16 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     H, W = img.shape[:2]
     R, org = fr.rot, fr.origin
     o0, o1, r00, r10 = float(org[0]), float(org[1]), float(R[0, 0]), float(R[1, 0])
-    # per strip that spans enough: its box, first frame x, the frame x of its table (u), the
-    # lid and brow lines at u now and in the photo (one interpolation each); the rest of the
-    # table is computed for both strips at once (one array of their u's)
+    # per strip that spans enough: its box, its first frame x, its table's length and the
+    # frame x of its ends (the frame coordinates as contiguous columns, the ends as Python
+    # floats); the table itself is computed for both strips at once (one array of their u's)
+    Px, Py = np.ascontiguousarray(P[:, 0]), np.ascontiguousarray(P[:, 1])
+    px = Px.tolist()
     cand = []
-    for si, (st, (sl_lid, sl_brow, sl_ring), (ix0, iy0), (ix1, iy1)) in enumerate(
-            zip(strips, parts, c_lo, c_hi, strict=True)):
-        L, B, Rg = P[sl_lid], P[sl_brow], P[sl_ring]
-        x_lo = max(L[0, 0], B[0, 0])
-        x_hi = min(L[-1, 0], B[-1, 0])
+    for si, ((sl_lid, sl_brow, _), (ix0, iy0), (ix1, iy1)) in enumerate(
+            zip(parts, c_lo, c_hi, strict=True)):
+        x_lo = max(px[sl_lid.start], px[sl_brow.start])
+        x_hi = min(px[sl_lid.stop - 1], px[sl_brow.stop - 1])
         if x_hi - x_lo < 2.0:
             continue
         # image box of the strip
@@ -159,19 +189,30 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         by, cy = (y0 - o1) * r10, (y1 - 1 - o1) * r10
         bx = (ax + by, ay + by, ax + cy, ay + cy)
         lo = min(bx)
-        # the table along the frame's x over the box: lid line, 1 / Hd, k (from the strip's
-        # height now and in the photo)
-        u = lo + _STEP * np.arange(math.ceil((max(bx) - lo) / _STEP) + 2)
-        lines = (interp(u, L[:, 0], L[:, 1]), interp(u, B[:, 0], B[:, 1]),
-                 interp(u, L[:, 0], st.lid_s[:, 1]), interp(u, B[:, 0], st.brow_s[:, 1]),
-                 interp(u, Rg[:, 0], Rg[:, 1]), interp(u, Rg[:, 0], st.ring_s[:, 1]))
-        cand.append(((x0, y0, x1, y1), lo, u, x_lo, x_hi, lines, si))
+        cand.append(((x0, y0, x1, y1), lo, math.ceil((max(bx) - lo) / _STEP) + 2, x_lo, x_hi,
+                     si))
     if not cand:
         return res
-    n_u = [len(c[2]) for c in cand]
-    u = np.concatenate([c[2] for c in cand])
-    lid_y, brow_y, lid_s, brow_s, ring_y, ring_s = (np.concatenate([c[5][i] for c in cand])
-                                                    for i in range(6))
+    # the table along the frame's x over each box (u, every _STEP px from its first frame x):
+    # lid and brow lines now and in the photo, the eye ring now and in the photo (one
+    # interpolation each, written into the rows of one array: both strips' u side by side)
+    n_u = [c[2] for c in cand]
+    tab = np.empty((7, sum(n_u)))
+    a = 0
+    for _, lo, n, _, _, si in cand:
+        st, (sl_lid, sl_brow, sl_ring) = strips[si], parts[si]
+        u = tab[0, a:a + n]
+        np.multiply(np.arange(n), _STEP, out=u)
+        u += lo
+        Lx, Bx, Rx = Px[sl_lid], Px[sl_brow], Px[sl_ring]
+        tab[1, a:a + n] = interp(u, Lx, Py[sl_lid])
+        tab[2, a:a + n] = interp(u, Bx, Py[sl_brow])
+        tab[3, a:a + n] = interp(u, Lx, st.lid_sy)
+        tab[4, a:a + n] = interp(u, Bx, st.brow_sy)
+        tab[5, a:a + n] = interp(u, Rx, Py[sl_ring])
+        tab[6, a:a + n] = interp(u, Rx, st.ring_sy)
+        a += n
+    u, lid_y, brow_y, lid_s, brow_s, ring_y, ring_s = tab
     if len(cand) == 1:
         x_lo, x_hi = cand[0][3], cand[0][4]
     else:  # (both rows in one call)
@@ -226,7 +267,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     for cd, n in zip(cand, n_u, strict=True):
         if np.count_nonzero(live[a:a + n]):
             jobs.append((cd[0], tab_all[a:a + n], cd[1]))
-            sides.append(cd[6])
+            sides.append(cd[5])
         a += n
     if not jobs:
         return res
@@ -253,12 +294,12 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     xc = np.arange(c, dtype=np.float64) + sh_c
     # the pixels in the frame (``fr.to_frame``): X (in table steps) and the height Y, each a
     # per-column term plus the row times a constant (float32: sub-1e-4 px here)
-    rows_f = np.arange(hmax, dtype=np.float32)[:, None]
+    rows_f = _rows(hmax)
     xo, yo = xc - org[0], y0c - org[1]
     tx = (xo * R[0, 0] + yo * R[1, 0] - lo_c) * (1.0 / _STEP)
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
-    ty = np.arange(len(jobs), dtype=np.float32).repeat(widths)[None, :].repeat(hmax, 0)
-    got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    ty = _job_rows(tuple(widths), hmax)
+    got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
     ly, inv_hd, kk, kk2 = cv2.split(got)
     ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
@@ -273,7 +314,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     t *= kk
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
-    new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
     if above is not None:  # a closing lid (the evening-out is for its band over the eye)
         # the lashes' band kept above the lid's edge, per column: LASH_KEEP of the interocular
         # distance while the eye is open, none once it is closed (from a closure of 0.6 to 0.9
@@ -417,7 +458,7 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
     # the photo row each output pixel shows (the warp's backward map read where the strip
     # resampling reads the warped image); outside the warp's box the map is the identity
     sy = cv2.remap(map_y, mx - np.float32(a0), my - np.float32(b0), cv2.INTER_LINEAR,
-                   borderMode=cv2.BORDER_REPLICATE)
+                   None, cv2.BORDER_REPLICATE)
     d = np.empty_like(sy)
     d[:-1] = sy[1:] - sy[:-1]
     d[-1] = d[-2] if len(d) > 1 else 1.0
@@ -482,9 +523,11 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 ix = (x0 + np.arange(lo - c, hi - c))[None, :] % T
                 noise[:, lo - c0:hi - c0] = tile2[iy, ix]
         c += x1 - x0
-    sm += cv2.merge([noise, noise, noise])
+    # (the single-channel grain and weight spread over the 3 channels by cvtColor's grey-to-RGB
+    # copy: merge's values at about half its call cost)
+    sm += cv2.cvtColor(noise, cv2.COLOR_GRAY2RGB)
     sm -= f
-    sm *= cv2.merge([wb, wb, wb])
+    sm *= cv2.cvtColor(wb, cv2.COLOR_GRAY2RGB)
     f += sm
     out = new.copy()
     _to_uint8(f, out[r0:r1, c0:c1])

@@ -47,10 +47,10 @@ from typing import TYPE_CHECKING, Literal, overload
 import cv2
 import numpy as np
 
-try:  # (the compiled function np.convolve calls, without its Python wrapper)
+try:  # (the compiled function np.convolve calls, without its Python wrapper: numpy 2.x)
     from numpy._core.multiarray import correlate as _correlate
-except ImportError:  # numpy 1.x
-    from numpy.core.multiarray import correlate as _correlate  # type: ignore[no-redef]
+except ImportError:  # another numpy: its public wrapper, the same values
+    _correlate = np.correlate
 
 from .fitting import (
     catmull_rom,

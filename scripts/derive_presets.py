@@ -176,6 +176,10 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         41: (100, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "
                   "also lifts the lower lids, which the fit of 21/22 accounts for"),
         42: (100, "as 41"),
+        "lid_b": (150, "AU9 with AU6/AU7: the narrowed eyes of JAFFE disgust (median 132/157 "
+                       "IRISD, p90 250/226); the fit's 85 (against the cheek lift's share) left "
+                       "the lower-lid landmarks at half the real rise (-1.2 against -2.2 % IOD) "
+                       "and the eyes wide beside the real photos (KL, TM, YM)"),
         "c_raise": (-130, "AU15 lip corner depressor (disgust prototype; barely visible at the "
                           "median): JAFFE median -13/-14 MNS, p10 -187/-159, min -322/-269; at "
                           "-90 the corners stayed level under the raised upper lip and the "

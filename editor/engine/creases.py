@@ -64,6 +64,7 @@ from .fitting import (
     pad_edge,
     smooth01,
 )
+from .gaze import spread3
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -1570,7 +1571,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             clip(g4, 1.0, _MAX_GAIN, out=g4)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         gain -= 1.0
-        gain *= cv2.cvtColor(band, cv2.COLOR_GRAY2RGB)  # (merge([band] * 3): the same values)
+        gain *= spread3(band)
         gain += 1.0
         cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))

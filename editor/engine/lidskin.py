@@ -41,6 +41,7 @@ import cv2
 import numpy as np
 
 from .fitting import clamp, clip, interp, smooth01
+from .gaze import spread3
 from .layers import _rebox, _to_uint8, _union
 from .mouth import _lum
 from .warp import WarpResult
@@ -523,11 +524,10 @@ def _even_out(face: Face, res: WarpResult, new: np.ndarray, mx: np.ndarray, my: 
                 ix = (x0 + np.arange(lo - c, hi - c))[None, :] % T
                 noise[:, lo - c0:hi - c0] = tile2[iy, ix]
         c += x1 - x0
-    # (the single-channel grain and weight spread over the 3 channels by cvtColor's grey-to-RGB
-    # copy: merge's values at about half its call cost)
-    sm += cv2.cvtColor(noise, cv2.COLOR_GRAY2RGB)
+    # (the single-channel grain and weight spread over the 3 channels: gaze.spread3)
+    sm += spread3(noise)
     sm -= f
-    sm *= cv2.cvtColor(wb, cv2.COLOR_GRAY2RGB)
+    sm *= spread3(wb)
     f += sm
     out = new.copy()
     _to_uint8(f, out[r0:r1, c0:c1])

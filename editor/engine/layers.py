@@ -237,6 +237,46 @@ def _nearest_outside(face: np.ndarray, hole: np.ndarray, labels: np.ndarray,
         .astype(np.float32)
 
 
+def _lid_margin(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray,
+                interior: np.ndarray, closure: float) -> np.ndarray:
+    """(h, w, 3) float32: what the lids continue with inside an eye opening on a sharp photo
+    (the part of a pixel its outline leaves to the lid): the nearest pixel outside the
+    opening; along the upper lid the darker of it and the eyeball layer's own colour there.
+
+    A raised upper lid's lash line lies mostly inside the photo's opening: the eyeball layer
+    carries it up with the lid (:mod:`gaze`'s bands), while the warped skin just outside is
+    the lighter lid above it. Continued with that skin (or a box average of the face around the
+    opening), the outline's partly covered pixels along the raised lid alternate between the
+    dark band and light skin with the coverage: the lash line reads as stitches (JAFFE anger and
+    surprise, KL and YM at 1.5). The darker of the two keeps the margin one dark line; where the
+    layer shows the white, the lid's own skin is the darker. Not along the lower lid, whose
+    margin is light: there the iris would reach into it (a dark drip under the iris)."""
+    x0, y0, x1, y1 = box
+    h, w = hole.shape
+    inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
+    labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
+                                             labelType=cv2.DIST_LABEL_PIXEL)[1]
+    outside = (~hole).ravel().nonzero()[0]
+    if not len(outside):
+        return interior.astype(np.float32)
+    near_at = outside.take(np.asarray(labels, np.intp) - 1, mode="clip")  # flat, (h, w)
+    rows = np.ascontiguousarray(out[y0:y1, x0:x1]).reshape(-1, 3)
+    near = rows.take(near_at, 0).reshape(h, w, 3).astype(np.float32)
+    # along the upper lid (the nearest outside pixel lies above), by the pixel's share of the
+    # opening, fully from a quarter on: a pixel the outline does not cover stays the lid's skin
+    # (closed lids cover nothing: what moves behind them must not show)
+    # along the upper lid (the nearest outside pixel lies above) of an open eye: a closing
+    # eye's margin is its lash line (drawn from a closure of 0.6 on), and what moves behind
+    # closed lids must not show through the pixels their outline touches
+    share = (near_at < np.arange(0, h * w, w)[:, None]).astype(np.float32)
+    share *= np.float32(min(max((0.6 - closure) * 5.0, 0.0), 1.0))
+    dark = np.minimum(near, interior)
+    dark -= near
+    dark *= spread3(share)
+    near += dark
+    return near
+
+
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,
                     alpha: np.ndarray, strength: float, soft: float = 1.0) -> None:
     """Remove thin bright specks from the lips along the inner-lip outline (in place).
@@ -444,7 +484,15 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     lo_all = np.minimum.reduceat(polys, cuts).tolist()
     hi_all = np.maximum.reduceat(polys, cuts).tolist()
     slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
-    closure = None
+    # each eye's closure (1 - its area over the neutral one): the lash line is drawn from 0.6
+    # on, and an open eye's margin continues its lash band (_lid_margin)
+    closure = [0.0, 0.0]
+    if jobs[0][0] == "eye":  # (the eyes' jobs come first)
+        e = polys[:ends[2]].astype(np.float64)
+        ex, ey = e[:, 0], e[:, 1]
+        nx = _next_in_loop((ends[1], ends[2]))
+        closure = (1.0 - 0.5 * np.abs(np.add.reduceat(ex * ey[nx] - ey * ex[nx], cuts[:2]))
+                   / np.maximum([lp.eyes["eye_l"].area0, lp.eyes["eye_r"].area0], 1e-6)).tolist()
     # every opening's box, then their pixel sets and coverages at once (_opening_masks)
     todo = []
     for job in jobs:
@@ -498,19 +546,14 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
                                              float(_smoothstep1(min(amount, 1.0))))
+            else:
+                inside = _lid_margin(out, box, hole, interior, float(closure[k_open]))
         _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, fade_in, lp.soft)
         else:
-            # (the lash line is drawn from a closure above 0.6: checked for both eyes at once,
-            # with a margin, before its exact test in lash_line)
-            if closure is None:
-                e = polys[:ends[2]].astype(np.float64)
-                x, y = e[:, 0], e[:, 1]
-                nx = _next_in_loop((ends[1], ends[2]))
-                cross = x * y[nx] - y * x[nx]
-                closure = 1.0 - 0.5 * np.abs(np.add.reduceat(cross, cuts[:2])) \
-                    / np.maximum([lp.eyes["eye_l"].area0, lp.eyes["eye_r"].area0], 1e-6)
+            # (the lash line is drawn from a closure above 0.6, checked with a margin before
+            # its exact test in lash_line)
             lash = lp.eyes[name].lash_line(box, poly, lp.soft) if closure[k_open] > 0.59 \
                 else None
             if lash is not None:  # a closing eye: one clean lash line where the lids meet

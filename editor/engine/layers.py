@@ -38,7 +38,16 @@ import numpy.typing as npt
 
 from .deform import eye_state
 from .fitting import channel_median, clamp, clip, gather_px, median, pad_edge, smooth01
-from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through, spread3
+from .gaze import (
+    EXTRA_INDEX,
+    EYE_FAPS,
+    EyeJob,
+    EyePlan,
+    edge_ramp,
+    photo_through,
+    render_eyes,
+    spread3,
+)
 from .mouth import (
     CROWN,
     GUM_FADE,
@@ -501,7 +510,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         if box[2] > box[0] and box[3] > box[1]:
             todo.append((job, box))
     masks = _opening_masks([(job[2], box, job[5] > _TOL) for job, box in todo]) if todo else []
-    for ((kind, name, poly, tf, active, moved), box), (hole, cov) in zip(todo, masks,
+    eyeballs = _eyeballs(lp, img, todo, extra, state)
+    for ((kind, name, poly, tf, _, moved), box), (hole, cov) in zip(todo, masks,
                                                                           strict=True):
         k_open = slot[name]
         # an outline that did not move keeps the photo's own edge pixels; the anti-aliased
@@ -528,20 +538,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                                              (depth, rim))
         else:
             ep = lp.eyes[name]
-            k = EXTRA_INDEX[name]
-            if active:
-                assert state is not None  # computed when the first active eye job was queued
-                r_new, p_new = (float(x) for x in state[k])
-                shift = ep.gaze_shift(extra[k], tf)
-            else:
-                r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-            inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
-            lids = ep.lid_frame(poly, tf, inv)
-            if active or ep.lid_opening(poly, tf, lids) > _TOL:
-                # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft)
-            else:  # the photo's own eye, moved with the corners (as the warp does)
-                interior = photo_through(img, tf, box)
+            interior, shift, r_new = eyeballs[name]
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)
                 amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
@@ -567,6 +564,40 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, drawn)
+
+
+def _eyeballs(lp: LayerPlan, img: np.ndarray, todo: list, extra: np.ndarray,
+              state: np.ndarray | None) -> dict[str, tuple[np.ndarray, np.ndarray, float]]:
+    """The interior of every eye job of ``todo`` (:func:`render_layers`' jobs with their
+    boxes), with its gaze shift and iris radius: the eyeball layer (it also continues the eye
+    under a raised lid), both eyes in one :func:`gaze.render_eyes` pass, or the photo's own
+    eye moved with the corners (as the warp does) when neither the eye's FAPs nor its lids
+    open it."""
+    got: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
+    jobs, names = [], []
+    for (kind, name, poly, tf, active, _), box in todo:
+        if kind != "eye":
+            continue
+        ep = lp.eyes[name]
+        k = EXTRA_INDEX[name]
+        if active:
+            assert state is not None  # computed when the first active eye job was queued
+            r_new, p_new = (float(x) for x in state[k])
+            shift = ep.gaze_shift(extra[k], tf)
+        else:
+            r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
+        inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
+        lids = ep.lid_frame(poly, tf, inv)
+        if active or ep.lid_opening(poly, tf, lids) > _TOL:
+            jobs.append(EyeJob(ep, box, tf, shift, r_new, p_new, poly, lids, inv))
+            names.append(name)
+            got[name] = (np.empty(0), shift, r_new)  # (the interior follows below)
+        else:
+            got[name] = (photo_through(img, tf, box), shift, r_new)
+    if jobs:
+        for name, interior in zip(names, render_eyes(jobs, lp.soft), strict=True):
+            got[name] = (interior, *got[name][1:])
+    return got
 
 
 # ---------------------------------------------------------------------------- photo analysis

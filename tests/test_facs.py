@@ -174,3 +174,34 @@ def test_rotations_and_gaze_round_trip_exactly():
     assert rot[0, t.rotations.index("HeadYaw")] == pytest.approx(-0.08)
     back = arkit_to_faps(w, rot)[0]
     assert np.allclose(back[[22, 23, 24, 25, 47, 48, 49]], f[[22, 23, 24, 25, 47, 48, 49]])
+
+
+def test_bounded_fit_is_the_bounded_least_squares_solution():
+    """The fast path (NNLS, columns above 1 held there) gives BVLS's solution: on the emotion
+    presets, on random FAP vectors large enough to push AUs past 1 and on the round trip's
+    frame where scipy's NNLS stops short of the optimum (it must be caught)."""
+    from scipy.optimize import lsq_linear
+
+    from editor.engine.faps import FAPS
+    from editor.formats.arkit import arkit_table
+    from editor.formats.facs import RIDGE, _bounded_lsq, au_table, aus_to_faps
+    from editor.formats.presets import apply_preset
+
+    rng = np.random.default_rng(3)
+    vecs = [np.asarray(apply_preset(e, 1.5), np.float64)
+            for e in ("joy", "sadness", "surprise", "anger", "disgust", "fear")]
+    vecs += [rng.normal(0.0, s, 68) for s in (300.0, 900.0) for _ in range(15)]
+    vecs.append(aus_to_faps({"12": 0.44, "26": 0.56, "43": 0.44}))
+    arkit_rows = np.array([0.01 if FAPS[n].unit == "AU" else 1.0 for n in range(1, 69)])
+    held = 0
+    for matrix, rows in ((au_table().matrix, np.ones(68)), (arkit_table().matrix, arkit_rows)):
+        used = np.flatnonzero(np.abs(matrix).sum(axis=1) > 0)
+        k = matrix.shape[1]
+        a = np.vstack([matrix[used] * rows[used, None], RIDGE * np.eye(k)])
+        for f in vecs:
+            b = np.hstack([f[used] * rows[used], np.zeros(k)])
+            want = np.clip(lsq_linear(a, b, bounds=(0.0, 1.0), method="bvls").x, 0.0, 1.0)
+            got = _bounded_lsq(a, b, 1.0)
+            assert np.abs(got - want).max() < 1e-8
+            held += int((want >= 1.0 - 1e-9).any())
+    assert held >= 10  # the upper bound was in play

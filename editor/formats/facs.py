@@ -234,10 +234,8 @@ def fit_columns(faps: np.ndarray, matrix: np.ndarray, row_weights: np.ndarray | 
 
     Rows (FAPs) no column touches are left out (they cannot be fitted); ``row_weights`` scale
     the rest (e.g. to bring rotation units to the size of displacements). One small
-    bounded-variable problem per frame (scipy's BVLS).
+    bounded-variable problem per frame (:func:`_bounded_lsq`).
     """
-    from scipy.optimize import lsq_linear  # scipy on first use: a quick start (issue 15)
-
     f = np.atleast_2d(np.asarray(faps, np.float64))
     used = np.flatnonzero(np.abs(matrix).sum(axis=1) > 0)
     w = np.ones(N_FAPS) if row_weights is None else np.asarray(row_weights, np.float64)
@@ -246,8 +244,40 @@ def fit_columns(faps: np.ndarray, matrix: np.ndarray, row_weights: np.ndarray | 
     b = np.hstack([f[:, used] * w[used], np.zeros((f.shape[0], k))])
     out = np.zeros((f.shape[0], k))
     for i in np.flatnonzero(b.any(axis=1)):
-        out[i] = lsq_linear(a, b[i], bounds=(0.0, upper), method="bvls").x
+        out[i] = _bounded_lsq(a, b[i], upper)
     return np.clip(out, 0.0, upper)
+
+
+def _bounded_lsq(a: np.ndarray, b: np.ndarray, upper: float) -> np.ndarray:
+    """argmin |a x - b| over 0 <= x <= ``upper``: non-negative least squares (scipy's NNLS,
+    ~15x faster here than its BVLS) with the columns above ``upper`` held there, until the
+    solution meets the bounded problem's optimality conditions (an AU rarely exceeds 1: one
+    or two NNLS solves a frame); BVLS if that does not settle or NNLS stopped short. The
+    problem is strictly convex (the ridge rows), so both give its one solution."""
+    from scipy.optimize import lsq_linear, nnls  # scipy on first use: a quick start (issue 15)
+
+    k = a.shape[1]
+    top = np.zeros(k, bool)  # columns held at the upper bound
+    tol = 1e-9 * max(float(np.abs(a.T @ b).max()), 1.0)
+    for _ in range(k + 1):
+        rest = ~top
+        x = np.full(k, upper)
+        x[rest] = nnls(a[:, rest], b - upper * a[:, top].sum(axis=1))[0]
+        over = rest & (x > upper)
+        if over.any():
+            top |= over
+            continue
+        grad = a.T @ (a @ x - b)
+        release = top & (grad > tol)  # held at the top but better lower
+        if not release.any():
+            # the optimality conditions in full (scipy's NNLS can stop short on a
+            # degenerate problem: then BVLS decides)
+            free = (x > 0.0) & ~top
+            if (np.abs(grad[free]) <= tol).all() and (grad[(x <= 0.0)] >= -tol).all():
+                return x
+            break
+        top[int(np.argmax(np.where(release, grad, -np.inf)))] = False
+    return lsq_linear(a, b, bounds=(0.0, upper), method="bvls").x
 
 
 def faps_to_aus(faps: np.ndarray) -> np.ndarray:

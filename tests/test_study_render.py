@@ -29,7 +29,7 @@ def test_paper_design_from_one_face(tmp_path, sample_face):
         data = np.frombuffer(s.image_bytes(joy.id), np.uint8)
         img = cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         x0, y0, x1, y1 = face_crop(sample_face)
-        full = sample_face.render(apply_preset(get_preset("joy"), 1.0))
+        full = sample_face.render(apply_preset(get_preset("joy"), 1.0), sharp=True)
         assert np.array_equal(img, full[y0:y1, x0:x1])
         # the crop holds the whole face and is much smaller than the photo
         b = sample_face.landmarks.box

@@ -195,7 +195,9 @@ def _face_stimuli(task: tuple[str | Path, tuple[str, ...], tuple[float, ...], bo
     for p in presets:
         preset = get_preset(p)
         for k in intensities:
-            img = face.render(apply_preset(preset, k))[y0:y1, x0:x1]
+            # (bicubic: raters judge whether it looks like a photo; a bilinear warp softens
+            # the skin that moves, next to the sharp skin that does not)
+            img = face.render(apply_preset(preset, k), sharp=True)[y0:y1, x0:x1]
             out.append((preset.name, float(k), np.ascontiguousarray(img)))
             if step is not None:
                 step()

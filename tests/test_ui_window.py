@@ -306,11 +306,19 @@ def test_drop_a_photo_and_unsaved_prompt(window, boxes, tmp_path, qtbot):
 
 
 def test_export_png_and_jpeg(window, tmp_path):
+    """The exported still is the shown expression rendered bicubically (sharp), with the skin
+    folds as View > Skin Creases sets them."""
     window.model.set_faps({"open_jaw": 500}, "x")
+    face, faps = window.model.face, window.model.doc.faps
     png, jpg = tmp_path / "out.png", tmp_path / "out.jpg"
     assert window.docs.export(str(png)) and window.docs.export(str(jpg))
-    assert np.array_equal(load_image(png), _shown(window))
+    assert np.array_equal(load_image(png), face.render(faps, sharp=True))
     assert load_image(jpg).shape == _shown(window).shape
+    shown = _shown(window).astype(np.int16)
+    assert np.abs(load_image(png) - shown).mean() < 1.0  # the preview's picture, sharper
+    window.act_creases.trigger()  # folds off
+    assert window.docs.export(str(png))
+    assert np.array_equal(load_image(png), face.render(faps, creases=False, sharp=True))
 
 
 # ---------------------------------------------------------------------- headless screenshot

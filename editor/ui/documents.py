@@ -66,6 +66,8 @@ class Documents(QObject):
         self.remember = True
         #: Ask the user (where is the photo of a project?); headless runs turn this off.
         self.interactive = True
+        #: Exported images with the skin folds (View > Skin Creases, as the preview shows)
+        self.creases = True
 
     # ------------------------------------------------------------------ error handling
     def guarded(self, title: str, action: Callable[[], object]) -> bool:
@@ -226,7 +228,9 @@ class Documents(QObject):
         return ok
 
     def export(self, path: str | None = None) -> bool:
-        """Export the rendered image (PNG or JPEG by the suffix; dialog when ``path`` is None)."""
+        """Export the rendered image (PNG or JPEG by the suffix; dialog when ``path`` is None):
+        the preview's expression and skin-fold setting, resampled bicubically (the preview's
+        bilinear warp softens the skin that moves; a still is rendered once)."""
         if self.model.doc is None or self.model.face is None:
             return False
         if path is None:
@@ -237,14 +241,14 @@ class Documents(QObject):
                 return False
             if Path(path).suffix.lower() not in (".png", ".jpg", ".jpeg"):
                 path += ".jpg" if chosen.startswith("JPEG") else ".png"
-        face, faps = self.model.face, self.model.doc.faps
+        face, faps, creases = self.model.face, self.model.doc.faps, self.creases
         out = path
         from editor.engine.imageio import save_image
 
         ok = self.guarded("Cannot export the image", lambda: run_task(
             self.widget, f"Exporting {Path(out).name}…",
-            lambda _p: save_image(out, face.render(faps)), title="Export Image",
-            cancellable=False))
+            lambda _p: save_image(out, face.render(faps, creases=creases, sharp=True)),
+            title="Export Image", cancellable=False))
         if ok:
             self.status(f"Exported {out}")
         return ok

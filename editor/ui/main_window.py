@@ -377,7 +377,9 @@ class MainWindow(QMainWindow):
             self._update_title()
 
     def _set_creases(self, on: bool) -> None:
-        """View > Skin Creases: re-render the preview with or without the folds."""
+        """View > Skin Creases: re-render the preview with or without the folds (and export
+        images so)."""
+        self.docs.creases = bool(on)
         face, doc = self.model.face, self.model.doc
         if face is not None and doc is not None:
             self.scheduler.submit(face, doc.faps, creases=bool(on))

@@ -29,7 +29,6 @@ Returns colours only; the caller composites them behind the deformed lids with a
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -720,8 +719,8 @@ class EyePlan:
                r_new: float, p_new: float, poly: np.ndarray | None = None,
                lids: tuple[np.ndarray, np.ndarray] | None = None,
                inv: np.ndarray | None = None, soft: float = 1.0) -> np.ndarray:
-        """Colours (h, w, 3) float32 of the eyeball over ``box`` (output px): ``sim`` the
-        eye's similarity (source -> destination), ``shift`` (Δu, Δw) the gaze (frame px),
+        """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
+
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
         rescaled to the edge-refined iris radius). ``poly``: the deformed opening (output px);
         where its upper lid is above the neutral one (a raised lid) or its lower lid below, the
@@ -732,78 +731,177 @@ class EyePlan:
         pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known,
         ``inv`` the inverse of ``sim``. ``soft``: the face's edge ramp (px,
         ``layers.LayerPlan.soft``) over which the iris and the white's lid bands blend.
-        (:func:`render_eyes` of this one eye.)
         """
-        return render_eyes([EyeJob(self, box, sim, shift, r_new, p_new, poly, lids, inv)],
-                           soft)[0]
-
-    def _stretched_white(self, U: np.ndarray, W: np.ndarray, du: float
-                         ) -> tuple[np.ndarray, np.ndarray]:
-        """Where the pixels at frame ``(U, W)`` sample the white (patch x, y float32) for a
-        horizontal gaze ``du``: right of the split line it moves rigidly, the corner triangle
-        stretches affinely (see the module docstring)."""
+        k = self.r0 / self.r_det
+        r_new, p_new = r_new * k, p_new * k
+        x0, y0, x1, y1 = box
+        if inv is None:
+            inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
+        xs = np.arange(x0, x1, dtype=np.float64)
+        ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
+        du, dw = float(shift[0]), float(shift[1])
+        still = not abs(du) > 1e-6  # the white is not stretched
+        # (u, w) of every pixel: affine in x and y, so one row plus one column each (u and
+        # w stacked: rows (2, w), columns (2, h); the same values as each alone)
+        cu = self._exy.T @ inv[:, :2]  # (u, w) per unit of x (column 0) and of y (column 1)
+        c0 = (inv[:, 2] - self.centre) @ self._exy
+        if still:
+            # an unmoved white is the photo patch through the inverse similarity (ex, ey are
+            # orthonormal: centre + U ex + W ey is the inverse-mapped pixel): its (x, y) on
+            # the patch, affine too, stacked with (u, w) (rows (4, w), columns (4, h))
+            cu = np.concatenate((cu, inv[:, :2]))
+            c0 = np.concatenate((c0, inv[:, 2] - self.off))
+        grid = (cu[:, 0, None] * xs + c0[:, None])[:, None, :] + (cu[:, 1, None] * ys)[:, :, None]
+        U, W = grid[0], grid[1]
         ox = self.centre[0] - self.off[0]
         oy = self.centre[1] - self.off[1]
-        p, q = self.split_r if du > 0 else self.split_l
-        corner = self.corner_l if du > 0 else self.corner_r
-        bound = _line_u(p, q, W) + du
-        moved = (U >= bound) if du > 0 else (U <= bound)
-        dst = np.array([corner, p + (du, 0.0), q + (du, 0.0)], np.float32)
-        src = np.array([corner, p, q], np.float32)
-        A = cv2.getAffineTransform(dst, src).astype(np.float64)
-        Ua = A[0, 0] * U + A[0, 1] * W + A[0, 2]
-        Wa = A[1, 0] * U + A[1, 1] * W + A[1, 2]
-        Us = np.where(moved, U - du, Ua)
-        Ws = np.where(moved, W, Wa)
-        return ((ox + Us * ex[0] + Ws * ey[0]).astype(np.float32),
-                (oy + Us * ex[1] + Ws * ey[1]).astype(np.float32))
-
-    def _iris_maps(self, mx: np.ndarray, my: np.ndarray, Di: np.ndarray, Dw: np.ndarray,
-                   rho: np.ndarray, du: float, dw: float, r_new: float, p_new: float
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        """Where the pixels sample the iris sprite: the white's own ``mx, my`` when the iris
-        is as in the photo (no gaze, thrust or pupil change: the radial map is the identity),
-        else the iris annulus [p0, r0] mapped to [p', r'] around the moved centre (``Di``,
-        ``Dw`` a pixel's frame offset from it, ``rho`` its distance)."""
+        if not still:
+            # the white: stretch / translate horizontally
+            p, q = self.split_r if du > 0 else self.split_l
+            corner = self.corner_l if du > 0 else self.corner_r
+            bound = _line_u(p, q, W) + du
+            moved = (U >= bound) if du > 0 else (U <= bound)
+            dst = np.array([corner, p + (du, 0.0), q + (du, 0.0)], np.float32)
+            src = np.array([corner, p, q], np.float32)
+            A = cv2.getAffineTransform(dst, src).astype(np.float64)
+            Ua = A[0, 0] * U + A[0, 1] * W + A[0, 2]
+            Wa = A[1, 0] * U + A[1, 1] * W + A[1, 2]
+            Us = np.where(moved, U - du, Ua)
+            Ws = np.where(moved, W, Wa)
+            mx = (ox + Us * ex[0] + Ws * ey[0]).astype(np.float32)
+            my = (oy + Us * ex[1] + Ws * ey[1]).astype(np.float32)
+        else:  # (the patch's x and y, computed with u and w)
+            mx, my = grid[2:].astype(np.float32)
+        # at rest the white is the photo itself (the composite is then exactly the photo); it
+        # turns into the clean plate within the first pixel of motion or radius change
+        t = max(abs(du), abs(dw), 2.0 * abs(r_new - self.r0))
+        # (a plate weight below 1e-18, i.e. a change under 1e-9 px such as the radius rescaled
+        # to the refined one with a rounding error of 1e-16 px: the photo, without a blend)
+        t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
+        if t < 1e-18:
+            t = 0.0
+        plate = self.plate if t >= 1.0 else self.photo if t <= 0.0 else \
+            self.photo + t * (self.plate - self.photo)
+        white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+        # opened lids: per pixel, how far its column's lid moved away and the weight of the
+        # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
+        keep = None
+        band3: np.ndarray | None = None  # (h, w, 3) the photo's lid bands, moved
+        if poly is not None:
+            up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
+            su, sl = self.lid_up, self.lid_low
+            w_up = interp(U, up[:, 0], up[:, 1])
+            w_up0 = interp(U, su[:, 0], su[:, 1])
+            w_lo0 = interp(U, sl[:, 0], sl[:, 1])
+            w_lo = interp(U, low[:, 0], low[:, 1])
+            # both lids at once, rows (upper, lower) (the same values as lid by lid): how far
+            # each column's lid moved away (frame px) and its fade-in
+            dd = np.empty((2, *U.shape))
+            np.subtract(w_up0, w_up, out=dd[0])
+            np.subtract(w_lo, w_lo0, out=dd[1])
+            # (smooth01's values, its clamp one clip ufunc; dd itself is read below)
+            ss = clip(dd, 0.0, 1.0)
+            ss = ss * ss * (3.0 - 2.0 * ss)
+            up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
+            if up_moved or low_moved:
+                # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'
+                # product (a lid that did not open contributes a factor of exactly 1: skipped)
+                kk = np.empty_like(dd)
+                np.subtract(W, w_up0, out=kk[0])
+                np.subtract(w_lo0, W, out=kk[1])
+                kk -= self._band_off  # (band_up, band_low)
+                # 1 - ss (1 - clip(ramp)), in place (the same float64 operations)
+                clip(_ramp(kk, 1.0 / soft), 0.0, 1.0, out=kk)
+                np.subtract(1.0, kk, out=kk)
+                kk *= ss
+                np.subtract(1.0, kk, out=kk)
+                keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
+                keep = keep.astype(np.float32)
+                ball: np.ndarray = cv2.remap(self.ball, mx, my, cv2.INTER_LINEAR, None,
+                                             cv2.BORDER_REPLICATE)
+                # (weights spread over the channels with cv2.merge: numpy's broadcasting of
+                # (h, w, 1) over 3 channels is several times slower on these small boxes)
+                white -= ball
+                white *= spread3(keep)
+                white += ball
+                # the photo's own bands ride with their lids: a pixel at depth d below the
+                # raised upper lid (above the lowered lower one) takes the band's share at depth
+                # d below the photo's lid (the lashes' lower half, which lay inside the photo's
+                # opening, and their shadow; not wiped off with the white). The pixel's image
+                # position is ox + U ex + Wb ey: its U part is the same for both lids
+                # (x and y stacked, then both lids: the U part (2, h, w), the maps (2, 2, h, w))
+                bu = U * self._ex3 + self._o3  # (ox, oy)
+                wb = np.empty_like(dd)  # rows: W + d_up, W - d_lo (both lids' maps at once)
+                np.add(W, dd[0], out=wb[0])
+                np.subtract(W, dd[1], out=wb[1])
+                bx, by = (bu[:, None] + wb * self._ey4).astype(np.float32)
+                # the moved lids' bands sampled into one (n, h, w, 3) array, then for all n at
+                # once 1 - s (1 - got) in float64, s spread over the channels with one
+                # cv2.merge of the lids' rows (numpy's broadcasting of (h, w, 1) is several
+                # times slower here); the lids' minimum (the same values as lid by lid)
+                lids_moved = [j for j, m in enumerate((up_moved, low_moved)) if m]
+                n, (h, w) = len(lids_moved), U.shape
+                got = np.empty((n, h, w, 3), np.float32)
+                for i, j in enumerate(lids_moved):
+                    got[i] = cv2.remap(self.bands[j], bx[j], by[j], cv2.INTER_LINEAR, None,
+                                       cv2.BORDER_CONSTANT, _ONES3)
+                np.subtract(1.0, got, out=got)
+                s_rows = (ss if n == 2 else ss[lids_moved[0]]).reshape(n * h, w)
+                s3 = cv2.merge([s_rows, s_rows, s_rows])
+                s3 *= got.reshape(n * h, w, 3)
+                got = np.subtract(1.0, s3, out=s3).astype(np.float32).reshape(n, h, w, 3)
+                band3 = got[0] if n == 1 else np.minimum(got[0], got[1])
+        # the iris: rigid, round, radially rescaled for thrust and pupil size
+        Di = U - du if du else U
+        Dw = W - dw if dw else W
+        rho = np.sqrt(Di * Di + Dw * Dw)
+        # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
+        a = clip(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
+            clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
+        if not np.count_nonzero(a):
+            return white if band3 is None else white * band3
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0
         pn = min(max(pn, 0.02), 0.95)
         if du == 0.0 and dw == 0.0 and abs(r_new - self.r0) <= 1e-9 * self.r0 \
                 and abs(pn - pn0) <= 1e-12:
-            return mx, my
-        ex, ey = self.ex, self.ey
-        ox = self.centre[0] - self.off[0]
-        oy = self.centre[1] - self.off[1]
-        rn = rho / max(r_new, 1e-6)
-        rs = np.where(rn < pn, rn * pn0 / pn,
-                      pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * self.r0
-        k = rs / np.maximum(rho, 1e-6)
-        return ((ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32),
-                (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32))
-
-    def _dilated_pupil(self, iris: np.ndarray, Di: np.ndarray, Dw: np.ndarray,
-                       rho: np.ndarray, r_new: float, p_new: float) -> np.ndarray:
-        """``iris`` with a dilated pupil: the photo's pupil, radially stretched, may be faint
-        (brown irises); a dark disc of the pupil's colour fades in, sparing the
-        catch-lights."""
-        ex, ey = self.ex, self.ey
-        ox = self.centre[0] - self.off[0]
-        oy = self.centre[1] - self.off[1]
+            # the iris as in the photo (no gaze, thrust or pupil change): the radial map is
+            # the identity, the sprite is sampled where the white is
+            ix, iy = mx, my
+        else:
+            rn = rho / max(r_new, 1e-6)
+            rs = np.where(rn < pn, rn * pn0 / pn,
+                          pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * self.r0
+            k = rs / np.maximum(rho, 1e-6)
+            ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
+            iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
+        iris = cv2.remap(self.iris, ix, iy, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
         p_rest = self.p0 * r_new / self.r0
-        w = min((p_new - p_rest) / max(1.0, 0.3 * p_rest), 1.0)
-        ap: np.ndarray = clamp(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
-        # catch-lights are reflections on the cornea: they keep their size while the
-        # pupil grows, so they are found on the iris without the pupil's radial stretch
-        # (the stretched sprite spreads a central catch-light over the new pupil)
-        k0 = (self.r0 / max(r_new, 1e-6))
-        plain = cv2.remap(self.iris, (ox + k0 * (Di * ex[0] + Dw * ey[0])).astype(np.float32),
-                          (oy + k0 * (Di * ex[1] + Dw * ey[1])).astype(np.float32),
-                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        lum = plain @ np.array([0.299, 0.587, 0.114], np.float32)
-        ap *= 1.0 - np.clip((lum - 1.3 * self.iris_lum) / (0.3 * self.iris_lum + 1.0),
-                            0.0, 1.0)
-        ap = spread3(ap)
-        return iris * (1.0 - ap) + self.pupil * ap
+        if p_new > p_rest:
+            # a dilated pupil: the photo's pupil, radially stretched, may be faint (brown
+            # irises); a dark disc of the pupil's colour fades in, sparing the catch-lights
+            w = min((p_new - p_rest) / max(1.0, 0.3 * p_rest), 1.0)
+            ap: np.ndarray = clamp(p_new + 0.5 - rho, 0.0, 1.0).astype(np.float32) * w
+            # catch-lights are reflections on the cornea: they keep their size while the
+            # pupil grows, so they are found on the iris without the pupil's radial stretch
+            # (the stretched sprite spreads a central catch-light over the new pupil)
+            k0 = (self.r0 / max(r_new, 1e-6))
+            plain = cv2.remap(self.iris, (ox + k0 * (Di * ex[0] + Dw * ey[0])).astype(np.float32),
+                              (oy + k0 * (Di * ex[1] + Dw * ey[1])).astype(np.float32),
+                              cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            lum = plain @ np.array([0.299, 0.587, 0.114], np.float32)
+            ap *= 1.0 - np.clip((lum - 1.3 * self.iris_lum) / (0.3 * self.iris_lum + 1.0),
+                                0.0, 1.0)
+            ap = spread3(ap)
+            iris = iris * (1.0 - ap) + self.pupil * ap
+        a = a.astype(np.float32)
+        col = iris - white  # a iris + (1 - a) white (white is this frame's own array)
+        col *= spread3(a)
+        col += white
+        if band3 is not None:
+            col *= band3
+        return col
+
 
     def lash_fade(self, poly: np.ndarray) -> float:
         """How far the lash line of the opening ``poly`` (its 12 vertices, deformed) has faded
@@ -850,214 +948,6 @@ class EyePlan:
         ramp = max(1.0, 0.5 * soft)  # the edge's width, px
         alpha = clamp((0.5 * thick + 0.5 * ramp - dist.min(-1)) / ramp, 0.0, 1.0) * fade
         return alpha.T.astype(np.float32), self.lash
-
-
-@dataclass(frozen=True)
-class EyeJob:
-    """One eye for :func:`render_eyes`: its plan and :meth:`EyePlan.render`'s arguments."""
-
-    plan: EyePlan
-    box: tuple[int, int, int, int]
-    sim: np.ndarray
-    shift: np.ndarray
-    r_new: float
-    p_new: float
-    poly: np.ndarray | None = None
-    lids: tuple[np.ndarray, np.ndarray] | None = None
-    inv: np.ndarray | None = None
-
-
-#: rows of :func:`render_eyes`' per-eye constants (one column per eye, repeated over its
-#: box's columns): the pixel -> (u, w, patch x, patch y) map's x and y coefficients and
-#: offsets, the lid bands' widths, the iris centre on the patch, the frame axes, the gaze
-#: shift and the iris edge's offset (``r' + 1`` or ``r' + 0.5``)
-_CX, _CY, _C0, _BAND, _O3, _EX, _EY, _SHIFT, _EDGE = (
-    slice(0, 4), slice(4, 8), slice(8, 12), slice(12, 14), slice(14, 16), slice(16, 18),
-    slice(18, 20), slice(20, 22), slice(22, 23))
-
-
-def render_eyes(jobs: list[EyeJob], soft: float = 1.0) -> list[np.ndarray]:
-    """:meth:`EyePlan.render` of several eyes at once (the same values, eye by eye): their
-    boxes side by side in one set of arrays, as tall as the tallest, so that every step
-    between the per-eye samplings (each eye's plate, ball, bands and iris sprite; its lids'
-    tables) runs once for all of them. Every step is per pixel, and each column carries its
-    own eye's constants; what depends on a whole eye (did its lids move, is its white
-    stretched) is decided per eye on its own box. Returns each eye's colours (views)."""
-    widths = [j.box[2] - j.box[0] for j in jobs]
-    heights = [j.box[3] - j.box[1] for j in jobs]
-    hmax, n_w = max(heights), sum(widths)
-    starts = list(itertools.accumulate([0, *widths[:-1]]))
-    cols = [slice(c, c + w) for c, w in zip(starts, widths, strict=True)]
-    # per eye: its constants (a column of ``const``), radii, inverse map, gaze
-    const = np.empty((23, len(jobs)))
-    eyes = []
-    for e, j in enumerate(jobs):
-        p = j.plan
-        k = p.r0 / p.r_det
-        r_new, p_new = j.r_new * k, j.p_new * k
-        inv = cv2.invertAffineTransform(np.asarray(j.sim, np.float64)) if j.inv is None \
-            else j.inv
-        du, dw = float(j.shift[0]), float(j.shift[1])
-        # (u, w) per unit of x (column 0) and of y (column 1), then the patch's (x, y)
-        # (ex, ey are orthonormal: centre + U ex + W ey is the inverse-mapped pixel)
-        cu = np.concatenate((p._exy.T @ inv[:, :2], inv[:, :2]))
-        const[_CX, e], const[_CY, e] = cu[:, 0], cu[:, 1]
-        const[_C0, e] = np.concatenate(((inv[:, 2] - p.centre) @ p._exy, inv[:, 2] - p.off))
-        const[_BAND, e] = p.band_up, p.band_low
-        const[_O3, e] = p.centre - p.off
-        const[_EX, e], const[_EY, e] = p.ex, p.ey
-        const[_SHIFT, e] = du, dw
-        # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
-        const[_EDGE, e] = r_new + 1.0 if soft == 1.0 else r_new + 0.5
-        eyes.append((p, r_new, p_new, inv, du, dw))
-    x0s = [j.box[0] - c for j, c in zip(jobs, starts, strict=True)]
-    xs = np.arange(n_w, dtype=np.float64) + np.repeat(np.array(x0s, np.float64), widths)
-    ys = np.arange(hmax, dtype=np.float64)[:, None] \
-        + np.repeat(np.array([j.box[1] for j in jobs], np.float64), widths)[None, :]
-    per = const.repeat(widths, 1)  # (23, n_w): each column its eye's constants
-    # (u, w, patch x, patch y) of every pixel: affine in x and y, a row term plus a term of
-    # both (the row's y differs from eye to eye)
-    grid = (per[_CX] * xs + per[_C0])[:, None, :] + per[_CY][:, None, :] * ys[None]
-    U, W = grid[0], grid[1]
-    mx, my = grid[2:].astype(np.float32)
-    # the white: an unmoved white is the photo patch through the inverse similarity (its
-    # patch x and y above); a gaze stretches / translates it horizontally
-    for (p, _, _, _, du, _), c in zip(eyes, cols, strict=True):
-        if abs(du) > 1e-6:
-            mx[:, c], my[:, c] = p._stretched_white(U[:, c], W[:, c], du)
-    white = np.empty((hmax, n_w, 3), np.float32)
-    for (p, r_new, _, _, du, dw), c in zip(eyes, cols, strict=True):
-        # at rest the white is the photo itself (the composite is then exactly the photo); it
-        # turns into the clean plate within the first pixel of motion or radius change
-        t = max(abs(du), abs(dw), 2.0 * abs(r_new - p.r0))
-        # (a plate weight below 1e-18, i.e. a change under 1e-9 px such as the radius
-        # rescaled to the refined one with a rounding error of 1e-16 px: the photo, without
-        # a blend)
-        t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
-        if t < 1e-18:
-            t = 0.0
-        plate = p.plate if t >= 1.0 else p.photo if t <= 0.0 else \
-            p.photo + t * (p.plate - p.photo)
-        cv2.remap(plate, mx[:, c], my[:, c], cv2.INTER_LINEAR, white[:, c],
-                  cv2.BORDER_REPLICATE)
-    band3 = _opened_lids(jobs, [e[3] for e in eyes], cols, heights, U, W, mx, my, per, white,
-                         soft)
-    # the iris: rigid, round, radially rescaled for thrust and pupil size
-    moved = bool(np.count_nonzero(const[_SHIFT]))
-    Di = U - per[_SHIFT.start] if moved else U
-    Dw = W - per[_SHIFT.start + 1] if moved else W
-    rho = np.sqrt(Di * Di + Dw * Dw)
-    a = clip(per[_EDGE.start] - rho, 0.0, 1.0) if soft == 1.0 else \
-        clamp((per[_EDGE.start] - rho) / soft + 0.5, 0.0, 1.0)
-    iris = np.empty_like(white)
-    for (p, r_new, p_new, _, du, dw), c in zip(eyes, cols, strict=True):
-        ix, iy = p._iris_maps(mx[:, c], my[:, c], Di[:, c], Dw[:, c], rho[:, c], du, dw,
-                              r_new, p_new)
-        cv2.remap(p.iris, ix, iy, cv2.INTER_LINEAR, iris[:, c], cv2.BORDER_REPLICATE)
-        if p_new > p.p0 * r_new / p.r0:
-            iris[:, c] = p._dilated_pupil(iris[:, c], Di[:, c], Dw[:, c], rho[:, c], r_new,
-                                          p_new)
-    # a iris + (1 - a) white (white is this call's own array; where an eye shows no iris,
-    # a = 0: its white exactly)
-    col = np.subtract(iris, white, out=iris)
-    col *= spread3(a.astype(np.float32))
-    col += white
-    if band3 is not None:
-        col *= band3
-    return [col[:h, c] for h, c in zip(heights, cols, strict=True)]
-
-
-def _opened_lids(jobs: list[EyeJob], invs: list[np.ndarray], cols: list[slice],
-                 heights: list[int],
-                 U: np.ndarray, W: np.ndarray, mx: np.ndarray, my: np.ndarray,
-                 per: np.ndarray, white: np.ndarray, soft: float) -> np.ndarray | None:
-    """:func:`render_eyes`' opened lids: per pixel, how far its column's lid moved away and
-    the weight of the photo / plate there (0 in the shadow band of a moved lid and beyond the
-    old lid), the white continued by the ball there (``white`` changed in place), and the
-    photo's lid bands, moved, as a factor (h, w, 3) of the eyeball (None: no lid of any eye
-    opened). An eye whose lids did not open keeps its white, and its factor is 1."""
-    hmax, n_w = U.shape
-    dd = np.zeros((2, hmax, n_w))
-    lids0: list[tuple[np.ndarray, np.ndarray] | None] = []  # the neutral lids' w per eye
-    for j, inv, c in zip(jobs, invs, cols, strict=True):
-        if j.poly is None:
-            lids0.append(None)
-            continue
-        p = j.plan
-        up, low = p.lid_frame(j.poly, j.sim, inv) if j.lids is None else j.lids
-        u = U[:, c]
-        w_up0, w_lo0 = interp(u, p.lid_up[:, 0], p.lid_up[:, 1]), \
-            interp(u, p.lid_low[:, 0], p.lid_low[:, 1])
-        # both lids, rows (upper, lower): how far each column's lid moved away (frame px)
-        np.subtract(w_up0, interp(u, up[:, 0], up[:, 1]), out=dd[0][:, c])
-        np.subtract(interp(u, low[:, 0], low[:, 1]), w_lo0, out=dd[1][:, c])
-        lids0.append((w_up0, w_lo0))
-    # and its fade-in (smooth01's values, its clamp one clip ufunc; dd itself is read below)
-    ss = clip(dd, 0.0, 1.0)
-    ss = ss * ss * (3.0 - 2.0 * ss)
-    # per eye and lid: did it move (on the eye's own box)
-    moved = [[bool(np.count_nonzero(ss[k][:h, c])) for k in (0, 1)]
-             for h, c in zip(heights, cols, strict=True)]
-    if not any(any(m) for m in moved):
-        return None
-    # per lid 1 - s (1 - the white's weight past the lid's band), the lids' product (a lid
-    # that did not open has s = 0 on its eye's box: a factor of exactly 1)
-    kk = np.zeros_like(dd)
-    for w0, c in zip(lids0, cols, strict=True):
-        if w0 is not None:
-            np.subtract(W[:, c], w0[0], out=kk[0][:, c])
-            np.subtract(w0[1], W[:, c], out=kk[1][:, c])
-    kk -= per[_BAND, None, :]  # (band_up, band_low)
-    # 1 - ss (1 - clip(ramp)), in place (the same float64 operations)
-    clip(_ramp(kk, 1.0 / soft), 0.0, 1.0, out=kk)
-    np.subtract(1.0, kk, out=kk)
-    kk *= ss
-    np.subtract(1.0, kk, out=kk)
-    keep = (kk[0] * kk[1]).astype(np.float32)
-    # the white continued by the ball where a lid opened (an eye whose lids did not: its
-    # own white as the ball, unchanged by the blend)
-    ball = np.empty_like(white)
-    for j, m, c in zip(jobs, moved, cols, strict=True):
-        if any(m):
-            cv2.remap(j.plan.ball, mx[:, c], my[:, c], cv2.INTER_LINEAR, ball[:, c],
-                      cv2.BORDER_REPLICATE)
-        else:
-            ball[:, c] = white[:, c]
-    # (weights spread over the channels with cvtColor: numpy's broadcasting of (h, w, 1)
-    # over 3 channels is several times slower on these small boxes)
-    white -= ball
-    white *= spread3(keep)
-    white += ball
-    # the photo's own bands ride with their lids: a pixel at depth d below the raised upper
-    # lid (above the lowered lower one) takes the band's share at depth d below the photo's
-    # lid (the lashes' lower half, which lay inside the photo's opening, and their shadow;
-    # not wiped off with the white). The pixel's image position is ox + U ex + Wb ey: its U
-    # part is the same for both lids (x and y stacked, then both lids: the U part
-    # (2, h, w), the maps (2, 2, h, w))
-    bu = U * per[_EX, None, :] + per[_O3, None, :]  # (ox, oy)
-    wb = np.empty_like(dd)  # rows: W + d_up, W - d_lo (both lids' maps at once)
-    np.add(W, dd[0], out=wb[0])
-    np.subtract(W, dd[1], out=wb[1])
-    bx, by = (bu[:, None] + wb * per[_EY, None, None, :]).astype(np.float32)
-    # the moved lids' bands sampled (a lid that did not move: s = 0 makes its factor 1
-    # whatever it holds), then for both at once 1 - s (1 - got) in float64, s spread over
-    # the channels with one cv2.merge of the lids' rows; per eye the moved lids' minimum
-    got = np.zeros((2, hmax, n_w, 3), np.float32)
-    for j, m, c in zip(jobs, moved, cols, strict=True):
-        for k in (0, 1):
-            if m[k]:
-                cv2.remap(j.plan.bands[k], bx[k][:, c], by[k][:, c], cv2.INTER_LINEAR,
-                          got[k][:, c], cv2.BORDER_CONSTANT, _ONES3)
-    np.subtract(1.0, got, out=got)
-    s_rows = ss.reshape(2 * hmax, n_w)
-    s3 = cv2.merge([s_rows, s_rows, s_rows])
-    s3 *= got.reshape(2 * hmax, n_w, 3)
-    got = np.subtract(1.0, s3, out=s3).astype(np.float32).reshape(2, hmax, n_w, 3)
-    band3 = np.minimum(got[0], got[1])
-    for m, c in zip(moved, cols, strict=True):
-        if m[0] != m[1]:  # one lid moved: its own factor (the other's 1 is not compared)
-            band3[:, c] = got[0 if m[0] else 1][:, c]
-    return band3
 
 
 _UP = np.array([0, 1, 2, 3, 4, 5, 6])  # opening loop -> upper lid c0, u1..u5, c1

@@ -38,16 +38,7 @@ import numpy.typing as npt
 
 from .deform import eye_state
 from .fitting import channel_median, clamp, clip, gather_px, median, pad_edge, smooth01
-from .gaze import (
-    EXTRA_INDEX,
-    EYE_FAPS,
-    EyeJob,
-    EyePlan,
-    edge_ramp,
-    photo_through,
-    render_eyes,
-    spread3,
-)
+from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through, spread3
 from .mouth import (
     CROWN,
     GUM_FADE,
@@ -246,46 +237,6 @@ def _nearest_outside(face: np.ndarray, hole: np.ndarray, labels: np.ndarray,
         .astype(np.float32)
 
 
-def _lid_margin(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray,
-                interior: np.ndarray, closure: float) -> np.ndarray:
-    """(h, w, 3) float32: what the lids continue with inside an eye opening on a sharp photo
-    (the part of a pixel its outline leaves to the lid): the nearest pixel outside the
-    opening; along the upper lid the darker of it and the eyeball layer's own colour there.
-
-    A raised upper lid's lash line lies mostly inside the photo's opening: the eyeball layer
-    carries it up with the lid (:mod:`gaze`'s bands), while the warped skin just outside is
-    the lighter lid above it. Continued with that skin (or a box average of the face around the
-    opening), the outline's partly covered pixels along the raised lid alternate between the
-    dark band and light skin with the coverage: the lash line reads as stitches (JAFFE anger and
-    surprise, KL and YM at 1.5). The darker of the two keeps the margin one dark line; where the
-    layer shows the white, the lid's own skin is the darker. Not along the lower lid, whose
-    margin is light: there the iris would reach into it (a dark drip under the iris)."""
-    x0, y0, x1, y1 = box
-    h, w = hole.shape
-    inside = hole.view(np.uint8) if hole.flags.c_contiguous else hole.astype(np.uint8)
-    labels = cv2.distanceTransformWithLabels(inside, cv2.DIST_L2, 3,
-                                             labelType=cv2.DIST_LABEL_PIXEL)[1]
-    outside = (~hole).ravel().nonzero()[0]
-    if not len(outside):
-        return interior.astype(np.float32)
-    near_at = outside.take(np.asarray(labels, np.intp) - 1, mode="clip")  # flat, (h, w)
-    rows = np.ascontiguousarray(out[y0:y1, x0:x1]).reshape(-1, 3)
-    near = rows.take(near_at, 0).reshape(h, w, 3).astype(np.float32)
-    # along the upper lid (the nearest outside pixel lies above), by the pixel's share of the
-    # opening, fully from a quarter on: a pixel the outline does not cover stays the lid's skin
-    # (closed lids cover nothing: what moves behind them must not show)
-    # along the upper lid (the nearest outside pixel lies above) of an open eye: a closing
-    # eye's margin is its lash line (drawn from a closure of 0.6 on), and what moves behind
-    # closed lids must not show through the pixels their outline touches
-    share = (near_at < np.arange(0, h * w, w)[:, None]).astype(np.float32)
-    share *= np.float32(min(max((0.6 - closure) * 5.0, 0.0), 1.0))
-    dark = np.minimum(near, interior)
-    dark -= near
-    dark *= spread3(share)
-    near += dark
-    return near
-
-
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,
                     alpha: np.ndarray, strength: float, soft: float = 1.0) -> None:
     """Remove thin bright specks from the lips along the inner-lip outline (in place).
@@ -414,10 +365,23 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
                hole: np.ndarray, interior: np.ndarray, shade: np.ndarray | None = None,
-               inside: np.ndarray | None = None) -> None:
+               inside: np.ndarray | None = None,
+               margin: tuple[int, float] | None = None) -> None:
     """out[box] = alpha * interior + (1 - alpha) * face, face continued into ``hole`` (by
     ``inside`` (h, w, 3) when given: the soft edge's nearest lid or lip colour, else from the
-    neighbours); ``shade`` (h, w) multiplies the face (the lips' inner edge)."""
+    neighbours); ``shade`` (h, w) multiplies the face (the lips' inner edge).
+
+    ``margin`` (rows, share): an open eye's upper lid on a sharp photo. In its first ``rows``
+    the face continued into the hole takes the darker of the neighbours' colour and the
+    interior's, by ``share``. A raised lid's lash line lies mostly inside the photo's
+    opening: the eyeball layer carries it up with the lid (:mod:`gaze`'s bands) while the
+    warped skin around the opening is the lighter lid above it; continued with that skin, the
+    outline's partly covered (and its touched, uncovered) pixels along the raised lid
+    alternated between the dark band and light skin: the lash line read as stitches (JAFFE
+    anger and surprise, KL and YM at 1.5). Where the layer shows the white, the skin is the
+    darker and stays. Not along the lower lid, whose margin is light (the iris would reach
+    into it: a dark drip under the iris), nor for a closing eye (its margin is the lash line;
+    what moves behind closed lids must not show through the pixels their outline touches)."""
     x0, y0, x1, y1 = box
     view = out[y0:y1, x0:x1]
     face = view.astype(np.float32)
@@ -440,6 +404,15 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
         np.maximum(den, 1e-6, out=den)
         num /= spread3(den)
         cv2.copyTo(num, fill.view(np.uint8), face)  # face[fill] = num[fill], in place
+        if margin is not None and margin[0] > 0:
+            k, share = margin
+            top = face[:k]
+            dark = np.minimum(top, interior[:k])
+            if share < 1.0:
+                dark -= top
+                dark *= np.float32(share)
+                dark += top
+            cv2.copyTo(dark, fill[:k].view(np.uint8), top)
     res = interior - face  # alpha * interior + (1 - alpha) * face
     res *= spread3(alpha)
     res += face
@@ -494,7 +467,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     hi_all = np.maximum.reduceat(polys, cuts).tolist()
     slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
     # each eye's closure (1 - its area over the neutral one): the lash line is drawn from 0.6
-    # on, and an open eye's margin continues its lash band (_lid_margin)
+    # on, and an open eye's upper lid margin continues its lash band (_composite's margin)
     closure = [0.0, 0.0]
     if jobs[0][0] == "eye":  # (the eyes' jobs come first)
         e = polys[:ends[2]].astype(np.float64)
@@ -510,8 +483,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         if box[2] > box[0] and box[3] > box[1]:
             todo.append((job, box))
     masks = _opening_masks([(job[2], box, job[5] > _TOL) for job, box in todo]) if todo else []
-    eyeballs = _eyeballs(lp, img, todo, extra, state)
-    for ((kind, name, poly, tf, _, moved), box), (hole, cov) in zip(todo, masks,
+    for ((kind, name, poly, tf, active, moved), box), (hole, cov) in zip(todo, masks,
                                                                           strict=True):
         k_open = slot[name]
         # an outline that did not move keeps the photo's own edge pixels; the anti-aliased
@@ -524,7 +496,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 # pixel to pixel and the dark line reads dotted; a slightly wider filter
                 cov = _blur(np.ascontiguousarray(cov), 0.6, 3)
             alpha += (t * t * (3.0 - 2.0 * t)) * (cov - alpha)
-        lip_shade = None
+        lip_shade, margin = None, None
         alpha_c, inside = alpha, None  # (a soft photo's edge ramp replaces them: _soft_edge)
         if kind == "mouth":
             fade_in = _smoothstep1(min(moved, 1.0))
@@ -538,14 +510,30 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                                              (depth, rim))
         else:
             ep = lp.eyes[name]
-            interior, shift, r_new = eyeballs[name]
+            k = EXTRA_INDEX[name]
+            if active:
+                assert state is not None  # computed when the first active eye job was queued
+                r_new, p_new = (float(x) for x in state[k])
+                shift = ep.gaze_shift(extra[k], tf)
+            else:
+                r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
+            inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
+            lids = ep.lid_frame(poly, tf, inv)
+            if active or ep.lid_opening(poly, tf, lids) > _TOL:
+                # the eyeball layer; it also continues the eye under a raised lid
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft)
+            else:  # the photo's own eye, moved with the corners (as the warp does)
+                interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)
                 amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
                                              float(_smoothstep1(min(amount, 1.0))))
-            else:
-                inside = _lid_margin(out, box, hole, interior, float(closure[k_open]))
-        _composite(out, box, alpha_c, hole, interior, lip_shade, inside)
+            elif closure[k_open] < 0.6:
+                # an open eye on a sharp photo: its upper lid's margin continued dark
+                # (_composite); the rows above the opening's mean height are the upper lid's
+                margin = (int(round(float(poly[:, 1].mean()))) - box[1],
+                          min((0.6 - closure[k_open]) * 5.0, 1.0))
+        _composite(out, box, alpha_c, hole, interior, lip_shade, inside, margin)
         if kind == "mouth":
             _clean_lip_line(out, box, poly, alpha, fade_in, lp.soft)
         else:
@@ -564,40 +552,6 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, drawn)
-
-
-def _eyeballs(lp: LayerPlan, img: np.ndarray, todo: list, extra: np.ndarray,
-              state: np.ndarray | None) -> dict[str, tuple[np.ndarray, np.ndarray, float]]:
-    """The interior of every eye job of ``todo`` (:func:`render_layers`' jobs with their
-    boxes), with its gaze shift and iris radius: the eyeball layer (it also continues the eye
-    under a raised lid), both eyes in one :func:`gaze.render_eyes` pass, or the photo's own
-    eye moved with the corners (as the warp does) when neither the eye's FAPs nor its lids
-    open it."""
-    got: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
-    jobs, names = [], []
-    for (kind, name, poly, tf, active, _), box in todo:
-        if kind != "eye":
-            continue
-        ep = lp.eyes[name]
-        k = EXTRA_INDEX[name]
-        if active:
-            assert state is not None  # computed when the first active eye job was queued
-            r_new, p_new = (float(x) for x in state[k])
-            shift = ep.gaze_shift(extra[k], tf)
-        else:
-            r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-        inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
-        lids = ep.lid_frame(poly, tf, inv)
-        if active or ep.lid_opening(poly, tf, lids) > _TOL:
-            jobs.append(EyeJob(ep, box, tf, shift, r_new, p_new, poly, lids, inv))
-            names.append(name)
-            got[name] = (np.empty(0), shift, r_new)  # (the interior follows below)
-        else:
-            got[name] = (photo_through(img, tf, box), shift, r_new)
-    if jobs:
-        for name, interior in zip(names, render_eyes(jobs, lp.soft), strict=True):
-            got[name] = (interior, *got[name][1:])
-    return got
 
 
 # ---------------------------------------------------------------------------- photo analysis

@@ -1575,16 +1575,29 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         # core pulls S down on its shoulders; over the lower shoulder the lifted band read
         # as a light outline where a neutralised smile's fold had been (JAFFE NA, MK: up to
         # 50-68 grey levels above the lightest pixel around)
-        r = int(math.ceil(_VALLEY_WIDTH * sig * 1.25))
-        close = cv2.morphologyEx(view, cv2.MORPH_CLOSE, _ellipse(r))
-        np.minimum(gain, cv2.divide(close, np.maximum(view, 1), None, 1.0, cv2.CV_32F),
-                   out=gain)
+        cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
+                         np.maximum(view, 1), None, 1.0, cv2.CV_32F)
+        np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)  # (>= 1: never darkened)
         gain -= 1.0
         gain *= spread3(band)
         gain += 1.0
         cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     return bbox
+
+
+def _frame_closing(view: np.ndarray, r: int) -> np.ndarray:
+    """The closing (radius ``r`` px) of a frame's box ``view`` (h, w, 3) uint8: on large faces
+    (``r`` above 6) taken on ``q x q`` block means (``q = r // 6``, as the photo's own
+    :func:`_closing`) and resized back, so that its cost does not grow with the kernel's area
+    (a 4K face's 105 px ellipse cost ~110 ms a fold group at full resolution)."""
+    q = max(1, r // 6)
+    if q == 1:
+        return cv2.morphologyEx(view, cv2.MORPH_CLOSE, _ellipse(r))
+    h, w = view.shape[:2]
+    small = cv2.resize(view, (max(w // q, 1), max(h // q, 1)), interpolation=cv2.INTER_AREA)
+    small = cv2.morphologyEx(small, cv2.MORPH_CLOSE, _ellipse(max(r // q, 1)))
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
 @functools.lru_cache(maxsize=16)

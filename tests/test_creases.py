@@ -785,3 +785,23 @@ def test_jaffe_anger_chin_groove_as_deep_as_real_ones():
     0.7-1.5 x, at 150 % no deeper than the deeper real ones (p90). Before the groove was
     drawn: 0.02 (measured now: 0.154, 0.243 at 150 %)."""
     _assert_as_deep_as_real("anger", "AN", lambda f, img, v: [_chin_groove(f, img, v)], 0.178)
+
+
+@pytest.mark.parametrize("up", [0.05, 0.3])
+def test_a_photo_cut_through_the_forehead_renders_every_preset(up):
+    """A tight headshot: the photo's top edge runs through the forehead, so the forehead
+    lines' canvases are clipped by it and some of their points' corners fall above the photo.
+    Those corners are dropped; they used to reach ``np.bincount`` as negative indices and every
+    preset with forehead lines (surprise, fear, sadness) raised a ValueError."""
+    from editor.formats.presets import apply_preset
+
+    img = load_image(SAMPLE)
+    f0 = Face.from_image(img, own_expression=False)
+    y0 = int(f0.landmarks.points[17:27, 1].min() - up * f0.interocular)
+    face = Face.from_image(np.ascontiguousarray(img[y0:]))
+    for e in ("surprise", "fear", "sadness", "anger"):
+        out = face.render(apply_preset(e, 1.5))
+        assert out.shape == face.image.shape
+    lines = [s for k, _p, s in fold_lines(face, face.deform(apply_preset("surprise", 1.5)))
+             if k == "forehead"]
+    assert lines and max(float(s.max()) for s in lines) > 0.05  # the lines are drawn

@@ -1334,6 +1334,9 @@ def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bo
         base = ip[k:k + m, 1] * wd + ip[k:k + m, 0]
         idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
         w4 = ws.reshape(4, -1)[:, k:k + m].ravel()
+        keep = (idx >= 0) & (idx < h * wd)  # (a corner above or below the canvas: dropped)
+        if not keep.all():
+            idx, w4 = idx[keep], w4[keep]
         got.append(np.bincount(idx, w4, minlength=h * wd)[: h * wd].astype(np.float32)
                    .reshape(h, wd))
         k += m

@@ -112,7 +112,8 @@ def _moved_out(b: _Band, vertices: np.ndarray) -> bool:
     return bool(hi > _OUT and min(o) >= -max(_OUT, _IN_SHARE * hi))
 
 
-def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
+def jaw_map(face: Face, vertices: np.ndarray
+            ) -> Callable[..., tuple[int, int, int, int] | None] | None:
     """A hook for :func:`~editor.engine.warp.warp` that gives the band's pixels the chin's
     map, or None when the jaw did not move outward (see :func:`_moved_out`).
 
@@ -146,16 +147,18 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
 
 def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: np.ndarray,
           drop: np.ndarray, ring: np.ndarray, ramp: float, ids: np.ndarray,
-          map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]) -> None:
+          map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]
+          ) -> tuple[int, int, int, int] | None:
     """:func:`jaw_map`'s hook: the band's pixels of the warp's box ``box`` (triangle ids
     ``ids``) take the chin's map in ``map_x``, ``map_y`` (in place). ``new`` the jaw line in
     the frame by its x, ``drop`` its drop there, ``ring`` the margin ring below it, ``ramp``
-    the fade's length, ``ext`` the band's vertices' extent (x0, y0, x1, y1)."""
+    the fade's length, ``ext`` the band's vertices' extent (x0, y0, x1, y1). Returns the box
+    (x0, y0, x1, y1, image pixels) it wrote in, None when it wrote nothing."""
     bx0, by0, bx1, by1 = box
     x0, y0 = max(math.floor(ext[0]) - 1, bx0), max(math.floor(ext[1]) - 1, by0)
     x1, y1 = min(math.ceil(ext[2]) + 2, bx1), min(math.ceil(ext[3]) + 2, by1)
     if x1 <= x0 or y1 <= y0:
-        return
+        return None
     sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
     sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
     w, h = x1 - x0, y1 - y0
@@ -163,12 +166,13 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
         # a small box: the table is read and the shift evaluated at the band's pixels only
         # (their flat indices: np.nonzero of a 2-d mask costs several times more)
         k = sel.ravel().nonzero()[0]
-        if len(k):
-            _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
-                         k, sub, (x0, y0, x1, y1), map_x, map_y)
-        return
+        if not len(k):
+            return None
+        _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
+                     k, sub, (x0, y0, x1, y1), map_x, map_y)
+        return x0, y0, x1, y1
     if not np.count_nonzero(sel):
-        return
+        return None
     # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
     # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
     # than a tenth of a pixel)
@@ -198,6 +202,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     m8 = sel.view(np.uint8)
     cv2.copyTo(mx, m8, map_x[sub])
     cv2.copyTo(my, m8, map_y[sub])
+    return x0, y0, x1, y1
 
 
 def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, float]:

@@ -170,7 +170,8 @@ _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None = None,
-         tol: float = 1e-3, cavity: bool = True, hook: Callable[..., None] | None = None
+         tol: float = 1e-3, cavity: bool = True,
+         hook: Callable[..., tuple[int, int, int, int] | None] | None = None
          ) -> WarpResult:
     """Warp the photo so that the neutral mesh ``plan.src`` lands on ``dst`` (V, 2).
 
@@ -180,8 +181,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     corners, the mouth interior follows the skull. Without it the openings are static.
     ``cavity=False`` skips the flat dark cavity (the caller composites its own mouth interior,
     see :mod:`layers`). ``hook(ids, map_x, map_y, box)``, when given, may change the backward
-    map of the box in place before it is applied (e.g. :func:`jawband.jaw_map`); the band path
-    of a moving margin (head rotation) does not call it.
+    map of the box in place before it is applied (e.g. :func:`jawband.jaw_map`) and returns the
+    box (x0, y0, x1, y1) it changed, None when it changed nothing; the band path of a moving
+    margin (head rotation) does not call it.
     """
     img = plan.image
     h, w = img.shape[:2]
@@ -216,9 +218,10 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         s = 1
         ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0,
                                   y1 - y0)
-    if hook is not None:
-        hook(ids, map_x, map_y, (x0, y0, x1, y1))
+    touched = None if hook is None else hook(ids, map_x, map_y, (x0, y0, x1, y1))
     if s > 1:
+        if touched is not None:  # (the hook's pixels are resampled too)
+            _mark(moving, touched, s, x0, y0)
         _remap_moving(img, out, map_x, map_y, moving, s, x0, y0)
     else:
         out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
@@ -234,20 +237,22 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
                   moving: np.ndarray, s: int, x0: int, y0: int) -> None:
     """``out``'s box at ``(x0, y0)`` (a copy of ``img``) resampled through the interpolated map
     ``map_x, map_y``, strip by strip of :data:`_STRIP_PX` rows, between the first and the last
-    column a moving node (``moving``: the grid of :func:`_maps_coarse`) reaches: the columns
-    outside map every pixel to itself (checked, exactly: else the strip is resampled whole),
-    and ``out`` already holds them. On the face 1000 px wide at 3840 x 2160 23 % of its box
-    (the corners outside the mesh; 31 % for joy at 150 %) is skipped: the remap of the whole
-    box cost 21 ms. (Another 17 % of the box maps to itself exactly too, the outer ring's
-    triangles moving by less than float32 resolves there, but inside the strips' ranges.)
-    Identical to resampling the whole box (each pixel is resampled from its own map values).
-    The map is off by a fraction of a pixel already: it is applied through OpenCV's
-    fixed-point maps (what it converts a float map to internally, block by block; converted
-    once, the remap costs 40 % less; ±1 on < 1 % of the values)."""
+    column a moving node (``moving``: the grid of :func:`_maps_coarse`, its nodes whose pixels
+    were written exactly and those of a hook marked) reaches. The columns outside map every
+    pixel to itself, exactly: each of their pixels interpolates four nodes on the identity
+    (each node's value its own position, as is the pixel's: with :data:`MAP_STEP` 2 multiples
+    of 1 / 2 and weights of 1 / 4 and 3 / 4, whose products and sums float32 holds exactly;
+    they were checked pixel by pixel, 4 ms of the 4K face's render), and ``out``
+    already holds them. On the face 1000 px wide at 3840 x 2160 23 % of its box (the corners
+    outside the mesh; 31 % for joy at 150 %) is skipped: the remap of the whole box cost
+    21 ms. (Another 17 % of the box maps to itself exactly too, the outer ring's triangles
+    moving by less than float32 resolves there, but inside the strips' ranges.) Identical to
+    resampling the whole box (each pixel is resampled from its own map values). The map is
+    off by a fraction of a pixel already: it is applied through OpenCV's fixed-point maps (what
+    it converts a float map to internally, block by block; converted once, the remap costs
+    40 % less; ±1 on < 1 % of the values)."""
     ny, nx = map_x.shape
     gy, gx = moving.shape
-    xs = np.arange(x0, x0 + nx, dtype=np.float32)
-    ys = np.arange(y0, y0 + ny, dtype=np.float32)[:, None]
     # each node row's first and last moving node (gx and -1: none), as Python ints (the
     # strips take the extremes of a few rows each)
     some = moving.any(1)
@@ -259,20 +264,25 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
         j0, j1 = r0 // s, min((r1 - 1) // s + 3, gy)
         k0, k1 = min(first[j0:j1]), max(last[j0:j1])
         if k1 < k0:
-            a = b = 0
-        else:
-            a = min(max((k0 - 2) * s, 0), nx)
-            b = max(min((k1 + 1) * s, nx), a)
-        mx, my = map_x[r0:r1], map_y[r0:r1]
-        yr = ys[r0:r1]
-        if a > 0 and not ((mx[:, :a] == xs[:a]).all() and (my[:, :a] == yr).all()):
-            a = 0
-        if b < nx and not ((mx[:, b:] == xs[b:]).all() and (my[:, b:] == yr).all()):
-            b = nx
+            continue
+        a = min(max((k0 - 2) * s, 0), nx)
+        b = max(min((k1 + 1) * s, nx), a)
         if b > a:
-            m1, m2 = cv2.convertMaps(mx[:, a:b], my[:, a:b], cv2.CV_16SC2)
+            m1, m2 = cv2.convertMaps(map_x[r0:r1, a:b], map_y[r0:r1, a:b], cv2.CV_16SC2)
             cv2.remap(img, m1, m2, cv2.INTER_LINEAR, dst=out[y0 + r0:y0 + r1, x0 + a:x0 + b],
                       borderMode=cv2.BORDER_REPLICATE)
+
+
+def _mark(moving: np.ndarray, box: tuple[int, int, int, int], s: int, x0: int, y0: int
+          ) -> None:
+    """Mark as moving (in place) the nodes of :func:`_maps_coarse`'s grid whose pixels (node
+    ``(j, k)``: the box's pixels ``[(k - 1) s, k s)`` and rows alike) meet ``box`` (image
+    pixels; the grid's box at ``(x0, y0)``)."""
+    gy, gx = moving.shape
+    u0, v0, u1, v1 = box[0] - x0, box[1] - y0, box[2] - x0, box[3] - y0
+    if u1 > u0 and v1 > v0:
+        moving[max(v0 // s + 1, 0):min((v1 - 1) // s + 2, gy),
+               max(u0 // s + 1, 0):min((u1 - 1) // s + 2, gx)] = True
 
 
 def _area(box: tuple[int, int, int, int]) -> int:
@@ -644,8 +654,9 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     where the interpolation cuts the kink of the piecewise-affine map by a fraction of a pixel
     (see :func:`map_step`). Where it jumps (an opening's edge: the eyeball and the mouth
     interior move on their own), every pixel near the jump takes the exact per-pixel map.
-    Also returns the grid's nodes (gy, gx) bool that lie in a moved triangle or an opening
-    (node ``(j, k)`` at box pixel ``((k - 1) s + (s - 1) / 2, (j - 1) s + (s - 1) / 2)``)."""
+    Also returns the grid's nodes (gy, gx) bool that lie in a moved triangle or an opening,
+    or whose pixels took the exact map (node ``(j, k)`` at box pixel ``((k - 1) s + (s - 1) / 2,
+    (j - 1) s + (s - 1) / 2)``, the nearest node of the pixels ``[(k - 1) s, k s)``)."""
     T = len(plan.triangles)
     ids = _ids(plan, dst, *_reaching(moved_t, tri_pts, x0, y0, nx, ny), x0, y0, nx, ny)
     table = _table(plan, layers, moved_t, tri_pts)
@@ -685,8 +696,9 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     (gx0, gy0), (gx1, gy1) = drawn.min(0) >> _SHIFT, drawn.max(0) >> _SHIFT
     gx0, gy0 = max(int(gx0) - 3, 0), max(int(gy0) - 3, 0)
     gx1, gy1 = min(int(gx1) + 4, gx), min(int(gy1) + 4, gy)
+    moving = nid != T
     if gx1 <= gx0 or gy1 <= gy0:
-        return ids, map_x, map_y, nid != T
+        return ids, map_x, map_y, moving
     nj, nk = np.nonzero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
     nj += gy0
     nk += gx0
@@ -708,7 +720,8 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
         at = (py + s) * full_x.shape[1] + (px + s)
         full_x.reshape(-1)[at] = mx
         full_y.reshape(-1)[at] = my
-    return ids, map_x, map_y, nid != T
+        moving[nj, nk] = True  # (their pixels were written)
+    return ids, map_x, map_y, moving
 
 
 def _reaching(moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx: int,

@@ -90,6 +90,7 @@ class WarpPlan:
         hi = self._src_tri.max(1) + 1.0
         full = np.array([[-1.0, -1.0, w + 1.0, h + 1.0]] * (1 + 3))  # identity row + layers
         self._src_box = np.vstack([np.hstack([lo, hi]), full]).astype(np.float32)
+        self._src_box_t = np.ascontiguousarray(self._src_box.T)  # (4, rows): its columns
 
     @property
     def neutral_mouth(self) -> np.ndarray:
@@ -738,20 +739,26 @@ def _reaching(moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx
 def _evaluate_at(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, xs: np.ndarray,
                  ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_evaluate` at scattered pixels ``(xs, ys)`` (int) of ids ``ids``: the same
-    float32 arithmetic, so the same values."""
-    c = table.take(ids, 0)
-    b = plan._src_box.take(ids, 0)
+    float32 arithmetic, so the same values (the coefficients taken one contiguous column of
+    the table at a time: the strided columns of gathered rows cost twice as much)."""
+    i = ids.astype(np.intp)
+    tp = np.ascontiguousarray(table.T)
+    bp = plan._src_box_t
     x = xs.astype(np.float32)
     y = ys.astype(np.float32)
-    mx = c[:, 0] * x
-    mx += c[:, 1] * y
-    mx += c[:, 2]
-    my = c[:, 3] * x
-    my += c[:, 4] * y
-    my += c[:, 5]
-    np.clip(mx, b[:, 0], b[:, 2], out=mx)
-    np.clip(my, b[:, 1], b[:, 3], out=my)
-    return mx, my
+    out = []
+    for k in (0, 1):
+        m = tp[3 * k].take(i)
+        m *= x
+        c = tp[3 * k + 1].take(i)
+        c *= y
+        m += c
+        m += tp[3 * k + 2].take(i)
+        # (np.clip to the source box, as two contiguous passes: the box's low <= its high)
+        np.maximum(m, bp[k].take(i), out=m)
+        np.minimum(m, bp[k + 2].take(i), out=m)
+        out.append(m)
+    return out[0], out[1]
 
 
 #: Pixels per band of rows in which :func:`_maps` gathers its per-pixel coefficients.

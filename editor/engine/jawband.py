@@ -142,7 +142,22 @@ def jaw_map(face: Face, vertices: np.ndarray
     ring = fr.to_frame(vv.take(b.ring, 0))
     ring = ring.take(ring[:, 0].argsort(), 0)
     ramp = max(1.5 * max(drop.tolist()), 2.0)
-    return partial(_hook, fr, b, ext, new, drop, ring, ramp)
+    return _JawHook(partial(_hook, fr, b, ext, new, drop, ring, ramp),
+                    (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
+                     math.ceil(ext[3]) + 2))
+
+
+@dataclass(frozen=True, eq=False)
+class _JawHook:
+    """:func:`jaw_map`'s hook (:func:`_hook`) and ``box``, the pixels (x0, y0, x1, y1) whose
+    triangle ids it reads and whose map it may change (the warp needs its ids nowhere else)."""
+
+    call: Callable[..., tuple[int, int, int, int] | None]
+    box: tuple[int, int, int, int]
+
+    def __call__(self, ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
+                 box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
+        return self.call(ids, map_x, map_y, box)
 
 
 def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: np.ndarray,

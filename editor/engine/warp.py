@@ -17,6 +17,7 @@ interior of SPEC §3.1 draws over it when available). The openings are returned 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -213,8 +214,11 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     out = img.copy()
     s = plan.map_step
     if s > 1 and min(x1 - x0, y1 - y0) >= 8 * s:
+        # (where the hook reads the triangle ids: its ``box`` if it tells, else anywhere)
+        hook_box = None if hook is None else getattr(hook, "box", None)
+        reads = [] if hook is None else None if hook_box is None else [hook_box]
         ids, map_x, map_y, moving = _maps_coarse(plan, dst, layers, moved_t, tri_pts, x0, y0,
-                                                 x1 - x0, y1 - y0, s)
+                                                 x1 - x0, y1 - y0, s, reads)
     else:
         s = 1
         ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0,
@@ -647,10 +651,14 @@ def _gather(ids: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
 
 def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
                  moved_t: np.ndarray, tri_pts: np.ndarray, x0: int, y0: int, nx: int, ny: int,
-                 s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                 s: int, reads: list[tuple[int, int, int, int]] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_maps` of the box ``(x0, y0, x0 + nx, y0 + ny)`` with the map evaluated on
     nodes ``s`` px apart and interpolated bilinearly (``cv2.resize``): the ids are exact (the
-    openings' masks, the hook's band come from them); the map is exact wherever a pixel's four
+    openings' masks, the hook's band come from them) where they are read: in the openings'
+    boxes, at the exact map's pixels and in ``reads`` (boxes, image pixels; None: everywhere),
+    elsewhere they may say ``T`` (see :func:`_reaching_boxes`); the map is exact wherever a
+    pixel's four
     nodes lie in one triangle (it is affine there) and continuous across triangle edges,
     where the interpolation cuts the kink of the piecewise-affine map by a fraction of a pixel
     (see :func:`map_step`). Where it jumps (an opening's edge: the eyeball and the mouth
@@ -659,7 +667,6 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     or whose pixels took the exact map (node ``(j, k)`` at box pixel ``((k - 1) s + (s - 1) / 2,
     (j - 1) s + (s - 1) / 2)``, the nearest node of the pixels ``[(k - 1) s, k s)``)."""
     T = len(plan.triangles)
-    ids = _ids(plan, dst, *_reaching(moved_t, tri_pts, x0, y0, nx, ny), x0, y0, nx, ny)
     table = _table(plan, layers, moved_t, tri_pts)
     # node k sits where cv2.resize (x s) puts the centre of coarse pixel k: box x =
     # k s - s / 2 - 1 / 2, i.e. pixel x <- resized column x + s (as the band's grid)
@@ -699,10 +706,24 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     gx1, gy1 = min(int(gx1) + 4, gx), min(int(gy1) + 4, gy)
     moving = nid != T
     if gx1 <= gx0 or gy1 <= gy0:
+        nj = nk = np.zeros(0, np.intp)
+    else:
+        nj, nk = np.nonzero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
+        nj += gy0
+        nk += gx0
+    # the exact ids where they are read (the rasterizer's cost grows with the area it fills:
+    # the forehead and the cheeks beside the face's features are not drawn)
+    if reads is None:
+        where = [(x0, y0, x0 + nx, y0 + ny)]
+    else:
+        where = [*reads, *_opening_boxes(plan, dst)]
+        if len(nj):
+            where.append((x0 + (int(nk.min()) - 1) * s, y0 + (int(nj.min()) - 1) * s,
+                          x0 + int(nk.max()) * s, y0 + int(nj.max()) * s))
+    ids = _ids(plan, dst, *_reaching_boxes(moved_t, tri_pts, where, (x0, y0, nx, ny)), x0, y0,
+               nx, ny)
+    if not len(nj):
         return ids, map_x, map_y, moving
-    nj, nk = np.nonzero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
-    nj += gy0
-    nk += gx0
     # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike);
     # gathered and written by flat indices (of the ids, of the resized maps: 2-d fancy
     # indexing and a mask of the (n, s, s) pixels cost 3 ms more); only the nodes on the box's
@@ -734,6 +755,38 @@ def _reaching(moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx
     keep = ((hi[:, 0] >= x0 - 1) & (lo[:, 0] <= x0 + nx + 1)
             & (hi[:, 1] >= y0 - 1) & (lo[:, 1] <= y0 + ny + 1))
     return (moved_t, tri_pts) if keep.all() else (moved_t[keep], tri_pts[keep])
+
+
+def _reaching_boxes(moved_t: np.ndarray, tri_pts: np.ndarray,
+                    boxes: list[tuple[int, int, int, int]], grid: tuple[int, int, int, int]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The moved triangles (ids, points) that reach one of ``boxes`` (image pixels, x0, y0,
+    x1, y1) and the box of ``grid`` (x0, y0, nx, ny): drawn alone, in the same order, they
+    give every pixel of those boxes the id all the moved triangles give it (a triangle draws
+    only pixels within :data:`_RASTER_REACH` of it, and so only those it can take from
+    another; the others lie more than two pixels away)."""
+    if not len(moved_t):
+        return moved_t, tri_pts
+    gx0, gy0, gnx, gny = grid
+    lo, hi = tri_pts.min(1), tri_pts.max(1)
+    keep = np.zeros(len(moved_t), bool)
+    for a0, b0, a1, b1 in boxes:
+        a0, b0, a1, b1 = max(a0, gx0), max(b0, gy0), min(a1, gx0 + gnx), min(b1, gy0 + gny)
+        if a1 > a0 and b1 > b0:
+            keep |= ((hi[:, 0] >= a0 - 2) & (lo[:, 0] <= a1 + 1)
+                     & (hi[:, 1] >= b0 - 2) & (lo[:, 1] <= b1 + 1))
+    return (moved_t, tri_pts) if keep.all() else (moved_t[keep], tri_pts[keep])
+
+
+def _opening_boxes(plan: WarpPlan, dst: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Each opening's box in ``dst`` (image pixels), as :func:`_finish` reads its ids."""
+    out = []
+    for name in LAYERS:
+        loop = dst[plan.holes[name]]
+        lo, hi = loop.min(0).tolist(), loop.max(0).tolist()
+        out.append((math.floor(lo[0]) - 1, math.floor(lo[1]) - 1, math.ceil(hi[0]) + 2,
+                    math.ceil(hi[1]) + 2))
+    return out
 
 
 def _evaluate_at(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, xs: np.ndarray,

@@ -724,22 +724,30 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
                nx, ny)
     if not len(nj):
         return ids, map_x, map_y, moving
-    # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike);
-    # gathered and written by flat indices (of the ids, of the resized maps: 2-d fancy
-    # indexing and a mask of the (n, s, s) pixels cost 3 ms more); only the nodes on the box's
-    # edge have pixels outside it
+    # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike):
+    # its first pixel's flat index (of the ids, of the resized maps) and position per node,
+    # its s x s pixels at fixed offsets from it (2-d fancy indexing and a mask of the (n, s, s)
+    # pixels cost 3 ms more); only the nodes on the box's edge have pixels outside it
     d = np.arange(s)
-    px = ((nk - 1) * s)[:, None] + np.tile(d, s)
-    py = ((nj - 1) * s)[:, None] + np.repeat(d, s)
+    dx, dy = np.tile(d, s), np.repeat(d, s)
+    fw = full_x.shape[1]
     if (nk >= 1).all() and (nk * s <= nx).all() and (nj >= 1).all() and (nj * s <= ny).all():
-        px, py = px.ravel(), py.ravel()
+        px0, py0 = (nk - 1) * s, (nj - 1) * s
+        flat = (py0 * nx + px0)[:, None] + (dy * nx + dx)
+        at = (nj * (s * fw) + nk * s)[:, None] + (dy * fw + dx)
+        xs = (px0 + x0).astype(np.float32)[:, None] + dx.astype(np.float32)
+        ys = (py0 + y0).astype(np.float32)[:, None] + dy.astype(np.float32)
     else:
+        px = ((nk - 1) * s)[:, None] + dx
+        py = ((nj - 1) * s)[:, None] + dy
         inside = (px >= 0) & (px < nx) & (py >= 0) & (py < ny)
         px, py = px[inside], py[inside]
-    if len(px):
-        mx, my = _evaluate_at(plan, ids.reshape(-1).take(py * nx + px), table, px + x0,
-                              py + y0)
-        at = (py + s) * full_x.shape[1] + (px + s)
+        flat, at = py * nx + px, (py + s) * fw + (px + s)
+        xs, ys = (px + x0).astype(np.float32), (py + y0).astype(np.float32)
+    if flat.size:
+        mx, my = _evaluate_at(plan, ids.reshape(-1).take(flat.ravel()), table, xs.ravel(),
+                              ys.ravel())
+        at = at.ravel()
         full_x.reshape(-1)[at] = mx
         full_y.reshape(-1)[at] = my
         moving[nj, nk] = True  # (their pixels were written)
@@ -797,8 +805,8 @@ def _evaluate_at(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, xs: np.ndar
     i = ids.astype(np.intp)
     tp = np.ascontiguousarray(table.T)
     bp = plan._src_box_t
-    x = xs.astype(np.float32)
-    y = ys.astype(np.float32)
+    x = xs.astype(np.float32, copy=False)
+    y = ys.astype(np.float32, copy=False)
     out = []
     for k in (0, 1):
         m = tp[3 * k].take(i)

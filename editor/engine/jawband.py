@@ -36,6 +36,7 @@ from .fitting import interp
 if TYPE_CHECKING:
     from .face import Face
     from .fitting import FaceFrame
+    from .mesh import StandardMesh
 
 #: the jaw moved outward when a vertex did by more than this (px), and none moved inward by
 #: more than it or than _IN_SHARE of the largest outward motion (a fraction of a pixel of the
@@ -77,27 +78,37 @@ def _band(face: Face) -> _Band:
     b = _PLANS.get(face)
     if b is not None:
         return b
-    m = face.mesh
+    verts, idx, lut, ring_v, off_ring = _band_topology(face.mesh)
+    p = face.vertices[idx].astype(np.float64)
+    # outward normals: the contour's tangent turned, pointing away from the face's centre
+    tan = np.gradient(p, axis=0)
+    nrm = np.stack([tan[:, 1], -tan[:, 0]], 1)
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
+    centre = face.vertices.astype(np.float64)[off_ring].mean(0)
+    nrm *= np.where(((p - centre) * nrm).sum(1) < 0, -1.0, 1.0)[:, None]
+    b = _Band(verts, idx, nrm, p, lut, ring_v, TAU * face.interocular, face.frame.to_frame(p))
+    _PLANS[face] = b
+    return b
+
+
+@lru_cache(maxsize=4)
+def _band_topology(m: StandardMesh) -> tuple[np.ndarray, ...]:
+    """What :func:`_band` needs of the mesh (once per mesh, not per face): the band
+    triangles' vertices, the jaw contour's vertex indices, the warp ids' band LUT (triangles,
+    the identity row, the 3 openings), the band's outer vertices and the vertices off the
+    margin ring (read-only)."""
     names = np.array(m.names)
     on_jaw = np.char.startswith(names, "contour_")
     ring = np.char.startswith(names, "margin_") | np.char.startswith(names, "border_")
     tri = np.asarray(m.triangles)
     sel = on_jaw[tri].any(1) & ring[tri].any(1) & (on_jaw[tri] | ring[tri]).all(1)
     idx = np.array([m.index(f"contour_{k}") for k in range(int(on_jaw.sum()))])
-    p = face.vertices[idx].astype(np.float64)
-    # outward normals: the contour's tangent turned, pointing away from the face's centre
-    tan = np.gradient(p, axis=0)
-    nrm = np.stack([tan[:, 1], -tan[:, 0]], 1)
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
-    centre = face.vertices.astype(np.float64)[~ring].mean(0)
-    nrm *= np.where(((p - centre) * nrm).sum(1) < 0, -1.0, 1.0)[:, None]
-    lut = np.zeros(len(tri) + 4, bool)  # ids: triangles, the identity row, the 3 openings
+    lut = np.zeros(len(tri) + 4, bool)
     lut[np.flatnonzero(sel)] = True
-    ring_v = np.unique(tri[sel][ring[tri[sel]]])
-    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v, TAU * face.interocular,
-              face.frame.to_frame(p))
-    _PLANS[face] = b
-    return b
+    out = (np.unique(tri[sel]), idx, lut, np.unique(tri[sel][ring[tri[sel]]]), ~ring)
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def _moved_out(b: _Band, vertices: np.ndarray) -> bool:

@@ -68,10 +68,12 @@ class WarpPlan:
         h, w = self.image.shape[:2]
         # the opening over its box only (no image-sized mask: 24 MB at 24 MP)
         loop = self.src[self.holes["mouth"]]
-        mx0 = int(np.clip(np.floor(loop[:, 0].min()) - 1, 0, w))
-        my0 = int(np.clip(np.floor(loop[:, 1].min()) - 1, 0, h))
-        mx1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2, mx0, w))
-        my1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2, my0, h))
+        (lx, ly), (hx, hy) = loop.min(0).tolist(), loop.max(0).tolist()
+        # (np.clip's values, on Python numbers)
+        mx0 = min(max(math.floor(lx) - 1, 0), w)
+        my0 = min(max(math.floor(ly) - 1, 0), h)
+        mx1 = min(max(math.ceil(hx) + 2, mx0), w)
+        my1 = min(max(math.ceil(hy) + 2, my0), h)
         m = np.zeros((my1 - my0, mx1 - mx0), np.uint8)
         poly = np.round((loop - np.array([mx0, my0], np.float32)) * _ONE).astype(np.int32)
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)

@@ -754,8 +754,10 @@ def _fast(face: Face) -> _Fast:
     f.neg_tri = np.ascontiguousarray(np.moveaxis(ptri, -1, 0))
     tang = np.stack([-p.normal[neg, 1], p.normal[neg, 0]], 1)  # (M, 2) on the photo's mesh
     pinv = p.tri_inv[p.probe_tri[neg]]  # (M, 4, 2, 2)
+    # the neutral mesh (deformed once: it is read three times below)
+    rest = face.deform(None) if face.has_expression else face.vertices
     if face.has_expression and len(neg):
-        N = np.asarray(face.deform(None), np.float64)
+        N = np.asarray(rest, np.float64)
         E = np.stack([N[ptri[..., 1]] - N[ptri[..., 0]], N[ptri[..., 2]] - N[ptri[..., 0]]],
                      -1)  # (M, 4, 2, 2) columns: the edges
         # the tangent carried onto the neutral mesh by the sample's first probe triangle
@@ -766,11 +768,10 @@ def _fast(face: Face) -> _Fast:
     f.neg_t = (np.ascontiguousarray(tang[:, :1]), np.ascontiguousarray(tang[:, 1:]))
     f.neg_fade = p.taper[neg]
     f.lips_mid = (face.mesh.fdp["2.2"], face.mesh.fdp["2.3"])
-    base = face.deform(None) if face.has_expression else face.vertices
     f.iod = float(face.interocular)
-    f.lips_gap0 = _gap(f, f.lips_mid, base)
+    f.lips_gap0 = _gap(f, f.lips_mid, rest)
     f.boss = (face.mesh.fdp["2.10"], face.mesh.fdp["2.1"])
-    f.boss_gap0 = _gap(f, f.boss, base)
+    f.boss_gap0 = _gap(f, f.boss, rest)
     f.used_tri = np.ascontiguousarray(face.mesh.triangles[used].T)
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
@@ -797,7 +798,7 @@ def _fast(face: Face) -> _Fast:
     f.gain_mat = [np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32)
                   for k1, k2 in zip(k1s.tolist(), k2s.tolist(), strict=True)]
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
-        g = np.log(np.maximum(_spacing(face, face.deform(None), f), 1e-6))
+        g = np.log(np.maximum(_spacing(face, rest, f), 1e-6))
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])
         f.own_w = np.maximum(g, 0.0)  # samples weighted by their own compression
         f.own_sum = np.add.reduceat(f.own_w * f.own_w, p.start[:-1])

@@ -36,6 +36,7 @@ from .fitting import interp
 if TYPE_CHECKING:
     from .face import Face
     from .fitting import FaceFrame
+    from .mesh import StandardMesh
 
 #: the jaw moved outward when a vertex did by more than this (px), and none moved inward by
 #: more than it or than _IN_SHARE of the largest outward motion (a fraction of a pixel of the
@@ -77,27 +78,37 @@ def _band(face: Face) -> _Band:
     b = _PLANS.get(face)
     if b is not None:
         return b
-    m = face.mesh
+    verts, idx, lut, ring_v, off_ring = _band_topology(face.mesh)
+    p = face.vertices[idx].astype(np.float64)
+    # outward normals: the contour's tangent turned, pointing away from the face's centre
+    tan = np.gradient(p, axis=0)
+    nrm = np.stack([tan[:, 1], -tan[:, 0]], 1)
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
+    centre = face.vertices.astype(np.float64)[off_ring].mean(0)
+    nrm *= np.where(((p - centre) * nrm).sum(1) < 0, -1.0, 1.0)[:, None]
+    b = _Band(verts, idx, nrm, p, lut, ring_v, TAU * face.interocular, face.frame.to_frame(p))
+    _PLANS[face] = b
+    return b
+
+
+@lru_cache(maxsize=4)
+def _band_topology(m: StandardMesh) -> tuple[np.ndarray, ...]:
+    """What :func:`_band` needs of the mesh (once per mesh, not per face): the band
+    triangles' vertices, the jaw contour's vertex indices, the warp ids' band LUT (triangles,
+    the identity row, the 3 openings), the band's outer vertices and the vertices off the
+    margin ring (read-only)."""
     names = np.array(m.names)
     on_jaw = np.char.startswith(names, "contour_")
     ring = np.char.startswith(names, "margin_") | np.char.startswith(names, "border_")
     tri = np.asarray(m.triangles)
     sel = on_jaw[tri].any(1) & ring[tri].any(1) & (on_jaw[tri] | ring[tri]).all(1)
     idx = np.array([m.index(f"contour_{k}") for k in range(int(on_jaw.sum()))])
-    p = face.vertices[idx].astype(np.float64)
-    # outward normals: the contour's tangent turned, pointing away from the face's centre
-    tan = np.gradient(p, axis=0)
-    nrm = np.stack([tan[:, 1], -tan[:, 0]], 1)
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
-    centre = face.vertices.astype(np.float64)[~ring].mean(0)
-    nrm *= np.where(((p - centre) * nrm).sum(1) < 0, -1.0, 1.0)[:, None]
-    lut = np.zeros(len(tri) + 4, bool)  # ids: triangles, the identity row, the 3 openings
+    lut = np.zeros(len(tri) + 4, bool)
     lut[np.flatnonzero(sel)] = True
-    ring_v = np.unique(tri[sel][ring[tri[sel]]])
-    b = _Band(np.unique(tri[sel]), idx, nrm, p, lut, ring_v, TAU * face.interocular,
-              face.frame.to_frame(p))
-    _PLANS[face] = b
-    return b
+    out = (np.unique(tri[sel]), idx, lut, np.unique(tri[sel][ring[tri[sel]]]), ~ring)
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def _moved_out(b: _Band, vertices: np.ndarray) -> bool:
@@ -112,7 +123,8 @@ def _moved_out(b: _Band, vertices: np.ndarray) -> bool:
     return bool(hi > _OUT and min(o) >= -max(_OUT, _IN_SHARE * hi))
 
 
-def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
+def jaw_map(face: Face, vertices: np.ndarray
+            ) -> Callable[..., tuple[int, int, int, int] | None] | None:
     """A hook for :func:`~editor.engine.warp.warp` that gives the band's pixels the chin's
     map, or None when the jaw did not move outward (see :func:`_moved_out`).
 
@@ -141,21 +153,38 @@ def jaw_map(face: Face, vertices: np.ndarray) -> Callable[..., None] | None:
     ring = fr.to_frame(vv.take(b.ring, 0))
     ring = ring.take(ring[:, 0].argsort(), 0)
     ramp = max(1.5 * max(drop.tolist()), 2.0)
-    return partial(_hook, fr, b, ext, new, drop, ring, ramp)
+    return _JawHook(partial(_hook, fr, b, ext, new, drop, ring, ramp),
+                    (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
+                     math.ceil(ext[3]) + 2))
+
+
+@dataclass(frozen=True, eq=False)
+class _JawHook:
+    """:func:`jaw_map`'s hook (:func:`_hook`) and ``box``, the pixels (x0, y0, x1, y1) whose
+    triangle ids it reads and whose map it may change (the warp needs its ids nowhere else)."""
+
+    call: Callable[..., tuple[int, int, int, int] | None]
+    box: tuple[int, int, int, int]
+
+    def __call__(self, ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
+                 box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
+        return self.call(ids, map_x, map_y, box)
 
 
 def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: np.ndarray,
           drop: np.ndarray, ring: np.ndarray, ramp: float, ids: np.ndarray,
-          map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]) -> None:
+          map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]
+          ) -> tuple[int, int, int, int] | None:
     """:func:`jaw_map`'s hook: the band's pixels of the warp's box ``box`` (triangle ids
     ``ids``) take the chin's map in ``map_x``, ``map_y`` (in place). ``new`` the jaw line in
     the frame by its x, ``drop`` its drop there, ``ring`` the margin ring below it, ``ramp``
-    the fade's length, ``ext`` the band's vertices' extent (x0, y0, x1, y1)."""
+    the fade's length, ``ext`` the band's vertices' extent (x0, y0, x1, y1). Returns the box
+    (x0, y0, x1, y1, image pixels) it wrote in, None when it wrote nothing."""
     bx0, by0, bx1, by1 = box
     x0, y0 = max(math.floor(ext[0]) - 1, bx0), max(math.floor(ext[1]) - 1, by0)
     x1, y1 = min(math.ceil(ext[2]) + 2, bx1), min(math.ceil(ext[3]) + 2, by1)
     if x1 <= x0 or y1 <= y0:
-        return
+        return None
     sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
     sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
     w, h = x1 - x0, y1 - y0
@@ -163,12 +192,13 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
         # a small box: the table is read and the shift evaluated at the band's pixels only
         # (their flat indices: np.nonzero of a 2-d mask costs several times more)
         k = sel.ravel().nonzero()[0]
-        if len(k):
-            _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
-                         k, sub, (x0, y0, x1, y1), map_x, map_y)
-        return
+        if not len(k):
+            return None
+        _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
+                     k, sub, (x0, y0, x1, y1), map_x, map_y)
+        return x0, y0, x1, y1
     if not np.count_nonzero(sel):
-        return
+        return None
     # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
     # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
     # than a tenth of a pixel)
@@ -198,6 +228,7 @@ def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: 
     m8 = sel.view(np.uint8)
     cv2.copyTo(mx, m8, map_x[sub])
     cv2.copyTo(my, m8, map_y[sub])
+    return x0, y0, x1, y1
 
 
 def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, float]:

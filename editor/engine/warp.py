@@ -17,6 +17,7 @@ interior of SPEC §3.1 draws over it when available). The openings are returned 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -67,10 +68,12 @@ class WarpPlan:
         h, w = self.image.shape[:2]
         # the opening over its box only (no image-sized mask: 24 MB at 24 MP)
         loop = self.src[self.holes["mouth"]]
-        mx0 = int(np.clip(np.floor(loop[:, 0].min()) - 1, 0, w))
-        my0 = int(np.clip(np.floor(loop[:, 1].min()) - 1, 0, h))
-        mx1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2, mx0, w))
-        my1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2, my0, h))
+        (lx, ly), (hx, hy) = loop.min(0).tolist(), loop.max(0).tolist()
+        # (np.clip's values, on Python numbers)
+        mx0 = min(max(math.floor(lx) - 1, 0), w)
+        my0 = min(max(math.floor(ly) - 1, 0), h)
+        mx1 = min(max(math.ceil(hx) + 2, mx0), w)
+        my1 = min(max(math.ceil(hy) + 2, my0), h)
         m = np.zeros((my1 - my0, mx1 - mx0), np.uint8)
         poly = np.round((loop - np.array([mx0, my0], np.float32)) * _ONE).astype(np.int32)
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
@@ -90,6 +93,7 @@ class WarpPlan:
         hi = self._src_tri.max(1) + 1.0
         full = np.array([[-1.0, -1.0, w + 1.0, h + 1.0]] * (1 + 3))  # identity row + layers
         self._src_box = np.vstack([np.hstack([lo, hi]), full]).astype(np.float32)
+        self._src_box_t = np.ascontiguousarray(self._src_box.T)  # (4, rows): its columns
 
     @property
     def neutral_mouth(self) -> np.ndarray:
@@ -170,7 +174,8 @@ _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None = None,
-         tol: float = 1e-3, cavity: bool = True, hook: Callable[..., None] | None = None,
+         tol: float = 1e-3, cavity: bool = True,
+         hook: Callable[..., tuple[int, int, int, int] | None] | None = None,
          interpolation: int = cv2.INTER_LINEAR) -> WarpResult:
     """Warp the photo so that the neutral mesh ``plan.src`` lands on ``dst`` (V, 2).
 
@@ -180,10 +185,11 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     corners, the mouth interior follows the skull. Without it the openings are static.
     ``cavity=False`` skips the flat dark cavity (the caller composites its own mouth interior,
     see :mod:`layers`). ``hook(ids, map_x, map_y, box)``, when given, may change the backward
-    map of the box in place before it is applied (e.g. :func:`jawband.jaw_map`); the band path
-    of a moving margin (head rotation) does not call it. ``interpolation``: how the photo is
-    resampled (``cv2.INTER_LINEAR``, the live preview's; ``cv2.INTER_CUBIC`` keeps the moved
-    skin as sharp as the photo's, at ~1.3 x the render's cost: stills for export).
+    map of the box in place before it is applied (e.g. :func:`jawband.jaw_map`) and returns the
+    box (x0, y0, x1, y1) it changed, None when it changed nothing; the band path of a moving
+    margin (head rotation) does not call it. ``interpolation``: how the photo is resampled
+    (``cv2.INTER_LINEAR``, the live preview's; ``cv2.INTER_CUBIC`` keeps the moved skin as
+    sharp as the photo's, at ~1.3 x the render's cost: stills for export).
     """
     img = plan.image
     h, w = img.shape[:2]
@@ -212,15 +218,19 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     out = img.copy()
     s = plan.map_step
     if s > 1 and min(x1 - x0, y1 - y0) >= 8 * s:
+        # (where the hook reads the triangle ids: its ``box`` if it tells, else anywhere)
+        hook_box = None if hook is None else getattr(hook, "box", None)
+        reads = [] if hook is None else None if hook_box is None else [hook_box]
         ids, map_x, map_y, moving = _maps_coarse(plan, dst, layers, moved_t, tri_pts, x0, y0,
-                                                 x1 - x0, y1 - y0, s)
+                                                 x1 - x0, y1 - y0, s, reads)
     else:
         s = 1
         ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0,
                                   y1 - y0)
-    if hook is not None:
-        hook(ids, map_x, map_y, (x0, y0, x1, y1))
+    touched = None if hook is None else hook(ids, map_x, map_y, (x0, y0, x1, y1))
     if s > 1:
+        if touched is not None:  # (the hook's pixels are resampled too)
+            _mark(moving, touched, s, x0, y0)
         _remap_moving(img, out, map_x, map_y, moving, s, x0, y0, interpolation)
     else:
         out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, interpolation,
@@ -237,20 +247,22 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
                   interpolation: int = cv2.INTER_LINEAR) -> None:
     """``out``'s box at ``(x0, y0)`` (a copy of ``img``) resampled through the interpolated map
     ``map_x, map_y``, strip by strip of :data:`_STRIP_PX` rows, between the first and the last
-    column a moving node (``moving``: the grid of :func:`_maps_coarse`) reaches: the columns
-    outside map every pixel to itself (checked, exactly: else the strip is resampled whole),
-    and ``out`` already holds them. On the face 1000 px wide at 3840 x 2160 23 % of its box
-    (the corners outside the mesh; 31 % for joy at 150 %) is skipped: the remap of the whole
-    box cost 21 ms. (Another 17 % of the box maps to itself exactly too, the outer ring's
-    triangles moving by less than float32 resolves there, but inside the strips' ranges.)
-    Identical to resampling the whole box (each pixel is resampled from its own map values).
-    The map is off by a fraction of a pixel already: it is applied through OpenCV's
-    fixed-point maps (what it converts a float map to internally, block by block; converted
-    once, the remap costs 40 % less; ±1 on < 1 % of the values)."""
+    column a moving node (``moving``: the grid of :func:`_maps_coarse`, its nodes whose pixels
+    were written exactly and those of a hook marked) reaches. The columns outside map every
+    pixel to itself, exactly: each of their pixels interpolates four nodes on the identity
+    (each node's value its own position, as is the pixel's: with :data:`MAP_STEP` 2 multiples
+    of 1 / 2 and weights of 1 / 4 and 3 / 4, whose products and sums float32 holds exactly;
+    they were checked pixel by pixel, 4 ms of the 4K face's render), and ``out``
+    already holds them. On the face 1000 px wide at 3840 x 2160 23 % of its box (the corners
+    outside the mesh; 31 % for joy at 150 %) is skipped: the remap of the whole box cost
+    21 ms. (Another 17 % of the box maps to itself exactly too, the outer ring's triangles
+    moving by less than float32 resolves there, but inside the strips' ranges.) Identical to
+    resampling the whole box (each pixel is resampled from its own map values). The map is
+    off by a fraction of a pixel already: it is applied through OpenCV's fixed-point maps (what
+    it converts a float map to internally, block by block; converted once, the remap costs
+    40 % less; ±1 on < 1 % of the values)."""
     ny, nx = map_x.shape
     gy, gx = moving.shape
-    xs = np.arange(x0, x0 + nx, dtype=np.float32)
-    ys = np.arange(y0, y0 + ny, dtype=np.float32)[:, None]
     # each node row's first and last moving node (gx and -1: none), as Python ints (the
     # strips take the extremes of a few rows each)
     some = moving.any(1)
@@ -262,20 +274,25 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
         j0, j1 = r0 // s, min((r1 - 1) // s + 3, gy)
         k0, k1 = min(first[j0:j1]), max(last[j0:j1])
         if k1 < k0:
-            a = b = 0
-        else:
-            a = min(max((k0 - 2) * s, 0), nx)
-            b = max(min((k1 + 1) * s, nx), a)
-        mx, my = map_x[r0:r1], map_y[r0:r1]
-        yr = ys[r0:r1]
-        if a > 0 and not ((mx[:, :a] == xs[:a]).all() and (my[:, :a] == yr).all()):
-            a = 0
-        if b < nx and not ((mx[:, b:] == xs[b:]).all() and (my[:, b:] == yr).all()):
-            b = nx
+            continue
+        a = min(max((k0 - 2) * s, 0), nx)
+        b = max(min((k1 + 1) * s, nx), a)
         if b > a:
-            m1, m2 = cv2.convertMaps(mx[:, a:b], my[:, a:b], cv2.CV_16SC2)
+            m1, m2 = cv2.convertMaps(map_x[r0:r1, a:b], map_y[r0:r1, a:b], cv2.CV_16SC2)
             cv2.remap(img, m1, m2, interpolation, dst=out[y0 + r0:y0 + r1, x0 + a:x0 + b],
                       borderMode=cv2.BORDER_REPLICATE)
+
+
+def _mark(moving: np.ndarray, box: tuple[int, int, int, int], s: int, x0: int, y0: int
+          ) -> None:
+    """Mark as moving (in place) the nodes of :func:`_maps_coarse`'s grid whose pixels (node
+    ``(j, k)``: the box's pixels ``[(k - 1) s, k s)`` and rows alike) meet ``box`` (image
+    pixels; the grid's box at ``(x0, y0)``)."""
+    gy, gx = moving.shape
+    u0, v0, u1, v1 = box[0] - x0, box[1] - y0, box[2] - x0, box[3] - y0
+    if u1 > u0 and v1 > v0:
+        moving[max(v0 // s + 1, 0):min((v1 - 1) // s + 2, gy),
+               max(u0 // s + 1, 0):min((u1 - 1) // s + 2, gx)] = True
 
 
 def _area(box: tuple[int, int, int, int]) -> int:
@@ -403,7 +420,8 @@ def _maps(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
     if step == 1:
         moved_t, tri_pts = _reaching(moved_t, tri_pts, x0, y0, nx, ny)
     ids = _ids(plan, dst, moved_t, tri_pts, x0, y0, nx, ny, step)
-    map_x, map_y = _evaluate(plan, ids, _table(plan, layers, moved_t, tri_pts), x0, y0, step)
+    map_x, map_y = _evaluate(plan, ids, _table(plan, layers, moved_t, tri_pts), x0, y0, step,
+                             drawn=(dst, moved_t, tri_pts))
     return ids, map_x, map_y
 
 
@@ -469,21 +487,56 @@ def _table(plan: WarpPlan, layers: dict[str, np.ndarray] | None, moved_t: np.nda
 
 
 def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0: float,
-              step: int = 1, grow: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+              step: int = 1, grow: float = 0.0,
+              drawn: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
     """The backward maps (float32, ``ids``' shape) at the points of :func:`_ids`: each
     point's affine map (its id's row of ``table``), clamped to its triangle's source box
-    (grown by ``grow`` px)."""
+    (grown by ``grow`` px). ``drawn``: what :func:`_ids` drew (``dst``, the moved triangles
+    and their points; None: any row may be anywhere), see :func:`_risky`."""
     ny, nx = ids.shape
     # per-pixel coefficients: a nearest-neighbour remap from a 1 x rows table is the fastest
-    # gather OpenCV/numpy offer (ids are exact integers in float32); in bands of rows, so the
-    # gathered coefficients (10 floats a pixel) never exist for the whole box (a 24 MP face's
-    # box: ~200 MB of temporaries, each page faulted in on first use)
-    tx = np.ascontiguousarray(table[None, :, :3])
-    ty = np.ascontiguousarray(table[None, :, 3:])
-    tb = plan._src_box[None]
+    # gather OpenCV/numpy offer; one coefficient at a time (contiguous planes: the arithmetic
+    # on a 3-channel gather's strided channels cost twice as much) and in bands of rows, so
+    # the gathered coefficients never exist for the whole box (a 24 MP face's box: ~200 MB of
+    # temporaries, each page faulted in on first use)
+    tb = plan._src_box
     if grow:
         tb = tb + np.array([-grow, -grow, grow, grow], np.float32)
-    tb = np.ascontiguousarray(tb)
+    # (boxes not grown, e.g. the exact per-pixel map's: most rows may leave theirs by the
+    # rasterizer's reach, every point is clamped)
+    risky = _risky(plan, table, tb, x0, y0, step, ids.shape, drawn) if grow else None
+    if risky is None:
+        return _evaluate_clamped(ids, table, tb, x0, y0, step)
+    planes = np.ascontiguousarray(table.T)[:, None, :]  # (6, 1, rows)
+    xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
+    ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
+    map_x = np.empty((ny, nx), np.float32)
+    map_y = np.empty((ny, nx), np.float32)
+    rows = max(1, _MAP_BAND_PX // max(nx, 1))
+    for r0 in range(0, ny, rows):
+        r1 = min(r0 + rows, ny)
+        gather = _gather(ids[r0:r1])
+        yr = ys[r0:r1]
+        for out, k in ((map_x[r0:r1], 0), (map_y[r0:r1], 3)):
+            np.multiply(gather(planes[k]), xs, out=out)
+            c = gather(planes[k + 1])
+            c *= yr
+            out += c
+            out += gather(planes[k + 2])
+    if risky.any():
+        _clamp_rows(ids, tb, x0, y0, step, map_x, map_y, risky, drawn)
+    return map_x, map_y
+
+
+def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: float,
+                      y0: float, step: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_evaluate` with every point clamped to its row's box ``tb``: the coefficients
+    gathered three and four at a time (cheaper on a small box than one by one)."""
+    ny, nx = ids.shape
+    tx = np.ascontiguousarray(table[None, :, :3])
+    ty = np.ascontiguousarray(table[None, :, 3:])
+    tb = np.ascontiguousarray(tb[None])
     xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
     ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
     map_x = np.empty((ny, nx), np.float32)
@@ -507,6 +560,87 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     return map_x, map_y
 
 
+#: The rasterizer (``cv2.fillConvexPoly``/``fillPoly``, sub-pixel vertices) gives a polygon
+#: only pixels within this distance (its pixels, each axis) of it: the pixels its edges touch
+#: (at most 0.71 px away on 20 000 random and squashed triangles) and 1/32 px of rounding
+_RASTER_REACH = 1.0
+
+
+def _risky(plan: WarpPlan, table: np.ndarray, tb: np.ndarray, x0: float, y0: float,
+           step: int, shape: tuple[int, int],
+           drawn: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> np.ndarray | None:
+    """(rows,) bool: the rows of ``table`` whose affine map may leave their source box ``tb``
+    at a point of :func:`_ids` that carries them (None: clamp every point, most rows may).
+
+    A triangle's points lie within :data:`_RASTER_REACH` rasterizer pixels of it (an
+    opening's of its loop): its map takes them to its source triangle (the map of its
+    destination vertices, computed here with the table's float32 coefficients) moved by at
+    most that reach times the map's gain, plus what float32 arithmetic may err; the identity
+    row's points span the grid, its map is extreme at the grid's corners. On a face the
+    coarse map's rows all stay inside (their boxes are grown by two nodes); the exact map's
+    (grown by one pixel) mostly do not."""
+    ny, nx = shape
+    n = len(table)
+    T = n - 1 - len(LAYERS)
+    if drawn is None:
+        return None
+    dst, moved_t, tri_pts = drawn
+    c = table.astype(np.float64)
+    b = tb.astype(np.float64)
+    risky = np.zeros(n, bool)
+    xa, ya = x0 + step * (nx - 1), y0 + step * (ny - 1)
+    groups = [(np.array([T]), np.array([[[x0, y0], [xa, y0], [x0, ya], [xa, ya]]]), 0.0),
+              (moved_t, tri_pts.astype(np.float64), _RASTER_REACH * step)]
+    groups += [(np.array([T + 1 + k]), dst[plan.holes[name]][None].astype(np.float64),
+                _RASTER_REACH * step) for k, name in enumerate(LAYERS)]
+    for rows, pts, reach in groups:
+        if not len(rows):
+            continue
+        big = np.abs(pts).max(1)  # (m, 2)
+        for k in (0, 1):
+            a0, a1, a2 = c[rows, 3 * k, None], c[rows, 3 * k + 1, None], c[rows, 3 * k + 2, None]
+            v = a0 * pts[..., 0] + a1 * pts[..., 1] + a2
+            g0, g1 = np.abs(a0[:, 0]), np.abs(a1[:, 0])
+            err = (1e-6 * (g0 * big[:, 0] + g1 * big[:, 1] + np.abs(a2[:, 0]) + 1.0)
+                   + (g0 + g1) * reach)
+            risky[rows] |= ((v.min(1) - err < b[rows, k]) | (v.max(1) + err > b[rows, k + 2]))
+    # (the identity's and the openings' rows: every point of the grid, of an opening's box)
+    return None if risky[T:].any() or 4 * np.count_nonzero(risky) > n else risky
+
+
+def _clamp_rows(ids: np.ndarray, tb: np.ndarray, x0: float, y0: float, step: int,
+                map_x: np.ndarray, map_y: np.ndarray, risky: np.ndarray,
+                drawn: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> None:
+    """:func:`_evaluate`'s maps clamped to the source boxes ``tb`` (in place) at the points
+    whose row is ``risky`` (looked for in those triangles' boxes only, grown by two
+    rasterizer pixels)."""
+    ny, nx = ids.shape
+    assert drawn is not None
+    _, moved_t, tri_pts = drawn
+    hit = risky[moved_t]
+    if not hit.any():
+        return
+    pts = tri_pts[hit]
+    lo, hi = pts.min((0, 1)), pts.max((0, 1))
+    i0 = max(int(np.floor((lo[0] - x0) / step)) - 2, 0)
+    j0 = max(int(np.floor((lo[1] - y0) / step)) - 2, 0)
+    i1 = min(int(np.ceil((hi[0] - x0) / step)) + 3, nx)
+    j1 = min(int(np.ceil((hi[1] - y0) / step)) + 3, ny)
+    if i1 <= i0 or j1 <= j0:
+        return
+    sub = ids[j0:j1, i0:i1]
+    k = np.flatnonzero(risky.take(sub))
+    if not len(k):
+        return
+    rid = sub.reshape(-1).take(k)
+    jj, ii = np.divmod(k, i1 - i0)
+    at = (jj + j0) * nx + (ii + i0)
+    box = tb.take(rid, 0)
+    fx, fy = map_x.reshape(-1), map_y.reshape(-1)
+    fx[at] = np.clip(fx.take(at), box[:, 0], box[:, 2])
+    fy[at] = np.clip(fy.take(at), box[:, 1], box[:, 3])
+
+
 def _gather(ids: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """``table -> table[0, ids]`` (a 1 x rows table of up to 4 channels) by a nearest-neighbour
     ``cv2.remap``: int16 ids as OpenCV's own fixed-point map of (x, y) int16 pairs (the
@@ -522,18 +656,22 @@ def _gather(ids: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
 
 def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
                  moved_t: np.ndarray, tri_pts: np.ndarray, x0: int, y0: int, nx: int, ny: int,
-                 s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                 s: int, reads: list[tuple[int, int, int, int]] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_maps` of the box ``(x0, y0, x0 + nx, y0 + ny)`` with the map evaluated on
     nodes ``s`` px apart and interpolated bilinearly (``cv2.resize``): the ids are exact (the
-    openings' masks, the hook's band come from them); the map is exact wherever a pixel's four
+    openings' masks, the hook's band come from them) where they are read: in the openings'
+    boxes, at the exact map's pixels and in ``reads`` (boxes, image pixels; None: everywhere),
+    elsewhere they may say ``T`` (see :func:`_reaching_boxes`); the map is exact wherever a
+    pixel's four
     nodes lie in one triangle (it is affine there) and continuous across triangle edges,
     where the interpolation cuts the kink of the piecewise-affine map by a fraction of a pixel
     (see :func:`map_step`). Where it jumps (an opening's edge: the eyeball and the mouth
     interior move on their own), every pixel near the jump takes the exact per-pixel map.
-    Also returns the grid's nodes (gy, gx) bool that lie in a moved triangle or an opening
-    (node ``(j, k)`` at box pixel ``((k - 1) s + (s - 1) / 2, (j - 1) s + (s - 1) / 2)``)."""
+    Also returns the grid's nodes (gy, gx) bool that lie in a moved triangle or an opening,
+    or whose pixels took the exact map (node ``(j, k)`` at box pixel ``((k - 1) s + (s - 1) / 2,
+    (j - 1) s + (s - 1) / 2)``, the nearest node of the pixels ``[(k - 1) s, k s)``)."""
     T = len(plan.triangles)
-    ids = _ids(plan, dst, *_reaching(moved_t, tri_pts, x0, y0, nx, ny), x0, y0, nx, ny)
     table = _table(plan, layers, moved_t, tri_pts)
     # node k sits where cv2.resize (x s) puts the centre of coarse pixel k: box x =
     # k s - s / 2 - 1 / 2, i.e. pixel x <- resized column x + s (as the band's grid)
@@ -542,7 +680,7 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     nid = _ids(plan, dst, moved_t, tri_pts, x0 + o, y0 + o, gx, gy, s)
     # (a node the coarse rasterizer gives a triangle lies up to s px outside it: its source
     # box is grown by as much; nodes near a squashed triangle are replaced below)
-    cx, cy = _evaluate(plan, nid, table, x0 + o, y0 + o, s, grow=2.0 * s)
+    cx, cy = _evaluate(plan, nid, table, x0 + o, y0 + o, s, 2.0 * s, (dst, moved_t, tri_pts))
     size = (gx * s, gy * s)
     full_x = cv2.resize(cx, size, interpolation=cv2.INTER_LINEAR)
     full_y = cv2.resize(cy, size, interpolation=cv2.INTER_LINEAR)
@@ -571,30 +709,54 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     (gx0, gy0), (gx1, gy1) = drawn.min(0) >> _SHIFT, drawn.max(0) >> _SHIFT
     gx0, gy0 = max(int(gx0) - 3, 0), max(int(gy0) - 3, 0)
     gx1, gy1 = min(int(gx1) + 4, gx), min(int(gy1) + 4, gy)
+    moving = nid != T
     if gx1 <= gx0 or gy1 <= gy0:
-        return ids, map_x, map_y, nid != T
-    nj, nk = np.nonzero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
-    nj += gy0
-    nk += gx0
-    # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike);
-    # gathered and written by flat indices (of the ids, of the resized maps: 2-d fancy
-    # indexing and a mask of the (n, s, s) pixels cost 3 ms more); only the nodes on the box's
-    # edge have pixels outside it
-    d = np.arange(s)
-    px = ((nk - 1) * s)[:, None] + np.tile(d, s)
-    py = ((nj - 1) * s)[:, None] + np.repeat(d, s)
-    if (nk >= 1).all() and (nk * s <= nx).all() and (nj >= 1).all() and (nj * s <= ny).all():
-        px, py = px.ravel(), py.ravel()
+        nj = nk = np.zeros(0, np.intp)
     else:
+        nj, nk = np.nonzero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
+        nj += gy0
+        nk += gx0
+    # the exact ids where they are read (the rasterizer's cost grows with the area it fills:
+    # the forehead and the cheeks beside the face's features are not drawn)
+    if reads is None:
+        where = [(x0, y0, x0 + nx, y0 + ny)]
+    else:
+        where = [*reads, *_opening_boxes(plan, dst)]
+        if len(nj):
+            where.append((x0 + (int(nk.min()) - 1) * s, y0 + (int(nj.min()) - 1) * s,
+                          x0 + int(nk.max()) * s, y0 + int(nj.max()) * s))
+    ids = _ids(plan, dst, *_reaching_boxes(moved_t, tri_pts, where, (x0, y0, nx, ny)), x0, y0,
+               nx, ny)
+    if not len(nj):
+        return ids, map_x, map_y, moving
+    # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike):
+    # its first pixel's flat index (of the ids, of the resized maps) and position per node,
+    # its s x s pixels at fixed offsets from it (2-d fancy indexing and a mask of the (n, s, s)
+    # pixels cost 3 ms more); only the nodes on the box's edge have pixels outside it
+    d = np.arange(s)
+    dx, dy = np.tile(d, s), np.repeat(d, s)
+    fw = full_x.shape[1]
+    if (nk >= 1).all() and (nk * s <= nx).all() and (nj >= 1).all() and (nj * s <= ny).all():
+        px0, py0 = (nk - 1) * s, (nj - 1) * s
+        flat = (py0 * nx + px0)[:, None] + (dy * nx + dx)
+        at = (nj * (s * fw) + nk * s)[:, None] + (dy * fw + dx)
+        xs = (px0 + x0).astype(np.float32)[:, None] + dx.astype(np.float32)
+        ys = (py0 + y0).astype(np.float32)[:, None] + dy.astype(np.float32)
+    else:
+        px = ((nk - 1) * s)[:, None] + dx
+        py = ((nj - 1) * s)[:, None] + dy
         inside = (px >= 0) & (px < nx) & (py >= 0) & (py < ny)
         px, py = px[inside], py[inside]
-    if len(px):
-        mx, my = _evaluate_at(plan, ids.reshape(-1).take(py * nx + px), table, px + x0,
-                              py + y0)
-        at = (py + s) * full_x.shape[1] + (px + s)
+        flat, at = py * nx + px, (py + s) * fw + (px + s)
+        xs, ys = (px + x0).astype(np.float32), (py + y0).astype(np.float32)
+    if flat.size:
+        mx, my = _evaluate_at(plan, ids.reshape(-1).take(flat.ravel()), table, xs.ravel(),
+                              ys.ravel())
+        at = at.ravel()
         full_x.reshape(-1)[at] = mx
         full_y.reshape(-1)[at] = my
-    return ids, map_x, map_y, nid != T
+        moving[nj, nk] = True  # (their pixels were written)
+    return ids, map_x, map_y, moving
 
 
 def _reaching(moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx: int,
@@ -608,23 +770,61 @@ def _reaching(moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx
     return (moved_t, tri_pts) if keep.all() else (moved_t[keep], tri_pts[keep])
 
 
+def _reaching_boxes(moved_t: np.ndarray, tri_pts: np.ndarray,
+                    boxes: list[tuple[int, int, int, int]], grid: tuple[int, int, int, int]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The moved triangles (ids, points) that reach one of ``boxes`` (image pixels, x0, y0,
+    x1, y1) and the box of ``grid`` (x0, y0, nx, ny): drawn alone, in the same order, they
+    give every pixel of those boxes the id all the moved triangles give it (a triangle draws
+    only pixels within :data:`_RASTER_REACH` of it, and so only those it can take from
+    another; the others lie more than two pixels away)."""
+    if not len(moved_t):
+        return moved_t, tri_pts
+    gx0, gy0, gnx, gny = grid
+    lo, hi = tri_pts.min(1), tri_pts.max(1)
+    keep = np.zeros(len(moved_t), bool)
+    for a0, b0, a1, b1 in boxes:
+        a0, b0, a1, b1 = max(a0, gx0), max(b0, gy0), min(a1, gx0 + gnx), min(b1, gy0 + gny)
+        if a1 > a0 and b1 > b0:
+            keep |= ((hi[:, 0] >= a0 - 2) & (lo[:, 0] <= a1 + 1)
+                     & (hi[:, 1] >= b0 - 2) & (lo[:, 1] <= b1 + 1))
+    return (moved_t, tri_pts) if keep.all() else (moved_t[keep], tri_pts[keep])
+
+
+def _opening_boxes(plan: WarpPlan, dst: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Each opening's box in ``dst`` (image pixels), as :func:`_finish` reads its ids."""
+    out = []
+    for name in LAYERS:
+        loop = dst[plan.holes[name]]
+        lo, hi = loop.min(0).tolist(), loop.max(0).tolist()
+        out.append((math.floor(lo[0]) - 1, math.floor(lo[1]) - 1, math.ceil(hi[0]) + 2,
+                    math.ceil(hi[1]) + 2))
+    return out
+
+
 def _evaluate_at(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, xs: np.ndarray,
                  ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_evaluate` at scattered pixels ``(xs, ys)`` (int) of ids ``ids``: the same
-    float32 arithmetic, so the same values."""
-    c = table.take(ids, 0)
-    b = plan._src_box.take(ids, 0)
-    x = xs.astype(np.float32)
-    y = ys.astype(np.float32)
-    mx = c[:, 0] * x
-    mx += c[:, 1] * y
-    mx += c[:, 2]
-    my = c[:, 3] * x
-    my += c[:, 4] * y
-    my += c[:, 5]
-    np.clip(mx, b[:, 0], b[:, 2], out=mx)
-    np.clip(my, b[:, 1], b[:, 3], out=my)
-    return mx, my
+    float32 arithmetic, so the same values (the coefficients taken one contiguous column of
+    the table at a time: the strided columns of gathered rows cost twice as much)."""
+    i = ids.astype(np.intp)
+    tp = np.ascontiguousarray(table.T)
+    bp = plan._src_box_t
+    x = xs.astype(np.float32, copy=False)
+    y = ys.astype(np.float32, copy=False)
+    out = []
+    for k in (0, 1):
+        m = tp[3 * k].take(i)
+        m *= x
+        c = tp[3 * k + 1].take(i)
+        c *= y
+        m += c
+        m += tp[3 * k + 2].take(i)
+        # (np.clip to the source box, as two contiguous passes: the box's low <= its high)
+        np.maximum(m, bp[k].take(i), out=m)
+        np.minimum(m, bp[k + 2].take(i), out=m)
+        out.append(m)
+    return out[0], out[1]
 
 
 #: Pixels per band of rows in which :func:`_maps` gathers its per-pixel coefficients.

@@ -433,3 +433,27 @@ def test_raised_lids_keep_one_clean_lash_line_on_a_small_sharp_face(sample_neutr
                for e in ("joy", "sadness", "surprise", "anger", "disgust", "fear")
                for k in (1.0, 1.5)]
     assert np.mean(renders) <= 1.5 * _lid_edge_roughness(face, {})
+
+
+def _under_iris_darkening(face: Face, vec) -> float:
+    """The most the render darkens (grey levels) a pixel just under an iris: |x - cx| within
+    0.6 radii, from the iris's bottom edge 2 px down (the photo shows the lower lid there)."""
+    lum, photo = _lum(face.render(vec)), _lum(face.image)
+    out = []
+    for _name, iris_name in EYES:
+        it = getattr(face.landmarks, iris_name)
+        x0, x1 = int(np.floor(it.cx - 0.6 * it.r)), int(np.ceil(it.cx + 0.6 * it.r))
+        y0, y1 = int(np.floor(it.cy + it.r - 0.5)), int(np.ceil(it.cy + it.r + 2))
+        out.append(float((photo[y0:y1, x0:x1] - lum[y0:y1, x0:x1]).max()))
+    return max(out)
+
+
+def test_a_lower_lid_barely_lowered_shows_no_speck_of_iris(sample_face):
+    """Fear lowers the sample's lower lid by a fraction of a pixel in its middle: the iris its
+    photo hides there fades in over the lid's first pixel of motion (as the white does), so no
+    dark speck hangs under the iris: at most 30 grey levels darker than the photo there (a
+    drawn speck: 61; now 14)."""
+    from editor.formats.presets import apply_preset
+
+    for k in (1.0, 1.5):
+        assert _under_iris_darkening(sample_face, apply_preset("fear", k)) <= 30.0

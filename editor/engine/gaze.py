@@ -788,6 +788,7 @@ class EyePlan:
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep = None
         band3: np.ndarray | None = None  # (h, w, 3) the photo's lid bands, moved
+        below_fade = None  # (h, w) the iris's weight under the photo's lowered lower lid
         if poly is not None:
             up, low = self.lid_frame(poly, sim, inv) if lids is None else lids
             su, sl = self.lid_up, self.lid_low
@@ -804,6 +805,12 @@ class EyePlan:
             ss = clip(dd, 0.0, 1.0)
             ss = ss * ss * (3.0 - 2.0 * ss)
             up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
+            if low_moved:
+                # the iris that a lowered lower lid uncovers (hidden under the photo's lid, the
+                # completed sprite's) fades in over the lid's first pixel of motion, as the
+                # white does: a lid lowered by a fraction of a pixel in its middle uncovered a
+                # dark speck of it under the iris (the sample's surprise, fear: a "tear")
+                below_fade = np.where(W > w_lo0, ss[1], 1.0)
             if up_moved or low_moved:
                 # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'
                 # product (a lid that did not open contributes a factor of exactly 1: skipped)
@@ -859,6 +866,8 @@ class EyePlan:
         # the limbus blur is part of the iris: a ramp of ``soft`` px centred half a pixel out
         a = clip(r_new + 1.0 - rho, 0.0, 1.0) if soft == 1.0 else \
             clamp((r_new + 0.5 - rho) / soft + 0.5, 0.0, 1.0)
+        if below_fade is not None:
+            a = a * below_fade
         if not np.count_nonzero(a):
             return white if band3 is None else white * band3
         pn, pn0 = p_new / max(r_new, 1e-6), self.p0 / self.r0

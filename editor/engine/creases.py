@@ -1577,8 +1577,8 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         # never above the frame's own skin either side of the valley (its closing): the lift
         # level ramps between shoulders of different light (see _lift_fields), and a sharp
         # core pulls S down on its shoulders; over the lower shoulder the lifted band read
-        # as a light outline where a neutralised smile's fold had been (JAFFE NA, MK: up to
-        # 50-68 grey levels above the lightest pixel around)
+        # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
+        # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
         cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
                          np.maximum(view, 1), None, 1.0, cv2.CV_32F)
         np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)  # (>= 1: never darkened)

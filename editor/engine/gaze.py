@@ -809,7 +809,7 @@ class EyePlan:
                 # the iris that a lowered lower lid uncovers (hidden under the photo's lid, the
                 # completed sprite's) fades in over the lid's first pixel of motion, as the
                 # white does: a lid lowered by a fraction of a pixel in its middle uncovered a
-                # dark speck of it under the iris (the sample's surprise, fear: a "tear")
+                # dark speck of its limbus under the iris (the sample's fear)
                 below_fade = np.where(W > w_lo0, ss[1], 1.0)
             if up_moved or low_moved:
                 # per lid 1 - s (1 - the white's weight past the lid's band), the moved lids'

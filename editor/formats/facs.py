@@ -252,14 +252,20 @@ def _bounded_lsq(a: np.ndarray, b: np.ndarray, upper: float) -> np.ndarray:
     """argmin |a x - b| over 0 <= x <= ``upper``: non-negative least squares (scipy's NNLS,
     ~15x faster here than its BVLS) with the columns above ``upper`` held there, until the
     solution meets the bounded problem's optimality conditions (an AU rarely exceeds 1: one
-    or two NNLS solves a frame); BVLS if that does not settle or NNLS stopped short. The
-    problem is strictly convex (the ridge rows), so both give its one solution."""
+    or two NNLS solves a frame). If that does not settle or NNLS stopped short (SciPy 1.17's
+    can, on a degenerate frame), an exact active set takes over from there (:func:`_active_set`;
+    BVLS, ~20 ms, only if that does not settle either). The problem is strictly convex (the
+    ridge rows), so all give its one solution."""
     from scipy.optimize import lsq_linear, nnls  # scipy on first use: a quick start (issue 15)
 
     k = a.shape[1]
     top = np.zeros(k, bool)  # columns held at the upper bound
     tol = 1e-9 * max(float(np.abs(a.T @ b).max()), 1.0)
+    seen: set[bytes] = set()
     for _ in range(k + 1):
+        if top.tobytes() in seen:  # the holds cycle (NNLS stopping short on one of them)
+            break
+        seen.add(top.tobytes())
         rest = ~top
         x = np.full(k, upper)
         x[rest] = nnls(a[:, rest], b - upper * a[:, top].sum(axis=1))[0]
@@ -277,7 +283,46 @@ def _bounded_lsq(a: np.ndarray, b: np.ndarray, upper: float) -> np.ndarray:
                 return x
             break
         top[int(np.argmax(np.where(release, grad, -np.inf)))] = False
-    return lsq_linear(a, b, bounds=(0.0, upper), method="bvls").x
+    # (an exact active set on the normal equations, from where NNLS left off; BVLS last)
+    got = _active_set(a.T @ a, a.T @ b, upper, np.clip(x, 0.0, upper), tol)
+    return got if got is not None else lsq_linear(a, b, bounds=(0.0, upper), method="bvls").x
+
+
+def _active_set(H: np.ndarray, g: np.ndarray, upper: float, x: np.ndarray, tol: float
+                ) -> np.ndarray | None:
+    """argmin 0.5 x'Hx - g'x over 0 <= x <= ``upper`` (H positive definite), a primal active
+    set started at the feasible ``x``: the free columns solved with the bounded ones held,
+    a step back to the first bound crossed, or the most violating bounded column freed.
+    None if it has not settled in its iteration budget."""
+    k = len(g)
+    state = np.where(x <= 0.0, -1, np.where(x >= upper, 1, 0))  # at 0, free, at the top
+    for _ in range(4 * k + 8):
+        free = state == 0
+        t = np.where(state > 0, upper, 0.0)
+        t[free] = x[free]
+        if free.any():
+            held = ~free
+            t[free] = np.linalg.solve(H[np.ix_(free, free)],
+                                      g[free] - H[np.ix_(free, held)] @ t[held])
+        bad = free & ((t < 0.0) | (t > upper))
+        if bad.any():
+            d = t - x
+            lim = np.where(d[bad] < 0.0, -x[bad] / d[bad], (upper - x[bad]) / d[bad])
+            step = float(lim.min())
+            x = x + step * d
+            hit = np.flatnonzero(bad)[lim <= step + 1e-15]
+            low = t[hit] < 0.0
+            x[hit[low]], state[hit[low]] = 0.0, -1
+            x[hit[~low]], state[hit[~low]] = upper, 1
+            continue
+        x = t
+        grad = H @ x - g
+        viol = np.where(state < 0, -grad, np.where(state > 0, grad, -np.inf))
+        j = int(np.argmax(viol))
+        if viol[j] <= tol:
+            return x
+        state[j] = 0
+    return None
 
 
 def faps_to_aus(faps: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ import numpy as np
 
 from editor.engine.faps import FAPS
 from editor.engine.imageio import save_image
-from editor.engine.pool import fork_is_safe, render_frame, render_workers, rendered_frames
+from editor.engine.pool import fork_is_safe, i420_frames, render_workers, rendered_frames
 from editor.engine.yuv import i420_shape, rgb_to_i420
 from editor.errors import FapStudioError
 from editor.safeio import atomic_dir, atomic_file, quiet_stderr
@@ -93,7 +93,12 @@ class VideoWriter:
                 img = rgb_to_i420(img)
             elif img.shape != i420_shape(self.size[1], self.size[0]):
                 raise ValueError(f"I420 frame of shape {img.shape} for a {self.size} video")
-            frame = self._av.VideoFrame.from_ndarray(img, format="yuv420p")
+            if img.shape[0] % 6 == 0 and img.flags.c_contiguous:
+                # the buffer itself (no copy): x264 copies the picture before encode() returns
+                # (PyAV takes the height as rows // 6 * 4: a multiple of 4 only)
+                frame = self._av.VideoFrame.from_numpy_buffer(img, format="yuv420p")
+            else:
+                frame = self._av.VideoFrame.from_ndarray(img, format="yuv420p")
         else:
             if any(self.pad):
                 img = cv2.copyMakeBorder(img, 0, self.pad[1], 0, self.pad[0],
@@ -190,12 +195,12 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
     frames: Iterator[np.ndarray]
     layout = writer.layout if writer is not None else "rgb"
     workers = min(render_workers(jobs), n - 1)
-    if workers >= 1:
+    if layout == "i420":  # each frame's box only, a vector rendered once (pool.i420_frames)
+        frames = i420_frames(face, vecs, creases, max(workers, 0),
+                             fork=workers >= 1 and fork and fork_is_safe())
+    elif workers >= 1:
         frames = rendered_frames(face, vecs, creases, workers, layout=layout,
                                  fork=fork and fork_is_safe())
-    elif layout == "i420":
-        buf = np.empty(i420_shape(h, w), np.uint8)  # reused: the encoder copies each frame
-        frames = (render_frame(face, v, creases, buf) for v in vecs)
     else:
         frames = (face.render(v, creases=creases) for v in vecs)
     try:

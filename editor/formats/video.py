@@ -20,6 +20,7 @@ import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from fractions import Fraction
+from itertools import chain
 from pathlib import Path
 
 import cv2
@@ -190,13 +191,11 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
     n = len(vecs)
     h, w = face.image.shape[:2]
     writer = None
-    if codec:
-        fps = float(fps) if fps and fps > 0 else 25.0
-        with quiet_stderr():
-            writer = VideoWriter(out, (w, h), fps)
+    fps = float(fps) if fps and fps > 0 else 25.0
     done = 0
     frames: Iterator[np.ndarray]
-    layout = writer.layout if writer is not None else "rgb"
+    # the layout VideoWriter takes: yuv420p (H.264) as I420, else RGB
+    layout = "i420" if isinstance(codec, tuple) and codec[1] == "yuv420p" else "rgb"
     workers = min(render_workers(jobs), n - 1)
     if layout == "i420":  # each frame's box only, a vector rendered once (pool.i420_frames)
         frames = i420_frames(face, vecs, creases, max(workers, 0),
@@ -207,7 +206,15 @@ def _write_frames(face, vecs: np.ndarray, out: Path, codec: object, fps: float,
     else:
         frames = (face.render(v, creases=creases) for v in vecs)
     try:
-        for i, img in enumerate(frames):
+        # the first frame before the writer: the workers are started (forked before any
+        # encoder thread exists) and render ahead while PyAV is imported and the file opened
+        first = next(frames, None)
+        if codec:
+            with quiet_stderr():
+                writer = VideoWriter(out, (w, h), fps)
+            if writer.layout != layout:  # pragma: no cover - VIDEO_SUFFIXES changed alone
+                raise FapStudioError(f"{out.name}: frames in {layout}, not {writer.layout}")
+        for i, img in enumerate(chain([] if first is None else [first], frames)):
             if writer is not None:
                 with quiet_stderr():  # a full disk is checked after (check_video)
                     writer.write(img)

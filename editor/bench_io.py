@@ -9,7 +9,7 @@
   the editor's way (``fps_forkserver``: workers from a forkserver, each building the face)
   in the same run; ``cpu_ms_per_frame``: CPU time (this process, its threads and the
   workers) per frame, steadier than wall time on a shared machine; ``encode_only_fps``: the
-  H.264 encoder alone (x264 preset veryfast, CRF 16, as shipped) on 50 pre-rendered yuv420p
+  H.264 encoder alone (x264 preset veryfast, subme 1, CRF 16, as shipped) on 50 pre-rendered yuv420p
   frames, the ceiling whatever renders the frames; target >= 80 frames/s;
 * ``fap_info``: ``fap-studio fap info`` on a 1 000 000-frame file, as a process (wall time and
   that child's own peak RSS (VmHWM); ``peak_rss_mb_tenth``: the same on a

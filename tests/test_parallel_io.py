@@ -342,6 +342,7 @@ def test_worker_error_is_one_line_and_leaves_nothing(cli, tmp_path, monkeypatch)
     from editor.engine import pool
 
     monkeypatch.setattr(pool, "render_face_into", _failing_render)  # runs in the workers
+    monkeypatch.setattr(pool, "render_patch_into", _failing_render)  # (H.264: the boxes)
     r = cli("animate", SAMPLE_FACE, fap, "-q", "--jobs", "2", "-o", out / "a.mp4")
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "worker says no" in r.stderr and "Traceback" not in r.stderr

@@ -163,3 +163,48 @@ def test_fork_after_opencv_threads_ran_does_not_hang():
         p.communicate()
         pytest.fail("a forked export hung on OpenCV's thread pool")
     assert p.returncode == 0 and out.strip() == "6", err[-2000:]
+
+
+def test_i420_box_is_the_frames_conversion_over_the_box():
+    """Each luma value from its pixel, each chroma value from its 2 x 2 block: a box with even
+    corners converts alone to the whole frame's values there (odd edges padded alike)."""
+    from editor.engine.yuv import I420Canvas, even_box, i420_box, i420_planes
+
+    rng = np.random.default_rng(3)
+    for h, w in ((512, 512), (509, 507)):
+        rgb = np.ascontiguousarray(load_image(SAMPLE_FACE)[:h, :w])
+        full = i420_planes(rgb_to_i420(rgb), h + h % 2, w + w % 2)
+        canvas = I420Canvas(rgb)
+        for _ in range(20):
+            x = np.sort(rng.integers(0, w + 1, 2))
+            y = np.sort(rng.integers(0, h + 1, 2))
+            box = even_box((int(x[0]), int(y[0]), int(x[1]) + 1, int(y[1]) + 1), h, w)
+            assert box is not None and box[2] <= w + w % 2 and box[3] <= h + h % 2
+            x0, y0, x1, y1 = box
+            patch = i420_box(rgb, box)
+            for p, f, s in zip(i420_planes(patch, y1 - y0, x1 - x0), full, (1, 2, 2),
+                               strict=True):
+                assert np.array_equal(p, f[y0 // s:y1 // s, x0 // s:x1 // s])
+            # another picture's box pasted into the photo's: that frame (the previous box
+            # restored)
+            other = 255 - rgb
+            want = rgb.copy()
+            want[y0:y1, x0:x1] = other[y0:y1, x0:x1]
+            got = canvas.show(box, i420_box(other, box).reshape(-1))
+            assert np.array_equal(got, rgb_to_i420(want))
+        assert np.array_equal(canvas.show(None, None), rgb_to_i420(rgb))
+
+
+@pytest.mark.parametrize("jobs,fork,cache", [(0, False, None), (2, False, None),
+                                             (2, True, None), (2, True, 0), (0, False, 1)])
+def test_i420_frames_repeats_and_holds(sample_face, jobs, fork, cache):
+    """Each frame is the I420 of its render: a vector that comes again (a hold, a return) is
+    rendered once and its patch kept, or rendered again when there is no room to keep it."""
+    ramp = _ramp(6).frames
+    vecs = np.concatenate([ramp, ramp[3:4], ramp[3:4], np.zeros((2, 68), np.float32),
+                           ramp[::-1]]).astype(np.float32)
+    kw = {} if cache is None else {"cache_bytes": cache}
+    got = [f.copy() for f in pool.i420_frames(sample_face, vecs, True, jobs, fork=fork, **kw)]
+    assert len(got) == len(vecs)
+    for v, img in zip(vecs, got, strict=True):
+        assert np.array_equal(img, rgb_to_i420(sample_face.render(v)))

@@ -32,13 +32,13 @@ from collections import deque
 from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from multiprocessing import shared_memory
 from typing import Any, TypeVar
 
 import numpy as np
 
-from editor.engine.yuv import i420_shape, rgb_to_i420
+from editor.engine.yuv import I420Canvas, even_box, i420_box, i420_shape, rgb_to_i420
 from editor.errors import FapStudioError
 
 T = TypeVar("T")
@@ -214,6 +214,183 @@ def render_frame(face: Any, vec: np.ndarray, creases: bool, out: np.ndarray) -> 
     return out
 
 
+def render_patch(face: Any, vec: np.ndarray, creases: bool, out: np.ndarray
+                 ) -> tuple[int, int, int, int] | None:
+    """``face.render(vec)`` as an I420 patch: the box (even corners) outside which the frame is
+    the photo (the render's ``bbox``: every pixel it wrote lies inside), its I420 planes
+    (:func:`~editor.engine.yuv.i420_box`) written at the start of ``out`` (1-D uint8, room for
+    a whole frame); returns the box, None when the frame is the photo."""
+    res = face.render_full(vec, creases=creases)
+    h, w = res.image.shape[:2]
+    box = even_box(res.bbox, h, w)
+    if box is not None:
+        bh, bw = box[3] - box[1], box[2] - box[0]
+        i420_box(res.image, box, out[:bh * bw * 3 // 2].reshape(bh * 3 // 2, bw))
+    return box
+
+
+def render_patch_into(task: tuple[np.ndarray, bool, str, int]
+                      ) -> tuple[str, tuple[int, int, int, int] | None]:
+    """``(vector, creases, buffer name, buffer size)``: :func:`render_patch` on this worker's
+    :data:`FACE` into the shared buffer; returns its name and the patch's box."""
+    vec, creases, name, size = task
+    shm = _SLOTS.get(name)
+    if shm is None:
+        shm = _SLOTS[name] = shared_memory.SharedMemory(name=name)
+    return name, render_patch(FACE, vec, creases, np.ndarray((size,), np.uint8, buffer=shm.buf))
+
+
+#: bytes of patches :func:`i420_frames` keeps for vectors that come again later
+PATCH_CACHE_BYTES = 256 * 2**20
+
+
+def _repeats(vecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame an id of its vector (equal bytes, equal id) and how often each id occurs."""
+    rows = np.ascontiguousarray(vecs).reshape(len(vecs), -1)
+    keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+    _, ids, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    return ids.ravel(), counts
+
+
+def i420_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int, *, fork: bool = False,
+                cache_bytes: int = PATCH_CACHE_BYTES) -> Iterator[np.ndarray]:
+    """``rgb_to_i420(face.render(v))`` for each vector, in order, rendered in ``jobs`` worker
+    processes (0: in this process), as a video encoder takes them.
+
+    A frame differs from the photo only inside its render's box: a worker converts that box
+    alone (:func:`render_patch`) and hands back the patch through shared memory, this process
+    pastes it into the photo's picture (:class:`~editor.engine.yuv.I420Canvas`). A vector that
+    comes again (a hold, a return to an earlier expression) is rendered once: its patch is kept
+    (up to ``cache_bytes`` in all) until its last frame; the frame of a hold is the previous one
+    unchanged. Each frame is the same buffer, valid until the next one is asked for.
+
+    ``fork`` (where :func:`fork_is_safe`): the first frame is rendered here, building the face's
+    plans, then the workers are forked and inherit them. Otherwise each worker builds the face
+    from :func:`face_args` (a ``forkserver`` child: safe beside Qt's threads)."""
+    vecs = np.asarray(vecs)
+    n = len(vecs)
+    if n == 0:
+        return
+    ids, left = _repeats(vecs)
+    canvas = I420Canvas(np.asarray(face.image))
+    size = canvas.frame.size
+    own = np.empty(size, np.uint8)  # this process's patch buffer
+    cache: dict[int, tuple[tuple[int, int, int, int] | None, np.ndarray | None]] = {}
+    held = [0]  # bytes in the cache
+    shown = [-1]  # the id of the vector the canvas shows
+
+    def show(i: int, box: tuple[int, int, int, int] | None, buf: np.ndarray | None
+             ) -> np.ndarray:
+        """Frame ``i``: the patch ``box`` (its planes at the start of ``buf``; None, None: the
+        frame shown, the same vector); kept when the vector comes again and there is room."""
+        k = int(ids[i])
+        patch = None
+        if box is not None and buf is not None:
+            patch = buf[:(box[2] - box[0]) * (box[3] - box[1]) * 3 // 2]
+        if buf is not None and k not in cache and left[k] > 1:  # comes again: a copy kept
+            nbytes = 0 if patch is None else patch.size
+            if held[0] + nbytes <= cache_bytes:
+                cache[k] = (box, None if patch is None else patch.copy())
+                held[0] += nbytes
+        frame = canvas.show(box, patch) if k != shown[0] else canvas.frame
+        shown[0] = k
+        left[k] -= 1
+        if not left[k] and k in cache:  # its last frame
+            c = cache.pop(k)[1]
+            held[0] -= 0 if c is None else c.size
+        return frame
+
+    def again(i: int) -> np.ndarray:
+        """Frame ``i`` of a vector shown, kept or rendered before (here if it was not kept)."""
+        k = int(ids[i])
+        if k == shown[0]:
+            return show(i, None, None)
+        if k in cache:
+            return show(i, *cache[k])
+        return show(i, render_patch(face, vecs[i], creases, own), own)
+
+    if jobs < 1:
+        seen: set[int] = set()
+        for i in range(n):
+            k = int(ids[i])
+            if k in seen:
+                yield again(i)
+            else:
+                seen.add(k)
+                yield show(i, render_patch(face, vecs[i], creases, own), own)
+        return
+    yield from _pooled_i420(face, vecs, creases, jobs, fork, ids, cache, show, again, own, size)
+
+
+def _pooled_i420(face: Any, vecs: np.ndarray, creases: bool, jobs: int, fork: bool,
+                 ids: np.ndarray, cache: dict[int, Any],
+                 show: Callable[[int, Any, Any], np.ndarray],
+                 again: Callable[[int], np.ndarray], own: np.ndarray, size: int
+                 ) -> Generator[np.ndarray, None, None]:
+    """:func:`i420_frames` in worker processes: at most ``2 jobs + 1`` renders in flight,
+    each in its own shared buffer (free again once its patch is pasted or kept)."""
+    n = len(vecs)
+    window = 2 * jobs + 1
+    slots = [shared_memory.SharedMemory(create=True, size=size) for _ in range(window)]
+    bufs: dict[str, np.ndarray] | None = {
+        s.name: np.ndarray((size,), np.uint8, buffer=s.buf) for s in slots}
+    free = [s.name for s in slots]
+    pending: dict[int, Future[tuple[str, Any]]] = {}  # frame -> its render
+    flying: set[int] = set()  # the ids being rendered
+    ex: ProcessPoolExecutor | None = None
+    first: np.ndarray | None = None
+    init: Callable[..., None]
+    args: tuple[Any, ...]
+    j = 0  # the next frame to schedule
+    try:
+        if fork:  # frame 0 here: the face's plans are built before the workers are forked
+            first = show(0, render_patch(face, vecs[0], creases, own), own)
+            j = 1
+            ctx, init, args = _context(True), _inherit_face, (face,)
+        else:
+            ctx, init, args = _context(False), init_face, face_args(face)
+        ex = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init,
+                                 initargs=(1, init, args))
+        for i in range(n):
+            # schedule: a frame whose vector is kept or in flight is not rendered again
+            with _single_threaded_cv2() if fork and i == 0 else nullcontext():
+                while j < n and len(pending) < window:
+                    k = int(ids[j])
+                    if k not in cache and k not in flying:
+                        assert bufs is not None
+                        pending[j] = ex.submit(render_patch_into,
+                                               (vecs[j], creases, free.pop(), size))
+                        flying.add(k)
+                    j += 1
+            if first is not None:
+                frame, first = first, None
+                yield frame
+                continue
+            f = pending.pop(i, None)
+            if f is None:
+                yield again(i)
+                continue
+            try:
+                name, box = f.result()
+            except BrokenProcessPool as e:
+                raise FapStudioError(f"a render worker process stopped unexpectedly ({e})"
+                                     ) from None
+            flying.discard(int(ids[i]))
+            assert bufs is not None
+            frame = show(i, box, bufs[name])
+            free.append(name)
+            yield frame
+    finally:
+        for f in pending.values():
+            f.cancel()
+        if ex is not None:
+            ex.shutdown(wait=True, cancel_futures=True)  # the workers let go of the buffers
+        bufs = None
+        for shm in slots:
+            shm.close()
+            shm.unlink()
+
+
 def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int, *,
                     layout: str = "rgb", fork: bool = False) -> Iterator[np.ndarray]:
     """``face.render(v)`` for each vector, rendered in ``jobs`` worker processes, in order,
@@ -231,6 +408,9 @@ def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int, *,
     """
     h, w = np.asarray(face.image).shape[:2]
     shape = frame_shape(h, w, layout)
+    if layout == "i420":  # the frames' boxes only: see i420_frames
+        yield from i420_frames(face, vecs, creases, jobs, fork=fork)
+        return
     size = int(np.prod(shape))
     window = 2 * jobs + 1
     slots = [shared_memory.SharedMemory(create=True, size=size) for _ in range(window + 1)]

@@ -509,11 +509,7 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     if risky is None:
         return _evaluate_clamped(ids, table, tb, x0, y0, step)
     planes = np.ascontiguousarray(table.T)[:, None, :]  # (6, 1, rows)
-    xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
-    ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
-    map_x = np.empty((ny, nx), np.float32)
-    map_y = np.empty((ny, nx), np.float32)
-    rows = max(1, _MAP_BAND_PX // max(nx, 1))
+    xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
         gather = _gather(ids[r0:r1])
@@ -529,6 +525,17 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     return map_x, map_y
 
 
+def _map_grid(shape: tuple[int, ...], x0: float, y0: float, step: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """The evaluations' common frame: the node columns' x (1, nx) and rows' y (ny, 1), the
+    empty maps (ny, nx) and the rows per band (:data:`_MAP_BAND_PX`)."""
+    ny, nx = shape
+    xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
+    ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
+    return (xs, ys, np.empty((ny, nx), np.float32), np.empty((ny, nx), np.float32),
+            max(1, _MAP_BAND_PX // max(nx, 1)))
+
+
 def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: float,
                       y0: float, step: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_evaluate` with every point clamped to its row's box ``tb``: the coefficients
@@ -537,11 +544,7 @@ def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: fl
     tx = np.ascontiguousarray(table[None, :, :3])
     ty = np.ascontiguousarray(table[None, :, 3:])
     tb = np.ascontiguousarray(tb[None])
-    xs = (x0 + step * np.arange(nx)).astype(np.float32)[None, :]
-    ys = (y0 + step * np.arange(ny)).astype(np.float32)[:, None]
-    map_x = np.empty((ny, nx), np.float32)
-    map_y = np.empty((ny, nx), np.float32)
-    rows = max(1, _MAP_BAND_PX // max(nx, 1))
+    xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
         gather = _gather(ids[r0:r1])

@@ -153,9 +153,10 @@ def jaw_map(face: Face, vertices: np.ndarray
     ring = fr.to_frame(vv.take(b.ring, 0))
     ring = ring.take(ring[:, 0].argsort(), 0)
     ramp = max(1.5 * max(drop.tolist()), 2.0)
-    return _JawHook(partial(_hook, fr, b, ext, new, drop, ring, ramp),
-                    (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
-                     math.ceil(ext[3]) + 2))
+    # the pixels the hook may read and write: the extent grown by the rasterizer's reach
+    reach = (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
+             math.ceil(ext[3]) + 2)
+    return _JawHook(partial(_hook, fr, b, reach, new, drop, ring, ramp), reach)
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,18 +172,18 @@ class _JawHook:
         return self.call(ids, map_x, map_y, box)
 
 
-def _hook(fr: FaceFrame, b: _Band, ext: tuple[float, float, float, float], new: np.ndarray,
+def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
           drop: np.ndarray, ring: np.ndarray, ramp: float, ids: np.ndarray,
           map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]
           ) -> tuple[int, int, int, int] | None:
     """:func:`jaw_map`'s hook: the band's pixels of the warp's box ``box`` (triangle ids
     ``ids``) take the chin's map in ``map_x``, ``map_y`` (in place). ``new`` the jaw line in
     the frame by its x, ``drop`` its drop there, ``ring`` the margin ring below it, ``ramp``
-    the fade's length, ``ext`` the band's vertices' extent (x0, y0, x1, y1). Returns the box
-    (x0, y0, x1, y1, image pixels) it wrote in, None when it wrote nothing."""
+    the fade's length, ``reach`` the pixels the band may touch (:attr:`_JawHook.box`).
+    Returns the box (x0, y0, x1, y1, image pixels) it wrote in, None when it wrote nothing."""
     bx0, by0, bx1, by1 = box
-    x0, y0 = max(math.floor(ext[0]) - 1, bx0), max(math.floor(ext[1]) - 1, by0)
-    x1, y1 = min(math.ceil(ext[2]) + 2, bx1), min(math.ceil(ext[3]) + 2, by1)
+    x0, y0 = max(reach[0], bx0), max(reach[1], by0)
+    x1, y1 = min(reach[2], bx1), min(reach[3], by1)
     if x1 <= x0 or y1 <= y0:
         return None
     sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))

@@ -38,7 +38,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from editor.engine.yuv import I420Canvas, even_box, i420_box, i420_shape, rgb_to_i420
+from editor.engine.yuv import I420Canvas, even_box, i420_box, i420_shape
 from editor.errors import FapStudioError
 
 T = TypeVar("T")
@@ -193,8 +193,8 @@ def frame_shape(h: int, w: int, layout: str) -> tuple[int, ...]:
 
 def render_face_into(task: tuple[np.ndarray, bool, str, tuple[int, ...]]) -> str:
     """``(vector, creases, buffer name, shape)``: render on this worker's :data:`FACE` into
-    the shared frame buffer (RGB, or I420 when ``shape`` is 2-D: converted here, so that the
-    encoding process only encodes); returns its name."""
+    the shared RGB frame buffer; returns its name. (I420 frames go through
+    :func:`render_patch_into`: only each render's box is converted.)"""
     vec, creases, name, shape = task
     shm = _SLOTS.get(name)
     if shm is None:
@@ -205,12 +205,8 @@ def render_face_into(task: tuple[np.ndarray, bool, str, tuple[int, ...]]) -> str
 
 
 def render_frame(face: Any, vec: np.ndarray, creases: bool, out: np.ndarray) -> np.ndarray:
-    """``face.render(vec)`` into ``out``: RGB ``(H, W, 3)`` or I420 (2-D, :func:`i420_shape`)."""
-    img = face.render(vec, creases=creases)
-    if out.ndim == 2:
-        rgb_to_i420(img, out)
-    else:
-        out[:] = img
+    """``face.render(vec)`` into ``out``, RGB ``(H, W, 3)``."""
+    out[:] = face.render(vec, creases=creases)
     return out
 
 
@@ -407,7 +403,7 @@ def rendered_frames(face: Any, vecs: np.ndarray, creases: bool, jobs: int, *,
     :func:`face_args` (a ``forkserver`` child: safe beside Qt's threads).
     """
     h, w = np.asarray(face.image).shape[:2]
-    shape = frame_shape(h, w, layout)
+    shape = frame_shape(h, w, layout)  # (an unknown layout refused here)
     if layout == "i420":  # the frames' boxes only: see i420_frames
         yield from i420_frames(face, vecs, creases, jobs, fork=fork)
         return

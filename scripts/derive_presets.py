@@ -184,12 +184,23 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                           "median): JAFFE median -13/-14 MNS, p10 -187/-159, min -322/-269; at "
                           "-90 the corners stayed level under the raised upper lip and the "
                           "sample's disgust read as a grin; 150 % stays above the min"),
-        "t_mid": (-190, "AU9/AU10 raise the upper lip, disgust's key mouth cue (barely visible "
-                        "at the median): JAFFE median -82 (outer -41) MNS, p10 -296/-267, min "
-                        "-428/-364"),
-        "t_mids": (-210, "as t_mid (the mid-points more than the middle: the curl); JAFFE "
-                         "median -82/-98 (outer -41/-55), p10 -328/-281 (outer -343/-365), min "
-                         "-460/-416 (outer -447/-459)"),
+        "t_mid": (0, "the upper lip's middle stays at rest (JAFFE median -82, outer -41 MNS, "
+                     "p10 -296/-267; the inner-lip landmarks' mean motion is +0.6 % IOD, down): "
+                     "at -190 (FACS AU10 towards p10) the raised inner lip moved the landmarks "
+                     "as JAFFE's anger raises the whole mouth, and a classifier of real JAFFE "
+                     "expressions (editor/synthesis/recognise.py) named the render anger on 10 "
+                     "of 10 women at 100 % (8 at 150 %); with the curl below: disgust on 6 "
+                     "(9 at 150 %)"),
+        "t_mids": (-60, "the inner lip's mid-points a little (JAFFE median -82/-98, p10 "
+                        "-328/-281): the mouth stays closed"),
+        55: (-200, "AU9/AU10 curl the upper lip's outer contour up beside the philtrum, disgust's "
+                   "key mouth cue, and push the skin under the nose wing into the furrow JAFFE's "
+                   "disgust shows (0.17 deep; the upper_lip fold): outer contour only, the inner "
+                   "lip stays (median -41, p10 -343, min -447)"),
+        56: (-200, "as 55 (median -55, p10 -365, min -459)"),
+        "c_stretch": (60, "the mouth widens in JAFFE disgust (the corners' landmarks move out "
+                          "~2 % IOD; median -14/27 MW, p90 85/119): a pout rather than pursed "
+                          "lips"),
         "b_mid": (-50, "AU16 lower lip depressor of the prototype, kept small: at -190 (towards "
                        "the JAFFE median -162, outer -122; p10 -411/-336) the lips parted into "
                        "a gap showing the teeth under the raised upper lip, read as a grin on "

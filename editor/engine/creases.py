@@ -1120,7 +1120,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
         return res
     drawn = _splat_many(canvases)
     if unfolds:
-        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps)
+        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation)
     for g, box, k, f in folds:
         bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox, f)
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
@@ -1516,8 +1516,8 @@ def _unfold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray],
 
 def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
                  bbox: tuple[int, int, int, int] | None,
-                 maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
-                 ) -> tuple[int, int, int, int] | None:
+                 maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None,
+                 interpolation: int = cv2.INTER_LINEAR) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -1567,8 +1567,19 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             else:
                 Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
             # (all four channels at once: numpy is many times slower on a channel view; the
-            # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself)
-            S = cv2.remap(S, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+            # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself).
+            # S is resampled as the warp resampled the photo: a bicubic still keeps the
+            # valley's sharp core darker than a bilinear S would, and the lift left it as a
+            # thin dark scratch (the sample's neutralised smile: 41 levels below the
+            # bilinear render's lifted skin)
+            S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
+            if interpolation != cv2.INTER_LINEAR:
+                # at most the frame plus the skin's grain, as on the photo (_lift_fields): the
+                # bicubic frame keeps a sharp core darker than the bilinear S (MK: 43 levels)
+                lim = cv2.cvtColor(view, cv2.COLOR_RGB2RGBA).astype(np.float32)
+                lim *= 1.0 + np.float32(_GRAIN) / np.maximum(Cw, 1.0)
+                lim[..., 3] = np.inf
+                np.minimum(S, lim, out=S)
             np.maximum(S, 1.0, out=S)
             g4 = np.divide(Cw, S, out=S)
             band *= g4[..., 3]
@@ -1875,7 +1886,10 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     # mouth corner) the along-fold mean is lighter than its core, which then stayed a dark
     # stub after the lift (the sample: 110 against shoulders of ~195, lifted to 170): the
     # level the gain divides by is at most the lightly smoothed photo plus the skin's grain
-    np.minimum(Si, big[iy, ix] + np.float32(_GRAIN), out=Si)
+    # (the grain in proportion to the light: GRAIN levels at the skin's level C, fewer in a
+    # dark core, where 6 levels stayed a thin dark line after the gain ~C / S)
+    np.minimum(Si, big[iy, ix] * (1.0 + np.float32(_GRAIN) / np.maximum(C4[..., :3], 1.0)),
+               out=Si)
     return Si, C4
 
 

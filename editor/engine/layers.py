@@ -868,4 +868,5 @@ def _rebox(res: WarpResult, bbox: tuple[int, int, int, int],
         key = "mouth" if name == "mouth" else "eyes"
         a0, b0, a1, b1 = box
         masks[key][b0 - y0:b1 - y0, a0 - x0:a1 - x0] |= hole
-    return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"], res.maps)
+    return WarpResult(res.image, bbox, masks["mouth"], masks["eyes"], res.maps,
+                      res.interpolation)

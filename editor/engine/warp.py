@@ -142,6 +142,8 @@ class WarpResult:
     mouth_local, eyes_local : bool masks of the openings inside ``bbox`` (None if unchanged)
     maps : ``(map_x, map_y, box)``: the warp's backward map (destination pixel -> photo
         position, float32) over ``box`` (x0, y0, x1, y1; identity outside it), or None
+    interpolation : how the photo was resampled through ``maps`` (OpenCV flag): what else
+        the layers carry from the photo through the same map is resampled alike
     """
 
     image: np.ndarray
@@ -149,6 +151,7 @@ class WarpResult:
     mouth_local: np.ndarray | None = None
     eyes_local: np.ndarray | None = None
     maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None
+    interpolation: int = cv2.INTER_LINEAR
 
     def _full(self, local: np.ndarray | None) -> np.ndarray | None:
         if local is None or self.bbox is None:
@@ -213,8 +216,10 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         inner = _inner_box(plan, dst, moved_t, w, h)
         inner = (max(inner[0], x0), max(inner[1], y0), min(inner[2], x1), min(inner[3], y1))
         if 2 * _area(inner) < _area((x0, y0, x1, y1)):
-            return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner,
-                              (x0, y0, x1, y1), interpolation)
+            res = _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner,
+                             (x0, y0, x1, y1), interpolation)
+            res.interpolation = interpolation
+            return res
     out = img.copy()
     s = plan.map_step
     if s > 1 and min(x1 - x0, y1 - y0) >= 8 * s:
@@ -235,7 +240,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     else:
         out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, interpolation,
                                       borderMode=cv2.BORDER_REPLICATE)
-    return _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)
+    res = _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)
+    res.interpolation = interpolation
+    return res
 
 
 #: Rows per strip of :func:`_remap_moving`

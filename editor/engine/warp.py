@@ -848,12 +848,13 @@ def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
     eyes = np.zeros(ids.shape, bool)
     mouth = np.zeros(ids.shape, bool)
     at = (0, 0, 0, 0)
-    for k, name in enumerate(LAYERS):
-        loop = dst[plan.holes[name]]
-        a0 = int(np.clip(np.floor(loop[:, 0].min()) - 1 - x0, 0, ids.shape[1]))
-        b0 = int(np.clip(np.floor(loop[:, 1].min()) - 1 - y0, 0, ids.shape[0]))
-        a1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2 - x0, a0, ids.shape[1]))
-        b1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2 - y0, b0, ids.shape[0]))
+    ny, nx = ids.shape
+    for k, (a0, b0, a1, b1) in enumerate(_opening_boxes(plan, dst)):
+        # (the loop's box as Python ints, clipped to the ids: numpy's clip of a scalar costs
+        # several us, twelve of them a frame)
+        a0, b0 = min(max(a0 - x0, 0), nx), min(max(b0 - y0, 0), ny)
+        a1, b1 = min(max(a1 - x0, a0), nx), min(max(b1 - y0, b0), ny)
+        name = LAYERS[k]
         here = ids[b0:b1, a0:a1] == T + 1 + k
         if name == "mouth":
             mouth[b0:b1, a0:a1] = here

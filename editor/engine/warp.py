@@ -233,8 +233,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
             _mark(moving, touched, s, x0, y0)
         _remap_moving(img, out, map_x, map_y, moving, s, x0, y0, interpolation)
     else:
-        out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, interpolation,
-                                      borderMode=cv2.BORDER_REPLICATE)
+        # (resampled straight into the copy's box: no temporary box and second copy)
+        cv2.remap(img, map_x, map_y, interpolation, dst=out[y0:y1, x0:x1],
+                  borderMode=cv2.BORDER_REPLICATE)
     return _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)
 
 

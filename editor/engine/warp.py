@@ -496,11 +496,11 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     (grown by ``grow`` px). ``drawn``: what :func:`_ids` drew (``dst``, the moved triangles
     and their points; None: any row may be anywhere), see :func:`_risky`."""
     ny, nx = ids.shape
-    # per-pixel coefficients: a nearest-neighbour remap from a 1 x rows table is the fastest
-    # gather OpenCV/numpy offer; one coefficient at a time (contiguous planes: the arithmetic
-    # on a 3-channel gather's strided channels cost twice as much) and in bands of rows, so
-    # the gathered coefficients never exist for the whole box (a 24 MP face's box: ~200 MB of
-    # temporaries, each page faulted in on first use)
+    # per-pixel coefficients: each point's record of the table's row gathered with one
+    # ``take`` (on the 1920 x 1080 and 3840 x 2160 faces cheaper than nearest-neighbour remaps
+    # of the table's planes or channels, strided arithmetic on the records included), in bands
+    # of rows, so the gathered coefficients never exist for the whole box (a 24 MP face's box:
+    # ~200 MB of temporaries, each page faulted in on first use)
     tb = plan._src_box
     if grow:
         tb = tb + np.array([-grow, -grow, grow, grow], np.float32)
@@ -509,18 +509,17 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     risky = _risky(plan, table, tb, x0, y0, step, ids.shape, drawn) if grow else None
     if risky is None:
         return _evaluate_clamped(ids, table, tb, x0, y0, step)
-    planes = np.ascontiguousarray(table.T)[:, None, :]  # (6, 1, rows)
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        gather = _gather(ids[r0:r1])
+        # (each point's six coefficients in one ``take`` of the table's rows, a 24-byte record
+        # per point: cheaper than six nearest-neighbour remaps of one plane each)
+        g = table.take(ids[r0:r1], 0)  # (band, nx, 6)
         yr = ys[r0:r1]
         for out, k in ((map_x[r0:r1], 0), (map_y[r0:r1], 3)):
-            np.multiply(gather(planes[k]), xs, out=out)
-            c = gather(planes[k + 1])
-            c *= yr
-            out += c
-            out += gather(planes[k + 2])
+            np.multiply(g[..., k], xs, out=out)
+            out += g[..., k + 1] * yr
+            out += g[..., k + 2]
     if risky.any():
         _clamp_rows(ids, tb, x0, y0, step, map_x, map_y, risky, drawn)
     return map_x, map_y
@@ -539,28 +538,27 @@ def _map_grid(shape: tuple[int, ...], x0: float, y0: float, step: int
 
 def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: float,
                       y0: float, step: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_evaluate` with every point clamped to its row's box ``tb``: the coefficients
-    gathered three and four at a time (cheaper on a small box than one by one)."""
+    """:func:`_evaluate` with every point clamped to its row's box ``tb``: the six
+    coefficients and the four bounds of each point's row gathered in one ``take`` of a
+    (rows, 10) table (a 40-byte record per point: on the 1920 x 1080 face's box half the cost
+    of three nearest-neighbour remaps of 3, 3 and 4 channels), then the same float32
+    arithmetic on its channels."""
     ny, nx = ids.shape
-    tx = np.ascontiguousarray(table[None, :, :3])
-    ty = np.ascontiguousarray(table[None, :, 3:])
-    tb = np.ascontiguousarray(tb[None])
+    rec = np.concatenate([table, tb], axis=1)  # (rows, 10): a b c (x), d e f (y), box
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        gather = _gather(ids[r0:r1])
-        cx, cy = gather(tx), gather(ty)
+        g = rec.take(ids[r0:r1], 0)  # (band, nx, 10)
         yr = ys[r0:r1]
         mx, my = map_x[r0:r1], map_y[r0:r1]
-        np.multiply(cx[..., 0], xs, out=mx)
-        mx += cx[..., 1] * yr
-        mx += cx[..., 2]
-        np.multiply(cy[..., 0], xs, out=my)
-        my += cy[..., 1] * yr
-        my += cy[..., 2]
-        box = gather(tb)
-        np.clip(mx, box[..., 0], box[..., 2], out=mx)
-        np.clip(my, box[..., 1], box[..., 3], out=my)
+        np.multiply(g[..., 0], xs, out=mx)
+        mx += g[..., 1] * yr
+        mx += g[..., 2]
+        np.multiply(g[..., 3], xs, out=my)
+        my += g[..., 4] * yr
+        my += g[..., 5]
+        np.clip(mx, g[..., 6], g[..., 8], out=mx)
+        np.clip(my, g[..., 7], g[..., 9], out=my)
     return map_x, map_y
 
 
@@ -643,19 +641,6 @@ def _clamp_rows(ids: np.ndarray, tb: np.ndarray, x0: float, y0: float, step: int
     fx, fy = map_x.reshape(-1), map_y.reshape(-1)
     fx[at] = np.clip(fx.take(at), box[:, 0], box[:, 2])
     fy[at] = np.clip(fy.take(at), box[:, 1], box[:, 3])
-
-
-def _gather(ids: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """``table -> table[0, ids]`` (a 1 x rows table of up to 4 channels) by a nearest-neighbour
-    ``cv2.remap``: int16 ids as OpenCV's own fixed-point map of (x, y) int16 pairs (the
-    gathers cost 30 % less than from a float map), others as a float map."""
-    if ids.dtype == np.int16:
-        m1 = np.zeros((*ids.shape, 2), np.int16)
-        m1[..., 0] = ids
-        return lambda t: cv2.remap(t, m1, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
-    fid = ids.astype(np.float32)
-    zero = np.zeros_like(fid)
-    return lambda t: cv2.remap(t, fid, zero, cv2.INTER_NEAREST)
 
 
 def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,

@@ -80,6 +80,16 @@ class WarpPlan:
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self._mouth_local, self._mouth_at = m.astype(bool), (mx0, my0)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
+        # (6, T) what _table reads of each source triangle, one contiguous row per term: its
+        # edges f1 = s1 - s0, f2 = s2 - s0 (x, y) and its first corner s0 (x, y)
+        st = self._src_tri
+        self._src_terms = np.ascontiguousarray(np.stack(
+            [st[:, 1, 0] - st[:, 0, 0], st[:, 1, 1] - st[:, 0, 1], st[:, 2, 0] - st[:, 0, 0],
+             st[:, 2, 1] - st[:, 0, 1], st[:, 0, 0], st[:, 0, 1]]))
+        # the identity rows of every table (_table starts from a copy)
+        self._table0 = np.zeros((len(self.triangles) + 1 + 3, 6), np.float32)
+        self._table0[:, 0] = 1.0
+        self._table0[:, 4] = 1.0
         if self.map_step > 1:  # (only the interpolated map looks at the edges' bends)
             self._edge_v, self._edge_t = _edges(self.triangles)
         self._band_tri = (np.zeros(len(self.triangles), bool) if self.band is None
@@ -463,32 +473,34 @@ def _table(plan: WarpPlan, layers: dict[str, np.ndarray] | None, moved_t: np.nda
     """(T + 1 + len(LAYERS), 6) float32: the backward affine map of every id of
     :func:`_ids` (rows of the triangles not in ``moved_t``: the identity)."""
     T = len(plan.triangles)
-    table = np.zeros((T + 1 + len(LAYERS), 6), np.float32)
-    table[:, 0] = 1.0
-    table[:, 4] = 1.0
+    table = plan._table0.copy()  # (the identity rows)
     for k, name in enumerate(LAYERS):
         fwd = layers.get(name, _IDENTITY) if layers else _IDENTITY
         table[T + 1 + k] = cv2.invertAffineTransform(np.asarray(fwd, np.float64)).reshape(-1)
     # inverse affine per moved triangle (destination -> source), closed form: with edge
     # vectors e1 = d1 - d0, e2 = d2 - d0 (destination) and f1, f2 (source),
-    # src(p) = s0 + [f1 f2] [e1 e2]^-1 (p - d0)
-    d = tri_pts.astype(np.float64)
-    sv = plan._src_tri[moved_t]
-    e1, e2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
-    f1, f2 = sv[:, 1] - sv[:, 0], sv[:, 2] - sv[:, 0]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    # src(p) = s0 + [f1 f2] [e1 e2]^-1 (p - d0). (Each term a contiguous row: the corners'
+    # coordinates (6, n), the source's terms taken from the plan's; strided columns of the
+    # (n, 3, 2) corners cost twice as much, for the same float64 values)
+    d0x, d0y, d1x, d1y, d2x, d2y = tri_pts.reshape(-1, 6).T.astype(np.float64)
+    f1x, f1y, f2x, f2y, s0x, s0y = plan._src_terms.take(moved_t, 1)
+    e1x, e1y, e2x, e2y = d1x - d0x, d1y - d0y, d2x - d0x, d2y - d0y
+    det = e1x * e2y - e1y * e2x
     ok = np.abs(det) > 1e-9  # degenerate destinations are never produced by the guard
     inv = 1.0 / np.where(ok, det, 1.0)
     # [e1 e2]^-1 = [[e2y, -e2x], [-e1y, e1x]] / det
-    a11, a12, a21, a22 = e2[:, 1] * inv, -e2[:, 0] * inv, -e1[:, 1] * inv, e1[:, 0] * inv
-    m00 = f1[:, 0] * a11 + f2[:, 0] * a21
-    m01 = f1[:, 0] * a12 + f2[:, 0] * a22
-    m10 = f1[:, 1] * a11 + f2[:, 1] * a21
-    m11 = f1[:, 1] * a12 + f2[:, 1] * a22
-    m02 = sv[:, 0, 0] - m00 * d[:, 0, 0] - m01 * d[:, 0, 1]
-    m12 = sv[:, 0, 1] - m10 * d[:, 0, 0] - m11 * d[:, 0, 1]
+    a11, a12, a21, a22 = e2y * inv, -e2x * inv, -e1y * inv, e1x * inv
+    m00 = f1x * a11 + f2x * a21
+    m01 = f1x * a12 + f2x * a22
+    m10 = f1y * a11 + f2y * a21
+    m11 = f1y * a12 + f2y * a22
+    m02 = s0x - m00 * d0x - m01 * d0y
+    m12 = s0y - m10 * d0x - m11 * d0y
     M = np.stack([m00, m01, m02, m10, m11, m12], 1)
-    table[moved_t[ok]] = M[ok]
+    if ok.all():
+        table[moved_t] = M
+    else:
+        table[moved_t[ok]] = M[ok]
     return table
 
 

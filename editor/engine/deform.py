@@ -553,8 +553,58 @@ def _fit_offset(plan: DeformPlan, base: np.ndarray, off: np.ndarray, rounds: int
     return out
 
 
+def _neutral_folds_none(plan: DeformPlan, D: np.ndarray) -> bool:
+    """True when :func:`_tau` of ``D`` (B, V, 2) from the neutral is 1 for every triangle,
+    decided as :func:`_folds_none` decides it (with its margin; False near the limit, and
+    where a nearly flat parabola's root is computed by cancellation in :func:`_tau`: then the
+    caller solves for tau). The neutral's part of the area is the plan's own: only the
+    displacements are gathered."""
+    u0x, u0y, w0x, w0y, a0, tol = _neutral_terms(plan)
+    T = len(plan.triangles)
+    # (B, V, 2) viewed component first and gathered at C, A, B of every triangle in one take
+    G = D.transpose(2, 0, 1).take(_tri_gather(plan), 2)  # (2, B, 3T)
+    du = G[:, :, :T] - G[:, :, T:2 * T]
+    dw = G[:, :, :T] - G[:, :, 2 * T:]
+    dux, duy = du
+    dwx, dwy = dw
+    sg = _fold_limits(plan)[0]
+    a2 = sg * (dux * dwy - duy * dwx)
+    a1 = sg * ((u0x * dwy - u0y * dwx) + (dux * w0y - duy * w0x))
+    p1 = a0 + a1 + a2
+    if not ((a0 <= 0) | (p1 > tol)).all():  # (a0 0: a degenerate neutral, tau 1 there)
+        return False
+    big = np.abs(a2)
+    # a root of a nearly flat parabola comes out of _tau's formula with an error of about
+    # 1e-16 a1^2 / |a2| (cancellation): it must lie far enough beyond 1 for that
+    if ((big >= 1e-12) & (a1 * a1 * 1e-14 >= p1 * big)).any():
+        return False
+    inner = np.flatnonzero((a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2) & (a0 > 0))
+    if not len(inner):
+        return True
+    a0b = np.broadcast_to(a0, p1.shape).ravel().take(inner)
+    a1, a2 = a1.ravel().take(inner), a2.ravel().take(inner)
+    return bool((a0b - a1 * a1 / (4.0 * a2) > np.broadcast_to(tol, p1.shape).ravel().take(inner)
+                 ).all())
+
+
+def _neutral_terms(plan: DeformPlan) -> tuple[np.ndarray, ...]:
+    """Per triangle (1, T) the neutral's edges C - A, C - B (x, y) and the constant term of
+    :func:`_tau`'s area polynomial, with :func:`_folds_none`'s tolerance (once per plan)."""
+    got = plan.__dict__.get("_neutral_terms")
+    if got is None:
+        tn = plan.tri_neutral
+        u0, w0 = tn[:, 2] - tn[:, 0], tn[:, 2] - tn[:, 1]
+        c0 = plan.neutral_sigma[None, :]
+        got = (u0[None, :, 0], u0[None, :, 1], w0[None, :, 0], w0[None, :, 1],
+               (1.0 - EPS_SOLVE) * np.abs(c0), _fold_limits(plan)[2])
+        object.__setattr__(plan, "_neutral_terms", got)
+    return got
+
+
 def guard(plan: DeformPlan, D: np.ndarray, rounds: int = 8) -> np.ndarray:
     """Scale displacements (B, V, 2) so that no triangle inverts or degenerates (SPEC §2.3)."""
+    if _neutral_folds_none(plan, D):  # the common case, decided without solving for tau
+        return D
     B = D.shape[0]
     pairs = plan.pairs
     for _ in range(rounds):

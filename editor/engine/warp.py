@@ -65,6 +65,7 @@ class WarpPlan:
         self.image.setflags(write=False)
         self.src = np.asarray(self.src, np.float32)
         self.triangles = np.asarray(self.triangles, np.int32)
+        self._tri_cols = tuple(np.ascontiguousarray(self.triangles[:, k]) for k in range(3))
         h, w = self.image.shape[:2]
         # the opening over its box only (no image-sized mask: 24 MB at 24 MP)
         loop = self.src[self.holes["mouth"]]
@@ -79,6 +80,16 @@ class WarpPlan:
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self._mouth_local, self._mouth_at = m.astype(bool), (mx0, my0)
         self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
+        # (6, T) what _table reads of each source triangle, one contiguous row per term: its
+        # edges f1 = s1 - s0, f2 = s2 - s0 (x, y) and its first corner s0 (x, y)
+        st = self._src_tri
+        self._src_terms = np.ascontiguousarray(np.stack(
+            [st[:, 1, 0] - st[:, 0, 0], st[:, 1, 1] - st[:, 0, 1], st[:, 2, 0] - st[:, 0, 0],
+             st[:, 2, 1] - st[:, 0, 1], st[:, 0, 0], st[:, 0, 1]]))
+        # the identity rows of every table (_table starts from a copy)
+        self._table0 = np.zeros((len(self.triangles) + 1 + 3, 6), np.float32)
+        self._table0[:, 0] = 1.0
+        self._table0[:, 4] = 1.0
         if self.map_step > 1:  # (only the interpolated map looks at the edges' bends)
             self._edge_v, self._edge_t = _edges(self.triangles)
         self._band_tri = (np.zeros(len(self.triangles), bool) if self.band is None
@@ -198,17 +209,21 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     h, w = img.shape[:2]
     dst = np.asarray(dst, np.float32)
     V = len(plan.src)
-    moved_v = np.abs(dst[:V] - plan.src).max(1) > tol
+    # (the reductions over the small axes as element-wise maxima and ors of their columns,
+    # the box's bounds on Python numbers: the same values, several times cheaper)
+    d = np.abs(dst[:V] - plan.src)
+    moved_v = np.maximum(d[:, 0], d[:, 1]) > tol
     if not moved_v.any():
         return WarpResult(img.copy(), None)
     tris = plan.triangles
-    moved_t = np.flatnonzero(moved_v[tris].any(1))
+    t0, t1, t2 = plan._tri_cols
+    moved_t = np.flatnonzero(moved_v.take(t0) | moved_v.take(t1) | moved_v.take(t2))
     tri_pts = dst[tris[moved_t]]  # (n, 3, 2)
     p = tri_pts.reshape(-1, 2)
-    x0 = int(np.clip(np.floor(p[:, 0].min()) - 1, 0, w))
-    y0 = int(np.clip(np.floor(p[:, 1].min()) - 1, 0, h))
-    x1 = int(np.clip(np.ceil(p[:, 0].max()) + 2, 0, w))
-    y1 = int(np.clip(np.ceil(p[:, 1].max()) + 2, 0, h))
+    x0 = min(max(math.floor(float(p[:, 0].min())) - 1, 0), w)
+    y0 = min(max(math.floor(float(p[:, 1].min())) - 1, 0), h)
+    x1 = min(max(math.ceil(float(p[:, 0].max())) + 2, 0), w)
+    y1 = min(max(math.ceil(float(p[:, 1].max())) + 2, 0), h)
     if x1 <= x0 or y1 <= y0:
         return WarpResult(img.copy(), None)
     if (plan.band is not None and min(x1 - x0, y1 - y0) >= 4 * BAND_STEP
@@ -238,8 +253,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
             _mark(moving, touched, s, x0, y0)
         _remap_moving(img, out, map_x, map_y, moving, s, x0, y0, interpolation)
     else:
-        out[y0:y1, x0:x1] = cv2.remap(img, map_x, map_y, interpolation,
-                                      borderMode=cv2.BORDER_REPLICATE)
+        # (resampled straight into the copy's box: no temporary box and second copy)
+        cv2.remap(img, map_x, map_y, interpolation, dst=out[y0:y1, x0:x1],
+                  borderMode=cv2.BORDER_REPLICATE)
     res = _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)
     res.interpolation = interpolation
     return res
@@ -464,32 +480,34 @@ def _table(plan: WarpPlan, layers: dict[str, np.ndarray] | None, moved_t: np.nda
     """(T + 1 + len(LAYERS), 6) float32: the backward affine map of every id of
     :func:`_ids` (rows of the triangles not in ``moved_t``: the identity)."""
     T = len(plan.triangles)
-    table = np.zeros((T + 1 + len(LAYERS), 6), np.float32)
-    table[:, 0] = 1.0
-    table[:, 4] = 1.0
+    table = plan._table0.copy()  # (the identity rows)
     for k, name in enumerate(LAYERS):
         fwd = layers.get(name, _IDENTITY) if layers else _IDENTITY
         table[T + 1 + k] = cv2.invertAffineTransform(np.asarray(fwd, np.float64)).reshape(-1)
     # inverse affine per moved triangle (destination -> source), closed form: with edge
     # vectors e1 = d1 - d0, e2 = d2 - d0 (destination) and f1, f2 (source),
-    # src(p) = s0 + [f1 f2] [e1 e2]^-1 (p - d0)
-    d = tri_pts.astype(np.float64)
-    sv = plan._src_tri[moved_t]
-    e1, e2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
-    f1, f2 = sv[:, 1] - sv[:, 0], sv[:, 2] - sv[:, 0]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    # src(p) = s0 + [f1 f2] [e1 e2]^-1 (p - d0). (Each term a contiguous row: the corners'
+    # coordinates (6, n), the source's terms taken from the plan's; strided columns of the
+    # (n, 3, 2) corners cost twice as much, for the same float64 values)
+    d0x, d0y, d1x, d1y, d2x, d2y = tri_pts.reshape(-1, 6).T.astype(np.float64)
+    f1x, f1y, f2x, f2y, s0x, s0y = plan._src_terms.take(moved_t, 1)
+    e1x, e1y, e2x, e2y = d1x - d0x, d1y - d0y, d2x - d0x, d2y - d0y
+    det = e1x * e2y - e1y * e2x
     ok = np.abs(det) > 1e-9  # degenerate destinations are never produced by the guard
     inv = 1.0 / np.where(ok, det, 1.0)
     # [e1 e2]^-1 = [[e2y, -e2x], [-e1y, e1x]] / det
-    a11, a12, a21, a22 = e2[:, 1] * inv, -e2[:, 0] * inv, -e1[:, 1] * inv, e1[:, 0] * inv
-    m00 = f1[:, 0] * a11 + f2[:, 0] * a21
-    m01 = f1[:, 0] * a12 + f2[:, 0] * a22
-    m10 = f1[:, 1] * a11 + f2[:, 1] * a21
-    m11 = f1[:, 1] * a12 + f2[:, 1] * a22
-    m02 = sv[:, 0, 0] - m00 * d[:, 0, 0] - m01 * d[:, 0, 1]
-    m12 = sv[:, 0, 1] - m10 * d[:, 0, 0] - m11 * d[:, 0, 1]
+    a11, a12, a21, a22 = e2y * inv, -e2x * inv, -e1y * inv, e1x * inv
+    m00 = f1x * a11 + f2x * a21
+    m01 = f1x * a12 + f2x * a22
+    m10 = f1y * a11 + f2y * a21
+    m11 = f1y * a12 + f2y * a22
+    m02 = s0x - m00 * d0x - m01 * d0y
+    m12 = s0y - m10 * d0x - m11 * d0y
     M = np.stack([m00, m01, m02, m10, m11, m12], 1)
-    table[moved_t[ok]] = M[ok]
+    if ok.all():
+        table[moved_t] = M
+    else:
+        table[moved_t[ok]] = M[ok]
     return table
 
 
@@ -502,11 +520,11 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     (grown by ``grow`` px). ``drawn``: what :func:`_ids` drew (``dst``, the moved triangles
     and their points; None: any row may be anywhere), see :func:`_risky`."""
     ny, nx = ids.shape
-    # per-pixel coefficients: a nearest-neighbour remap from a 1 x rows table is the fastest
-    # gather OpenCV/numpy offer; one coefficient at a time (contiguous planes: the arithmetic
-    # on a 3-channel gather's strided channels cost twice as much) and in bands of rows, so
-    # the gathered coefficients never exist for the whole box (a 24 MP face's box: ~200 MB of
-    # temporaries, each page faulted in on first use)
+    # per-pixel coefficients: each point's record of the table's row gathered with one
+    # ``take`` (on the 1920 x 1080 and 3840 x 2160 faces cheaper than nearest-neighbour remaps
+    # of the table's planes or channels, strided arithmetic on the records included), in bands
+    # of rows, so the gathered coefficients never exist for the whole box (a 24 MP face's box:
+    # ~200 MB of temporaries, each page faulted in on first use)
     tb = plan._src_box
     if grow:
         tb = tb + np.array([-grow, -grow, grow, grow], np.float32)
@@ -515,18 +533,17 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     risky = _risky(plan, table, tb, x0, y0, step, ids.shape, drawn) if grow else None
     if risky is None:
         return _evaluate_clamped(ids, table, tb, x0, y0, step)
-    planes = np.ascontiguousarray(table.T)[:, None, :]  # (6, 1, rows)
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        gather = _gather(ids[r0:r1])
+        # (each point's six coefficients in one ``take`` of the table's rows, a 24-byte record
+        # per point: cheaper than six nearest-neighbour remaps of one plane each)
+        g = table.take(ids[r0:r1], 0)  # (band, nx, 6)
         yr = ys[r0:r1]
         for out, k in ((map_x[r0:r1], 0), (map_y[r0:r1], 3)):
-            np.multiply(gather(planes[k]), xs, out=out)
-            c = gather(planes[k + 1])
-            c *= yr
-            out += c
-            out += gather(planes[k + 2])
+            np.multiply(g[..., k], xs, out=out)
+            out += g[..., k + 1] * yr
+            out += g[..., k + 2]
     if risky.any():
         _clamp_rows(ids, tb, x0, y0, step, map_x, map_y, risky, drawn)
     return map_x, map_y
@@ -545,28 +562,27 @@ def _map_grid(shape: tuple[int, ...], x0: float, y0: float, step: int
 
 def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: float,
                       y0: float, step: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_evaluate` with every point clamped to its row's box ``tb``: the coefficients
-    gathered three and four at a time (cheaper on a small box than one by one)."""
+    """:func:`_evaluate` with every point clamped to its row's box ``tb``: the six
+    coefficients and the four bounds of each point's row gathered in one ``take`` of a
+    (rows, 10) table (a 40-byte record per point: on the 1920 x 1080 face's box half the cost
+    of three nearest-neighbour remaps of 3, 3 and 4 channels), then the same float32
+    arithmetic on its channels."""
     ny, nx = ids.shape
-    tx = np.ascontiguousarray(table[None, :, :3])
-    ty = np.ascontiguousarray(table[None, :, 3:])
-    tb = np.ascontiguousarray(tb[None])
+    rec = np.concatenate([table, tb], axis=1)  # (rows, 10): a b c (x), d e f (y), box
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        gather = _gather(ids[r0:r1])
-        cx, cy = gather(tx), gather(ty)
+        g = rec.take(ids[r0:r1], 0)  # (band, nx, 10)
         yr = ys[r0:r1]
         mx, my = map_x[r0:r1], map_y[r0:r1]
-        np.multiply(cx[..., 0], xs, out=mx)
-        mx += cx[..., 1] * yr
-        mx += cx[..., 2]
-        np.multiply(cy[..., 0], xs, out=my)
-        my += cy[..., 1] * yr
-        my += cy[..., 2]
-        box = gather(tb)
-        np.clip(mx, box[..., 0], box[..., 2], out=mx)
-        np.clip(my, box[..., 1], box[..., 3], out=my)
+        np.multiply(g[..., 0], xs, out=mx)
+        mx += g[..., 1] * yr
+        mx += g[..., 2]
+        np.multiply(g[..., 3], xs, out=my)
+        my += g[..., 4] * yr
+        my += g[..., 5]
+        np.clip(mx, g[..., 6], g[..., 8], out=mx)
+        np.clip(my, g[..., 7], g[..., 9], out=my)
     return map_x, map_y
 
 
@@ -649,19 +665,6 @@ def _clamp_rows(ids: np.ndarray, tb: np.ndarray, x0: float, y0: float, step: int
     fx, fy = map_x.reshape(-1), map_y.reshape(-1)
     fx[at] = np.clip(fx.take(at), box[:, 0], box[:, 2])
     fy[at] = np.clip(fy.take(at), box[:, 1], box[:, 3])
-
-
-def _gather(ids: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """``table -> table[0, ids]`` (a 1 x rows table of up to 4 channels) by a nearest-neighbour
-    ``cv2.remap``: int16 ids as OpenCV's own fixed-point map of (x, y) int16 pairs (the
-    gathers cost 30 % less than from a float map), others as a float map."""
-    if ids.dtype == np.int16:
-        m1 = np.zeros((*ids.shape, 2), np.int16)
-        m1[..., 0] = ids
-        return lambda t: cv2.remap(t, m1, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
-    fid = ids.astype(np.float32)
-    zero = np.zeros_like(fid)
-    return lambda t: cv2.remap(t, fid, zero, cv2.INTER_NEAREST)
 
 
 def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
@@ -774,10 +777,18 @@ def _reaching(moved_t: np.ndarray, tri_pts: np.ndarray, x0: float, y0: float, nx
     """The moved triangles (ids, points) that reach the box (the others draw nothing in it)."""
     if not len(moved_t):
         return moved_t, tri_pts
-    lo, hi = tri_pts.min(1), tri_pts.max(1)
+    lo, hi = _corner_extremes(tri_pts)
     keep = ((hi[:, 0] >= x0 - 1) & (lo[:, 0] <= x0 + nx + 1)
             & (hi[:, 1] >= y0 - 1) & (lo[:, 1] <= y0 + ny + 1))
     return (moved_t, tri_pts) if keep.all() else (moved_t[keep], tri_pts[keep])
+
+
+def _corner_extremes(tri_pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's (n, 3, 2) lowest and highest x and y, (n, 2) each: ``min(1)`` and
+    ``max(1)`` as element-wise minima and maxima of the corners (a reduction over an axis of
+    3 costs several times more)."""
+    a, b, c = tri_pts[:, 0], tri_pts[:, 1], tri_pts[:, 2]
+    return np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
 
 
 def _reaching_boxes(moved_t: np.ndarray, tri_pts: np.ndarray,
@@ -791,7 +802,7 @@ def _reaching_boxes(moved_t: np.ndarray, tri_pts: np.ndarray,
     if not len(moved_t):
         return moved_t, tri_pts
     gx0, gy0, gnx, gny = grid
-    lo, hi = tri_pts.min(1), tri_pts.max(1)
+    lo, hi = _corner_extremes(tri_pts)
     keep = np.zeros(len(moved_t), bool)
     for a0, b0, a1, b1 in boxes:
         a0, b0, a1, b1 = max(a0, gx0), max(b0, gy0), min(a1, gx0 + gnx), min(b1, gy0 + gny)
@@ -855,12 +866,13 @@ def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
     eyes = np.zeros(ids.shape, bool)
     mouth = np.zeros(ids.shape, bool)
     at = (0, 0, 0, 0)
-    for k, name in enumerate(LAYERS):
-        loop = dst[plan.holes[name]]
-        a0 = int(np.clip(np.floor(loop[:, 0].min()) - 1 - x0, 0, ids.shape[1]))
-        b0 = int(np.clip(np.floor(loop[:, 1].min()) - 1 - y0, 0, ids.shape[0]))
-        a1 = int(np.clip(np.ceil(loop[:, 0].max()) + 2 - x0, a0, ids.shape[1]))
-        b1 = int(np.clip(np.ceil(loop[:, 1].max()) + 2 - y0, b0, ids.shape[0]))
+    ny, nx = ids.shape
+    for k, (a0, b0, a1, b1) in enumerate(_opening_boxes(plan, dst)):
+        # (the loop's box as Python ints, clipped to the ids: numpy's clip of a scalar costs
+        # several us, twelve of them a frame)
+        a0, b0 = min(max(a0 - x0, 0), nx), min(max(b0 - y0, 0), ny)
+        a1, b1 = min(max(a1 - x0, a0), nx), min(max(b1 - y0, b0), ny)
+        name = LAYERS[k]
         here = ids[b0:b1, a0:a1] == T + 1 + k
         if name == "mouth":
             mouth[b0:b1, a0:a1] = here

@@ -1,4 +1,5 @@
-"""The pre-faulted frame buffer (:mod:`editor.engine.prefault`): a copy in it is the copy."""
+"""The pre-faulted frame buffer (:mod:`editor.engine.prefault`): a copy in it is the copy; the
+threads it and the large-photo steps run on (:mod:`editor.engine.threads`)."""
 
 from __future__ import annotations
 
@@ -32,3 +33,16 @@ def test_copy_of_other_shapes_and_small_frames(monkeypatch):
     assert np.array_equal(out, img) and len(prefault._SPARE) == 1
     prefault.reserve((2, 3, 3), np.float32)  # replaces it; another type: a plain copy too
     assert np.array_equal(prefault.copy_of(img), img) and len(prefault._SPARE) == 1
+
+
+def test_pending_returns_the_value_or_raises_the_error():
+    from editor.engine.threads import Pending
+
+    assert Pending(divmod, 7, 2).result() == (3, 1)
+    p = Pending(divmod, 1, 0)
+    try:
+        p.result()
+    except ZeroDivisionError:
+        pass
+    else:  # pragma: no cover
+        raise AssertionError("the thread's exception was not raised")

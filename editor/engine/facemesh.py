@@ -40,7 +40,6 @@ corners, 78/308 the inner mouth corners, 13/14 the inner lip middles, 1 the nose
 from __future__ import annotations
 
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -51,6 +50,7 @@ from editor.errors import FapStudioError, NoFaceError
 from editor.resources import MODELS_DIR
 
 from .lip_edges import refine_inner_lips
+from .threads import Pending
 
 # OpenCV is imported by the functions that use it (see editor.engine.landmarks)
 
@@ -337,10 +337,9 @@ def _block_means(img: np.ndarray, k: int) -> np.ndarray:
         cv2.resize(img[r0 * k:r1 * k], (w // k, r1 - r0), out[r0:r1],
                    interpolation=cv2.INTER_AREA)
 
-    with ThreadPoolExecutor(1) as pool:
-        other = pool.submit(rows, mid, h // k)
-        rows(0, mid)
-        other.result()
+    other = Pending(rows, mid, h // k)
+    rows(0, mid)
+    other.result()
     return out
 
 

@@ -29,7 +29,6 @@ import itertools
 import math
 import weakref
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, cast
@@ -58,6 +57,7 @@ from .mouth import (
     _sat,
     _smoothstep1,
 )
+from .threads import Pending
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -119,12 +119,11 @@ def layer_plan(face: Face) -> LayerPlan:
         # large eyes (a photo of ~10 MP and more) are built on a thread while this one builds
         # the mouth: their arrays are large enough for numpy and OpenCV to run mostly without
         # the GIL (24 MP: ~85 ms of eyes beside ~55 ms of mouth); small ones would only
-        # contend for it. (A thread per face: no pool outlives the call, none is forked.)
+        # contend for it
         if min(lm.iris_left.r, lm.iris_right.r) <= PLATE_WORK_R:
             p = _build_rest(face, img, v, mesh, build_eyes)
         else:
-            with ThreadPoolExecutor(1) as pool:
-                p = _build_rest(face, img, v, mesh, pool.submit(build_eyes).result)
+            p = _build_rest(face, img, v, mesh, Pending(build_eyes).result)
         _PLANS[face] = p
     return p
 

@@ -19,18 +19,20 @@ import threading
 
 import numpy as np
 
+from .threads import Pending
+
 #: Smaller frames are not worth a thread (a 1080p frame faults in a few ms)
 MIN_BYTES = 32 << 20
 
 _LOCK = threading.Lock()
-#: the pending buffer: (shape, dtype, thread, holder of the touched array) or nothing
-_SPARE: list[tuple[tuple[int, ...], np.dtype, threading.Thread, list[np.ndarray]]] = []
+#: the pending buffer: (shape, dtype, the touching) or nothing
+_SPARE: list[tuple[tuple[int, ...], np.dtype, Pending[np.ndarray]]] = []
 
 
-def _touch(shape: tuple[int, ...], dtype: np.dtype, holder: list[np.ndarray]) -> None:
+def _touch(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
     a = np.empty(shape, dtype)
     a.reshape(-1).view(np.uint8)[::mmap.PAGESIZE] = 0  # one write a page
-    holder.append(a)
+    return a
 
 
 def reserve(shape: tuple[int, ...], dtype: np.dtype | type = np.uint8) -> None:
@@ -39,12 +41,8 @@ def reserve(shape: tuple[int, ...], dtype: np.dtype | type = np.uint8) -> None:
     shape, dtype = tuple(int(n) for n in shape), np.dtype(dtype)
     if int(np.prod(shape)) * dtype.itemsize < MIN_BYTES:
         return
-    holder: list[np.ndarray] = []
-    t = threading.Thread(target=_touch, args=(shape, dtype, holder), name="prefault",
-                         daemon=True)
     with _LOCK:
-        _SPARE[:] = [(shape, dtype, t, holder)]
-    t.start()
+        _SPARE[:] = [(shape, dtype, Pending(_touch, shape, dtype))]
 
 
 def copy_of(img: np.ndarray) -> np.ndarray:
@@ -58,9 +56,9 @@ def copy_of(img: np.ndarray) -> np.ndarray:
             _SPARE.clear()
     if got is None:
         return img.copy()
-    got[2].join()
-    if not got[3]:  # (the thread failed: no memory)
+    try:
+        out = got[2].result()
+    except MemoryError:
         return img.copy()
-    out = got[3][0]
     np.copyto(out, img)
     return out

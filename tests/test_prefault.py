@@ -46,3 +46,19 @@ def test_pending_returns_the_value_or_raises_the_error():
         pass
     else:  # pragma: no cover
         raise AssertionError("the thread's exception was not raised")
+
+
+def test_copy_of_when_the_touching_did_not_finish(monkeypatch):
+    # (a process forked while the thread touched the buffer: the child's thread is gone)
+    from editor.engine.threads import Pending
+
+    monkeypatch.setattr(prefault, "MIN_BYTES", 0)
+    monkeypatch.setattr(prefault, "_SPARE", [])
+    img = np.ones((5, 4, 3), np.uint8)
+    prefault.reserve(img.shape)
+    gone = Pending(lambda: None)
+    gone.result()
+    gone._out.clear()  # as after the fork: stopped, neither a value nor an error
+    prefault._SPARE[0] = prefault._SPARE[0][:2] + (gone,)
+    out = prefault.copy_of(img)
+    assert np.array_equal(out, img) and not np.shares_memory(out, img)

@@ -58,7 +58,7 @@ def copy_of(img: np.ndarray) -> np.ndarray:
         return img.copy()
     try:
         out = got[2].result()
-    except MemoryError:
+    except (MemoryError, RuntimeError):  # (no memory; a fork while it was touched)
         return img.copy()
     np.copyto(out, img)
     return out

@@ -33,8 +33,11 @@ class Pending(Generic[T]):
             self._err = e
 
     def result(self) -> T:
-        """The call's value, or its exception raised here."""
+        """The call's value, or its exception raised here (RuntimeError: the thread ended
+        without either, as it seems to in a process forked while it ran)."""
         self._thread.join()
         if self._err is not None:
             raise self._err
+        if not self._out:
+            raise RuntimeError(f"{self._thread.name} did not finish (forked while it ran?)")
         return self._out[0]

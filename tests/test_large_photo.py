@@ -50,6 +50,17 @@ def test_detector_input_block_means_first(big_rgb, monkeypatch):
     assert np.abs(box - box1).max() < 0.003 * side and np.abs(kp - kp1).max() < 0.003 * side
 
 
+
+@pytest.mark.parametrize("k", [2, 3, 5, 7])
+def test_block_means_in_two_halves_are_one_resize(big_rgb, k):
+    # the rows split between two threads: each half's output rows read their own k input
+    # rows (odd and even counts of output rows, grey too)
+    for img in (big_rgb[:k * 301, :k * 211], big_rgb[:k * 300, :k * 7], big_rgb[:k * 3, :k * 5],
+                np.ascontiguousarray(big_rgb[:k * 101, :k * 99, 1])):
+        h, w = img.shape[:2]
+        assert np.array_equal(facemesh._block_means(img, k),
+                              cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA))
+
 def test_iris_search_on_large_eyes(big_rgb, big_face, monkeypatch):
     lm = big_face.landmarks
     for eye, iris in ((0, lm.iris_right), (1, lm.iris_left)):

@@ -29,6 +29,7 @@ import numpy as np
 
 from editor.errors import NoFaceError
 
+from . import prefault
 from .creases import apply_creases
 from .deform import (
     EXTRA_POINTS,
@@ -314,6 +315,9 @@ class Face:
             rgb, source = as_rgb8(image), None
         else:
             rgb, source = load_image(image), str(Path(image))
+        # the first render's frame, faulted in on a thread while the landmarks and the mesh
+        # are fitted (a large photo: see :mod:`prefault`)
+        prefault.reserve(rgb.shape, rgb.dtype)
         try:
             lm = detect_landmarks(rgb, detector)
         except NoFaceError as e:

@@ -50,6 +50,7 @@ from editor.errors import FapStudioError, NoFaceError
 from editor.resources import MODELS_DIR
 
 from .lip_edges import refine_inner_lips
+from .threads import Pending
 
 # OpenCV is imported by the functions that use it (see editor.engine.landmarks)
 
@@ -317,8 +318,29 @@ def _area_down(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     most = min(w // size[0], h // size[1]) // 8
     k = next((k for k in range(most, 1, -1) if w % k == 0 and h % k == 0), 1)
     if k >= 2:
-        img = cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA)
+        img = _block_means(img, k)
     return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+
+
+def _block_means(img: np.ndarray, k: int) -> np.ndarray:
+    """``cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA)`` for ``k`` dividing
+    both sides, its two halves of rows on two threads (OpenCV releases the GIL; with an
+    integer factor each output row is the means of its own ``k`` input rows: the same values;
+    ~50 ms on a 24 MP photo, the largest step of the detection after the decode)."""
+    import cv2
+
+    h, w = img.shape[:2]
+    out = np.empty((h // k, w // k) + img.shape[2:], img.dtype)
+    mid = (h // k) // 2
+
+    def rows(r0: int, r1: int) -> None:
+        cv2.resize(img[r0 * k:r1 * k], (w // k, r1 - r0), out[r0:r1],
+                   interpolation=cv2.INTER_AREA)
+
+    other = Pending(rows, mid, h // k)
+    rows(0, mid)
+    other.result()
+    return out
 
 
 class MediaPipeDetector:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import itertools
 import math
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, cast
@@ -38,7 +39,15 @@ import numpy.typing as npt
 
 from .deform import eye_state
 from .fitting import channel_median, clamp, clip, gather_px, median, pad_edge, smooth01
-from .gaze import EXTRA_INDEX, EYE_FAPS, EyePlan, edge_ramp, photo_through, spread3
+from .gaze import (
+    EXTRA_INDEX,
+    EYE_FAPS,
+    PLATE_WORK_R,
+    EyePlan,
+    edge_ramp,
+    photo_through,
+    spread3,
+)
 from .mouth import (
     CROWN,
     GUM_FADE,
@@ -48,10 +57,12 @@ from .mouth import (
     _sat,
     _smoothstep1,
 )
+from .threads import Pending
 from .warp import WarpResult
 
 if TYPE_CHECKING:
     from .face import Face
+    from .mesh import StandardMesh
 
 _SHIFT = 4
 _TOL = 1e-3
@@ -98,38 +109,57 @@ def layer_plan(face: Face) -> LayerPlan:
         lm = face.landmarks
         img, v, mesh = face.image, face.vertices.astype(np.float64), face.mesh
         irises = {"eye_l": lm.iris_left, "eye_r": lm.iris_right}
-        eyes = {k: EyePlan.build(img, v, mesh.holes[k], k,
-                                 (irises[k].cx, irises[k].cy, irises[k].r), face.plan.frame_rot)
-                for k in ("eye_l", "eye_r")}
-        # the photo's lighting: the cheeks' skin, its own teeth when the mouth shows some
-        cheek = np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)
-        # drawn in the cheeks' box only (the same pixels as on the whole photo)
-        q = np.round(v[mesh.triangles[cheek]] * 16).astype(np.int32)  # (n, 3, 2)
-        h, w = img.shape[:2]
-        if len(q):
-            bx0, by0 = clamp(q.reshape(-1, 2).min(0) // 16 - 1, 0, (w, h))
-            bx1, by1 = clamp(q.reshape(-1, 2).max(0) // 16 + 2, 0, (w, h))
+
+        def build_eyes() -> dict[str, EyePlan]:
+            return {k: EyePlan.build(img, v, mesh.holes[k], k,
+                                     (irises[k].cx, irises[k].cy, irises[k].r),
+                                     face.plan.frame_rot)
+                    for k in ("eye_l", "eye_r")}
+
+        # large eyes (a photo of ~10 MP and more) are built on a thread while this one builds
+        # the mouth: their arrays are large enough for numpy and OpenCV to run mostly without
+        # the GIL (24 MP: ~85 ms of eyes beside ~55 ms of mouth); small ones would only
+        # contend for it
+        if min(lm.iris_left.r, lm.iris_right.r) <= PLATE_WORK_R:
+            p = _build_rest(face, img, v, mesh, build_eyes)
         else:
-            bx0 = by0 = bx1 = by1 = 0
-        skin_mask = np.zeros((max(by1 - by0, 0), max(bx1 - bx0, 0)), np.uint8)
-        off = np.array([bx0, by0], np.int32) * 16
-        for t in q:
-            cv2.fillConvexPoly(skin_mask, t - off, 1, cv2.LINE_8, 4)
-        skin = (channel_median(img[by0:by1, bx0:bx1], skin_mask).astype(np.float32)
-                if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
-        skin_l = max(float(_lum(skin)), 20.0)
-        sat = float(clamp(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
-        poly = v[mesh.holes["mouth"]]
-        mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l),
-                                skin, face.neutral_vertices)
-        lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
-        mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
-        soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths],
-                         0.5 * (eyes["eye_l"].r0 + eyes["eye_r"].r0))
-        mouth.soften(soft)
-        p = LayerPlan(mouth, eyes, soft)
+            p = _build_rest(face, img, v, mesh, Pending(build_eyes).result)
         _PLANS[face] = p
     return p
+
+
+def _build_rest(face: Face, img: np.ndarray, v: np.ndarray, mesh: StandardMesh,
+                eyes_of: Callable[[], dict[str, EyePlan]]) -> LayerPlan:
+    """:func:`layer_plan` after the eyes were started: the mouth, then the eyes (``eyes_of``)
+    and the edge ramp they measure."""
+    # the photo's lighting: the cheeks' skin, its own teeth when the mouth shows some
+    cheek = np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)
+    # drawn in the cheeks' box only (the same pixels as on the whole photo)
+    q = np.round(v[mesh.triangles[cheek]] * 16).astype(np.int32)  # (n, 3, 2)
+    h, w = img.shape[:2]
+    if len(q):
+        bx0, by0 = clamp(q.reshape(-1, 2).min(0) // 16 - 1, 0, (w, h))
+        bx1, by1 = clamp(q.reshape(-1, 2).max(0) // 16 + 2, 0, (w, h))
+    else:
+        bx0 = by0 = bx1 = by1 = 0
+    skin_mask = np.zeros((max(by1 - by0, 0), max(bx1 - bx0, 0)), np.uint8)
+    off = np.array([bx0, by0], np.int32) * 16
+    for t in q:
+        cv2.fillConvexPoly(skin_mask, t - off, 1, cv2.LINE_8, 4)
+    skin = (channel_median(img[by0:by1, bx0:bx1], skin_mask).astype(np.float32)
+            if skin_mask.any() else np.array([200.0, 160.0, 140.0], np.float32))
+    skin_l = max(float(_lum(skin)), 20.0)
+    sat = float(clamp(_sat(skin) / _SKIN_SAT, 0.0, 1.0))
+    poly = v[mesh.holes["mouth"]]
+    mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l),
+                            skin, face.neutral_vertices)
+    lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
+    mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
+    eyes = eyes_of()
+    soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths],
+                     0.5 * (eyes["eye_l"].r0 + eyes["eye_r"].r0))
+    mouth.soften(soft)
+    return LayerPlan(mouth, eyes, soft)
 
 
 @lru_cache(maxsize=4)

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from .prefault import copy_of
+
 _SHIFT = 4
 _ONE = 1 << _SHIFT
 
@@ -214,7 +216,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     d = np.abs(dst[:V] - plan.src)
     moved_v = np.maximum(d[:, 0], d[:, 1]) > tol
     if not moved_v.any():
-        return WarpResult(img.copy(), None)
+        return WarpResult(copy_of(img), None)
     tris = plan.triangles
     t0, t1, t2 = plan._tri_cols
     moved_t = np.flatnonzero(moved_v.take(t0) | moved_v.take(t1) | moved_v.take(t2))
@@ -225,7 +227,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     x1 = min(max(math.ceil(float(p[:, 0].max())) + 2, 0), w)
     y1 = min(max(math.ceil(float(p[:, 1].max())) + 2, 0), h)
     if x1 <= x0 or y1 <= y0:
-        return WarpResult(img.copy(), None)
+        return WarpResult(copy_of(img), None)
     if (plan.band is not None and min(x1 - x0, y1 - y0) >= 4 * BAND_STEP
             and moved_v[plan.band].any()):
         inner = _inner_box(plan, dst, moved_t, w, h)
@@ -235,7 +237,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
                              (x0, y0, x1, y1), interpolation)
             res.interpolation = interpolation
             return res
-    out = img.copy()
+    out = copy_of(img)
     s = plan.map_step
     if s > 1 and min(x1 - x0, y1 - y0) >= 8 * s:
         # (where the hook reads the triangle ids: its ``box`` if it tells, else anywhere)
@@ -422,7 +424,7 @@ def _warp_band(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | 
                                 ex1 - ex0, ey1 - ey0)
             map_x[ey0:ey1, ex0:ex1] = mx
             map_y[ey0:ey1, ex0:ex1] = my
-    out = img.copy()
+    out = copy_of(img)
     out[by0:by1, bx0:bx1] = cv2.remap(img, map_x, map_y, interpolation,
                                       borderMode=cv2.BORDER_REPLICATE)
     mouth = np.zeros((h, w), bool)

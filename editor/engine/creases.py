@@ -110,7 +110,7 @@ STYLES: dict[str, FoldStyle] = {
     # their sum. JAFFE (valley across the line's middle, 0.06 IOD window): disgust 0.172
     # (median of 40 photos; 0.086 on the neutral ones), joy 0.247. Depth 0.20 / c0 0.35 (and
     # the sum) drew 0.034 under disgust (the lip raise compresses this skin by 0.12-0.19, a
-    # smile by 0.20-0.30): now 0.152 / 0.203 at 100 / 150 %, joy 0.276
+    # smile by 0.20-0.30): now 0.153 / 0.205 at 100 / 150 % (its outer lip curled up), joy 0.276
     "upper_lip": FoldStyle(sigma=0.026, depth=0.25, c0=0.08, ridge=0.35, ridge_off=2.6,
                            probe=0.07, dead=0.04),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,

@@ -140,7 +140,10 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         "brow_i": (60, "AU1 inner brow raiser (fear prototype): JAFFE median 15/13 ENS, p90 "
                        "78/85, max 91/118: set towards the prototype, 150 % inside the max"),
         "squeeze": (20, "AU4 draws the raised brows together (fear prototype); JAFFE median "
-                        "9/5 ES, p90 45/27"),
+                        "9/5 ES, p90 45/27 (max 76/36: 150 % stays inside on the right)"),
+        "lid_b": (40, "AU7 lid tightener of the fear prototype: the lower lids tense rather than "
+                      "drop as in surprise (JAFFE fear median -14 IRISD, p90 101, max 191; "
+                      "surprise median -82); the fit's 5 left the wide eyes of surprise"),
         "brow_m": (20, "AU2 of the fear prototype raises the whole brow (with AU1 and AU4 it "
                        "is flat and high): the fit's -35 (JAFFE median -41/-22 ENS) gave the "
                        "oblique brow of sadness, and fear read as worry on the contact sheets "

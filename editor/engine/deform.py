@@ -491,6 +491,13 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     a2 = sg * (dux * dwy - duy * dwx)
     a1 = sg * (ux * dwy - uy * dwx + dux * wy - duy * wx)
     a0 = sg * (ux * wy - uy * wx) - lim
+    return _stays_above(a0, a1, a2, tol)
+
+
+def _stays_above(a0: np.ndarray, a1: np.ndarray, a2: np.ndarray, tol: np.ndarray) -> bool:
+    """True when every area polynomial ``a0 + a1 t + a2 t^2`` (over the limit) that starts above
+    0 stays above ``tol`` on [0, 1]: at ``t = 1`` and, for a convex parabola whose vertex lies
+    inside (0, 1), at the vertex (the decision of :func:`_folds_none`)."""
     p1 = a0 + a1 + a2
     if not ((a0 <= 0) | (p1 > tol)).all():
         return False
@@ -499,7 +506,8 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     inner = np.flatnonzero((a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2) & (a0 > 0))
     if not len(inner):
         return True
-    a0, a1, a2 = a0.ravel().take(inner), a1.ravel().take(inner), a2.ravel().take(inner)
+    a0 = np.broadcast_to(a0, p1.shape).ravel().take(inner)
+    a1, a2 = a1.ravel().take(inner), a2.ravel().take(inner)
     return bool((a0 - a1 * a1 / (4.0 * a2) > np.broadcast_to(tol, p1.shape).ravel().take(inner)
                  ).all())
 
@@ -570,21 +578,13 @@ def _neutral_folds_none(plan: DeformPlan, D: np.ndarray) -> bool:
     sg = _fold_limits(plan)[0]
     a2 = sg * (dux * dwy - duy * dwx)
     a1 = sg * ((u0x * dwy - u0y * dwx) + (dux * w0y - duy * w0x))
-    p1 = a0 + a1 + a2
-    if not ((a0 <= 0) | (p1 > tol)).all():  # (a0 0: a degenerate neutral, tau 1 there)
-        return False
+    # (a0 0: a degenerate neutral, tau 1 there.) A root of a nearly flat parabola comes out of
+    # _tau's formula with an error of about 1e-16 a1^2 / |a2| (cancellation): it must lie far
+    # enough beyond 1 for that
     big = np.abs(a2)
-    # a root of a nearly flat parabola comes out of _tau's formula with an error of about
-    # 1e-16 a1^2 / |a2| (cancellation): it must lie far enough beyond 1 for that
-    if ((big >= 1e-12) & (a1 * a1 * 1e-14 >= p1 * big)).any():
+    if ((big >= 1e-12) & (a1 * a1 * 1e-14 >= (a0 + a1 + a2) * big)).any():
         return False
-    inner = np.flatnonzero((a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2) & (a0 > 0))
-    if not len(inner):
-        return True
-    a0b = np.broadcast_to(a0, p1.shape).ravel().take(inner)
-    a1, a2 = a1.ravel().take(inner), a2.ravel().take(inner)
-    return bool((a0b - a1 * a1 / (4.0 * a2) > np.broadcast_to(tol, p1.shape).ravel().take(inner)
-                 ).all())
+    return _stays_above(a0, a1, a2, tol)
 
 
 def _neutral_terms(plan: DeformPlan) -> tuple[np.ndarray, ...]:

@@ -81,10 +81,9 @@ class WarpPlan:
         poly = np.round((loop - np.array([mx0, my0], np.float32)) * _ONE).astype(np.int32)
         cv2.fillPoly(m, [poly], 1, cv2.LINE_8, _SHIFT)
         self._mouth_local, self._mouth_at = m.astype(bool), (mx0, my0)
-        self._src_tri = self.src[self.triangles].astype(np.float64)  # (T, 3, 2)
+        st = self.src[self.triangles].astype(np.float64)  # (T, 3, 2) source triangles
         # (6, T) what _table reads of each source triangle, one contiguous row per term: its
         # edges f1 = s1 - s0, f2 = s2 - s0 (x, y) and its first corner s0 (x, y)
-        st = self._src_tri
         self._src_terms = np.ascontiguousarray(np.stack(
             [st[:, 1, 0] - st[:, 0, 0], st[:, 1, 1] - st[:, 0, 1], st[:, 2, 0] - st[:, 0, 0],
              st[:, 2, 1] - st[:, 0, 1], st[:, 0, 0], st[:, 0, 1]]))
@@ -99,11 +98,11 @@ class WarpPlan:
         # source bounding box of every triangle (+1 px), to clamp the edge pixels that the
         # rasterizer assigns to a triangle although their centre is just outside it: for a
         # thin, stretched triangle the affine map would extrapolate them far away (speckles)
-        se = self._src_tri[:, 1:] - self._src_tri[:, :1]
+        se = st[:, 1:] - st[:, :1]
         self._src_area = np.maximum(
             np.abs(se[:, 0, 0] * se[:, 1, 1] - se[:, 0, 1] * se[:, 1, 0]), 1e-9)
-        lo = self._src_tri.min(1) - 1.0
-        hi = self._src_tri.max(1) + 1.0
+        lo = st.min(1) - 1.0
+        hi = st.max(1) + 1.0
         full = np.array([[-1.0, -1.0, w + 1.0, h + 1.0]] * (1 + 3))  # identity row + layers
         self._src_box = np.vstack([np.hstack([lo, hi]), full]).astype(np.float32)
         self._src_box_t = np.ascontiguousarray(self._src_box.T)  # (4, rows): its columns

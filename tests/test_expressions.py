@@ -86,11 +86,13 @@ def test_emotions_follow_the_expression_table():
     assert v("anger", "push_b_lip") < 0 and v("anger", "push_t_lip") < 0
     assert v("anger", "raise_l_o_eyebrow") < 0 and v("anger", "squeeze_l_eyebrow") > 0
     assert v("fear", "raise_b_midlip") < 0 and v("fear", "raise_l_i_eyebrow") > 0
-    # fear's brows are raised and drawn together, the inner parts bent upwards (the standard's
-    # look; FACS AU1+2+4; Xface's fear.fap): raised as a whole, inner more than outer (the
-    # seed paper's "outer brows down" gave the oblique brow of sadness: fear read as worry)
-    assert 0 < v("fear", "raise_l_o_eyebrow") < v("fear", "raise_l_i_eyebrow")
-    assert v("fear", "raise_r_m_eyebrow") > 0 and v("fear", "squeeze_l_eyebrow") > 0
+    # fear's brows are drawn together with the inner ends bent upward (the standard's look;
+    # FACS AU1+4 as in JAFFE's fear photos): the inner ends rise well above the outer ones, the
+    # brow as a whole rises a little. A flat, high brow (AU2 at +20, before) read as surprise
+    # to a blind rater; the wide eyes and the open mouth tell this brow from sadness's
+    i, m, o = (v("fear", f"raise_l_{k}_eyebrow") for k in "imo")
+    assert i > 0 and i - o >= 50 and i + m + o > 0
+    assert v("fear", "squeeze_l_eyebrow") > 0
     assert v("fear", "close_t_l_eyelid") < 0
     assert v("disgust", "lower_t_lip_lm_o") < 0 and v("disgust", "raise_l_m_eyebrow") < 0
 

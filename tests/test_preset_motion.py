@@ -65,9 +65,11 @@ def test_fear(motion):
     m = motion("fear")
     assert m["8.3"][1] > 0.5 and m["8.4"][1] > 0.5        # mouth corners down
     assert gap(m) > 0.3                                   # lower lip slightly open
-    # brows raised (AU1+2) and drawn together (AU4), the inner parts higher: not the sad brow
-    assert m["4.5"][1] < 0 and m["4.6"][1] < 0            # outer brows up
-    assert m["4.1"][1] < m["4.5"][1] and m["4.2"][1] < m["4.6"][1]
+    # the inner brows rise (AU1) and are drawn together (AU4), the outer ends stay low: the
+    # oblique brow of real fear (JAFFE), not surprise's high arch
+    assert m["4.1"][1] < -1.0 and m["4.2"][1] < -1.0      # inner brows clearly up
+    assert m["4.1"][1] < m["4.5"][1] - 1.0 and m["4.2"][1] < m["4.6"][1] - 1.0
+    assert m["4.5"][1] > -0.3 and m["4.6"][1] > -0.3      # outer ends not raised
     assert m["4.1"][0] < 0 and m["4.2"][0] > 0            # drawn together
     # the lower lids tense up a little (AU7) where surprise drops them: with 21/22 at 5 they
     # stayed (-0.03 px) and 4 of 7 fear renders at 150 % were named surprise by a blind rater

@@ -127,6 +127,21 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                        "the upper one (JAFFE median 57, outer 67, p90 233/281; dlib's inner-lip "
                        "points open a false gap on pressed lips)"),
         "b_mids": (100, "as b_mid (JAFFE median 51/61, outer 87/79)"),
+        51: (-70, "AU24 lip presser thins the lips: the upper lip's outer contour rises less "
+                  "than its inner one (JAFFE median -113 against -154 MNS), so the red of the "
+                  "upper lip narrows; with inner = outer the mouth kept its shape and a blind "
+                  "rater named 100 % anger neutral on 4 of 7 faces"),
+        55: (-60, "as 51 (outer -125/-127 against inner -166/-163)"),
+        56: (-60, "as 55"),
+        52: (135, "the pout of AU17 + AU24: the lower lip's outer contour rises more than its "
+                  "inner one (JAFFE outer 67/88/80 against inner 58/51/61 MNS): the lower lip "
+                  "bulges over the raised chin"),
+        57: (115, "as 52"),
+        58: (115, "as 52"),
+        "c_stretch": (-25, "AU23/24 narrow the pressed mouth (JAFFE median -9/-23, outer -13/-17 "
+                           "MW; p10 -46/-63, outer -58/-71); the fit's -15 left its width; at "
+                           "-40 the chin groove under the pout (creases.py) grew past the "
+                           "real p90 at 150 %"),
         "brow_o": (-30, "AU4 brow lowerer lowers the whole brow; JAFFE median 16/1 ENS, p10 "
                         "-95/-89: lowered inside the band"),
         "brow_i": (-115, "AU4 brow lowerer, anger's key cue (read only at 150 % with the "

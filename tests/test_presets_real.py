@@ -273,7 +273,7 @@ def test_a_recogniser_of_real_faces_names_the_presets():
     100 % rendered on the tenth woman's neutral photo (and detected again), for each woman.
     On unseen women's real photos it is right 66 % of the time (chance: 17 %; disgust 45 %).
     Joy, sadness, surprise, anger and fear are named right on at least 8 of the 10 women
-    (measured: 10, 10, 10, 9, 8), disgust on at least 5 (measured 6; 9 at 150 %). Disgust
+    (measured: 10, 10, 10, 10, 8), disgust on at least 5 (measured 6; 9 at 150 %). Disgust
     raising the whole upper lip (4/51 at -190) was named anger on 10 of 10: its inner-lip
     landmarks moved up as JAFFE's anger raises the whole mouth, where JAFFE's disgust keeps the
     inner lips at rest and curls only the outer contour's sides."""

@@ -97,7 +97,7 @@ def test_preset_as_aus_is_one_edit(window):
     anger = apply_preset(get_preset("anger"), 1.0)
     assert model.undo_stack.undoText() == "anger as AUs"
     err = np.abs(model.doc.faps - anger)[anger != 0]
-    assert np.sqrt(np.mean(err ** 2)) < 15  # the round-trip tolerance of test_facs
+    assert np.sqrt(np.mean(err ** 2)) < 25  # anger's round-trip tolerance in test_facs
     assert p.sliders["4L"].value() >= 80 and p.sliders["7L"].value() >= 80
 
 

@@ -555,8 +555,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)
-                # (the shift's largest magnitude on Python floats: the same value)
-                amount = max(moved, *(abs(x) for x in shift.tolist()), 2.0 * abs(r_new - ep.r_det))
+                amount = max(moved, float(np.abs(shift).max()), 2.0 * abs(r_new - ep.r_det))
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft,
                                              float(_smoothstep1(min(amount, 1.0))))
             elif closure[k_open] < 0.6:

@@ -112,10 +112,11 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         17: (-80, "as 16"),
         18: (120, "AU17 chin raiser: JAFFE's chin point rises in anger (FAP 3 median -291 MNS, "
                   "which open_jaw (>= 0) cannot express); FACS reasoning for the amount"),
-        "lid_t": (80, "the glare: the lowered brows push the upper lids down over the iris "
-                      "(as in most JAFFE anger photos; median about 0, p90 211/146 IRISD). The "
-                      "FACS prototype's AU5 (-40 before) left the eyes wide: a blind rater "
-                      "named the 100 % render neutral on 7 of 7 faces"),
+        "lid_t": (110, "the glare: the lowered brows push the upper lids down over the iris "
+                       "(as in most JAFFE anger photos; median about 0, p90 211/146 IRISD). The "
+                       "FACS prototype's AU5 (-40 before) left the eyes wide: a blind rater "
+                       "named the 100 % render neutral on 7 of 7 faces; at 80 still 9 of 14 "
+                       "(two raters)"),
         "c_raise": (40, "AU23/24 do not lift the corners; JAFFE's median +140 MNS comes with the "
                         "whole mouth moving up (AU17 chin raiser, partly head pitch the "
                         "similarity alignment keeps): set at the band's low end so anger never "

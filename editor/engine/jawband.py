@@ -61,8 +61,6 @@ class _Band:
     ring: np.ndarray  # the band's outer vertices (the margin ring below the jaw)
     tau: float  # :data:`TAU` in pixels (the interocular distance is not recomputed per frame)
     rest_frame: np.ndarray  # (k, 2) ``rest`` in the face frame
-    #: the face frame's origin and rotation as Python floats (:func:`_frame_numbers`)
-    fnum: tuple[float, float, float, float, float, float]
 
 
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -88,8 +86,7 @@ def _band(face: Face) -> _Band:
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
     centre = face.vertices.astype(np.float64)[off_ring].mean(0)
     nrm *= np.where(((p - centre) * nrm).sum(1) < 0, -1.0, 1.0)[:, None]
-    b = _Band(verts, idx, nrm, p, lut, ring_v, TAU * face.interocular, face.frame.to_frame(p),
-              _frame_numbers(face.frame))
+    b = _Band(verts, idx, nrm, p, lut, ring_v, TAU * face.interocular, face.frame.to_frame(p))
     _PLANS[face] = b
     return b
 
@@ -159,7 +156,7 @@ def jaw_map(face: Face, vertices: np.ndarray
     # the pixels the hook may read and write: the extent grown by the rasterizer's reach
     reach = (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
              math.ceil(ext[3]) + 2)
-    return _JawHook(partial(_hook, b, reach, new, drop, ring, ramp), reach)
+    return _JawHook(partial(_hook, fr, b, reach, new, drop, ring, ramp), reach)
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,7 +172,7 @@ class _JawHook:
         return self.call(ids, map_x, map_y, box)
 
 
-def _hook(b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
+def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
           drop: np.ndarray, ring: np.ndarray, ramp: float, ids: np.ndarray,
           map_x: np.ndarray, map_y: np.ndarray, box: tuple[int, int, int, int]
           ) -> tuple[int, int, int, int] | None:
@@ -198,7 +195,7 @@ def _hook(b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
         k = sel.ravel().nonzero()[0]
         if not len(k):
             return None
-        _hook_pixels(b.fnum, _jaw_table(b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
+        _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
                      k, sub, (x0, y0, x1, y1), map_x, map_y)
         return x0, y0, x1, y1
     if not np.count_nonzero(sel):
@@ -206,8 +203,8 @@ def _hook(b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
     # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
     # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
     # than a tenth of a pixel)
-    table, lo_x = _jaw_table(b, (x0, y0, x1, y1), new, drop, ring, ramp)
-    o0, o1, r00, r10, r01, r11 = b.fnum
+    table, lo_x = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
+    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
     s = _COARSE
     nw, nh = -(-w // s) + 1, -(-h // s) + 1
     off = 0.5 * s - 0.5
@@ -242,13 +239,13 @@ def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, fl
             float(R[1, 1]))
 
 
-def _jaw_table(b: _Band, box: tuple[int, int, int, int], new: np.ndarray,
+def _jaw_table(fr: FaceFrame, b: _Band, box: tuple[int, int, int, int], new: np.ndarray,
                drop: np.ndarray, ring: np.ndarray, ramp: float) -> tuple[np.ndarray, float]:
     """The jaw line now, its drop, the strip and the fade along the frame's x over ``box``,
     tabulated every _STEP px (2, n, 4) float32 (read per pixel with one cv2.remap: np.interp
     per pixel costs several times more), and the frame x of its first entry."""
     x0, y0, x1, y1 = box
-    o0, o1, r00, r10, _, _ = b.fnum
+    o0, o1, r00, r10, _, _ = _frame_numbers(fr)
     # the frame's x over the box is extreme at its corners (Python floats: the same float64
     # arithmetic as on arrays, without their cost for four values)
     ax, ay = (x0 - o0) * r00, (x1 - 1 - o0) * r00
@@ -288,8 +285,7 @@ def _shift(d: np.ndarray, got: np.ndarray) -> np.ndarray:
     return shift
 
 
-def _hook_pixels(fnum: tuple[float, float, float, float, float, float],
-                 tab: tuple[np.ndarray, float], sel: np.ndarray,
+def _hook_pixels(fr: FaceFrame, tab: tuple[np.ndarray, float], sel: np.ndarray,
                  k: np.ndarray, sub: tuple[slice, slice], box: tuple[int, int, int, int],
                  map_x: np.ndarray, map_y: np.ndarray) -> None:
     """:func:`_hook` at every pixel of a small band box ``box`` (``sel``: the band's pixels
@@ -299,8 +295,9 @@ def _hook_pixels(fnum: tuple[float, float, float, float, float, float],
     row and column terms, then their sum), so with its values."""
     x0, y0, x1, y1 = box
     table, lo_x = tab
-    o0, o1, r00, r10, r01, r11 = fnum
-    yi, xi = np.divmod(k, x1 - x0)
+    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
+    yi = k // (x1 - x0)
+    xi = k - yi * (x1 - x0)
     xs = x0 + np.arange(x1 - x0, dtype=np.float32) - np.float32(o0)
     ys = y0 + np.arange(y1 - y0, dtype=np.float32) - np.float32(o1)
     # the pixel's frame x in table steps, and its frame y
@@ -317,10 +314,7 @@ def _hook_pixels(fnum: tuple[float, float, float, float, float, float],
     my -= shift * np.float32(r11)
     if map_x.flags.c_contiguous and map_y.flags.c_contiguous:
         # (by flat indices into the whole maps: a boolean mask of a 2-d window costs more)
-        # (yi * width + xi plus the window's corner: the same integers, fewer temporaries)
-        flat = yi * map_x.shape[1]
-        flat += xi
-        flat += sub[0].start * map_x.shape[1] + sub[1].start
+        flat = (yi + sub[0].start) * map_x.shape[1] + (xi + sub[1].start)
         map_x.reshape(-1)[flat] = mx
         map_y.reshape(-1)[flat] = my
     else:

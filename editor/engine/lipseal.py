@@ -573,7 +573,7 @@ def _contact_line(plan: SealPlan, v: np.ndarray, box: tuple[int, int, int, int],
     up, lo = v[plan.upper], v[plan.lower]
     gap = np.hypot(*(lo - up).T)
     shut = SHUT * plan.iod
-    c = clamp((2.0 * shut - gap) / shut, 0.0, 1.0)  # 1 shut, 0 from twice SHUT apart
+    c = np.clip((2.0 * shut - gap) / shut, 0.0, 1.0)  # 1 shut, 0 from twice SHUT apart
     c[[0, -1]] *= 0.6  # the corners: the line fades into the commissure
     w = s * c
     if not w.any():
@@ -589,10 +589,7 @@ def _contact_line(plan: SealPlan, v: np.ndarray, box: tuple[int, int, int, int],
     h, wd = y1 - y0, x1 - x0
     ix = np.floor(pts).astype(np.intp)
     fx, fy = pts[:, 0] - ix[:, 0], pts[:, 1] - ix[:, 1]
-    # (np.clip's values: on integer arrays its Python-level dispatch costs several times the
-    # arithmetic)
-    cx = np.minimum(np.maximum(ix[:, 0], 0), wd - 2)
-    cy = np.minimum(np.maximum(ix[:, 1], 0), h - 2)
+    cx, cy = np.clip(ix[:, 0], 0, wd - 2), np.clip(ix[:, 1], 0, h - 2)
     flat = np.concatenate([cy * wd + cx, cy * wd + cx + 1, (cy + 1) * wd + cx,
                            (cy + 1) * wd + cx + 1])
     ws = np.concatenate([(1 - fy) * (1 - fx) * wt, (1 - fy) * fx * wt, fy * (1 - fx) * wt,

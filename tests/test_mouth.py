@@ -224,9 +224,10 @@ def test_thin_gap_shows_no_teeth(sample_face, jaw):
 
 def test_drawn_teeth_read_as_teeth_at_jaffe_size(jaffe_faces):
     # 256-px faces, viseme aa: the upper teeth row (rows 1-2 under the upper lip, +-0.1 MW
-    # around the midline) shows the central incisors' contact as a soft dip, neither a black
-    # notch (main before: the rounded incisal corners left a V of cavity there, 0.18-0.34 x
-    # the row's median) nor a flat white bar
+    # around the midline) shows the central incisors' contact as a dip as deep as real teeth
+    # show it (JAFFE's 25 open mouths with upper teeth: 0.63 of the row's median, p10..p90
+    # 0.35..0.83), neither a black notch (main before: the rounded incisal corners left a V
+    # of cavity there, 0.18-0.34 x the row's median) nor a flat white bar
     for f in jaffe_faces[:3]:
         faps = apply_preset("viseme_aa", 1.0)
         img, v = f.render(faps), f.deform(faps)
@@ -238,7 +239,7 @@ def test_drawn_teeth_read_as_teeth_at_jaffe_size(jaffe_faces):
             r = np.flatnonzero(h[:, x])
             row.append(L[r[1:3], x].mean())
         rel = min(row) / float(np.median(row))
-        assert float(np.median(row)) > 0.95 and 0.6 < rel < 0.95, (f.source, row)
+        assert float(np.median(row)) > 0.95 and 0.35 < rel < 0.9, (f.source, row)
 
 
 def test_lips_pushed_forward_shade_the_teeth(sample_face):
@@ -464,3 +465,40 @@ def test_drawn_teeth_on_a_soft_photo_are_no_sharper_than_the_photo(sample_face):
     inner = cv2.erode(res.mouth_mask.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
     assert inner.sum() > 1000
     assert steepest(res.image)[inner].max() <= steepest(f.image).max()
+
+
+def _teeth_row_contrast(face: Face, img: np.ndarray, v: np.ndarray) -> float | None:
+    """How much a row of teeth varies along itself: on the row of the opening with the most
+    tooth-bright pixels (over 0.75 of the skin), the middle 60 % of its bright span, mean
+    |profile - its Gaussian blur (2 px)| over its mean (teeth and the gaps between them)."""
+    L = _lum(img)
+    hole = _opening(face, v, img.shape)
+    bright = hole & (L > 0.75 * _skin(face))
+    if bright.sum() < 40:
+        return None
+    row = int(np.argmax(bright.sum(1)))
+    cols = np.flatnonzero(bright[row])
+    a, b = int(cols.min()), int(cols.max())
+    k = int(0.2 * (b - a))
+    a, b = a + k, b - k
+    if b - a < 8:
+        return None
+    prof = L[row - 1:row + 2, a:b + 1].mean(0)
+    smooth = cv2.GaussianBlur(prof[None].astype(np.float32), (0, 0), 2.0)[0]
+    return float(np.abs(prof - smooth).mean() / prof.mean())
+
+
+def test_drawn_teeth_are_separate_teeth_not_a_slab(jaffe_faces):
+    """Joy at 100 and 150 % on five JAFFE faces: the drawn upper teeth vary along their row
+    as separate teeth do. JAFFE's own open smiles: 0.115 (median of 16, same measure); with
+    0.6 px gaps (mouth.GAP_PX before) the drawn row gave 0.053 (a smooth slab, "pasted" to
+    three blind raters), with 1.5 px 0.073."""
+    vals = []
+    for f in jaffe_faces:
+        for k in (1.0, 1.5):
+            faps = apply_preset("joy", k)
+            c = _teeth_row_contrast(f, f.render(faps), f.deform(faps))
+            if c is not None:
+                vals.append(c)
+    assert len(vals) >= 6
+    assert 0.065 < float(np.median(vals)) < 0.2, vals

@@ -26,6 +26,9 @@ def test_bad_preset_is_one_line_error(cli, tmp_path):
         r = cli("render", str(SAMPLE), "--preset", spec, "-o", str(tmp_path / "x.png"))
         assert r.returncode == 2 and r.stderr.startswith("fap-studio: error:"), spec
         assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    # NaN is named as what it is, not as out of the range (a new user's report)
+    r = cli("render", str(SAMPLE), "--preset", "joy:nan", "-o", str(tmp_path / "x.png"))
+    assert r.returncode == 2 and "'nan' is not a number" in r.stderr, r.stderr
 
 
 def test_fap_export_info_and_animate(cli, tmp_path):

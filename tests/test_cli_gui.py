@@ -52,3 +52,31 @@ def test_render_says_when_it_clamps_a_fap(cli, tmp_path):
     assert notes == ["fap-studio: note: outside their range, clamped: open_jaw 999999 -> 1080 MNS"]
     r = cli("render", "sample", "--fap", "open_jaw=500", "-o", out)
     assert "clamped" not in r.stderr
+
+
+@pytest.mark.gui
+def test_gui_preset_option_shows_the_preset_in_its_panel(qapp, isolated_settings, monkeypatch,
+                                                         tmp_path, cli):
+    """``fap-studio gui --preset fear:1.5`` applies fear at 150 % and the Presets panel says so
+    (fear selected, its intensity at 150 %): a new user saw the FAPs applied while the panel
+    showed nothing selected at 100 %. Mixed with ``--fap`` the panel shows no single preset."""
+    from editor.ui import app as ui_app
+
+    seen: list[tuple[str | None, int, float]] = []
+
+    def look(_app, window, _path) -> int:
+        p = window.extensions["presets_panel"]
+        seen.append((p.selected_name(), p.intensity.value(),
+                     float(window.model.doc.faps[2])))  # open_jaw
+        window.close_without_prompt()
+        return 0
+
+    monkeypatch.setattr(ui_app, "_screenshot", look)
+    monkeypatch.setenv("QT_QPA_PLATFORM", "offscreen")
+    shot = tmp_path / "s.png"
+    assert cli("gui", "sample", "--preset", "fear:1.5", "--screenshot", shot).returncode == 0
+    assert cli("gui", "sample", "--preset", "fear:1.5", "--fap", "open_jaw=10",
+               "--screenshot", shot).returncode == 0
+    (name, pct, jaw), (name2, pct2, jaw2) = seen
+    assert (name, pct) == ("fear", 150) and jaw == pytest.approx(390)
+    assert (name2, pct2) == (None, 100) and jaw2 == pytest.approx(400)

@@ -29,6 +29,8 @@ def parse_preset(spec: str) -> tuple[str, float]:
         value = float(inten) if inten else 1.0
     except ValueError as e:
         raise FapStudioError(f"--preset {spec!r}: {inten!r} is not a number") from e
+    if value != value:  # NaN
+        raise FapStudioError(f"--preset {spec!r}: {inten!r} is not a number")
     if not 0.0 <= value <= 1.5:
         raise FapStudioError(f"--preset {spec!r}: intensity must be within 0 … 1.5")
     return name, value

@@ -195,9 +195,15 @@ def cmd_gui(a: argparse.Namespace) -> int:
     photo, project = a.photo, getattr(a, "project", None)
     if photo and project is None and Path(photo).suffix.lower() == ".fapproj":
         photo, project = None, photo  # ``fap-studio work.fapproj`` opens the project
+    # one preset alone is shown in the Presets panel (selected, at its intensity)
+    shown = None
+    if len(a.preset or []) == 1 and not a.fap and not getattr(a, "au", None):
+        from .anim import parse_preset
+
+        shown = parse_preset(a.preset[0])
     return run(photo=photo, faps=named, screenshot=a.screenshot, project=project,
                photo_neutral=a.photo_is_neutral,
-               keep_expression=a.keep_expression)
+               keep_expression=a.keep_expression, preset=shown)
 
 
 def _write_json(path: str, data: dict) -> None:

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -100,7 +101,8 @@ def open_initial(window: MainWindow, photo: str | None = None,
 
 def run(photo: str | None = None, faps: dict[str, float] | None = None,
         screenshot: str | None = None, project: str | None = None,
-        photo_neutral: bool = False, keep_expression: bool = False) -> int:
+        photo_neutral: bool = False, keep_expression: bool = False,
+        preset: tuple[str, float] | None = None) -> int:
     """Open the editor window; returns the exit code.
 
     Parameters
@@ -113,6 +115,8 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
     project : a project file to open (takes precedence over ``photo``)
     photo_neutral : declare the photo neutral (FAPs apply to the photo itself)
     keep_expression : ``faps`` add to the photo's own expression instead of replacing it
+    preset : (name, intensity) when ``faps`` are that one preset: the Presets panel shows it
+        selected at that intensity
 
     A file that cannot be opened is reported (message box, or stderr and exit code 2 when
     headless); the interactive window then shows the sample face.
@@ -142,6 +146,11 @@ def run(photo: str | None = None, faps: dict[str, float] | None = None,
                 if doc is not None:
                     vec = FAPS.vector(faps) + (doc.faps if keep_expression else 0)
                     window.model.push(doc.with_fap_vector(vec), "Apply FAPs")
+                    panel = window.extensions.get("presets_panel")
+                    if preset is not None and panel is not None:
+                        with contextlib.suppress(KeyError):  # (a name the list spells otherwise)
+                            panel.select(preset[0])
+                            panel.intensity.setValue(round(preset[1] * 100))
             except ValueError as e:
                 if headless:
                     return fail(str(e))

@@ -104,3 +104,13 @@ def test_animate_refuses_a_video_suffix_it_does_not_write(cli, tmp_path):
         assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / name).exists()
     r = cli("animate", "sample", fap, "-o", tmp_path / "frames.v2")  # a dotted folder name
     assert r.returncode == 0 and len(list((tmp_path / "frames.v2").glob("*.png"))) == 2
+
+
+def test_animate_with_a_photo_as_its_animation_says_what_an_animation_is(cli, tmp_path):
+    """A PNG given where the animation goes: one line that names the three kinds animate reads
+    (it said only "expected a text .fap file", though CSVs are read too); nothing written."""
+    out = tmp_path / "z.mp4"
+    r = cli("animate", str(SAMPLE), str(SAMPLE), "-o", str(out))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "Live Link Face CSV" in r.stderr and "AU CSV" in r.stderr
+    assert not out.exists()

@@ -450,7 +450,14 @@ def read_animation(path: str | os.PathLike, fps: float | None = None
     kind = detect_kind(path)
     name = Path(path).stem
     if kind == "fap":
-        seq = read_fap(path)
+        try:
+            seq = read_fap(path)
+        except FapFileError as e:
+            if Path(path).suffix.lower() == ".fap":
+                raise
+            # neither .fap nor .csv by its name: say what an animation may be
+            raise FapFileError(f"{e} (an animation is a .fap file, a Live Link Face CSV or an "
+                               "AU CSV)") from None
         return seq, kind, list(seq.notes)
     cap: LiveLinkCapture | AuCapture
     cap = read_live_link(path, fps) if kind == "arkit" else read_au_csv(path, fps)

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -29,7 +30,7 @@ def parse_preset(spec: str) -> tuple[str, float]:
         value = float(inten) if inten else 1.0
     except ValueError as e:
         raise FapStudioError(f"--preset {spec!r}: {inten!r} is not a number") from e
-    if value != value:  # NaN
+    if math.isnan(value):
         raise FapStudioError(f"--preset {spec!r}: {inten!r} is not a number")
     if not 0.0 <= value <= 1.5:
         raise FapStudioError(f"--preset {spec!r}: intensity must be within 0 … 1.5")

@@ -232,10 +232,8 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         inner = _inner_box(plan, dst, moved_t, w, h)
         inner = (max(inner[0], x0), max(inner[1], y0), min(inner[2], x1), min(inner[3], y1))
         if 2 * _area(inner) < _area((x0, y0, x1, y1)):
-            res = _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner,
-                             (x0, y0, x1, y1), interpolation)
-            res.interpolation = interpolation
-            return res
+            return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner,
+                              (x0, y0, x1, y1), interpolation)
     out = copy_of(img)
     s = plan.map_step
     if s > 1 and min(x1 - x0, y1 - y0) >= 8 * s:
@@ -257,9 +255,8 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         # (resampled straight into the copy's box: no temporary box and second copy)
         cv2.remap(img, map_x, map_y, interpolation, dst=out[y0:y1, x0:x1],
                   borderMode=cv2.BORDER_REPLICATE)
-    res = _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity)
-    res.interpolation = interpolation
-    return res
+    return _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity,
+                   interpolation=interpolation)
 
 
 #: Rows per strip of :func:`_remap_moving`
@@ -432,7 +429,7 @@ def _warp_band(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | 
         res = _finish(plan, dst, out, ids, mx, my, inner, cavity)
         mouth[iy0:iy1, ix0:ix1] = res.mouth_local
         eyes[iy0:iy1, ix0:ix1] = res.eyes_local
-    return WarpResult(out, box, mouth, eyes, (map_x, map_y, box))
+    return WarpResult(out, box, mouth, eyes, (map_x, map_y, box), interpolation)
 
 
 def _maps(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None,
@@ -855,9 +852,11 @@ _MAP_BAND_PX = 1 << 18
 
 def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
             map_x: np.ndarray, map_y: np.ndarray, bbox: tuple[int, int, int, int],
-            cavity: bool, maps: tuple[np.ndarray, np.ndarray] | None = None) -> WarpResult:
+            cavity: bool, maps: tuple[np.ndarray, np.ndarray] | None = None,
+            interpolation: int = cv2.INTER_LINEAR) -> WarpResult:
     """Opening masks and the mouth cavity of the box ``bbox`` (``ids``, ``map_x/y`` its
-    own); ``maps``: the result's maps over ``bbox`` when they are not ``map_x, map_y``."""
+    own); ``maps``: the result's maps over ``bbox`` when they are not ``map_x, map_y``;
+    ``interpolation``: how ``out`` was resampled through them."""
     T = len(plan.triangles)
     h, w = out.shape[:2]
     x0, y0, x1, y1 = bbox
@@ -894,7 +893,8 @@ def _finish(plan: WarpPlan, dst: np.ndarray, out: np.ndarray, ids: np.ndarray,
             yy, xx = yy[dark], xx[dark]
             out[y0 + yy, x0 + xx] = _cavity(dst, plan.holes["mouth"], x0 + xx, y0 + yy)
     mx, my = (map_x, map_y) if maps is None else maps
-    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes, (mx, my, (x0, y0, x1, y1)))
+    return WarpResult(out, (x0, y0, x1, y1), mouth, eyes, (mx, my, (x0, y0, x1, y1)),
+                      interpolation)
 
 
 def _cavity(dst: np.ndarray, loop: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:

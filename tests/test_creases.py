@@ -8,6 +8,7 @@ import pytest
 from conftest import SAMPLE, jaffe_images
 
 from editor.core import Face, load_image
+from editor.engine import face as face_module
 from editor.engine.creases import _MIN_STRENGTH, fold_lines, fold_strength
 from editor.engine.layers import render_layers
 from editor.engine.warp import warp
@@ -85,11 +86,14 @@ def test_creases_false_is_the_old_render(sample_neutral):
     V = f.plan.n_vertices
     v = pts[:V]
     tf = f.layer_transforms(v)
+    from editor.engine.grain import apply_grain
     from editor.engine.jawband import jaw_map
     from editor.engine.lidskin import apply_lid_skin
 
-    # (the jaw band's map and the lid skin are part of the warp)
-    base = apply_lid_skin(f, warp(f.warp_plan, v, tf, cavity=False, hook=jaw_map(f, v)), v)
+    # (the jaw band's map, the grain the resampling took and the lid skin are part of the
+    # warp)
+    base = apply_lid_skin(f, apply_grain(f, warp(f.warp_plan, v, tf, cavity=False,
+                                                 hook=jaw_map(f, v))), v)
     old = render_layers(f, base, v, pts[V:], vec, tf).image
     assert np.array_equal(f.render(vec, creases=False), old)
     assert not np.array_equal(f.render(vec), old)
@@ -128,13 +132,15 @@ def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
     def bridge(e: str, vec=None) -> float:
         vec = apply_preset(e, 1.0) if vec is None else vec
         return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(vec)) if k == "bridge")
-    assert bridge("disgust", shipped("disgust")) > 0.05
+    # (strengths are darkening fractions: the bridge style's depth is 0.03 since the grain
+    # came back, 0.06 before, when these bounds were 0.05 and 0.02)
+    assert bridge("disgust", shipped("disgust")) > 0.025
     assert bridge("joy", shipped("joy")) == 0.0
     # not drawn (below the 2-grey-level threshold): the smile does not lower the brows' inner
     # ends (the driver since the nasal-root lines follow AU4/AU9, not the lip); surprise
     # spreads that skin
     assert bridge("joy") < _MIN_STRENGTH and bridge("surprise") == 0.0
-    assert bridge("anger") > 0.02  # the procerus (AU4) wrinkles the nasal root too
+    assert bridge("anger") > 0.01  # the procerus (AU4) wrinkles the nasal root too
 
 
 def test_strength_grows_monotonically_with_intensity(sample_neutral):
@@ -416,7 +422,7 @@ def _thin_line_depth(face, sharp: bool) -> float:
     return float(np.percentile((cv2.morphologyEx(on, cv2.MORPH_CLOSE, k) - on)[band], 99))
 
 
-def test_lifted_own_folds_leave_no_thin_dark_line(sample_face):
+def test_lifted_own_folds_leave_no_thin_dark_line(sample_face, monkeypatch):
     """The lift brings a fold's sharp core up with its valley, in the preview and in sharp
     stills: no scratch where a smile's fold was. The core may stay below the lifted level by
     the skin's grain in proportion to its light (6 levels at the skin's, fewer in a dark core;
@@ -425,6 +431,9 @@ def test_lifted_own_folds_leave_no_thin_dark_line(sample_face):
     grain (the bilinear level under a bicubic core left a thin line on the sample's cheek).
     Thin-line depth (p99): the sample 7 / 11 (bilinear / sharp; were 8 / 18), JAFFE MK 14 / 24
     (32 / 58), NA 12 / 14 (16 / 35), KM 12 / 13 (15 / 38)."""
+    # (the grain put back where the warp resampled (grain.py) is left out: it is isotropic
+    # noise at the photo's level, which this closing reads as specks of every frame)
+    monkeypatch.setattr(face_module, "apply_grain", lambda face, res: res)
     assert _thin_line_depth(sample_face, False) <= 10.0
     assert _thin_line_depth(sample_face, True) <= 14.0
     for who in ("NA", "MK", "KM"):

@@ -132,9 +132,10 @@ STYLES: dict[str, FoldStyle] = {
     "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.35, ridge_off=2.4,
                       probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the
-    # image's median luminance; 0.006 on the neutral ones). Depth 0.13 drew 0.073 (scratches
-    # across the nose under disgust and anger); now 0.025
-    "bridge": FoldStyle(sigma=0.011, depth=0.06, c0=0.07, ridge=0.25, ridge_off=2.2,
+    # image's median luminance; 0.009 on the neutral ones: their grain). Depth 0.13 drew 0.073
+    # (scratches across the nose under disgust and anger), 0.06 drew 0.025 on the warp's
+    # smoothed skin and 0.037 with the photo's grain put back (grain.py); now 0.024
+    "bridge": FoldStyle(sigma=0.011, depth=0.03, c0=0.07, ridge=0.25, ridge_off=2.2,
                         probe=0.04, dead=0.04),
 }
 

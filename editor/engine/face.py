@@ -44,6 +44,7 @@ from .deform import (
 from .faps import FAPS
 from .fapu import measure_fapu
 from .fitting import CLOSED_LIPS_MW, TEETH_RATIO, FaceFrame, fit_vertices, snap_inner_lips
+from .grain import apply_grain
 from .imageio import as_rgb8, load_image
 from .jawband import jaw_map
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
@@ -543,7 +544,7 @@ class Face:
         tf = self.layer_transforms(v)
         w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v),
                  interpolation=cv2.INTER_CUBIC if sharp else cv2.INTER_LINEAR)
-        w = apply_lid_skin(self, w, v)
+        w = apply_lid_skin(self, apply_grain(self, w), v)
         w = apply_lip_seal(self, w, v)
         res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
         return apply_creases(self, res, v) if creases else res

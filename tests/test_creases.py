@@ -187,8 +187,8 @@ def test_cli_no_creases_flag(tmp_path, sample_face):
                  str(b)]) == 0
     on, off = load_image(a), load_image(b)
     vec = sample_face.fap_vector(shipped("surprise", 1.0))
-    assert np.array_equal(off, sample_face.render(vec, creases=False))
-    assert np.array_equal(on, sample_face.render(vec))
+    assert np.array_equal(off, sample_face.render(vec, creases=False, sharp=True))
+    assert np.array_equal(on, sample_face.render(vec, sharp=True))
     assert not np.array_equal(on, off)
 
 

@@ -308,3 +308,20 @@ def test_cli_render_sharp_is_the_bicubic_render(cli, tmp_path, sample_face):
     assert cli("render", SAMPLE_FACE, "--preset", "anger", "--sharp", "-o", out).returncode == 0
     assert np.array_equal(load_image(out),
                           sample_face.render(apply_preset("anger", 1.0), sharp=True))
+
+
+def test_cli_render_is_bicubic_unless_fast(cli, tmp_path, sample_face):
+    """A still is rendered as the editor exports it (bicubic), ``--fast`` as its live preview
+    (bilinear); both flags at once are refused before any work."""
+    from editor.core import apply_preset, load_image
+    from editor.resources import SAMPLE_FACE
+
+    vec = apply_preset("joy", 1.0)
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    assert cli("render", SAMPLE_FACE, "--preset", "joy", "-o", a).returncode == 0
+    assert np.array_equal(load_image(a), sample_face.render(vec, sharp=True))
+    assert cli("render", SAMPLE_FACE, "--preset", "joy", "--fast", "-o", b).returncode == 0
+    assert np.array_equal(load_image(b), sample_face.render(vec))
+    r = cli("render", SAMPLE_FACE, "--fast", "--sharp", "-o", tmp_path / "c.png")
+    assert r.returncode == 2 and "not allowed with" in r.stderr
+    assert not (tmp_path / "c.png").exists()

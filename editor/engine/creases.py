@@ -1119,10 +1119,11 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     if not canvases:
         return res
     drawn = _splat_many(canvases)
+    q = _work_factor(crease_plan(face).iod)
     if unfolds:
         bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation)
     for g, box, k, f in folds:
-        bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox, f)
+        bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox, f, q)
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, {})
@@ -1267,10 +1268,11 @@ def _fold_scale(dsig: float) -> int:
 
 def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int],
                dark: np.ndarray, light: np.ndarray, bbox: tuple[int, int, int, int] | None,
-               f: int = 1) -> tuple[int, int, int, int] | None:
+               f: int = 1, q: int = 1) -> tuple[int, int, int, int] | None:
     """Darken group ``g``'s fold line (and lighten its ridge) over ``box`` of ``out`` from
     its splatted canvases (in place; at 1/``f`` resolution when ``f`` > 1, see
-    :func:`_fold_scale`); returns ``bbox`` grown by the box."""
+    :func:`_fold_scale`); returns ``bbox`` grown by the box. ``q`` > 1: the face's work
+    factor (:func:`_work_factor`), the gain computed on ``q x q`` blocks (:func:`_fold_blocks`)."""
     x0, y0, x1, y1 = box
     sig = float(fa.dsig[g])
     dark = _blur_back(dark, sig, f, y1 - y0, x1 - x0)
@@ -1279,6 +1281,11 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
         k = np.float32(1.0 / (f * f))
         dark *= k
         light *= k
+    H, W = out.shape[:2]
+    hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
+    if q > 1 and y0 + hq * q <= H and x0 + wq * q <= W:
+        _fold_blocks(fa, out, g, box, dark, light, q)
+        return _union(bbox, box)
     view = out[y0:y1, x0:x1]
     patch = view.astype(np.float32)
     # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -1294,6 +1301,40 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
     cv2.multiply(patch, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
     return _union(bbox, box)
+
+
+def _fold_blocks(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int],
+                 dark: np.ndarray, light: np.ndarray, q: int) -> None:
+    """:func:`_fold_draw`'s gain over ``box`` of ``out`` (in place) on a large face (work
+    factor ``q`` > 1, see :func:`_unfold_blocks`): the line and ridge (``dark``, ``light``,
+    blurred over several px) and the skin-likeness are taken on the frame's ``q x q`` block
+    means (the box grown to whole blocks), the gain upsampled bilinearly; only the product is
+    per pixel. (On the soft large face the skin-likeness of a pixel and of its block differ
+    at the brows' and the hair's edges only, by a fraction.)"""
+    x0, y0, x1, y1 = box
+    hb, wb = y1 - y0, x1 - x0
+    hq, wq = -(-hb // q), -(-wb // q)
+
+    def blocks(a: np.ndarray) -> np.ndarray:
+        return cv2.resize(cv2.copyMakeBorder(a, 0, hq * q - hb, 0, wq * q - wb,
+                                             cv2.BORDER_REPLICATE), (wq, hq), None, 0, 0,
+                          cv2.INTER_AREA)
+
+    dark, light = blocks(dark), blocks(light)
+    patch = cv2.resize(out[y0:y0 + hq * q, x0:x0 + wq * q], (wq, hq), None, 0, 0,
+                       cv2.INTER_AREA).astype(np.float32)
+    # (as _fold_draw, on the blocks)
+    dif = cv2.transform(patch, fa.skin_shift[g])
+    wskin: np.ndarray = cv2.sqrt(cv2.transform(cv2.multiply(dif, dif), _MEAN3))
+    wskin *= np.float32(-4.0 / float(fa.ref_l[g]))
+    wskin += np.float32(1.8)
+    clip(wskin, 0.0, 1.0, out=wskin)
+    light *= wskin
+    dark *= wskin
+    gain = cv2.transform(cv2.merge([light, dark]), fa.gain_mat[g])
+    gain = cv2.resize(gain, (wq * q, hq * q), None, 0, 0, cv2.INTER_LINEAR)[:hb, :wb]
+    view = out[y0:y1, x0:x1]
+    cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
 
 
 def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]]

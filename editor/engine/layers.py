@@ -322,6 +322,12 @@ def _blur(a: np.ndarray, sigma: float, ksize: int = 0) -> np.ndarray:
     return cv2.sepFilter2D(a, -1, k, k)
 
 
+#: The eyeball of a photo whose edges ramp over at least this many px (a soft photo, e.g.
+#: a large face from an upscaled picture) is evaluated on blocks of ``soft // EYE_BLOCK_SOFT``
+#: px and upsampled (:meth:`gaze.EyePlan.render`); faces up to 1080p (softness below ~3 px)
+#: per pixel
+EYE_BLOCK_SOFT = 6.0
+
 #: A blur of :func:`_blur_wide` at least this wide (sigma, px) is computed at half
 #: resolution: the photo's softness on a large face from an upscaled picture (the bench's
 #: 4K face: 15 px, its lids' and lips' blurs of sigma 6-8 px cost ~0.5 ms each at full
@@ -576,7 +582,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft,
+                                     max(1, int(lp.soft // EYE_BLOCK_SOFT)))
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)

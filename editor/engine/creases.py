@@ -1587,9 +1587,9 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         band *= k
         np.minimum(band, 1.0, out=band)
         hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
-        if (q > 1 and got is not None and maps is not None and y0 + hq * q <= H
-                and x0 + wq * q <= W):
-            _unfold_blocks(out, (x0, y0, x1, y1), q, band, got, maps, interpolation, sig)
+        got_q = None if q == 1 or got is None else _photo_gain_q(face, g)
+        if got_q is not None and maps is not None and y0 + hq * q <= H and x0 + wq * q <= W:
+            _unfold_blocks(out, (x0, y0, x1, y1), q, band, got_q, maps, interpolation, sig)
             bbox = _union(bbox, (x0, y0, x1, y1))
             continue
         view = out[y0:y1, x0:x1]
@@ -1651,13 +1651,13 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
 
 
 def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band: np.ndarray,
-                   got: tuple[tuple[np.ndarray, np.ndarray], tuple[int, int]],
+                   got: tuple[tuple[np.ndarray, np.ndarray], tuple[float, float]],
                    maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
                    interpolation: int, sig: float) -> None:
     """:func:`_unfold_draw`'s lift of one band (``band`` (h, w) over ``box`` of ``out``, in
     place) on a large face (a work factor ``q`` > 1, :func:`_work_factor`: the photo's
-    fields ``got``, :func:`_photo_gain`, were made on its ``q x q`` block means and upsampled,
-    so they hold nothing finer than a block): the lift ``(gain - 1) band`` is computed on the
+    fields ``got``, :func:`_photo_gain_q`, were made on its ``q x q`` block means, so they
+    hold nothing finer than a block): the lift ``(gain - 1) band`` is computed on the
     frame's ``q x q`` blocks (the box grown to whole blocks; the warp's map, the band and the
     frame averaged over each) and upsampled bilinearly; only the final product is per pixel.
     Per pixel the lift is then capped by the frame's own closing, as :func:`_unfold_draw`
@@ -1669,11 +1669,16 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band
     x0, y0, x1, y1 = box
     hb, wb = y1 - y0, x1 - x0
     hq, wq = -(-hb // q), -(-wb // q)
-    (S, Cw), org = got
-    mx, my = box_maps(maps, (x0, y0, x0 + wq * q, y0 + hq * q), org)
-    # each block's mean map: the map at its centre, where the block lies in one triangle
-    mx = cv2.resize(mx, (wq, hq), None, 0, 0, cv2.INTER_AREA)
-    my = cv2.resize(my, (wq, hq), None, 0, 0, cv2.INTER_AREA)
+    (S, Cw), (ox, oy) = got
+    mx, my = box_maps(maps, (x0, y0, x0 + wq * q, y0 + hq * q))
+    # each block's mean map: the map at its centre, where the block lies in one triangle;
+    # read on the photo's fields at their blocks' resolution (the fields' own pixels, not
+    # their upsampling: a ninth of the memory to read at q 3)
+    k = np.float32(1.0 / q)
+    mx = (np.asarray(cv2.resize(mx, (wq, hq), None, 0, 0, cv2.INTER_AREA), np.float32)
+          - np.float32(ox)) * k
+    my = (np.asarray(cv2.resize(my, (wq, hq), None, 0, 0, cv2.INTER_AREA), np.float32)
+          - np.float32(oy)) * k
     Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
     S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
     vq = cv2.resize(out[y0:y0 + hq * q, x0:x0 + wq * q], (wq, hq), None, 0, 0,
@@ -1796,6 +1801,9 @@ def _band_samples(pos: np.ndarray, ia: np.ndarray, un: np.ndarray, step: float =
 
 _LIFT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _GAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: per face, per fold group: the photo's fields on its blocks (see _photo_gain_q)
+_LIFT_Q: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GAIN_Q: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _photo_gain(face: Face, g: int
@@ -1850,20 +1858,46 @@ def _photo_lift(face: Face, g: int
             R0, S0 = max(x0 - P, 0), max(y0 - P, 0)
             img = sealed_box(face, (R0, S0, min(x1 + P, W), min(y1 + P, H)))
             box, at = (x0 - R0, y0 - S0, x1 - R0, y1 - S0), pts - (R0, S0)
-            got = ((_lift_fields(fa, g, img, at, w, d, L, K, len(ia), box, n_dir=0) if q == 1
-                    else _lift_fields_q(fa, g, img, at, w, d, L, K, len(ia), box, q)),
-                   (x0, y0))
+            if q == 1:
+                got = (_lift_fields(fa, g, img, at, w, d, L, K, len(ia), box, n_dir=0),
+                       (x0, y0))
+            else:
+                S_up, c4_up, (Sq, cq, (ux, uy)) = _lift_fields_q(fa, g, img, at, w, d, L, K,
+                                                                 len(ia), box, q)
+                got = ((S_up, c4_up), (x0, y0))
+                _LIFT_Q.setdefault(face, {})[g] = (Sq, cq, (R0 + ux, S0 + uy))
     cache[g] = got
     return got
 
 
+def _photo_gain_q(face: Face, g: int
+                  ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[float, float]] | None:
+    """:func:`_photo_gain` on the photo's ``q x q`` blocks (a work factor ``q`` > 1): ``S``
+    and ``Cw`` (4 channels) as :func:`_lift_fields_q` made them, and the photo position of
+    their first block's centre (cached per face; None: no own fold, or a face analysed at
+    full resolution)."""
+    cache = _GAIN_Q.setdefault(face, {})
+    if g not in cache:
+        cache[g] = None
+        if _photo_lift(face, g) is not None and g in _LIFT_Q.get(face, {}):
+            S, c4, at = _LIFT_Q[face][g]
+            S4 = np.zeros(S.shape[:2] + (4,), np.float32)
+            S4[..., :3] = S
+            cache[g] = ((S4, np.ascontiguousarray(c4, np.float32)), at)
+    return cache[g]
+
+
 def _lift_fields_q(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndarray,
                    d: np.ndarray, L: np.ndarray, K: int, M: int,
-                   box: tuple[int, int, int, int], q: int) -> tuple[np.ndarray, np.ndarray]:
+                   box: tuple[int, int, int, int], q: int
+                   ) -> tuple[np.ndarray, np.ndarray,
+                              tuple[np.ndarray, np.ndarray, tuple[float, float]]]:
     """:func:`_lift_fields` of the photo (``closing``, :data:`_N_DIR_PHOTO` directions) run
     on its ``q x q`` block means around ``box`` and upsampled (bilinear) to ``box``: the
     fields are smooth at the fold's scale (its line width is ``q`` x the working one), while
-    the filters' cost grows with the area times the kernels' (a 24 MP portrait: ~10 x less)."""
+    the filters' cost grows with the area times the kernels' (a 24 MP portrait: ~10 x less).
+    Also the fields on the blocks, and the position on ``img`` of their first block's
+    centre."""
     H, W = img.shape[:2]
     x0, y0, x1, y1 = box
     sig = float(fa.sig[g])
@@ -1879,8 +1913,10 @@ def _lift_fields_q(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.nd
     sy1 = min(-(-(y1 - b0) // q), small.shape[0])
     S, c4 = _lift_fields(fa, g, small, (pts - o) / q, w / q, d / q, L / q, K, M,
                          (sx0, sy0, sx1, sy1), n_dir=0, scale=1.0 / q)
-    return _upsample_box(S, (sx0, sy0), (a0, b0), q, box), _upsample_box(
-        c4, (sx0, sy0), (a0, b0), q, box)
+    # (the fields themselves as well, and where their first pixel's block centre lies)
+    at = (a0 + 0.5 * (q - 1) + q * sx0, b0 + 0.5 * (q - 1) + q * sy0)
+    return (_upsample_box(S, (sx0, sy0), (a0, b0), q, box),
+            _upsample_box(c4, (sx0, sy0), (a0, b0), q, box), (S, c4, at))
 
 
 #: The inter-ocular distance (px) above which the per-face photo analyses of the folds

@@ -1119,7 +1119,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     if not canvases:
         return res
     drawn = _splat_many(canvases)
-    q = _work_factor(crease_plan(face).iod)
+    q = _frame_blocks(face)
     if unfolds:
         bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation)
     for g, box, k, f in folds:
@@ -1577,7 +1577,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
     """
     fa = _fast(face)
     H, W = out.shape[:2]
-    q = _work_factor(crease_plan(face).iod)
+    q = _frame_blocks(face)
     for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)
@@ -1923,6 +1923,13 @@ def _lift_fields_q(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.nd
 #: (:func:`_own_valleys`, :func:`_photo_lift`) run on block means (``iod // _WORK_IOD`` px
 #: square): a 24 MP portrait's (IOD ~340 px) at half resolution; smaller faces at full.
 _WORK_IOD = 150.0
+
+
+def _frame_blocks(face: Face) -> int:
+    """The block size (px) a frame's folds are drawn on (:func:`_unfold_blocks`,
+    :func:`_fold_blocks`): the face's work factor (its fold fields on the photo are made on
+    such blocks; 1, per pixel, up to 300 px between the eyes)."""
+    return _work_factor(crease_plan(face).iod)
 
 
 def _work_factor(iod: float) -> int:

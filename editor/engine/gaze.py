@@ -718,8 +718,30 @@ class EyePlan:
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,
                lids: tuple[np.ndarray, np.ndarray] | None = None,
-               inv: np.ndarray | None = None, soft: float = 1.0) -> np.ndarray:
-        """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image.
+               inv: np.ndarray | None = None, soft: float = 1.0, q: int = 1) -> np.ndarray:
+        """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image (see
+        :meth:`_render`); ``q`` > 1: evaluated at the centres of the box's ``q x q`` blocks
+        and upsampled bilinearly (a soft photo's eye, whose edges ramp over several times
+        ``q`` px: the bench's 4K face, 15 px, at ``q`` 2 in a third of the time)."""
+        x0, y0, x1, y1 = box
+        if q <= 1:
+            return self._render(np.arange(x0, x1, dtype=np.float64),
+                                np.arange(y0, y1, dtype=np.float64), sim, shift, r_new, p_new,
+                                poly, lids, inv, soft)
+        hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
+        c = 0.5 * (q - 1)  # (block k's centre: pixel x0 + k q + c, where cv2.resize puts it)
+        col = self._render(x0 + c + q * np.arange(wq, dtype=np.float64),
+                           y0 + c + q * np.arange(hq, dtype=np.float64), sim, shift, r_new,
+                           p_new, poly, lids, inv, soft)
+        up = cv2.resize(col, (wq * q, hq * q), None, 0, 0, cv2.INTER_LINEAR)
+        return np.ascontiguousarray(up[:y1 - y0, :x1 - x0], np.float32)
+
+    def _render(self, xs: np.ndarray, ys: np.ndarray, sim: np.ndarray, shift: np.ndarray,
+                r_new: float, p_new: float, poly: np.ndarray | None = None,
+                lids: tuple[np.ndarray, np.ndarray] | None = None,
+                inv: np.ndarray | None = None, soft: float = 1.0) -> np.ndarray:
+        """Colours (h, w, 3) float32 of the eyeball at the points (``xs``, ``ys``: the output
+        image's columns and rows, float64).
 
         ``r_new``, ``p_new``: iris and pupil radii from :func:`deform.eye_state` (they are
         rescaled to the edge-refined iris radius). ``poly``: the deformed opening (output px);
@@ -734,11 +756,8 @@ class EyePlan:
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
-        x0, y0, x1, y1 = box
         if inv is None:
             inv = cv2.invertAffineTransform(np.asarray(sim, np.float64))
-        xs = np.arange(x0, x1, dtype=np.float64)
-        ys = np.arange(y0, y1, dtype=np.float64)
         ex, ey = self.ex, self.ey
         du, dw = float(shift[0]), float(shift[1])
         still = not abs(du) > 1e-6  # the white is not stretched

@@ -322,6 +322,37 @@ def _blur(a: np.ndarray, sigma: float, ksize: int = 0) -> np.ndarray:
     return cv2.sepFilter2D(a, -1, k, k)
 
 
+#: The eyeball of a photo whose edges ramp over at least this many px (a soft photo, e.g.
+#: a large face from an upscaled picture) is evaluated on blocks of ``soft // EYE_BLOCK_SOFT``
+#: px and upsampled (:meth:`gaze.EyePlan.render`); faces up to 1080p (softness below ~3 px)
+#: per pixel
+EYE_BLOCK_SOFT = 6.0
+
+#: A blur of :func:`_blur_wide` at least this wide (sigma, px) is computed at half
+#: resolution: the photo's softness on a large face from an upscaled picture (the bench's
+#: 4K face: 15 px, its lids' and lips' blurs of sigma 6-8 px cost ~0.5 ms each at full
+#: resolution). Faces up to 1080p (softness below ~3 px) blur at full resolution.
+WIDE_SIGMA = 4.0
+
+
+def _blur_wide(a: np.ndarray, sigma: float) -> np.ndarray:
+    """:func:`_blur` of a float32 image, for a wide Gaussian (``sigma`` >= :data:`WIDE_SIGMA`)
+    on the image's 2 x 2 block means (padded to an even size by reflection), upsampled
+    bilinearly: the block means and the upsampling blur by about 0.92 px^2 of variance
+    between them, which the half-resolution Gaussian leaves out (its sigma
+    ``sqrt(sigma^2 - 0.92) / 2``). Within a fraction of a percent of the full-resolution blur
+    of the images it is used on (colours, coverages: smooth at the scale of 2 px)."""
+    h, w = a.shape[:2]
+    if sigma < WIDE_SIGMA or h < 8 or w < 8:
+        return _blur(a, sigma)
+    ph, pw = h & 1, w & 1
+    src = cv2.copyMakeBorder(a, 0, ph, 0, pw, cv2.BORDER_REFLECT_101) if ph or pw else a
+    small = cv2.resize(src, ((w + pw) // 2, (h + ph) // 2), None, 0, 0, cv2.INTER_AREA)
+    small = _blur(small, math.sqrt(sigma * sigma - 0.92) / 2.0)
+    big = cv2.resize(small, (w + pw, h + ph), None, 0, 0, cv2.INTER_LINEAR)
+    return np.ascontiguousarray(big[:h, :w]) if ph or pw else big
+
+
 @lru_cache(maxsize=32)
 def _zeros32(shape: tuple[int, ...]) -> np.ndarray:
     """A read-only float32 array of zeros (kept: a box's shape recurs from frame to frame)."""
@@ -357,7 +388,7 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         labels = cast("npt.NDArray[np.int32]", labels)
         rim = _nearest_outside(face, hole, labels, face)
     raw = np.ascontiguousarray(rim, np.float32)
-    rim = _blur(raw, max(0.5 * soft, 0.8))
+    rim = _blur_wide(raw, max(0.5 * soft, 0.8))
     if known is None:
         # an eye: at the outline the nearest margin pixel itself, smoothed further in (blurred
         # up to the outline, the continued face stepped against the lid beside it: a staircase
@@ -378,7 +409,7 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         # its full darkness through it: a 2 px wedge on a face whose edges ramp over 5 px
         # reaches ~0.4 (~0.2 from EDGE_CUT up). An inside-only fade (as the eyes') left a step
         # at the outline and drew such wedges as crisp black ticks on a soft face
-        lim = _blur(np.ascontiguousarray(alpha, np.float32), soft / 2.56)
+        lim = _blur_wide(np.ascontiguousarray(alpha, np.float32), soft / 2.56)
         lim -= np.float32(EDGE_CUT)
         lim *= np.float32(1.0 / (1.0 - EDGE_CUT))
         np.clip(lim, 0.0, 1.0, out=lim)
@@ -551,7 +582,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft)
+                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft,
+                                     max(1, int(lp.soft // EYE_BLOCK_SOFT)))
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)

@@ -51,7 +51,7 @@ import cv2
 import numpy as np
 
 from .fitting import channel_median, clamp, is_grey, luminance, median
-from .layers import _blur, _rebox, _union, layer_plan
+from .layers import _blur_wide, _rebox, _union, layer_plan
 from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
@@ -596,7 +596,7 @@ def _contact_line(plan: SealPlan, v: np.ndarray, box: tuple[int, int, int, int],
                          fy * fx * wt])
     canvas = np.bincount(flat, ws, h * wd).astype(np.float32).reshape(h, wd)
     sig = max(LINE_SIGMA * plan.iod, 0.6)
-    line = _blur(canvas, sig)
+    line = _blur_wide(canvas, sig)
     # a 1-px line blurred by sig has its peak at 1 / (sqrt(2 pi) sig): scaled to LINE_DEPTH
     line *= np.float32(LINE_DEPTH * math.sqrt(2.0 * math.pi) * sig)
     np.minimum(line, LINE_DEPTH, out=line)

@@ -1556,6 +1556,21 @@ def _unfold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray],
     return jobs
 
 
+def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: int
+               ) -> np.ndarray:
+    """The lift's per-channel gain ``Cw / S`` (h, w, 4; in place in ``S``, the skin level
+    resampled as the warp resampled the photo; channel 3 the skin weight itself). A bicubic
+    still keeps the valley's sharp core darker than a bilinear S: S is at most the ``frame``
+    (RGB) plus the skin's grain, as on the photo (_lift_fields; MK: 43 levels)."""
+    if interpolation != cv2.INTER_LINEAR:
+        lim = cv2.cvtColor(frame, cv2.COLOR_RGB2RGBA).astype(np.float32)
+        lim *= 1.0 + np.float32(_GRAIN) / np.maximum(Cw, 1.0)
+        lim[..., 3] = np.inf
+        np.minimum(S, lim, out=S)
+    np.maximum(S, 1.0, out=S)
+    return np.divide(Cw, S, out=S)
+
+
 def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
                  bbox: tuple[int, int, int, int] | None,
                  maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None,
@@ -1623,15 +1638,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             # thin dark scratch (the sample's neutralised smile: 41 levels below the
             # bilinear render's lifted skin)
             S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
-            if interpolation != cv2.INTER_LINEAR:
-                # at most the frame plus the skin's grain, as on the photo (_lift_fields): the
-                # bicubic frame keeps a sharp core darker than the bilinear S (MK: 43 levels)
-                lim = cv2.cvtColor(view, cv2.COLOR_RGB2RGBA).astype(np.float32)
-                lim *= 1.0 + np.float32(_GRAIN) / np.maximum(Cw, 1.0)
-                lim[..., 3] = np.inf
-                np.minimum(S, lim, out=S)
-            np.maximum(S, 1.0, out=S)
-            g4 = np.divide(Cw, S, out=S)
+            g4 = _lift_gain(S, Cw, view, interpolation)
             band *= g4[..., 3]
             clip(g4, 1.0, _MAX_GAIN, out=g4)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
@@ -1687,13 +1694,7 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band
     bq = cv2.resize(cv2.copyMakeBorder(band, 0, hq * q - hb, 0, wq * q - wb,
                                        cv2.BORDER_REPLICATE), (wq, hq), None, 0, 0,
                     cv2.INTER_AREA)
-    if interpolation != cv2.INTER_LINEAR:  # (as in _unfold_draw)
-        lim = cv2.cvtColor(vq, cv2.COLOR_RGB2RGBA).astype(np.float32)
-        lim *= 1.0 + np.float32(_GRAIN) / np.maximum(Cw, 1.0)
-        lim[..., 3] = np.inf
-        np.minimum(S, lim, out=S)
-    np.maximum(S, 1.0, out=S)
-    g4 = np.divide(Cw, S, out=S)
+    g4 = _lift_gain(S, Cw, vq, interpolation)
     bq *= g4[..., 3]
     clip(g4, 1.0, _MAX_GAIN, out=g4)
     gain = np.asarray(cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB), np.float32)

@@ -100,8 +100,8 @@ def test_moved_skin_keeps_the_photos_grain_with_the_layer(grainy_sample):
 def test_jaffe_moved_skin_keeps_the_photos_grain():
     """JAFFE's ten women: the skin around the mouth that the presets move keeps the grain of
     her neutral photo, as her real expression photos do (1.01-1.10): high-pass level, median
-    over the women, 0.83-0.93 of the photo's (bicubic, the stills' path: 0.90-0.99); the
-    warp alone left 0.58-0.70 (0.78-0.90). What is still missing is the skin's structure the
+    over the women, 0.85-0.95 of the photo's (bicubic, the stills' path: 0.91-1.00); the
+    warp alone left 0.58-0.68 (0.78-0.89). What is still missing is the skin's structure the
     stretch spreads, not its grain."""
     paths = jaffe_images("*.NE1.*.tiff")
     if len(paths) < 10:
@@ -151,7 +151,7 @@ def test_a_large_faces_grain_is_measured_on_patches_as_on_all_its_pixels():
     v = f.vertices
     x0, y0 = np.maximum(np.floor(v.min(0)).astype(int), 0)
     x1, y1 = np.minimum(np.ceil(v.max(0)).astype(int) + 1, f.image.shape[1::-1])
-    assert (x1 - x0) * (y1 - y0) > 4 * grain._SAMPLES  # (the patches' path)
+    assert min(x1 - x0, y1 - y0) > 3 * grain._PATCH  # (the patches' path)
     L = cv2.cvtColor(f.image[y0:y1, x0:x1], cv2.COLOR_RGB2GRAY).astype(np.float32)
     h = L - cv2.GaussianBlur(L, (0, 0), grain.HP_SIGMA)
     mad = 1.4826 * float(np.median(np.abs(h - np.median(h))))

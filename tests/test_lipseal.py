@@ -185,12 +185,14 @@ def _lip_specks(face: Face) -> int:
 def test_jaffe_toothy_smiles_close_over_their_lower_teeth():
     """JAFFE KA, KM and NA smile with their lower teeth showing below a lower inner lip the
     detector put on the upper teeth's edge (0.1 IOD and more outside the inner-lip polygon).
-    Neutralised, the closed lips show no teeth: at most 10 pixels of bright specks (before
+    Neutralised, the closed lips show no teeth: at most 20 pixels of bright specks (before
     the fill followed the opening beyond its reach: 51, 64 and 29, a row of white dots along
-    the lower lip)."""
+    the lower lip; now 5, 11 and 0, of which the photo's grain put back where the warp
+    resampled (grain.py) makes 3-6; their own neutral photos' lips show 45-95 by this
+    measure, their texture)."""
     for who in ("KA", "KM", "NA"):
         photo = sorted((JAFFE / "images").glob(f"{who}.HA*.tiff"))[0]
-        assert _lip_specks(Face.from_image(photo)) <= 10, who
+        assert _lip_specks(Face.from_image(photo)) <= 20, who
 
 
 def _notch(face: Face, vec, corner: str) -> float:

@@ -6,8 +6,8 @@ that the deformation stretches spreads its grain over more pixels. So the skin t
 comes out smoother than the photo around it, a patch that looks pasted on (the blind raters'
 word for joy at 150 %). JAFFE's ten women, high-pass level of the skin beside the mouth and
 over the upper lip against each one's neutral photo: her real expression photos 1.01-1.10
-(median per expression); the presets at 100 % rendered on her neutral photo 0.58-0.70
-(bilinear), 0.78-0.90 (bicubic).
+(median per expression); the presets at 100 % rendered on her neutral photo 0.58-0.68
+(bilinear), 0.78-0.89 (bicubic).
 
 * **Once per face** (:func:`grain_plan`): the photo's grain level ``g`` (std of the
   luminance high-pass over the face box, its edges left out) and how fine it is (the
@@ -15,16 +15,18 @@ over the upper lip against each one's neutral photo: her real expression photos 
   correlation, high-passed like the measure (no blotches) and scaled to std 1; and, per
   interpolation, the share ``r(f)`` of the grain's variance a resampling at fractional offset
   ``f`` along one axis keeps (measured on the tile's noise itself, at the 1/32 px steps of
-  OpenCV's fixed-point maps). A large face (a 24 MP photo's) is measured on 3 x 3 patches
-  of its box: the plan then costs ~20 ms instead of 150 at the first render.
+  OpenCV's fixed-point maps; the tiles and tables are the same for every face, made once per
+  process). A face larger than 3 x 3 patches of :data:`_PATCH` px is measured on such
+  patches: the plan costs about 1 ms at the first render (a 24 MP photo's face measured
+  whole: 150 ms).
 * **Per frame** (:func:`apply_grain`): over the warp's map box, the share kept
   ``k = r(fx) r(fy) min(1, det J)`` (``fx``, ``fy`` the map's fractional parts, ``J`` its
   Jacobian: the photo's area per output pixel, below 1 where the skin is stretched), and the
   tile added to the three channels at ``g sqrt(1 - k)``: the lost variance back. ``k`` is
   computed on a grid :data:`_NODE` px apart and interpolated (``r`` is periodic and
   continuous in the map's value, so it interpolates across integer wraps), and added only to
-  the pixels the warp resampled: 0.13 ms at 431 x 591 and 0.47 ms at 1920 x 1080 on the
-  bench's faces with a film's grain (4-7 % of their render). Where the map is the identity
+  the pixels the warp resampled: 0.13 ms at 431 x 591 and 0.53 ms at 1920 x 1080 on the
+  bench's faces with a film's grain (3-7 % of their render). Where the map is the identity
   nothing changes; an untouched face has no map at all (the photo, exactly).
 
 The tile is fixed (seeded) and tied to the frame, as a camera's grain is: the same FAPs give
@@ -34,9 +36,10 @@ or upscaled one: level under :data:`MIN_LEVEL`) has no plan.
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
@@ -47,10 +50,10 @@ from .warp import WarpResult
 if TYPE_CHECKING:
     from .face import Face
 
-#: below this grain level (grey levels, std of the high-pass) the photo is left as warped: a
-#: grain under a grey level does not show (the sample photo's is 2.0, JAFFE's 4-5; the
-#: sample blurred by 2.5 px keeps 0.55 of rounding and its strongest edges)
-MIN_LEVEL = 1.0
+#: below this grain level (grey levels, std of the high-pass) the photo is left as warped: the
+#: grain put back would be a grey level or less (the sample photo's is 1.8-2.0, JAFFE's 4-5;
+#: the sample upscaled 2 x keeps 1.1, blurred by 2.5 px 0.55: rounding and its edges)
+MIN_LEVEL = 1.5
 #: Gaussian sigma (px) of the high-pass that defines "grain" (as the measure in the tests)
 HP_SIGMA = 1.0
 #: side of the noise tile (px); it repeats
@@ -62,10 +65,9 @@ _SIGMAS = (0.0, 0.35, 0.5, 0.65, 0.8, 1.0, 1.25)
 _STEPS = 32
 #: a map value this close to its pixel's own place resamples nothing (half a map step)
 _TAB = np.float32(0.5 / _STEPS)
-#: a face box of up to 4 x this many pixels has its grain measured on all of them, a larger
-#: one on 3 x 3 patches of _WINDOW / 2 px; the fineness in a window of at most _WINDOW px at
-#: its centre
-_SAMPLES, _WINDOW = 250_000, 512
+#: a face box larger than 3 x 3 patches of this side (px) has its grain measured on such
+#: patches spread over it
+_PATCH = 128
 #: the amplitude below which a pixel is left alone (grey levels)
 _MIN_AMP = 0.05
 #: spacing (px) of the grid the kept share is computed on, then interpolated
@@ -101,30 +103,45 @@ def _blurred_tile(noise: np.ndarray, sigma: float) -> np.ndarray:
     return np.ascontiguousarray(cv2.GaussianBlur(big, (0, 0), sigma)[p:-p, p:-p])
 
 
-@dataclass(eq=False)
+@dataclass(frozen=True, eq=False)
 class GrainPlan:
     """A face's grain (see the module docstring)."""
 
     level: float  # g: std of the photo's luminance high-pass over the face (grey levels)
     sigma: float  # blur of the tile's noise (px), matching the photo's fineness
-    tile: np.ndarray  # (TILE, TILE) float32 high-passed noise, std 1
-    base: np.ndarray  # (TILE, TILE) float32 the noise before the high-pass (for r(f))
-    kept: dict[int, np.ndarray] = field(default_factory=dict)  # interpolation -> r(f)
+
+    @property
+    def tile(self) -> np.ndarray:
+        """(TILE, TILE) float32 high-passed noise of this fineness, std 1 (shared)."""
+        return _tiles(self.sigma)[1]
 
     def keeps(self, interpolation: int) -> np.ndarray:
         """``r`` (float32, ``_STEPS + 1`` values at f = 0, 1/32, ..., 1): the share of the
         grain's high-pass variance a resampling with ``interpolation`` at fractional offset
         ``f`` along one axis keeps (r(0) = r(1) = 1)."""
-        r = self.kept.get(interpolation)
-        if r is None:
-            r = _kept_table(self.base, interpolation)
-            self.kept[interpolation] = r
-        return r
+        return _kept_table(self.sigma, interpolation)
 
 
-def _kept_table(base: np.ndarray, interpolation: int) -> np.ndarray:
-    """Resample the (wrapped) noise ``base`` by f = k / 32 px along x and compare the variance
-    of the results' high-pass with the noise's own."""
+@functools.cache
+def _tiles(sigma: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The fixed noise blurred by ``sigma`` (the grain before the high-pass), its high-pass
+    scaled to std 1 (the tile added) and that high-pass's neighbour correlation: the same for
+    every face (one of :data:`_SIGMAS`), made once per process."""
+    noise = np.random.default_rng(20261129).standard_normal((TILE, TILE)).astype(np.float32)
+    base = _blurred_tile(noise, sigma)
+    tile = _hp(base, wrap=True)
+    corr = _corr1(tile)
+    tile *= np.float32(1.0 / max(float(tile.std()), 1e-6))
+    for a in (base, tile):
+        a.setflags(write=False)
+    return base, np.ascontiguousarray(tile, np.float32), corr
+
+
+@functools.cache
+def _kept_table(sigma: float, interpolation: int) -> np.ndarray:
+    """Resample the (wrapped) noise of fineness ``sigma`` by f = k / 32 px along x and compare
+    the variance of the results' high-pass with the noise's own (once per process)."""
+    base = _tiles(sigma)[0]
     p = 4
     big = cv2.copyMakeBorder(base, 0, 0, p, p, cv2.BORDER_WRAP)
     h, w = base.shape
@@ -135,6 +152,7 @@ def _kept_table(base: np.ndarray, interpolation: int) -> np.ndarray:
         m1, m2 = cv2.convertMaps(xx + np.float32(p + k / _STEPS), yy, cv2.CV_16SC2)
         shifted = cv2.remap(big, m1, m2, interpolation, borderMode=cv2.BORDER_WRAP)
         out[k] = min(float(_hp(shifted, wrap=True).var()) / max(v0, 1e-12), 1.0)
+    out.setflags(write=False)
     return out
 
 
@@ -159,40 +177,35 @@ def _build(face: Face) -> GrainPlan | None:
     x1, y1 = int(min(math.ceil(v[:, 0].max()) + 1, W)), int(min(math.ceil(v[:, 1].max()) + 1, H))
     if x1 - x0 < 8 or y1 - y0 < 8:
         return None
-    if (x1 - x0) * (y1 - y0) <= 4 * _SAMPLES:
-        h = _hp(cv2.cvtColor(np.ascontiguousarray(img[y0:y1, x0:x1]),
-                             cv2.COLOR_RGB2GRAY).astype(np.float32))
-        sub = h
-        r0, c0 = max((h.shape[0] - _WINDOW) // 2, 0), max((h.shape[1] - _WINDOW) // 2, 0)
-        win = h[r0:r0 + _WINDOW, c0:c0 + _WINDOW]
-    else:  # a large face (a 24 MP photo's has millions of pixels): 3 x 3 patches of it
-        P = _WINDOW // 4
-        hs = []
+    # the face box, or on a face larger than 3 x 3 patches of _PATCH px those patches spread
+    # over it (a 24 MP photo's face has millions of pixels: its medians cost ~150 ms of the
+    # first render, the high-pass of a 1080p face's box ~3 ms)
+    P = _PATCH // 2
+    if x1 - x0 <= 3 * _PATCH and y1 - y0 <= 3 * _PATCH:
+        boxes = [(x0, y0, x1, y1)]
+    else:
+        boxes = []
         for fy in (0.25, 0.5, 0.75):
             for fx in (0.25, 0.5, 0.75):
                 cy, cx = int(y0 + fy * (y1 - y0)), int(x0 + fx * (x1 - x0))
-                patch = img[max(cy - P, 0):cy + P, max(cx - P, 0):cx + P]
-                hs.append(_hp(cv2.cvtColor(np.ascontiguousarray(patch),
-                                           cv2.COLOR_RGB2GRAY).astype(np.float32)))
-        sub = np.concatenate([x.ravel() for x in hs])  # (at most 9 x 256 x 256 values)
-        win = hs[4]
+                boxes.append((max(cx - P, 0), max(cy - P, 0), cx + P, cy + P))
+    hs = [_hp(cv2.cvtColor(np.ascontiguousarray(img[b0:b1, a0:a1]),
+                           cv2.COLOR_RGB2GRAY).astype(np.float32))
+          for a0, b0, a1, b1 in boxes]
+    win = hs[len(hs) // 2]  # (the centre patch, or the box)
+    # (every other pixel: on a large face at most 9 x 64 x 64 values)
+    sub = np.concatenate([x[::2, ::2].ravel() for x in hs])
     # the pixels where the high-pass is grain rather than an edge (lids, lips, brows: a
     # minority of the face's pixels, beyond 3 robust standard deviations) give its level and
-    # its fineness (in a window of at most _WINDOW px at the face's centre)
+    # its fineness (at the face's centre)
     mad = 1.4826 * float(np.median(np.abs(sub - np.median(sub))))
     calm = np.abs(sub) < 3.0 * mad
     level = float(sub[calm].std()) if calm.any() else 0.0
     if level < MIN_LEVEL:
         return None
-    hh = np.where(np.abs(win) < 3.0 * mad, win, 0.0).astype(np.float32)
-    want = _corr1(hh)
-    noise = np.random.default_rng(20261129).standard_normal((TILE, TILE)).astype(np.float32)
-    best = min(_SIGMAS, key=lambda s: abs(_corr1(_hp(_blurred_tile(noise, s), wrap=True))
-                                          - want))
-    base = _blurred_tile(noise, best)
-    tile = _hp(base, wrap=True)
-    tile *= np.float32(1.0 / max(float(tile.std()), 1e-6))
-    return GrainPlan(level, best, np.ascontiguousarray(tile, np.float32), base)
+    want = _corr1(np.where(np.abs(win) < 3.0 * mad, win, 0.0).astype(np.float32))
+    sigma = min(_SIGMAS, key=lambda sg: abs(_tiles(sg)[2] - want))
+    return GrainPlan(level, sigma)
 
 
 def apply_grain(face: Face, res: WarpResult) -> WarpResult:

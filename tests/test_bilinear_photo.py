@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from editor.cli import main
-from editor.core import load_image
+from editor.core import Face, load_image
 from editor.engine.mesh import signed_areas
 from editor.errors import ModelError
 from editor.resources import SAMPLE_FACE, checkout_jaffe_dir
@@ -213,3 +213,19 @@ def test_jaffe_model_on_sample_and_jaffe_face(jaffe_model, sample_face, method):
             # detections plain happened to order them. Checked for ridge, mals and on YM.
             continue
         assert _mouth_gap(results["surprise"]) > _mouth_gap(results["joy"])
+
+
+def test_cli_synth_writes_a_bicubic_still_unless_fast(tmp_path, toy_model):
+    """``bilinear synth`` writes its still as ``render`` does (bicubic); ``--fast`` bilinear."""
+    from editor.synthesis.bilinear_photo import synthesize_on_face
+
+    model = tmp_path / "toy.npz"
+    save_model(toy_model, model)
+    args = ["bilinear", "synth", str(SAMPLE), "--model", str(model), "--expression", "joy",
+            "--method", "ridge", "--lambda", "0.02"]
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    assert main([*args, "-o", str(a)]) == 0 and main([*args, "--fast", "-o", str(b)]) == 0
+    want = synthesize_on_face(Face.from_image(SAMPLE), toy_model, "joy", "ridge", 0.02,
+                              render=True, sharp=True).image
+    assert np.array_equal(load_image(a), want)
+    assert not np.array_equal(load_image(a), load_image(b))

@@ -349,3 +349,24 @@ def test_clone_cli_takes_the_sample_keyword(cli, tmp_path):
             "-o", out)
     assert r.returncode == 0, r.stderr
     assert out.is_file()
+
+
+def test_clone_cli_writes_a_bicubic_still_unless_fast(tmp_path, sample_neutral, sample_face):
+    """``clone`` writes its still as ``render`` does (bicubic, as the editor exports);
+    ``--fast`` gives the live preview's bilinear resampling."""
+    from editor.synthesis.cloning import clone
+
+    expr = tmp_path / "expr.png"
+    save_image(expr, sample_neutral.render(roundtrip_vectors(0)[1][2]))  # surprise
+    args = ["clone", "--source-neutral", str(SAMPLE), "--source", str(expr), "--target",
+            str(SAMPLE), "--method", "laplacian"]
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    assert _run([*args, "-o", str(a)]) == 0 and _run([*args, "--fast", "-o", str(b)]) == 0
+    src = Face.from_image(SAMPLE, own_expression=False)
+    pts = load_image(expr)
+    from editor.engine.landmarks import detect_landmarks
+
+    lm = detect_landmarks(pts).points
+    want = clone(src, lm, Face.from_image(SAMPLE), "laplacian", sharp=True).image
+    assert np.array_equal(load_image(a), want)
+    assert not np.array_equal(load_image(a), load_image(b))

@@ -126,6 +126,9 @@ def add_bilinear_parser(subparsers: Any) -> None:
     y.add_argument("--faps-json", default=None, metavar="FILE.json",
                    help="also write the FAP vector that best reproduces the shape (a preset)")
     y.add_argument("-o", "--output", required=True, metavar="OUT.png")
+    y.add_argument("--fast", action="store_true",
+                   help="resample bilinearly as the editor's live preview does (a still is "
+                        "bicubic by default, as `fap-studio render` writes it)")
     detector_option(y)
     y.set_defaults(func=guarded(run_synth))
 
@@ -226,7 +229,8 @@ def run_synth(args: argparse.Namespace) -> int:
     target = parse_mix(args.expression)
     face = Face.from_image(args.photo)
     res = synthesize_on_face(face, model, target, args.method, args.lam,
-                             keep_residual=args.keep_residual, render=True)
+                             keep_residual=args.keep_residual, render=True,
+                             sharp=not args.fast)
     assert res.image is not None
     save_image(args.output, res.image)
     if args.faps_json:

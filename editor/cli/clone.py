@@ -53,7 +53,7 @@ def cmd_clone(a: argparse.Namespace) -> int:
         raise NoFaceError(f"{a.source}: {e}") from None
     target = Face.from_image(a.target)
     est = FapEstimator(src_neutral)
-    res = clone(src_neutral, expr, target, a.method, estimator=est, mu=a.mu)
+    res = clone(src_neutral, expr, target, a.method, estimator=est, mu=a.mu, sharp=not a.fast)
     save_image(a.output, res.image)
     fit = est.estimate(expr)
     if a.faps_json:
@@ -136,6 +136,9 @@ def add_clone_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--faps-json", metavar="OUT.json",
                    help="write the estimated FAPs as a preset file")
+    s.add_argument("--fast", action="store_true",
+                   help="resample bilinearly as the editor's live preview does (a still is "
+                        "bicubic by default, as `fap-studio render` writes it)")
     detector_option(s)
     s.set_defaults(func=guarded(cmd_clone))
 

@@ -253,17 +253,18 @@ def mesh_for_points(face: Any, points68: np.ndarray, base68: np.ndarray | None =
 def synthesize_on_face(face: Any, model: BilinearModel,
                        target: str | Mapping[str, float] | np.ndarray, method: str = "mals",
                        lam: float | None = None, keep_residual: bool = False,
-                       render: bool = False) -> PhotoSynthesis:
+                       render: bool = False, sharp: bool = False) -> PhotoSynthesis:
     """Synthesize ``target`` on a :class:`~editor.engine.face.Face` (see the module docstring).
 
     The synthesis starts from the neutralised face (:func:`neutral_points68`), so a smiling
     photo synthesized as anger shows anger, not anger over its smile. Returns the fold-free
-    deformed mesh, the synthesized 68 points and (``render``) the image.
+    deformed mesh, the synthesized 68 points and (``render``) the image (``sharp``: resampled
+    bicubically, as a still is).
     """
     base = neutral_points68(face)
     pts = synthesize_points68(model, base, target, method, lam, keep_residual=keep_residual)
     v = mesh_for_points(face, pts, base)
-    img = face.render_mesh(v).image if render else None
+    img = face.render_mesh(v, sharp=sharp).image if render else None
     return PhotoSynthesis(v, pts.astype(np.float32), img)
 
 

@@ -162,7 +162,7 @@ class CloneResult:
 
 def clone(source_neutral, source_expr, target, method: str = "fap", *,
           keys: KeyModels | None = None, mu: float = MU,
-          estimator: FapEstimator | None = None) -> CloneResult:
+          estimator: FapEstimator | None = None, sharp: bool = False) -> CloneResult:
     """Clone the expression ``source_expr`` of the performer onto ``target``.
 
     source_neutral : Face of the performer's neutral photo
@@ -170,6 +170,7 @@ def clone(source_neutral, source_expr, target, method: str = "fap", *,
     target : Face of the target photo
     method : ``"fap"`` or ``"laplacian"``; ``keys`` (Laplacian route) blends key models instead
     of transferring the landmark motion directly.
+    sharp : resample the photo bicubically, as a still is (see ``Face.render``).
     """
     pts = getattr(source_expr, "landmarks", source_expr)
     pts = np.asarray(getattr(pts, "points", pts), np.float64)
@@ -185,7 +186,7 @@ def clone(source_neutral, source_expr, target, method: str = "fap", *,
         est = estimator or FapEstimator(source_neutral)
         faps = est.estimate(pts).faps
         v = target.deform(faps)
-        return CloneResult(target.render(faps), v, expected, faps, None, method)
+        return CloneResult(target.render(faps, sharp=sharp), v, expected, faps, None, method)
     if method != "laplacian":
         raise ValueError(f"method must be 'fap' or 'laplacian', got {method!r}")
     w = None
@@ -195,12 +196,13 @@ def clone(source_neutral, source_expr, target, method: str = "fap", *,
     else:
         U = expected
     v = finish(target, deformer.solve(U))
-    return CloneResult(render_vertices(target, v), v, expected, None, w, method)
+    return CloneResult(render_vertices(target, v, sharp), v, expected, None, w, method)
 
 
-def render_vertices(face, vertices: np.ndarray) -> np.ndarray:
-    """The photo warped onto a deformed mesh, rendered like ``Face.render`` (layers included)."""
-    return face.render_mesh(vertices).image
+def render_vertices(face, vertices: np.ndarray, sharp: bool = False) -> np.ndarray:
+    """The photo warped onto a deformed mesh, rendered like ``Face.render`` (layers included;
+    ``sharp``: bicubic)."""
+    return face.render_mesh(vertices, sharp=sharp).image
 
 
 def closed_loop_error(image: np.ndarray, expected: np.ndarray, target, detector=None

@@ -882,3 +882,40 @@ def test_case13_fold_guard_floor_on_many_faces():
             assert (p2[:, pairs[:, 1]] @ ey >= p2[:, pairs[:, 0]] @ ey - 1e-3).all(), name
     assert min(worst.values()) >= EPS_CHECK * 0.999, worst
     assert len(worst) >= 12
+
+
+def test_a_new_users_slips_get_plain_words(capfd, tmp_path):
+    """From a new user's trial: an image name OpenCV cannot encode says which names work (it
+    printed OpenCV's own source path); FAPs 1 and 2 on the command line point to --preset (they
+    were silently ignored); a one-value frame says "1 value" (it said "1 values"); --mu with
+    --method fap says it has no effect (it was silently accepted)."""
+    code, _, err = cli(capfd, "render", SAMPLE, "-o", tmp_path / "x.txt")
+    one_line_error(code, err, what=".png")
+    assert "opencv" not in err.lower()
+    for spec in ("1=3", "viseme=3", "expression=1"):
+        code, _, err = cli(capfd, "render", SAMPLE, "--fap", spec, "-o", tmp_path / "v.png")
+        one_line_error(code, err, what="--preset")
+    only(tmp_path)
+    bad = tmp_path / "one.fap"
+    bad.write_text("2.1 one 25 1\n" + " ".join(["0", "0", "1"] + ["0"] * 65) + "\n0 5 6\n")
+    code, _, err = cli(capfd, "fap", "info", bad)
+    one_line_error(code, err, what="expected 1 value for 1 masked FAP, got 2")
+    code, _, err = cli(capfd, "clone", "--source-neutral", SAMPLE, "--source", SAMPLE,
+                       "--target", SAMPLE, "--mu", "5", "-o", tmp_path / "c.png")
+    assert code == 0 and "--mu" in err and "does not use it" in err, err
+
+
+def test_the_readmes_fap_example_is_a_fap_file(tmp_path):
+    """The README's hand-written .fap example (a new user found no format description) reads as
+    it says: two frames, FAPs 3, 12 and 13."""
+    from conftest import ROOT
+
+    from editor.formats.fapfile import read_fap
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    start = text.index("```text\n2.1 smile") + len("```text\n")
+    seq = read_fap(text[start:text.index("```", start)].encode())
+    assert seq.frames.shape[0] == 2
+    used = sorted(int(n) + 1 for n in np.flatnonzero(np.abs(seq.frames).max(0)))
+    assert used == [3, 12, 13]
+    assert seq.frames[1, 2] == 150 and seq.frames[1, 11] == 300

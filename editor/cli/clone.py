@@ -42,9 +42,14 @@ def cmd_clone(a: argparse.Namespace) -> int:
     from editor.errors import NoFaceError
     from editor.formats.presets import preset_document, preset_name
     from editor.safeio import finite_in
-    from editor.synthesis.cloning import clone
+    from editor.synthesis.cloning import MU, clone
     from editor.synthesis.fap_estimate import FapEstimator
 
+    if a.mu is None:
+        a.mu = MU
+    elif a.method != "laplacian":
+        print("fap-studio: note: --mu weighs the Laplacian route's constraints; --method fap "
+              "does not use it", file=sys.stderr)
     finite_in(a.mu, 0, 1e6, "--mu", lo_open=True)
     src_neutral = Face.from_image(a.source_neutral, own_expression=False)
     try:
@@ -132,7 +137,8 @@ def add_clone_parser(sub) -> None:
     s.add_argument("--method", choices=("fap", "laplacian"), default="fap",
                    help="fap: estimated FAPs rendered on C (default); laplacian: landmark "
                    "motion transferred by Laplacian mesh deformation")
-    s.add_argument("--mu", type=float, default=10.0, help="Laplacian constraint weight (10)")
+    s.add_argument("--mu", type=float, default=None,
+                   help="Laplacian constraint weight (10; --method laplacian only)")
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--faps-json", metavar="OUT.json",
                    help="write the estimated FAPs as a preset file")

@@ -40,6 +40,11 @@ def _fap_pairs(items: Sequence[str] | None) -> dict[str, float]:
         if "=" not in it:
             raise FapStudioError(f"--fap {it!r}: expected NAME=VALUE or NUMBER=VALUE")
         k, v = it.split("=", 1)
+        if k.strip().lower() in ("1", "2", "viseme", "expression"):
+            # (the high-level FAPs pick a viseme or an emotion by number and blend: a preset)
+            raise FapStudioError(f"--fap {it!r}: FAPs 1 and 2 (viseme, expression) are set "
+                                 "with --preset NAME[:INTENSITY] (e.g. --preset viseme_aa, "
+                                 "--preset joy)")
         try:
             out[k.strip()] = float(v)
         except ValueError as e:

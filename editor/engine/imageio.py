@@ -216,8 +216,9 @@ def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> None:
     params = [cv2.IMWRITE_JPEG_QUALITY, 95] if ext in (".jpg", ".jpeg") else []
     try:
         ok, enc = cv2.imencode(ext, bgr, params)
-    except cv2.error as e:
-        raise ImageError(f"{p}: cannot encode as {ext} ({e})") from e
+    except cv2.error:
+        ok = False  # (OpenCV's message names its source file, not the remedy)
     if not ok:
-        raise ImageError(f"{p}: cannot encode as {ext}")
+        raise ImageError(f"{p}: cannot write an image as {ext}: use .png, .jpg, .bmp, .tif or "
+                         ".webp")
     atomic_write_bytes(p, enc.tobytes(), error=ImageError)

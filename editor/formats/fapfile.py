@@ -329,10 +329,11 @@ class _Parser:
         m1, m2 = int(mask[0]), int(mask[1])
         plain, xface, got = len(low) + m1 + m2, len(low) + 4 * m1 + 6 * m2, len(toks) - 1
         if got not in (plain, xface):
-            want = f"{plain} values"
+            want = f"{plain} value" + ("" if plain == 1 else "s")
             if xface != plain:
                 want += f" (one per masked FAP) or {xface} (Xface 4/6-token FAP 1/2 fields)"
-            raise self.fail(idx, f"expected {want} for {plain} masked FAPs, got {got}")
+            masked = f"{plain} masked FAP" + ("" if plain == 1 else "s")
+            raise self.fail(idx, f"expected {want} for {masked}, got {got}")
         num = _number(toks[0])
         if num is None or abs(num[0]) > 2**53 or num[0] != int(num[0]):
             raise self.fail(idx, f"expected a frame number, got {_short(toks[0])}")

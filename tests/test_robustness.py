@@ -919,3 +919,15 @@ def test_the_readmes_fap_example_is_a_fap_file(tmp_path):
     used = sorted(int(n) + 1 for n in np.flatnonzero(np.abs(seq.frames).max(0)))
     assert used == [3, 12, 13]
     assert seq.frames[1, 2] == 150 and seq.frames[1, 11] == 300
+
+
+def test_clone_says_what_the_target_shows_and_what_each_route_did(capfd, tmp_path):
+    """As ``render`` does, ``clone`` says the target's own expression is set aside (a new user
+    saw a smiling target's smile vanish without a word), and the Laplacian route does not
+    claim to have estimated FAPs (it transfers landmark motion; the estimate is for
+    --faps-json)."""
+    args = ["clone", "--source-neutral", SAMPLE, "--source", SAMPLE, "--target", SAMPLE]
+    code, _, err = cli(capfd, *args, "-o", tmp_path / "f.png")
+    assert code == 0 and "the target shows: smile" in err and "fap: 0 FAPs estimated" in err
+    code, _, err = cli(capfd, *args, "--method", "laplacian", "-o", tmp_path / "l.png")
+    assert code == 0 and "laplacian: landmark motion transferred" in err, err

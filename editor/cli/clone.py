@@ -70,8 +70,14 @@ def cmd_clone(a: argparse.Namespace) -> int:
                               extra={"fit": fit_info, "method": a.method})
         _write_text(a.faps_json, json.dumps(doc, indent=2) + "\n")
     n = int(np.count_nonzero(np.round(fit.faps)))
-    print(f"{a.method}: {n} FAPs estimated (fit residual {fit.residual_px:.2f} px) -> "
-          f"{a.output}", file=sys.stderr)
+    if target.has_expression:  # (as render says it; after the output: an error stays one line)
+        print(f"fap-studio: the target shows: {target.expression_words} (the expression is "
+              "cloned onto its neutralised face)", file=sys.stderr)
+    what = (f"{n} FAPs estimated" if a.method == "fap" else
+            f"landmark motion transferred; the FAP estimate ({n} FAPs) is what --faps-json "
+            "writes")
+    print(f"{a.method}: {what} (fit residual {fit.residual_px:.2f} px) -> {a.output}",
+          file=sys.stderr)
     return 0
 
 

@@ -1304,6 +1304,15 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     return _union(bbox, box)
 
 
+def _block_means(a: np.ndarray, q: int) -> np.ndarray:
+    """The means of ``a``'s ``q x q`` blocks, its last row and column repeated to whole
+    blocks."""
+    h, w = a.shape[:2]
+    hq, wq = -(-h // q), -(-w // q)
+    return cv2.resize(cv2.copyMakeBorder(a, 0, hq * q - h, 0, wq * q - w, cv2.BORDER_REPLICATE),
+                      (wq, hq), None, 0, 0, cv2.INTER_AREA)
+
+
 def _fold_blocks(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int],
                  dark: np.ndarray, light: np.ndarray, q: int) -> None:
     """:func:`_fold_draw`'s gain over ``box`` of ``out`` (in place) on a large face (work
@@ -1315,13 +1324,7 @@ def _fold_blocks(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, i
     x0, y0, x1, y1 = box
     hb, wb = y1 - y0, x1 - x0
     hq, wq = -(-hb // q), -(-wb // q)
-
-    def blocks(a: np.ndarray) -> np.ndarray:
-        return cv2.resize(cv2.copyMakeBorder(a, 0, hq * q - hb, 0, wq * q - wb,
-                                             cv2.BORDER_REPLICATE), (wq, hq), None, 0, 0,
-                          cv2.INTER_AREA)
-
-    dark, light = blocks(dark), blocks(light)
+    dark, light = _block_means(dark, q), _block_means(light, q)
     patch = cv2.resize(out[y0:y0 + hq * q, x0:x0 + wq * q], (wq, hq), None, 0, 0,
                        cv2.INTER_AREA).astype(np.float32)
     # (as _fold_draw, on the blocks)
@@ -1691,9 +1694,7 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band
     S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
     vq = cv2.resize(out[y0:y0 + hq * q, x0:x0 + wq * q], (wq, hq), None, 0, 0,
                     cv2.INTER_AREA)
-    bq = cv2.resize(cv2.copyMakeBorder(band, 0, hq * q - hb, 0, wq * q - wb,
-                                       cv2.BORDER_REPLICATE), (wq, hq), None, 0, 0,
-                    cv2.INTER_AREA)
+    bq = _block_means(band, q)
     g4 = _lift_gain(S, Cw, vq, interpolation)
     bq *= g4[..., 3]
     clip(g4, 1.0, _MAX_GAIN, out=g4)

@@ -99,6 +99,11 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                           "sad on 3 of 7 faces"),
         "c_stretch": (20, "AU15 pulls the corners down and a little outwards (median -7/0, "
                           "outer -5/6 MW; p90 60/43)"),
+        "lid_t": (180, "AU41 lid droop (EMFACS sadness 1+4+15+41): the real sad photos' upper "
+                       "lids come down over the iris (median 125/93 IRISD, p90 252/247, max "
+                       "399/414); at the fit's 110 the eyes stayed as in the neutral photo and "
+                       "blind raters named 3-4 of 7 faces at 100 % neutral ('relaxed face'); "
+                       "set between the median and p90, 150 % inside the max"),
     },
     "surprise": {
         "brow_i": (95, "AU1 inner brow raiser, surprise's key cue: JAFFE's median 54/51 ENS "

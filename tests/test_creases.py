@@ -89,11 +89,12 @@ def test_creases_false_is_the_old_render(sample_neutral):
     from editor.engine.grain import apply_grain
     from editor.engine.jawband import jaw_map
     from editor.engine.lidskin import apply_lid_skin
+    from editor.engine.liptone import apply_lip_tone
 
-    # (the jaw band's map, the grain the resampling took and the lid skin are part of the
-    # warp)
-    base = apply_lid_skin(f, apply_grain(f, warp(f.warp_plan, v, tf, cavity=False,
-                                                 hook=jaw_map(f, v))), v)
+    # (the jaw band's map, the grain the resampling took, the lid skin and the stretched
+    # lip's tone are part of the warp)
+    base = apply_lip_tone(f, apply_lid_skin(f, apply_grain(f, warp(
+        f.warp_plan, v, tf, cavity=False, hook=jaw_map(f, v))), v), v)
     old = render_layers(f, base, v, pts[V:], vec, tf).image
     assert np.array_equal(f.render(vec, creases=False), old)
     assert not np.array_equal(f.render(vec), old)

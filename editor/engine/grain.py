@@ -263,6 +263,18 @@ def apply_grain(face: Face, res: WarpResult) -> WarpResult:
     return res
 
 
+def grain_over(face: Face, box: tuple[int, int, int, int]) -> np.ndarray | None:
+    """(h, w) float32: the photo's grain over ``box`` (x0, y0, x1, y1) of the frame, at its
+    full level, for what a layer draws from scratch (the mouth's teeth, tongue and cavity: a
+    photo's opening has the grain of the skin around it; drawn without, the interior read as
+    a smooth inlay). None on a photo without grain (no plan)."""
+    plan = grain_plan(face)
+    if plan is None:
+        return None
+    x0, y0, x1, y1 = box
+    return _tiled(plan.tile, x0, y0, x1 - x0, y1 - y0) * np.float32(plan.level)
+
+
 def _tiled(tile: np.ndarray, x0: int, y0: int, w: int, h: int) -> np.ndarray:
     """The repeating ``tile`` over the frame's window (x0, y0, w, h) (a new array)."""
     T = tile.shape[0]

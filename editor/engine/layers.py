@@ -48,6 +48,7 @@ from .gaze import (
     photo_through,
     spread3,
 )
+from .grain import grain_over
 from .mouth import (
     CROWN,
     GUM_FADE,
@@ -565,7 +566,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             # is the lips' surface turning in: the two read as a drawn outline)
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
                                                fade_in, with_shade=lp.soft <= 1.0)
-            interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha)
+            interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha,
+                                       grain_over(face, box))
             if lp.soft > 1.0:
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
                                              (depth, rim))

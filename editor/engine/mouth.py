@@ -21,7 +21,10 @@ of the photo's opening, the bright teeth run from the top follows the skull, the
 teeth, the lower lip's edge) follows the jaw anchor of eq. 8; the synthetic layers show only
 where neither covers (``layers._own_interior`` analyses the photo, :meth:`attach_own`).
 Textures (``editor/data/mouth``) are tinted to the photo: saturation and brightness from the
-cheeks' skin, teeth colour from the photo's own teeth when it shows some.
+cheeks' skin, teeth colour from the photo's own teeth when it shows some; what is drawn takes
+the photo's grain (:func:`grain.grain_over`: drawn smooth, the interior of a grainy photo read
+as an inlay; JAFFE, robust high-pass level of a wide-open mouth's interior 0.3-0.4 of the
+photo's grain without it, 1.1-1.2 with it).
 """
 
 from __future__ import annotations
@@ -432,14 +435,16 @@ class MouthPlan:
     # ------------------------------------------------------------------ per frame
     def render(self, box: tuple[int, int, int, int], v: np.ndarray, faps: np.ndarray,
                skull: np.ndarray, rim: np.ndarray | None = None,
-               depth: np.ndarray | None = None, alpha: np.ndarray | None = None
-               ) -> np.ndarray:
+               depth: np.ndarray | None = None, alpha: np.ndarray | None = None,
+               grain: np.ndarray | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the mouth interior over ``box`` of the output.
 
         ``rim`` (h, w, 3): colour of the nearest lip pixel, ``depth`` (h, w): distance (px) to
         the lips (``layers._mouth_rim``); with them the cavity is shaded from the lips' inner
         surface (their colour, darkened) into a dark back over a depth of ~0.1 D. ``alpha``
         (h, w): the opening's coverage; where it is a thin gap the interior stays in shadow.
+        ``grain`` (h, w): the photo's grain over the box (:func:`grain.grain_over`), added
+        where the interior is drawn (not where it is the photo's own, which carries its grain).
         """
         x0, y0, x1, y1 = box
         S = np.asarray(skull, np.float64)
@@ -580,6 +585,8 @@ class MouthPlan:
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
             m = np.asarray(1.0 - e * (1.0 - k.astype(np.float32)), np.float32)  # (no copy)
             p_up *= spread3(m)  # (p_up: _own's own array)
+        if grain is not None:  # the drawn share (1 - the photo's parts')
+            drawn = np.ones(grain.shape, np.float32) if a_up is None else 1.0 - a_up
         if a_up is not None:
             p_up -= out  # out (1 - a) + p a
             p_up *= cv2.merge([a_up, a_up, a_up])
@@ -591,9 +598,13 @@ class MouthPlan:
                 a_lo = np.minimum(a_lo, rest)
                 a_lo /= np.maximum(rest, 1e-6)
             out = out + (p_lo - out) * cv2.merge([a_lo, a_lo, a_lo])
+            if grain is not None:
+                drawn *= 1.0 - a_lo
         if alpha is not None:
             light = self._aperture_light(faps, hw, hh, sc)
             out = _thin_gap(out, cav, alpha, D, self._shadow_gain(light) if light < 1.0 else None)
+        if grain is not None:
+            out += spread3(np.asarray(drawn * grain, np.float32))
         return out
 
     def _shadow_gain(self, light: float) -> np.ndarray:

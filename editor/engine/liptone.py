@@ -1,0 +1,182 @@
+"""A stretched upper lip pales (issue 21). No Qt.
+
+A smile stretches the upper lip across the teeth: thinner and taut, its vermilion turns
+paler. JAFFE's ten women, median luminance of the upper lip's core (landmark polygon eroded
+2 px) relative to the forehead, real smile photos against each woman's neutral: paler on all
+ten, x 1.06-1.74 (median 1.22), i.e. about 0.1 of the way from the lip's tone to the skin's.
+A warp only moves the lip, so the rendered smiles kept (or darkened: 0.84-1.08) the neutral
+lip's dark tone, the "dark lips pasted on" of the blind raters. Fear, disgust and sadness,
+whose mouths widen little, leave the upper lip's tone as it is (0.99-1.01).
+
+* **Once per face** (:func:`tone_plan`): the upper lip's colour (per-channel median of its
+  vermilion on the photo, the mesh's outer and inner upper-lip loops, eroded) and the skin's
+  above it (a band 0.03-0.10 IOD above the outer upper lip), and the mouth's width (outer
+  corners) on the neutral mesh and on the photo's.
+* **Per frame** (:func:`apply_lip_tone`): the strain ``e`` of the mouth's width beyond the
+  photo's own, over the neutral width (a smile's 0.25; fear's, disgust's and sadness's
+  0.04-0.07 stay under the threshold ``E0``); the upper lip's pixels (its loop on the deformed mesh,
+  anti-aliased, feathered over a pixel and fading towards the corners, which stay in their
+  shadow) are moved ``a = clip(K (e - E0), 0, A_MAX)`` of the way towards the skin's colour by a
+  pixel's own distance to the skin's colour (``p + a max(skin - p, 0)``: the lip's texture
+  keeps 1 - a of its contrast; a pixel as light as the skin or lighter, a highlight or the
+  skin the loop's edge takes, stays).
+
+Nothing changes where the mouth is not wider than the photo's and the neutral one (the
+untouched photo, sadness, a neutralised smile), on a lip no darker than its skin, or on a
+mouth too small to measure.
+Runs after the lip seal, before the mouth layer (whose inner-lip shading reads the lips).
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from .fitting import channel_median
+from .layers import _rebox, _union
+from .warp import WarpResult
+
+if TYPE_CHECKING:
+    from .face import Face
+
+#: how far towards the skin the upper lip goes per unit of width strain beyond E0. JAFFE's
+#: ten women: joy at 100 % widens the mouth by 0.25 of its neutral width (fear and disgust
+#: 0.05, sadness 0.04, at 150 % 0.07, 0.07, 0.06: no paling in their real photos); the
+#: upper lip's median luminance over the skin above it, expression / neutral photo (mesh
+#: loops): real smiles 1.27 (1.06-2.01), the renders 1.34 at K = 0.55 without E0, 1.0 without
+K, E0 = 0.66, 0.08
+#: the most it goes (a 150 % grin: 0.3 strain)
+A_MAX = 0.2
+#: the corners keep their tone over this share of the lip's width from each end
+CORNER_FADE = 0.2
+#: the skin band above the outer upper lip (inter-ocular distances)
+SKIN_BAND = (0.03, 0.10)
+_SHIFT = 4  # sub-pixel bits of the rasterised loop
+_N_OUTER = 9  # the loop's outer part: lipo_c0, lipo_u1..7, lipo_c1
+
+
+@dataclass(frozen=True, eq=False)
+class TonePlan:
+    loop: np.ndarray  # (n,) vertex indices: outer upper lip left to right, inner back
+    corners: tuple[int, int]  # the outer corners' vertex indices
+    w_neutral: float  # outer corner distance on the neutral mesh (px)
+    w_photo: float  # ... on the photo's mesh
+    skin: np.ndarray  # (3,) float32 the skin's colour above the lip
+
+
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_NONE = object()
+
+
+def tone_plan(face: Face) -> TonePlan | None:
+    """The face's lip tone plan (cached for its lifetime); None where nothing can pale."""
+    got = _PLANS.get(face, _NONE)
+    if got is _NONE:
+        got = _build(face)
+        _PLANS[face] = got
+    return got
+
+
+def _loop(face: Face) -> tuple[np.ndarray, tuple[int, int]]:
+    ix = face.mesh.index
+    outer = ["lipo_c0", *(f"lipo_u{k}" for k in range(1, 8)), "lipo_c1"]
+    inner = [*(f"lipi_u{k}" for k in range(7, 0, -1))]
+    return (np.array([ix(n) for n in outer + inner], np.intp),
+            (ix("lipo_c0"), ix("lipo_c1")))
+
+
+def _build(face: Face) -> TonePlan | None:
+    loop, (c0, c1) = _loop(face)
+    v = np.asarray(face.vertices, np.float64)
+    n = np.asarray(face.neutral_vertices, np.float64)
+    w_photo = float(np.linalg.norm(v[c1] - v[c0]))
+    w_neutral = float(np.linalg.norm(n[c1] - n[c0]))
+    iod = float(face.interocular)
+    if w_neutral < 8.0 or iod < 8.0:
+        return None
+    img = face.image
+    H, W = img.shape[:2]
+    poly = v[loop]
+    m = int(math.ceil(SKIN_BAND[1] * iod)) + 2
+    x0, y0 = max(int(poly[:, 0].min()) - m, 0), max(int(poly[:, 1].min()) - m, 0)
+    x1, y1 = min(int(poly[:, 0].max()) + m + 1, W), min(int(poly[:, 1].max()) + 2, H)
+    if x1 - x0 < 4 or y1 - y0 < 4:
+        return None
+    patch = np.ascontiguousarray(img[y0:y1, x0:x1])
+    lip = np.zeros(patch.shape[:2], np.uint8)
+    cv2.fillPoly(lip, [np.round(poly - (x0, y0)).astype(np.int32)], 1)
+    core = cv2.erode(lip, np.ones((3, 3), np.uint8))
+    if int(core.sum()) < 6:
+        return None
+    # the skin above: outside the outer lips (the upper loop closed along its chord) within
+    # the band, above the corners' line
+    d = cv2.distanceTransform((1 - lip).astype(np.uint8), cv2.DIST_L2, 3)
+    ys = np.arange(y0, y1, dtype=np.float64)[:, None]
+    xs = np.arange(x0, x1, dtype=np.float64)[None, :]
+    t = np.clip((xs - v[c0, 0]) / max(v[c1, 0] - v[c0, 0], 1.0), 0.0, 1.0)
+    above = ys < v[c0, 1] + t * (v[c1, 1] - v[c0, 1])
+    band = (d > SKIN_BAND[0] * iod) & (d <= SKIN_BAND[1] * iod) & above
+    band &= (xs > v[c0, 0]) & (xs < v[c1, 0])
+    if int(band.sum()) < 6:
+        return None
+    lip_rgb = channel_median(patch, core)
+    skin_rgb = channel_median(patch, band.astype(np.uint8))
+    if float((skin_rgb - lip_rgb).max()) < 4.0:  # a lip as light as the skin: nothing to pale
+        return None
+    return TonePlan(loop, (c0, c1), w_neutral, w_photo, skin_rgb.astype(np.float32))
+
+
+def tone_share(plan: TonePlan, vertices: np.ndarray) -> float:
+    """``a``: how far the upper lip goes towards the skin for the deformed mesh ``vertices``
+    (0 unless the mouth is wider than both the photo's and the neutral one).
+
+    (Not the other way: deepening a neutralised smile's stretched lip by the inverse, measured
+    on JAFFE's toothy smiles, made their closed lips heavier and darker, the blind raters'
+    "dark lips pasted on", with nothing real to calibrate it against.)"""
+    c0, c1 = plan.corners
+    d = np.asarray(vertices[c1], np.float64) - np.asarray(vertices[c0], np.float64)
+    e = (math.hypot(float(d[0]), float(d[1])) - max(plan.w_photo, plan.w_neutral)) \
+        / plan.w_neutral
+    return min(max(K * (e - E0), 0.0), A_MAX)
+
+
+def apply_lip_tone(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
+    """Pale the upper lip of ``res.image`` (in place) by the mouth's widening beyond the
+    photo's; ``res``."""
+    plan = tone_plan(face)
+    if plan is None:
+        return res
+    a = tone_share(plan, vertices)
+    if a <= 0.0:
+        return res
+    out = res.image
+    H, W = out.shape[:2]
+    poly = np.asarray(vertices, np.float64)[plan.loop]
+    x0, y0 = max(int(poly[:, 0].min()) - 2, 0), max(int(poly[:, 1].min()) - 2, 0)
+    x1, y1 = min(int(poly[:, 0].max()) + 3, W), min(int(poly[:, 1].max()) + 3, H)
+    if x1 - x0 < 3 or y1 - y0 < 3:
+        return res
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    q = np.rint((poly - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
+    cv2.fillPoly(mask, [q], 255, cv2.LINE_AA, _SHIFT)
+    w = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), 0.7) * np.float32(a / 255.0)
+    # the corners stay in their shadow: a smooth fade over CORNER_FADE of the width
+    c0x, c1x = float(poly[0, 0]), float(poly[_N_OUTER - 1, 0])
+    span = max(c1x - c0x, 1.0)
+    u = (np.arange(x0, x1, dtype=np.float32) - np.float32(c0x)) / np.float32(span)
+    f = np.clip(np.minimum(u, 1.0 - u) / np.float32(CORNER_FADE), 0.0, 1.0)
+    w *= (f * f * (3.0 - 2.0 * f))[None, :]
+    # each pixel moves towards the skin's colour by its own distance to it (a pixel at the
+    # skin's level or lighter, e.g. the skin the loop's edge takes, stays as it is)
+    view = out[y0:y1, x0:x1]
+    up = plan.skin - view.astype(np.float32)
+    np.maximum(up, 0.0, out=up)
+    up *= cv2.merge([w, w, w])
+    cv2.add(view, up, dst=view, dtype=cv2.CV_8U)
+    bbox = _union(res.bbox, (x0, y0, x1, y1))
+    return res if bbox == res.bbox else _rebox(res, bbox, {})

@@ -1,0 +1,182 @@
+"""A stretched upper lip pales (editor/engine/liptone.py); the drawn mouth interior carries
+the photo's grain (grain.grain_over in mouth.MouthPlan.render)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from conftest import jaffe_images
+
+from editor.core import Face
+from editor.engine import face as face_module
+from editor.engine import layers as layers_module
+from editor.engine.grain import grain_plan
+from editor.engine.liptone import SKIN_BAND, _loop, tone_plan
+from editor.formats.presets import apply_preset
+
+WOMEN = ("KA", "KL", "KM", "KR", "MK", "NA", "NM", "TM", "UY", "YM")
+
+
+def _neutral(who: str) -> Face:
+    paths = jaffe_images(f"{who}.NE*")
+    if not paths:
+        pytest.skip("JAFFE not available")
+    return Face.from_image(paths[0], own_expression=False)
+
+
+def _lip_over_skin(f: Face, img: np.ndarray, V: np.ndarray) -> float:
+    """Median luminance of the upper lip (the mesh's loop, eroded a pixel) over that of the
+    skin band above it, ``V`` the mesh where ``img`` has it."""
+    loop, (c0, c1) = _loop(f)
+    Y = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    m = np.zeros(Y.shape, np.uint8)
+    cv2.fillPoly(m, [np.round(V[loop]).astype(np.int32)], 1)
+    core = cv2.erode(m, np.ones((3, 3), np.uint8)) > 0
+    d = cv2.distanceTransform((1 - m).astype(np.uint8), cv2.DIST_L2, 3)
+    yy, xx = np.mgrid[0:Y.shape[0], 0:Y.shape[1]]
+    t = np.clip((xx - V[c0, 0]) / (V[c1, 0] - V[c0, 0]), 0, 1)
+    above = yy < V[c0, 1] + t * (V[c1, 1] - V[c0, 1])
+    iod = f.interocular
+    band = ((d > SKIN_BAND[0] * iod) & (d <= SKIN_BAND[1] * iod) & above
+            & (xx > V[c0, 0]) & (xx < V[c1, 0]))
+    return float(np.median(Y[core]) / np.median(Y[band]))
+
+
+@pytest.fixture
+def no_tone(monkeypatch):
+    monkeypatch.setattr(face_module, "apply_lip_tone", lambda face, res, v: res)
+
+
+def _paling(emotion: str) -> list[float]:
+    out = []
+    for who in WOMEN:
+        f = _neutral(who)
+        v = apply_preset(emotion, 1.0)
+        out.append(_lip_over_skin(f, f.render(v), f.deform(v))
+                   / _lip_over_skin(f, f.image, f.vertices))
+    return out
+
+
+def test_a_smile_pales_the_upper_lip_as_real_smiles_do():
+    """JAFFE's real smile photos: the upper lip over the skin above it 1.27 of the woman's
+    neutral photo (median of ten; 1.06-2.01). The renders of joy: 1.27 (1.09-1.57)."""
+    r = _paling("joy")
+    assert 1.15 <= float(np.median(r)) <= 1.4, np.round(r, 2)
+    assert min(r) >= 1.02, np.round(r, 2)
+
+
+def test_without_the_layer_the_smile_keeps_the_dark_lip(no_tone):
+    """The warp alone keeps the neutral lip's tone (median 1.0-1.04): what the layer adds."""
+    r = _paling("joy")
+    assert float(np.median(r)) < 1.08, np.round(r, 2)
+
+
+@pytest.mark.parametrize("emotion", ["sadness", "fear", "disgust", "anger", "surprise"])
+def test_mouths_that_widen_little_keep_their_lip_tone(emotion, monkeypatch):
+    """Real fear, disgust, sadness photos leave the upper lip's tone as it is (and so do
+    the narrower mouths of anger and surprise): up to 150 % the renders with the layer are the
+    renders without it."""
+    from editor.engine.liptone import tone_share
+
+    f = _neutral("KA")
+    v = apply_preset(emotion, 1.5)
+    plan = tone_plan(f)
+    assert plan is not None
+    assert tone_share(plan, f.deform(v)) == 0.0
+    assert tone_share(plan, f.deform(apply_preset("joy", 1.0))) > 0.05
+    with_layer = f.render(v)
+    monkeypatch.setattr(face_module, "apply_lip_tone", lambda face, res, verts: res)
+    assert np.array_equal(with_layer, f.render(v))
+
+
+def test_the_lip_never_turns_lighter_than_the_skin(monkeypatch):
+    """Each pixel moves towards the skin's colour by its own distance to it: none is pushed
+    past it (no light halo along the lip's edge), and pixels away from the lip are untouched."""
+    f = _neutral("TM")
+    v = apply_preset("joy", 1.5)
+    import editor.engine.liptone as lt
+
+    plan = tone_plan(f)
+    assert plan is not None
+    captured = {}
+    orig = lt.apply_lip_tone
+
+    def spy(face, res, verts):
+        captured["before"] = res.image.copy()
+        out = orig(face, res, verts)
+        captured["after"] = out.image.copy()
+        return out
+
+    monkeypatch.setattr(face_module, "apply_lip_tone", spy)
+    f.render(v)
+    b = captured["before"].astype(np.int16)
+    a = captured["after"].astype(np.int16)
+    changed = np.any(a != b, axis=2)
+    assert changed.sum() > 50  # (the layer did something)
+    skin = np.array(plan.skin[:3])
+    # a pixel only ever moves towards the skin, never beyond it (rounding: 1 level)
+    up = a - b
+    assert (up >= 0).all()
+    assert (a[changed] <= np.maximum(b[changed], skin[None, :]) + 1).all()
+    # only on the upper lip (its loop's box)
+    V = f.deform(v)
+    poly = V[_loop(f)[0]]
+    ys, xs = np.nonzero(changed)
+    assert xs.min() >= poly[:, 0].min() - 3 and xs.max() <= poly[:, 0].max() + 3
+    assert ys.min() >= poly[:, 1].min() - 3 and ys.max() <= poly[:, 1].max() + 3
+
+
+def test_the_untouched_photo_and_a_neutral_render_stay_exact():
+    f = _neutral("NA")
+    assert np.array_equal(f.render(None), f.image)
+
+
+@pytest.mark.parametrize("who", ["KA", "TM"])
+def test_the_drawn_mouth_interior_has_the_photos_grain(who, monkeypatch):
+    """A wide-open mouth's drawn teeth, tongue and cavity: the robust level of their
+    high-pass (1.48 MAD, edges do not count) is the photo's grain (1.1-1.2 of its level on
+    JAFFE); drawn without it 0.3-0.4, a smooth inlay in a grainy photo."""
+    f = _neutral(who)
+    g = grain_plan(f)
+    assert g is not None
+    v = apply_preset("surprise", 1.5)
+    V = f.deform(v)
+    m = np.zeros(f.image.shape[:2], np.uint8)
+    cv2.fillPoly(m, [np.round(V[f.mesh.holes["mouth"]]).astype(np.int32)], 1)
+    m = cv2.erode(m, np.ones((5, 5), np.uint8)) > 0
+
+    def level(img: np.ndarray) -> float:
+        Y = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+        h = (Y - cv2.GaussianBlur(Y, (0, 0), 1.0))[m]
+        return 1.4826 * float(np.median(np.abs(h - np.median(h)))) / g.level
+
+    assert 0.85 <= level(f.render(v)) <= 1.4
+    monkeypatch.setattr(layers_module, "grain_over", lambda face, box: None)
+    assert level(f.render(v)) < 0.55
+
+
+def test_the_sample_declared_neutral_pales_its_lip_in_a_smile(sample_neutral, monkeypatch):
+    """The same on the bundled sample (runs without JAFFE): its pink lip towards its skin."""
+    f = sample_neutral
+    v = apply_preset("joy", 1.0)
+    V = f.deform(v)
+    base = _lip_over_skin(f, f.image, f.vertices)
+    with_layer = _lip_over_skin(f, f.render(v), V) / base
+    monkeypatch.setattr(face_module, "apply_lip_tone", lambda face, res, verts: res)
+    without = _lip_over_skin(f, f.render(v), V) / base
+    assert with_layer > without + 0.02, (with_layer, without)
+
+
+
+def test_a_neutralised_smile_keeps_its_lip_tone(sample_face):
+    """The sample smiles (its mouth 1.1 x wider than neutral and more): its own expression
+    and every narrower mouth (the neutralised face, sadness, anger) leave the lip alone."""
+    from editor.engine.liptone import tone_share
+
+    f = sample_face
+    plan = tone_plan(f)
+    assert plan is not None and plan.w_photo > 1.1 * plan.w_neutral
+    for vec in (f.expression, None, apply_preset("sadness"), apply_preset("anger")):
+        assert tone_share(plan, f.deform(vec)) == 0.0
+    assert np.array_equal(f.render(f.expression), f.image)

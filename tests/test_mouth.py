@@ -64,8 +64,10 @@ def test_closed_lips_show_no_teeth(sample_face):
     # the lips (pale pink here, ~0.85 of the skin) meet without the photo's teeth between them
     # (main before this change: white specks up to 1.15 of the skin on the lip line)
     assert L.max() < 1.08 * _skin(f), L.max() / _skin(f)
-    # and without a dark gap wider than a lip line
-    assert np.median(L) > 0.6 * _skin(f)
+    # and without a dark gap wider than a lip line: the contact line alone (lipseal's
+    # LINE_DEPTH 0.5, calibrated on JAFFE's neutral photos) leaves 0.57 of the skin on it, the
+    # opening's cavity would leave 0.2-0.3
+    assert np.median(L) > 0.45 * _skin(f)
 
 def test_own_expression_reproduces_the_photo(sample_face):
     # the photo's own expression f0 renders the photo exactly (zeros: the neutralised face)

@@ -38,13 +38,13 @@ from __future__ import annotations
 
 import functools
 import math
-import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
+from .perface import per_face
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -156,17 +156,10 @@ def _kept_table(sigma: float, interpolation: int) -> np.ndarray:
     return out
 
 
-_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_NONE = object()
-
-
+@per_face
 def grain_plan(face: Face) -> GrainPlan | None:
     """The face's grain (cached for the face's lifetime); None on a photo without grain."""
-    got = _PLANS.get(face, _NONE)
-    if got is _NONE:
-        got = _build(face)
-        _PLANS[face] = got
-    return got
+    return _build(face)
 
 
 def _build(face: Face) -> GrainPlan | None:

@@ -30,7 +30,6 @@ Runs after the lip seal, before the mouth layer (whose inner-lip shading reads t
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -39,6 +38,7 @@ import numpy as np
 
 from .fitting import channel_median
 from .layers import _rebox, _union
+from .perface import per_face
 from .warp import WarpResult
 
 if TYPE_CHECKING:
@@ -69,17 +69,10 @@ class TonePlan:
     skin: np.ndarray  # (3,) float32 the skin's colour above the lip
 
 
-_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_NONE = object()
-
-
+@per_face
 def tone_plan(face: Face) -> TonePlan | None:
     """The face's lip tone plan (cached for its lifetime); None where nothing can pale."""
-    got = _PLANS.get(face, _NONE)
-    if got is _NONE:
-        got = _build(face)
-        _PLANS[face] = got
-    return got
+    return _build(face)
 
 
 def _loop(face: Face) -> tuple[np.ndarray, tuple[int, int]]:

@@ -228,3 +228,35 @@ def test_a_smiles_lower_lip_casts_less_shadow_as_real_ones_do(monkeypatch):
     on_m, off_m = np.median(on, 0), np.median(off, 0)
     assert np.abs(on_m - real).max() < 0.06, np.round(on_m, 3)
     assert on_m[0] - off_m[0] > 0.03, (np.round(on_m, 3), np.round(off_m, 3))
+
+
+def test_a_neutralised_smiles_lower_lip_casts_its_shadow_again(sample_face, monkeypatch):
+    """The sample's stretched smiling lower lip casts no shadow; neutralised (its mouth 0.38
+    of the neutral width narrower than the photo's) the lip protrudes again and the skin under
+    its middle darkens, as JAFFE's neutral photos are darker there than their smiles (0.82-0.91
+    of the smile's light at 0.01-0.05 IOD); nothing above the lip or beside the mouth changes,
+    and no pixel gets lighter. The photo's own expression keeps the photo."""
+    from editor.engine.liptone import narrowing_share
+
+    f = sample_face
+    plan = tone_plan(f)
+    assert plan is not None
+    assert narrowing_share(plan, f.deform(f.expression)) == 0.0
+    N = f.deform(None)
+    assert narrowing_share(plan, N) == 1.0
+    with_layer = f.render(None).astype(np.int16)
+    monkeypatch.setattr(face_module, "apply_lip_tone", lambda face, res, verts: res)
+    without = f.render(None).astype(np.int16)
+    diff = with_layer - without
+    assert (diff <= 0).all()
+    ys, xs = np.nonzero(np.any(diff != 0, axis=2))
+    lower = N[[f.mesh.index(n) for n in ("lipo_c0", "lipo_d4", "lipo_c1")]]
+    assert xs.min() >= lower[:, 0].min() - 1 and xs.max() <= lower[:, 0].max() + 1
+    assert ys.min() >= lower[:, 1].min() - 1
+    # the skin just under the lower lip's middle: 5-12 % darker
+    iod = f.interocular
+    x, y = N[f.mesh.index("lipo_d4")]
+    box = (slice(int(y + 0.02 * iod), int(y + 0.05 * iod) + 1),
+           slice(int(x - 0.1 * iod), int(x + 0.1 * iod) + 1))
+    ratio = with_layer[box].mean() / without[box].mean()
+    assert 0.88 <= ratio <= 0.95, ratio

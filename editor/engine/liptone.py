@@ -28,7 +28,9 @@ forehead at 0.04-0.10 IOD: 0.63-0.76 on their neutral photos, 0.72-0.84 in their
 the warp carried the neutral lip's shadow along (0.63-0.76). Once per face that shadow is
 measured (:func:`_shadow_lift`: each pixel's gain to the skin's lit level further down, in a
 band below the lip's middle); per frame it is carried by the warp's backward map and lifted
-by a share that follows the paling's (at most :data:`SHADOW_MAX`).
+by a share that follows the paling's (at most :data:`SHADOW_MAX`), or the lip's pull towards
+the chin (:func:`pull_share`: fear's lower lip drawn down and flat; real fear photos 0.83-0.87
+there, the renders 0.69-0.83 before, 0.78-0.83 now), whichever is larger.
 
 The other way, a mouth narrower than the photo's (a smiling photo neutralised, a pout) lets
 the lower lip protrude again: a soft shadow under its middle, in full (CAST_DEPTH) from a
@@ -84,6 +86,16 @@ SHADOW_SPAN = 0.6
 #: the share of that lift at the paling's most (A_MAX; in proportion below it): at 0.7 the
 #: renders of joy give 0.69 0.78 0.79 at 100 %, 0.80 0.80 0.81 at 150 %
 SHADOW_MAX = 0.7
+#: the lower lip pulled down towards the chin lifts its shadow too: share K_PULL (c - C_PULL)
+#: of a lip-to-chin distance shortened by c. JAFFE at 100 %: fear shortens it by 0.15 (its real
+#: photos' skin there 0.83 0.85 0.87, the renders 0.69 0.77 0.83 without this, 0.78 0.80 0.83
+#: with it), surprise 0.09, joy and disgust 0.05 (under C_PULL), anger lengthens it
+K_PULL, C_PULL = 6.5, 0.08
+#: the nose-to-chin distance over the photo's from which a dropped jaw fades the pull's lift
+#: out, and where it is gone: real surprise's skin under the lip does not lighten (0.66 0.72
+#: 0.76, neutral 0.63 0.73 0.76; its open jaw turns the chin away from the light). JAFFE at
+#: 100 %: fear 1.08-1.11, surprise 1.11-1.20 (1.25 at 150 %)
+JAW_WIDE = (1.11, 1.15)
 #: a mouth narrower than the photo's (a smiling photo neutralised, a pout) lets the lower lip
 #: protrude again: its shadow under it, at most CAST_DEPTH darker right under the lip, gone by
 #: CAST_REACH IOD below it, in full from a narrowing of CAST_FULL of the neutral width (a
@@ -109,6 +121,10 @@ class TonePlan:
     lower: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))  # outer lower lip
     iod: float = 1.0
     tint: np.ndarray = field(default_factory=lambda: np.ones(3))  # per-channel shadow weights
+    pull: tuple[int, int] = (0, 0)  # the lower lip's middle 8.2 and the chin 2.1
+    pull0: float = 1.0  # their distance on the photo's mesh (px)
+    nose: int = 0  # the nose's base 9.15
+    nose0: float = 1.0  # its distance to the chin on the photo's mesh (px)
 
 
 @per_face
@@ -168,8 +184,12 @@ def _build(face: Face) -> TonePlan | None:
     lower = np.array([ix(n) for n in ("lipo_c0", *(f"lipo_d{k}" for k in range(1, 8)),
                                       "lipo_c1")], np.intp)
     tint = np.ones(3) if is_grey(img) else np.array([0.8, 1.0, 1.12])
+    pull = (face.mesh.fdp["8.2"], face.mesh.fdp["2.1"])
+    pull0 = max(float(np.linalg.norm(v[pull[1]] - v[pull[0]])), 1.0)
+    nose = face.mesh.fdp["9.15"]
+    nose0 = max(float(np.linalg.norm(v[pull[1]] - v[nose])), 1.0)
     return TonePlan(loop, (c0, c1), w_neutral, w_photo, skin_rgb.astype(np.float32), shadow,
-                    org, lower, iod, tint)
+                    org, lower, iod, tint, pull, pull0, nose, nose0)
 
 
 def _shadow_lift(face: Face, v: np.ndarray, iod: float
@@ -232,6 +252,24 @@ def tone_share(plan: TonePlan, vertices: np.ndarray) -> float:
     return min(max(K * (e - E0), 0.0), A_MAX)
 
 
+def pull_share(plan: TonePlan, vertices: np.ndarray) -> float:
+    """The share of the lower lip's shadow lifted because the lip is pulled down towards the
+    chin (AU16 and AU20 of fear, beyond the jaw): the lip-to-chin distance (8.2 to 2.1)
+    shortened by ``c`` of the photo's, ``K_PULL (c - C_PULL)``, at most SHADOW_MAX. A jaw that
+    drops moves both and does not count; a chin pushed up under a pouting lip lengthens it."""
+    i, j = plan.pull
+    d = np.asarray(vertices[j], np.float64) - np.asarray(vertices[i], np.float64)
+    c = 1.0 - math.hypot(float(d[0]), float(d[1])) / plan.pull0
+    if c <= C_PULL:
+        return 0.0
+    # a jaw dropped wide (the nose-to-chin distance beyond JAW_WIDE[0] of the photo's) turns
+    # the chin away from the light: the lift fades out by JAW_WIDE[1]
+    n = np.asarray(vertices[j], np.float64) - np.asarray(vertices[plan.nose], np.float64)
+    r = math.hypot(float(n[0]), float(n[1])) / plan.nose0
+    jaw = min(max((JAW_WIDE[1] - r) / (JAW_WIDE[1] - JAW_WIDE[0]), 0.0), 1.0)
+    return min(K_PULL * (c - C_PULL), SHADOW_MAX) * jaw
+
+
 def narrowing_share(plan: TonePlan, vertices: np.ndarray) -> float:
     """How far (0-1) the mouth is narrower than the photo's, beyond E0 of the neutral width,
     up to CAST_FULL: a smiling photo's neutralised or pouting lower lip protrudes again."""
@@ -279,27 +317,42 @@ def _cast_shadow(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, depth: f
 
 def apply_lip_tone(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Pale the upper lip of ``res.image`` (in place) by the mouth's widening beyond the
-    photo's, and lift the lower lip's shadow along; ``res``."""
+    photo's, and lift or cast the lower lip's shadow; ``res``."""
     plan = tone_plan(face)
     if plan is None:
         return res
     a = tone_share(plan, vertices)
-    if a <= 0.0:
+    # the lower lip's shadow: lifted where the lip is stretched across (with the paling) or
+    # pulled down towards the chin, else cast again where the mouth narrows
+    lift = max(min(a / A_MAX, 1.0) * SHADOW_MAX, pull_share(plan, vertices))
+    bbox = res.bbox
+    box: tuple[int, int, int, int] | None = None
+    if lift > 0.0:
+        if plan.shadow is not None and res.maps is not None:
+            box = _lift_shadow(plan, res, vertices, lift)
+    else:
         n = narrowing_share(plan, vertices)
-        if n <= 0.0:
-            return res
-        box = _cast_shadow(plan, res.image, vertices, n * CAST_DEPTH)
-        if box is None:
-            return res
-        bbox = _union(res.bbox, box)
-        return res if bbox == res.bbox else _rebox(res, bbox, {})
-    out = res.image
+        if n > 0.0:
+            box = _cast_shadow(plan, res.image, vertices, n * CAST_DEPTH)
+    if box is not None:
+        bbox = _union(bbox, box)
+    if a > 0.0:
+        box = _pale(plan, res.image, vertices, a)
+        if box is not None:
+            bbox = _union(bbox, box)
+    return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
+
+
+def _pale(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, a: float
+          ) -> tuple[int, int, int, int] | None:
+    """Move the upper lip's pixels ``a`` of the way towards the skin's colour (in place); the
+    box written, or None."""
     H, W = out.shape[:2]
     poly = np.asarray(vertices, np.float64)[plan.loop]
     x0, y0 = max(int(poly[:, 0].min()) - 2, 0), max(int(poly[:, 1].min()) - 2, 0)
     x1, y1 = min(int(poly[:, 0].max()) + 3, W), min(int(poly[:, 1].max()) + 3, H)
     if x1 - x0 < 3 or y1 - y0 < 3:
-        return res
+        return None
     mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.rint((poly - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.fillPoly(mask, [q], 255, cv2.LINE_AA, _SHIFT)
@@ -317,12 +370,7 @@ def apply_lip_tone(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     np.maximum(up, 0.0, out=up)
     up *= cv2.merge([w, w, w])
     cv2.add(view, up, dst=view, dtype=cv2.CV_8U)
-    bbox = _union(res.bbox, (x0, y0, x1, y1))
-    if plan.shadow is not None and res.maps is not None:
-        box = _lift_shadow(plan, res, vertices, min(a / A_MAX, 1.0) * SHADOW_MAX)
-        if box is not None:
-            bbox = _union(bbox, box)
-    return res if bbox == res.bbox else _rebox(res, bbox, {})
+    return x0, y0, x1, y1
 
 
 def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: float

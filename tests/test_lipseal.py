@@ -58,8 +58,10 @@ def test_closed_lips_of_a_smiling_photo_show_no_cavity_corners(sample_face):
 
 
 def test_closed_lips_meet_in_a_contact_line(sample_face):
-    """Where the sealed lips meet, a darker line (a real closed mouth's), not a flat fill: the
-    middle of the lip line at least 8 % darker than the lips 0.05 IOD above and below it."""
+    """Where the sealed lips meet, a darker line (a real closed mouth's), not a flat fill or a
+    soft grey seam: the middle of the lip line under 0.72 of the lips 0.05 IOD above and below
+    it (0.67 at the contact line's depth of 0.5, calibrated on JAFFE's neutral photos; 0.77 at
+    the earlier 0.35, whose closed mouth raters called smeared)."""
     f = sample_face
     img = luminance(f.render(None))
     v = f.neutral_vertices
@@ -72,7 +74,7 @@ def test_closed_lips_meet_in_a_contact_line(sample_face):
         return float(cv2.getRectSubPix(img, (3, 1), (float(p[0]), float(p[1])))[0].mean())
 
     shoulders = 0.5 * (at(mid - d * ey) + at(mid + d * ey))
-    assert at(mid) < 0.92 * shoulders
+    assert at(mid) < 0.72 * shoulders
 
 
 def test_the_photo_and_wider_openings_are_left_alone(sample_face):

@@ -179,10 +179,10 @@ def _build(face: Face) -> TonePlan | None:
     skin_rgb = channel_median(patch, band.astype(np.uint8))
     if float((skin_rgb - lip_rgb).max()) < 4.0:  # a lip as light as the skin: nothing to pale
         return None
-    shadow, org = _shadow_lift(face, v, iod)
     ix = face.mesh.index
     lower = np.array([ix(n) for n in ("lipo_c0", *(f"lipo_d{k}" for k in range(1, 8)),
                                       "lipo_c1")], np.intp)
+    shadow, org = _shadow_lift(face, v[lower], iod)
     tint = np.ones(3) if is_grey(img) else np.array([0.8, 1.0, 1.12])
     pull = (face.mesh.fdp["8.2"], face.mesh.fdp["2.1"])
     pull0 = max(float(np.linalg.norm(v[pull[1]] - v[pull[0]])), 1.0)
@@ -192,16 +192,14 @@ def _build(face: Face) -> TonePlan | None:
                     org, lower, iod, tint, pull, pull0, nose, nose0)
 
 
-def _shadow_lift(face: Face, v: np.ndarray, iod: float
+def _shadow_lift(face: Face, lower: np.ndarray, iod: float
                  ) -> tuple[np.ndarray | None, tuple[int, int]]:
     """The lift of the lower lip's shadow on the photo (see :attr:`TonePlan.shadow`): below
     the outer lower lip, between SHADOW_BAND's distances and over the mouth's middle
     (SHADOW_SPAN of its half-width), each pixel's gain to the skin's lit level further down
     (per column, the brightest of the smoothed luminance within SHADOW_BAND[2] below the
-    lip: the chin's top), minus 1."""
-    ix = face.mesh.index
-    lower = np.array([v[ix(n)] for n in ("lipo_c0", *(f"lipo_d{k}" for k in range(1, 8)),
-                                         "lipo_c1")])
+    lip: the chin's top), minus 1. ``lower`` (n, 2): the outer lower lip on the photo's mesh,
+    corner to corner."""
     img = face.image
     H, W = img.shape[:2]
     c0, c1 = lower[0], lower[-1]

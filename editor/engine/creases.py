@@ -75,6 +75,9 @@ if TYPE_CHECKING:
 #: how far below the lower lid its furrow lies (inter-ocular distances; JAFFE smiles' dip
 #: 0.08 IOD below the detected lid, whose skin the cheek raise lifts)
 LID_FURROW = 0.10
+#: per-channel weights of a darkening on a colour photo (R, G, B): folds and shadows on skin
+#: turn darker towards red (grey photos: 1, 1, 1)
+SHADOW_TINT = (0.8, 1.0, 1.12)
 #: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
 _MIN_STRENGTH = 0.008
 #: compression below this is float rounding (float32 vertices), not a fold
@@ -642,7 +645,7 @@ def _build_plan(face: Face) -> CreasePlan:
                     np.stack([-E[:, 1, 0], E[:, 0, 0]], 1)], 1) / det[:, None, None]
     img = face.image
     grey = is_grey(img)
-    tint = np.ones(3) if grey else np.array([0.8, 1.0, 1.12])
+    tint = np.ones(3) if grey else np.array(SHADOW_TINT)
     fold = np.repeat(np.arange(len(kinds)), np.diff(starts))
     tri = np.concatenate(all_tri)
     bary = np.concatenate(all_bary)

@@ -54,7 +54,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import channel_median, is_grey
+from .creases import SHADOW_TINT
+from .fitting import channel_median, clamp, is_grey, smooth01
 from .layers import _rebox, _union
 from .perface import per_face
 from .warp import WarpResult, box_maps
@@ -183,7 +184,7 @@ def _build(face: Face) -> TonePlan | None:
     lower = np.array([ix(n) for n in ("lipo_c0", *(f"lipo_d{k}" for k in range(1, 8)),
                                       "lipo_c1")], np.intp)
     shadow, org = _shadow_lift(face, v[lower], iod)
-    tint = np.ones(3) if is_grey(img) else np.array([0.8, 1.0, 1.12])
+    tint = np.ones(3) if is_grey(img) else np.array(SHADOW_TINT)
     pull = (face.mesh.fdp["8.2"], face.mesh.fdp["2.1"])
     pull0 = max(float(np.linalg.norm(v[pull[1]] - v[pull[0]])), 1.0)
     nose = face.mesh.fdp["9.15"]
@@ -225,12 +226,11 @@ def _shadow_lift(face: Face, lower: np.ndarray, iod: float
     lit = cv2.GaussianBlur(lit[None, :].astype(np.float32), (0, 0), max(0.03 * iod, 1.0))[0]
     gain = np.clip(lit[None, :] / np.maximum(L, 1.0) - 1.0, 0.0, 1.0)
     a, b = SHADOW_BAND[:2]
-    w = np.clip((d - 0.3 * a) / (0.7 * a), 0.0, 1.0) * np.clip((b - d) / (0.4 * b), 0.0, 1.0)
+    w = clamp((d - 0.3 * a) / (0.7 * a), 0.0, 1.0) * clamp((b - d) / (0.4 * b), 0.0, 1.0)
     cx, half = 0.5 * float(c0[0] + c1[0]), max(0.5 * float(c1[0] - c0[0]), 1.0)
     u = np.abs(xs - np.float32(cx)) / np.float32(half)
-    span = np.clip((1.0 - u) / (1.0 - SHADOW_SPAN), 0.0, 1.0)
-    field = (gain * (w * w * (3.0 - 2.0 * w)) * (span * span * (3.0 - 2.0 * span))
-             * below).astype(np.float32)
+    span = smooth01((1.0 - u) / (1.0 - SHADOW_SPAN))
+    field = (gain * smooth01(w) * span * below).astype(np.float32)
     if float(field.max()) < 0.01:
         return None, (0, 0)
     return np.ascontiguousarray(field), (x0, y0)
@@ -243,11 +243,14 @@ def tone_share(plan: TonePlan, vertices: np.ndarray) -> float:
     (Not the other way: deepening a neutralised smile's stretched lip by the inverse, measured
     on JAFFE's toothy smiles, made their closed lips heavier and darker, the blind raters'
     "dark lips pasted on", with nothing real to calibrate it against.)"""
-    c0, c1 = plan.corners
-    d = np.asarray(vertices[c1], np.float64) - np.asarray(vertices[c0], np.float64)
-    e = (math.hypot(float(d[0]), float(d[1])) - max(plan.w_photo, plan.w_neutral)) \
-        / plan.w_neutral
+    e = (_dist(vertices, *plan.corners) - max(plan.w_photo, plan.w_neutral)) / plan.w_neutral
     return min(max(K * (e - E0), 0.0), A_MAX)
+
+
+def _dist(vertices: np.ndarray, i: int, j: int) -> float:
+    """Distance (px) between vertices ``i`` and ``j`` of a mesh."""
+    a, b = vertices[i], vertices[j]
+    return math.hypot(float(b[0]) - float(a[0]), float(b[1]) - float(a[1]))
 
 
 def pull_share(plan: TonePlan, vertices: np.ndarray) -> float:
@@ -255,15 +258,12 @@ def pull_share(plan: TonePlan, vertices: np.ndarray) -> float:
     chin (AU16 and AU20 of fear, beyond the jaw): the lip-to-chin distance (8.2 to 2.1)
     shortened by ``c`` of the photo's, ``K_PULL (c - C_PULL)``, at most SHADOW_MAX. A jaw that
     drops moves both and does not count; a chin pushed up under a pouting lip lengthens it."""
-    i, j = plan.pull
-    d = np.asarray(vertices[j], np.float64) - np.asarray(vertices[i], np.float64)
-    c = 1.0 - math.hypot(float(d[0]), float(d[1])) / plan.pull0
+    c = 1.0 - _dist(vertices, *plan.pull) / plan.pull0
     if c <= C_PULL:
         return 0.0
     # a jaw dropped wide (the nose-to-chin distance beyond JAW_WIDE[0] of the photo's) turns
     # the chin away from the light: the lift fades out by JAW_WIDE[1]
-    n = np.asarray(vertices[j], np.float64) - np.asarray(vertices[plan.nose], np.float64)
-    r = math.hypot(float(n[0]), float(n[1])) / plan.nose0
+    r = _dist(vertices, plan.nose, plan.pull[1]) / plan.nose0
     jaw = min(max((JAW_WIDE[1] - r) / (JAW_WIDE[1] - JAW_WIDE[0]), 0.0), 1.0)
     return min(K_PULL * (c - C_PULL), SHADOW_MAX) * jaw
 
@@ -271,9 +271,7 @@ def pull_share(plan: TonePlan, vertices: np.ndarray) -> float:
 def narrowing_share(plan: TonePlan, vertices: np.ndarray) -> float:
     """How far (0-1) the mouth is narrower than the photo's, beyond E0 of the neutral width,
     up to CAST_FULL: a smiling photo's neutralised or pouting lower lip protrudes again."""
-    c0, c1 = plan.corners
-    d = np.asarray(vertices[c1], np.float64) - np.asarray(vertices[c0], np.float64)
-    e = (plan.w_photo - math.hypot(float(d[0]), float(d[1]))) / plan.w_neutral
+    e = (plan.w_photo - _dist(vertices, *plan.corners)) / plan.w_neutral
     return min(max((e - E0) / (CAST_FULL - E0), 0.0), 1.0)
 
 
@@ -299,12 +297,9 @@ def _cast_shadow(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, depth: f
     dy = (np.arange(y0, y1, dtype=np.float64)[:, None] - yl[None, :]) / plan.iod
     # a soft bump: rising over the lip's own edge (CAST_RISE), gone by CAST_REACH below it
     # (nothing above the lip)
-    t = np.clip((dy - CAST_RISE) / (CAST_REACH - CAST_RISE), 0.0, 1.0)
-    r = np.clip(dy / CAST_RISE, 0.0, 1.0)
-    g = (1.0 - t * t * (3.0 - 2.0 * t)) * (r * r * (3.0 - 2.0 * r))
+    g = (1.0 - smooth01((dy - CAST_RISE) / (CAST_REACH - CAST_RISE))) * smooth01(dy / CAST_RISE)
     cx, half = 0.5 * (lower[0, 0] + lower[-1, 0]), max(0.5 * abs(lower[-1, 0] - lower[0, 0]), 1.0)
-    span = np.clip((1.0 - np.abs(xs - cx) / half) / (1.0 - SHADOW_SPAN), 0.0, 1.0)
-    g *= (span * span * (3.0 - 2.0 * span))[None, :]
+    g *= smooth01((1.0 - np.abs(xs - cx) / half) / (1.0 - SHADOW_SPAN))[None, :]
     g = (depth * g).astype(np.float32)
     # (on a colour photo darker towards red, as shadows on skin look; creases' tint)
     f = cv2.merge([1.0 - g * np.float32(k) for k in plan.tint.tolist()])
@@ -359,8 +354,7 @@ def _pale(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, a: float
     c0x, c1x = float(poly[0, 0]), float(poly[_N_OUTER - 1, 0])
     span = max(c1x - c0x, 1.0)
     u = (np.arange(x0, x1, dtype=np.float32) - np.float32(c0x)) / np.float32(span)
-    f = np.clip(np.minimum(u, 1.0 - u) / np.float32(CORNER_FADE), 0.0, 1.0)
-    w *= (f * f * (3.0 - 2.0 * f))[None, :]
+    w *= smooth01(np.minimum(u, 1.0 - u) / np.float32(CORNER_FADE))[None, :]
     # each pixel moves towards the skin's colour by its own distance to it (a pixel at the
     # skin's level or lighter, e.g. the skin the loop's edge takes, stays as it is)
     view = out[y0:y1, x0:x1]

@@ -73,12 +73,28 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                          "the lower lip (the corners drop less with joy's small jaw: at 420 "
                          "the inner corners rose 530 at 150 %, past the real max 519; 400-410 "
                          "still 532)"),
-        "b_mid": (-60, "AU25 parts the lips: set so that the inner lips part (2.3 - 2.2) by "
+        "b_mid": (-20, "AU25 parts the lips: set so that the inner lips part (2.3 - 2.2) by "
                        "the real median; JAFFE smiles are closed (at most 175 MNS, 15 of 31) "
                        "or open (at least 331, 16 of 31), median 332: the plain fit (55, the "
                        "lower lip point's band is wide and weighs little) parted them by 215, "
                        "a slit between the two no real smile shows, which renders as a dark "
-                       "line instead of the teeth"),
+                       "line instead of the teeth. The parting is shared with the upper lip's "
+                       "raise (t_mid): at -60 with t_mid -170 the lower lip's middle dropped "
+                       "too far below its corners (see b_mids)"),
+        "t_mid": (-215, "AU10/12: a smile raises the upper lip's middle off the teeth (median "
+                        "-209/-172, p10 -327/-270; at 150 % inside the outer point's min -354 "
+                        "up to -220); towards p10, with b_mid, so that the lips "
+                        "part by the same 330 MNS with the lower lip's middle 0.02 IOD higher: "
+                        "below its corners' chord it sat 0.22 of the inner mouth width deep, "
+                        "the real smiles' lip 0.16 (MediaPipe's mesh on the 31 photos), now "
+                        "0.20"),
+        "b_mids": (-135, "the lower lip of a smile is a round U along the upper teeth, not a V: "
+                         "the depth below the corners' chord at 1/8, 1/4, 3/8 of the mouth's "
+                         "width over the middle's, inner lip, is 0.51 0.80 0.95 on the 31 real "
+                         "smiles (outer 0.51 0.81 0.96); the fit's -85 (the inner and outer "
+                         "points' medians pull apart, -75 and +120: tied, they cancel) gave "
+                         "0.34 0.67 0.85 (outer 0.37 0.73 0.91), a pointed lower lip; -135 "
+                         "gives 0.42 0.82 0.93 (outer 0.39 0.78 0.94)"),
     },
     "sadness": {
         18: (100, "AU17 chin raiser, common in sadness (MPEG-4 FAP 18 'as in sadness'); no "

@@ -91,7 +91,7 @@ class FoldStyle:
     sigma: float  # Gaussian half-width of the dark line
     depth: float  # darkening at full strength (fraction of the pixel value)
     c0: float  # compression across the line that gives 63 % of ``depth``
-    ridge: float  # brightening of the ridge beside it, relative to ``depth``
+    ridge: float  # brightening of the ridge beside it, relative to ``depth`` (< 0: a shadow)
     ridge_off: float  # ridge distance from the line (in sigmas; sign = side)
     probe: float  # distance of the compression probes either side of the line
     spread: float = 0.5  # share of the fold's strongest compression given to the whole line
@@ -112,18 +112,31 @@ STYLES: dict[str, FoldStyle] = {
     # JAFFE's smiles: the nasolabial valley across the middle of the laid-out line, 0.143 of its
     # shoulders' level below them (median of 40 folds; 0.04 on the neutral photos, p90 0.57).
     # Depth 0.17 / c0 0.38 drew 0.027 at joy 100 % on the ten neutral faces (a smile without
-    # its folds); now 0.143, 0.164 at 150 % (tests/test_creases.py measures it too)
-    "nasolabial": FoldStyle(sigma=0.026, depth=0.28, c0=0.22, ridge=0.35, ridge_off=2.6,
+    # its folds); tests/test_creases.py measures it too.
+    # Its cross-section (31 smiles, MediaPipe's nose wing to mouth corner, 0.3-0.45 of the way
+    # down, profiles +-0.2 IOD aligned on their minimum, over the cheek 0.12-0.2 IOD out): a
+    # valley whose nose side stays in shadow (0.93 of the cheek at 0.075-0.1 IOD in, 0.90 at
+    # 0.05) and whose cheek side has no highlight (0.91-0.99 at 0.05-0.1 out). The line with a
+    # light ridge 2.6 sigma out on the cheek side drew the nose side at 0.96-0.99 and the cheek
+    # side 8 % above the cheek (1.08: a scratch with a bright edge, read as drawn); with a
+    # shadow of half the line's depth 1.5 sigma in on the nose side instead, 0.96 0.97 0.93 in
+    # and 1.02-1.05 out (the photo's own light there: 1.01-1.03 without creases). The depth
+    # (tests/test_creases.py's measure, ours over real): 0.90 (1.07 before)
+    "nasolabial": FoldStyle(sigma=0.026, depth=0.17, c0=0.22, ridge=-0.5, ridge_off=-1.5,
                             probe=0.07, spread=0.75),
     # the upper nasolabial furrow beside the nose wing, deepened by the upper lip raiser
     # (AU10, disgust) pushing the skin below the nose wing up. It lies on the nasolabial
     # line's upper part and is the same furrow: the darker of the two is drawn (_twins), not
-    # their sum. JAFFE (valley across the line's middle, 0.06 IOD window): disgust 0.172
-    # (median of 40 photos; 0.086 on the neutral ones), joy 0.247. Depth 0.20 / c0 0.35 (and
-    # the sum) drew 0.034 under disgust (the lip raise compresses this skin by 0.12-0.19, a
-    # smile by 0.20-0.30): now 0.153 / 0.205 at 100 / 150 % (its outer lip curled up), joy 0.276
-    "upper_lip": FoldStyle(sigma=0.026, depth=0.25, c0=0.08, ridge=0.35, ridge_off=2.6,
-                           probe=0.07, dead=0.04),
+    # their sum, with the nasolabial group's style (sigma and ridge here are that one's).
+    # JAFFE (valley across the line's middle, 0.06 IOD window): disgust 0.172 (median of 40
+    # photos; 0.086 on the neutral ones), joy 0.247, anger 0.108. JAFFE anger's mouth rises too
+    # (the chin pushes it up) and compresses this skin almost as much as disgust's lip raise
+    # (0.10 against 0.13; a smile 0.20-0.30), so a soft onset drew anger too deep and disgust
+    # too shallow (dead 0.04, c0 0.08, depth 0.25: 1.24 and 0.90 x the real depth, anger's
+    # furrow as deep as disgust's, the two confused); a later, steeper one tells them apart:
+    # anger 0.98, disgust 1.01, joy 1.18 x real
+    "upper_lip": FoldStyle(sigma=0.026, depth=0.21, c0=0.05, ridge=-0.5, ridge_off=-1.5,
+                           probe=0.07, dead=0.08),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
                       probe=0.05),
     # the lower lid's furrow under a felt smile's raised cheek (AU6): the skin below the lid
@@ -853,8 +866,10 @@ def _fast(face: Face) -> _Fast:
     # line's own sigma, not the drawn one: a soft photo's fold is as dark in all (its
     # integral), shallower and wider
     k1s, k2s = math.sqrt(2 * math.pi) * sig, math.sqrt(2 * math.pi) * (1.6 * sig)
-    f.gain_mat = [np.array([[k2, -k1 * t, 1.0] for t in p.tint], np.float32)
-                  for k1, k2 in zip(k1s.tolist(), k2s.tolist(), strict=True)]
+    # (a negative ridge is a shadow beside the line: it takes the line's colour tint too)
+    f.gain_mat = [np.array([[k2 * (t if r < 0 else 1.0), -k1 * t, 1.0] for t in p.tint],
+                           np.float32)
+                  for k1, k2, r in zip(k1s.tolist(), k2s.tolist(), f.ridge.tolist(), strict=True)]
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, rest, f), 1e-6))
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])

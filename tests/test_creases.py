@@ -265,16 +265,8 @@ def test_jaffe_folds_as_deep_as_real_ones(kind, emotion, code, real_median):
     0.25 in a smile. Before they were calibrated so: 0.043, 0.073 and 0.034 (a smile without
     its folds; scratches across the nose; a lip raiser without its furrow)."""
 
-    def depths(f, img, v) -> list[float]:
-        lum = _lum(img)
-        out = []
-        for k, pts, _s in fold_lines(f, v):
-            if k == kind:
-                d, _sharp = _valley(lum, pts, f.interocular, *_WINDOWS[kind])
-                out.append(d / max(float(np.median(lum)), 1.0))
-        return out
-
-    _assert_as_deep_as_real(emotion, code, depths, real_median)
+    _assert_as_deep_as_real(emotion, code, lambda f, img, v: _fold_depths(f, img, v, kind),
+                            real_median)
 
 
 def _assert_as_deep_as_real(emotion: str, code: str, depths, real_median: float) -> None:
@@ -282,9 +274,21 @@ def _assert_as_deep_as_real(emotion: str, code: str, depths, real_median: float)
     (two per woman) and on ``emotion`` rendered at 100 and 150 % on each woman's neutral photo:
     the real median is ``real_median`` (the measure itself), ours at 100 % within 0.7-1.5 x
     it, at 150 % no deeper than the real p90. Skips without JAFFE."""
+    real, ours, strong = _real_and_rendered(emotion, code, depths, (1.0, 1.5))
+    assert np.median(real) == pytest.approx(real_median, abs=0.02)  # (the measure itself)
+    assert 0.7 * np.median(real) <= np.median(ours) <= 1.5 * np.median(real), np.median(ours)
+    assert np.median(strong) <= np.percentile(real, 90), np.median(strong)
+
+
+def _real_and_rendered(emotion: str, code: str, depths, scales: tuple[float, ...]
+                       ) -> tuple[list[float], ...]:
+    """``depths(face, image, vertices)`` on JAFFE's real ``code`` photos (two per woman), then
+    on ``emotion`` rendered at each of ``scales`` on each woman's neutral photo (one list per
+    scale). Skips without JAFFE."""
     from editor.formats.presets import apply_preset as shipped
 
-    real, ours, strong = [], [], []
+    real: list[float] = []
+    rendered: list[list[float]] = [[] for _ in scales]
     for ne in jaffe_images("*.NE1.*.tiff"):
         photos = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
         if not photos:
@@ -293,14 +297,12 @@ def _assert_as_deep_as_real(emotion: str, code: str, depths, real_median: float)
         for p in photos[:2]:
             g = Face.from_image(p, own_expression=False)
             real += depths(g, g.image, g.vertices)
-        for k, into in ((1.0, ours), (1.5, strong)):
+        for k, into in zip(scales, rendered, strict=True):
             vec = shipped(emotion, k)
             into += depths(f, f.render(vec), f.deform(vec))
     if len(real) < 16:
         pytest.skip("../shared/data/jaffe is not available")
-    assert np.median(real) == pytest.approx(real_median, abs=0.02)  # (the measure itself)
-    assert 0.7 * np.median(real) <= np.median(ours) <= 1.5 * np.median(real), np.median(ours)
-    assert np.median(strong) <= np.percentile(real, 90), np.median(strong)
+    return (real, *rendered)
 
 
 @pytest.mark.gui
@@ -949,22 +951,9 @@ def test_jaffe_anger_furrow_beside_the_nose_no_deeper_than_real():
     The renders at 100 %: anger at most 1.1 x its real depth (1.24 x before, as deep as the
     renders of disgust at 0.90 x: the two read alike), disgust at least 0.95 x its own (now
     0.98 and 1.01)."""
-    from editor.formats.presets import apply_preset as shipped
-
     def ratio(emotion: str, code: str) -> float:
-        real, ours = [], []
-        for ne in jaffe_images("*.NE1.*.tiff"):
-            photos = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
-            if not photos:
-                continue
-            f = Face.from_image(ne, own_expression=False)
-            for p in photos[:2]:
-                g = Face.from_image(p, own_expression=False)
-                real += _fold_depths(g, g.image, g.vertices, "upper_lip")
-            vec = shipped(emotion, 1.0)
-            ours += _fold_depths(f, f.render(vec), f.deform(vec), "upper_lip")
-        if len(real) < 16:
-            pytest.skip("../shared/data/jaffe is not available")
+        real, ours = _real_and_rendered(
+            emotion, code, lambda f, img, v: _fold_depths(f, img, v, "upper_lip"), (1.0,))
         return float(np.median(ours) / np.median(real))
 
     assert ratio("anger", "AN") <= 1.1
@@ -972,7 +961,8 @@ def test_jaffe_anger_furrow_beside_the_nose_no_deeper_than_real():
 
 
 def _fold_depths(f, img, v, kind: str) -> list[float]:
-    """:func:`test_jaffe_folds_as_deep_as_real_ones`'s depths of the ``kind`` folds."""
+    """The depths of the ``kind`` folds across the middle of their lines (:func:`_valley`, the
+    kind's window) over the image's median luminance."""
     lum = _lum(img)
     return [_valley(lum, pts, f.interocular, *_WINDOWS[kind])[0] / max(float(np.median(lum)), 1.0)
             for k, pts, _s in fold_lines(f, v) if k == kind]

@@ -17,7 +17,7 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from editor.cli.util import PHOTO_HELP, detector_option, guarded, photo_arg
+from editor.cli.util import PHOTO_HELP, detector_option, fast_option, guarded, photo_arg
 from editor.errors import ModelError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -126,9 +126,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
     y.add_argument("--faps-json", default=None, metavar="FILE.json",
                    help="also write the FAP vector that best reproduces the shape (a preset)")
     y.add_argument("-o", "--output", required=True, metavar="OUT.png")
-    y.add_argument("--fast", action="store_true",
-                   help="resample bilinearly as the editor's live preview does (a still is "
-                        "bicubic by default, as `fap-studio render` writes it)")
+    fast_option(y)
     detector_option(y)
     y.set_defaults(func=guarded(run_synth))
 

@@ -21,7 +21,7 @@ from pathlib import Path
 from editor.errors import FapStudioError
 from editor.resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
-from .util import ProgressBar, detector_option, guarded, photo_arg
+from .util import ProgressBar, detector_option, fast_option, guarded, photo_arg
 
 SAMPLE = SAMPLE_FACE
 
@@ -148,9 +148,7 @@ def add_clone_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
     s.add_argument("--faps-json", metavar="OUT.json",
                    help="write the estimated FAPs as a preset file")
-    s.add_argument("--fast", action="store_true",
-                   help="resample bilinearly as the editor's live preview does (a still is "
-                        "bicubic by default, as `fap-studio render` writes it)")
+    fast_option(s)
     detector_option(s)
     s.set_defaults(func=guarded(cmd_clone))
 

@@ -28,6 +28,14 @@ def detector_option(parser: argparse.ArgumentParser) -> None:
                         "'fap-studio[dlib]'; its model's terms exclude commercial use)")
 
 
+def fast_option(parser: argparse.ArgumentParser) -> None:
+    """``--fast``: resample the photo bilinearly, as the editor's live preview does (a still
+    is bicubic by default, as ``fap-studio render`` writes it)."""
+    parser.add_argument("--fast", action="store_true",
+                        help="resample bilinearly as the editor's live preview does (a still is "
+                             "bicubic by default, as `fap-studio render` writes it)")
+
+
 def photo_arg(text: str) -> str:
     """argparse ``type`` of photo arguments: ``sample`` -> the bundled sample's path."""
     if text == SAMPLE_KEYWORD and not Path(text).exists():

@@ -5,8 +5,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from conftest import jaffe_images
 
 from editor.core import Face
+from editor.engine.imageio import load_image
 from editor.formats.presets import apply_preset
 
 LUM = np.float32([0.299, 0.587, 0.114])
@@ -112,14 +114,55 @@ def _jaffe_smilers(jaffe_faces):
 def test_upper_teeth_show_in_a_smile(sample_face, jaffe_faces):
     # closed-mouth faces: the drawn upper teeth fill the top of a smile's opening (main before:
     # 0.74-0.78 of the skin there, the lower teeth's shadowed middle, moving with the jaw)
+    # (drawn at TEETH_L 0.95 of the skin, as lit as real smiles' teeth: 0.90-1.18 here)
     faces = _jaffe_smilers(jaffe_faces)
     assert len(faces) >= 2
     for f in faces + [sample_face]:
         lum, _ = _band_under_upper_lip(f, apply_preset("joy", 1.0))
-        assert lum > 0.95, (f.source, lum)
+        assert lum > 0.85, (f.source, lum)
         # and they are the upper teeth: fixed to the skull while the jaw opens further
         lum, moved = _band_under_upper_lip(f, apply_preset("joy", 1.5))
-        assert lum > 0.95 and moved < 0.1, (f.source, lum, moved)
+        assert lum > 0.85 and moved < 0.1, (f.source, lum, moved)
+
+
+def _teeth_p90(image: np.ndarray) -> float | None:
+    """The 90th percentile of the luminance inside the detected inner lips (eroded a pixel)
+    over the skin's median in a ring 0.08-0.16 IOD outside the outer lips, the same measure on
+    a real photo and on a render; None when the lips part by less than 0.05 IOD."""
+    from editor.engine.landmarks import detect_landmarks
+
+    p = detect_landmarks(image).points.astype(np.float32)
+    L = _lum(image)
+    iod = float(np.linalg.norm(p[36:42].mean(0) - p[42:48].mean(0)))
+    if p[66, 1] - p[62, 1] < 0.05 * iod:
+        return None
+    inner = np.zeros(L.shape, np.uint8)
+    cv2.fillPoly(inner, [np.round(p[60:68]).astype(np.int32)], 1)
+    inner = cv2.erode(inner, np.ones((3, 3), np.uint8)).astype(bool)
+    outer = np.zeros(L.shape, np.uint8)
+    cv2.fillPoly(outer, [np.round(p[48:60]).astype(np.int32)], 1)
+    d = cv2.distanceTransform(1 - outer, cv2.DIST_L2, 3)
+    skin = float(np.median(L[(d > 0.08 * iod) & (d < 0.16 * iod)]))
+    return float(np.percentile(L[inner], 90)) / skin
+
+
+def test_drawn_teeth_are_as_bright_as_real_smiles_teeth():
+    # JAFFE's ten women: their real smiles' teeth against joy drawn on their neutral photos.
+    # Real: median p90 1.21 of the skin around the mouth (21 open smiles); drawn at TEETH_L
+    # 1.1 they were 1.32 (1.58 at 150 %), white blocks the blind raters called pasted on;
+    # at 0.95: 1.23. Neither brighter than real nor dimmed into grey
+    real, drawn = [], []
+    for ne in jaffe_images("*.NE1.*.tiff"):
+        real += [_teeth_p90(load_image(p)) for p in jaffe_images(f"{ne.name[:2]}.HA*.tiff")]
+        drawn.append(_teeth_p90(Face.from_image(ne, own_expression=False).render(
+            apply_preset("joy", 1.0))))
+    real = [r for r in real if r is not None]
+    drawn = [d for d in drawn if d is not None]
+    if len(real) < 10:
+        pytest.skip("../shared/data/jaffe is not available")
+    assert len(drawn) >= 8
+    r, d = float(np.median(real)), float(np.median(drawn))
+    assert r - 0.12 < d < r + 0.06, (r, d)
 
 
 def test_drawn_teeth_take_the_photos_colour(sample_face, jaffe_faces):

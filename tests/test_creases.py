@@ -894,7 +894,7 @@ def _under_lid_profile(img: np.ndarray) -> np.ndarray:
 def test_jaffe_smiles_furrow_under_the_lower_lids_as_real_ones():
     """JAFFE's ten women, the profile under the lower lids at 0.04-0.12 IOD (over the cheek
     below): real smiles 0.73 0.75 0.73 0.77 0.82 (a roll, then a furrow), their neutral photos
-    0.65 0.74 0.78 0.81 0.86; the renders of joy 0.73 0.74 0.76 0.80 0.85, without the fold
+    0.65 0.74 0.78 0.81 0.86; the renders of joy 0.74 0.74 0.74 0.76 0.81, without the fold
     0.73 0.75 0.78 0.84 0.88 (the smooth rise of a face whose eyes do not smile)."""
     from editor.formats.presets import apply_preset as real_preset
 

@@ -514,6 +514,38 @@ def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
     return (lo64 + part[h].astype(np.float64)) / 2.0
 
 
+def median_binned(a: np.ndarray, bins: int = 1024) -> float:
+    """``float(np.median(a))`` of a 1-d float array whose values are finite, the same value
+    (a zero's sign aside): each middle order statistic from a histogram of ``bins`` equal
+    bins over the values' range (the bin index is monotonic in the value, so the k-th smallest
+    lies in the bin where the counts reach k) and a partition of that bin's few values only;
+    their mean as ``np.median`` takes it, in the array's precision. About a third of
+    ``np.median``'s time on the ~40k values of a 1080p face's grain (two medians: 0.8 ->
+    0.3 ms). Other input: ``np.median``."""
+    a = np.asarray(a)
+    n = a.size
+    if a.ndim != 1 or a.dtype.kind != "f" or n < 2 * bins:
+        return float(np.median(a))
+    lo, hi = a.min(), a.max()
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return float(np.median(a))
+    if lo == hi:
+        return float(lo)
+    at = ((a - lo) * a.dtype.type(bins / (float(hi) - float(lo)))).astype(np.intp)
+    np.minimum(at, bins - 1, out=at)
+    upto = np.cumsum(np.bincount(at, minlength=bins))
+    h = n // 2
+
+    def kth(k: int) -> np.floating:
+        b = int(np.searchsorted(upto, k, side="right"))
+        r = k - (int(upto[b - 1]) if b else 0)
+        return np.partition(a[at == b], r)[r]
+
+    if n % 2:
+        return float(kth(h))
+    return float((kth(h - 1) + kth(h)) / a.dtype.type(2))
+
+
 #: From this many values :func:`median` partitions once per order statistic (below, numpy's
 #: several-kth partition costs less than the extra checks)
 _ONE_KTH_MIN = 6000

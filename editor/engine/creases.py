@@ -41,6 +41,7 @@ import itertools
 import math
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal, overload
 
@@ -1538,8 +1539,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
                                               wq), (0, 0), 0.7 * sig / wq)
             org = (x0 + 0.5 * (wq - 1), y0 + 0.5 * (wq - 1))
             r = int(math.ceil(_VALLEY_WIDTH * sig / wq))
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
+        hat = _close(ls, r) - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]
         xy = ((q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - org) / wq
               ).astype(np.float32)
@@ -1808,10 +1808,10 @@ def _frame_closing(view: np.ndarray, r: int) -> np.ndarray:
     (a 4K face's 105 px ellipse cost ~110 ms a fold group at full resolution)."""
     q = max(1, r // 6)
     if q == 1:
-        return cv2.morphologyEx(view, cv2.MORPH_CLOSE, _ellipse(r))
+        return _close(view, r)
     h, w = view.shape[:2]
     small = cv2.resize(view, (max(w // q, 1), max(h // q, 1)), interpolation=cv2.INTER_AREA)
-    small = cv2.morphologyEx(small, cv2.MORPH_CLOSE, _ellipse(max(r // q, 1)))
+    small = _close(small, max(r // q, 1))
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
@@ -1819,6 +1819,70 @@ def _frame_closing(view: np.ndarray, r: int) -> np.ndarray:
 def _ellipse(r: int) -> np.ndarray:
     """The elliptic structuring element of radius ``r`` (kept: a face's radii recur)."""
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+#: From this radius :func:`_close` goes through the ellipse's rectangles (below, OpenCV's
+#: elliptic kernel costs less than their calls)
+_CLOSE_STEPS_MIN = 8
+
+
+def _close(img: np.ndarray, r: int) -> np.ndarray:
+    """``cv2.morphologyEx(img, cv2.MORPH_CLOSE, _ellipse(r))``, the same values. From
+    :data:`_CLOSE_STEPS_MIN` on, as a chain of lines (:func:`_ellipse_steps`): OpenCV's cost
+    for an elliptic kernel grows with its area (each pixel reads every element), a line's
+    with its length; the maxima and minima are exact (a 21 px ellipse on a 1080p face's
+    nasolabial box: 0.42 -> 0.29 ms)."""
+    if r < _CLOSE_STEPS_MIN:
+        return cv2.morphologyEx(img, cv2.MORPH_CLOSE, _ellipse(r))
+    steps = _ellipse_steps(r)
+    return _by_steps(_by_steps(img, steps, cv2.dilate, cv2.max), steps, cv2.erode, cv2.min)
+
+
+@functools.lru_cache(maxsize=16)
+def _ellipse_steps(r: int) -> tuple[tuple[np.ndarray | None, np.ndarray | None], ...]:
+    """:func:`_ellipse` (``r``) as the union of its centred rectangles, one per half-width
+    ``w_k`` of its rows (increasing; ``h_k``, decreasing, the half-height of the rows at least
+    that wide), as steps ``(horizontal line of half-length w_k - w_{k-1}, vertical line of
+    half-length h_k - h_{k+1})`` (``h_{K+1} = 0``; None: no step): a dilation by the ellipse
+    is then ``V_K(... V_2(V_1(H_1 x) | H_2 x) ... | H_K x)`` (``|``: the maximum,
+    ``H_k x`` the dilation by the k-th horizontal line of the ones before: by ``2 w_k + 1``
+    px; each vertical step dilates what has been gathered so far by the height it loses),
+    the same as by the rectangles' union (dilations by lines add their lengths, and
+    distribute over maxima; the default border never wins)."""
+    K = _ellipse(r)
+    half = [int(np.flatnonzero(row).max()) - r if row.any() else -1 for row in K]
+    ws = sorted({x for x in half if x >= 0})
+    hs = []
+    for w in ws:
+        rows = [i for i, x in enumerate(half) if x >= w]
+        # (each row a centred run; the rows at least w wide a centred range of rows)
+        assert rows == list(range(rows[0], rows[-1] + 1)) and rows[0] == 2 * r - rows[-1]
+        hs.append(r - rows[0])
+    assert all(np.flatnonzero(K[i]).tolist() == list(range(r - x, r + x + 1))
+               for i, x in enumerate(half) if x >= 0)
+    steps = []
+    for k, (w, h) in enumerate(zip(ws, hs, strict=True)):
+        dw = w - (ws[k - 1] if k else 0)
+        dh = h - (hs[k + 1] if k + 1 < len(ws) else 0)
+        steps.append((np.ones((1, 2 * dw + 1), np.uint8) if dw else None,
+                      np.ones((2 * dh + 1, 1), np.uint8) if dh else None))
+    return tuple(steps)
+
+
+def _by_steps(img: np.ndarray, steps: tuple[tuple[np.ndarray | None, np.ndarray | None], ...],
+              op: Callable[..., np.ndarray], combine: Callable[..., np.ndarray]) -> np.ndarray:
+    """``img`` dilated (``op`` cv2.dilate, ``combine`` cv2.max) or eroded (cv2.erode,
+    cv2.min) by the ellipse of :func:`_ellipse_steps`' ``steps``."""
+    line = img
+    acc = None
+    for across, down in steps:
+        if across is not None:
+            line = op(line, across)
+        acc = line if acc is None else combine(acc, line)
+        if down is not None:
+            acc = op(acc, down)
+    assert acc is not None  # (a radius has one step at least)
+    return acc
 
 
 def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -2215,13 +2279,10 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
         rq = max(r // q, 1)
         small = cv2.resize(S, (max(S.shape[1] // q, 1), max(S.shape[0] // q, 1)),
                            interpolation=cv2.INTER_AREA)
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rq + 1, 2 * rq + 1))
-        C = cv2.GaussianBlur(cv2.morphologyEx(small, cv2.MORPH_CLOSE, ker), (0, 0),
-                             0.6 * r / q)
+        C = cv2.GaussianBlur(_close(small, rq), (0, 0), 0.6 * r / q)
         C = cv2.resize(C, (S.shape[1], S.shape[0]), interpolation=cv2.INTER_LINEAR)
     else:
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
+        C = cv2.GaussianBlur(_close(S, r), (0, 0), 0.6 * r)
     # the lifted level is skin unless it is much darker than the skin or off its colour
     # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
     C = np.ascontiguousarray(C[iy, ix])

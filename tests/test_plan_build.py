@@ -233,3 +233,37 @@ def test_unmasked_median_abs_is_the_median_of_the_unmasked():
             continue
         ref = float(np.median(np.abs(hp[free])))
         assert lipseal._unmasked_median_abs(hp, mask) == ref, trial
+
+
+def test_median_binned_is_numpys():
+    """fitting.median_binned: np.median's value (a zero's sign aside) on float arrays large
+    enough for its histogram (ties, skewed values, constant arrays, odd and even counts), and
+    np.median's itself below that size."""
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        n = int(rng.integers(1, 60_000))
+        dt = (np.float32, np.float64)[trial % 2]
+        a = rng.standard_normal(n) * rng.choice([1e-3, 1.0, 300.0])
+        if trial % 3 == 0:
+            a = np.round(a)  # ties
+        if trial % 4 == 0:
+            a = np.exp(np.clip(a, -50, 50))  # skewed: most values in a few bins
+        if trial % 25 == 0:
+            a[:] = a[0]  # constant
+        a = a.astype(dt)
+        got, ref = fitting.median_binned(a), float(np.median(a))
+        assert got == ref, (trial, n, got, ref)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+def test_close_is_the_elliptic_closing(dtype):
+    """creases._close: OpenCV's closing by the elliptic kernel, bit for bit, at every radius
+    (through the chain of lines from creases._CLOSE_STEPS_MIN), on boxes smaller and larger
+    than the kernel, one and three channels."""
+    rng = np.random.default_rng(3)
+    for r in range(1, 26):
+        for shape in ((3, 5), (40, 31), (90, 118, 3), (2 * r + 7, 17)):
+            img = cv2.GaussianBlur(rng.uniform(0, 255, shape).astype(np.float32), (0, 0), 1.5)
+            img = img.astype(dtype)
+            ref = cv2.morphologyEx(img, cv2.MORPH_CLOSE, creases._ellipse(r))
+            assert np.array_equal(creases._close(img, r), ref), (r, shape)

@@ -58,6 +58,7 @@ from .fitting import (
     channel_median,
     clamp,
     clip,
+    interp,
     is_grey,
     linspace,
     luminance,
@@ -246,18 +247,55 @@ class _Line:
     utaper: np.ndarray | None = None  # fade of the photo's own fold (default: ``taper``)
 
 
+@functools.cache
+def _line_constants() -> dict[str, list]:
+    """The parts of :func:`_fold_lines` that do not depend on the face and draw nothing at
+    random, made once per process (read-only): the nasolabial folds', the lower lids' and
+    the crow's feet's tapers, and the crow's feet's offsets from their eye corner (each
+    line's arithmetic stays in its own order: the same values; the irregular lines' random
+    draws stay in :func:`_fold_lines`)."""
+    out: dict[str, list] = {"crow": []}
+    # ---- nasolabial folds (28 samples, their upper part 16) and the lower lids' (16)
+    t = linspace(0.0, 1.0, 28)
+    tu = linspace(0.0, 1.0, int(0.6 * 28))
+    t_l = linspace(0.0, 1.0, 16)
+    out["nasolabial"] = [_fade(t, 0.2, 0.45), _fade(t, 0.2, 0.25), _fade(tu, 0.3, 0.5),
+                         np.zeros(len(tu))]
+    out["lower_lid"] = [_fade(t_l, 0.3, 0.3), np.zeros(len(t_l))]
+    # ---- crow's feet: per side and line, the points' offsets ``rr d`` and ``bend perp``
+    crow_fade = _fade(linspace(0, 1, 10), 0.35, 0.6)
+    for sg in (-1.0, 1.0):
+        for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
+            a = np.deg2rad(ang)
+            d = np.array([sg * np.cos(a), np.sin(a)])
+            rr = linspace(r0, r1, 10)
+            bend = 0.015 * np.sin(np.pi * (rr - r0) / (r1 - r0))  # slightly curved
+            perp = np.array([-d[1], d[0]])
+            probes = np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
+                               (sg * 0.18, 0.2)])
+            out["crow"].append((rr[:, None] * d, bend[:, None] * perp, probes, crow_fade))
+    for v in out.values():  # (shared by every face's lines: read-only)
+        for a in v:
+            for x in (a if isinstance(a, tuple) else (a,)):
+                if isinstance(x, np.ndarray):
+                    x.setflags(write=False)
+    return out
+
+
 def _fold_lines(face: Face) -> list[_Line]:
     """Every fold of the face (x towards the subject's left, y down)."""
     fr = face.frame
     iod = float(face.interocular)
     m = face.mesh
     V = face.vertices.astype(np.float64)
+    fixed = _line_constants()
 
     def q(name: str) -> np.ndarray:
         return fr.to_frame(V[m.index(name)]) / iod
 
     lines: list[_Line] = []
     # ---- nasolabial folds: from above the nose wing, down and out past the mouth corner
+    nl_taper, nl_utaper, up_taper, up_utaper = fixed["nasolabial"]
     for s, sg in (("r", -1.0), ("l", 1.0)):
         ala = q(f"ala_{s}")
         corner = q(f"lipo_c{0 if s == 'r' else 1}")
@@ -268,14 +306,12 @@ def _fold_lines(face: Face) -> list[_Line]:
         bow = np.array([-d[1], d[0]]) * (0.12 * sg)  # slightly convex towards the cheek
         ctrl = np.array([top, 0.5 * (top + mid) - bow, mid, bot])  # mirror images
         pts = catmull_rom(ctrl, 28)
-        t = linspace(0.0, 1.0, len(pts))
         # a smiling photo's own fold reaches from the nose wing down past the corner
-        lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
-                           (sg, -0.5), utaper=_fade(t, 0.2, 0.25)))
+        lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, nl_taper, (sg, -0.5),
+                           utaper=nl_utaper))
         # its upper part, driven by the skin between the nose wing and the upper lip's
         # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
         up = pts[: int(0.6 * len(pts))]
-        tu = linspace(0.0, 1.0, len(up))
         lip = q(f"lipo_u{2 if s == 'r' else 6}")
         # (probes 0.55 and 0.8 of the way to the lip: they straddle the philtrum row, where
         # the lip's lift compresses the skin; at 0.4 / 0.65 they sat above it on some fits, so
@@ -283,23 +319,17 @@ def _fold_lines(face: Face) -> list[_Line]:
         probes = np.array([0.45 * ala + 0.55 * lip, 0.2 * ala + 0.8 * lip,
                            0.45 * (ala + (sg * 0.06, 0.0)) + 0.55 * lip,
                            0.2 * (ala + (sg * 0.06, 0.0)) + 0.8 * lip])
-        lines.append(_Line("upper_lip", f"nasolabial_{s}", up, _fade(tu, 0.3, 0.5),
-                           (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
+        lines.append(_Line("upper_lip", f"nasolabial_{s}", up, up_taper, (sg, -0.5), probes,
+                           (0.0, 1.0), utaper=up_utaper))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
-    crow_fade = _fade(linspace(0, 1, 10), 0.35, 0.6)  # (the same for every crow's foot)
-    for s, sg in (("r", -1.0), ("l", 1.0)):
+    crows = iter(fixed["crow"])
+    for s in ("r", "l"):
         oc = q(f"eye_{s}_c{0 if s == 'r' else 1}")
-        for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
-            a = np.deg2rad(ang)
-            d = np.array([sg * np.cos(a), np.sin(a)])
-            rr = linspace(r0, r1, 10)
-            bend = 0.015 * np.sin(np.pi * (rr - r0) / (r1 - r0))  # slightly curved
-            perp = np.array([-d[1], d[0]])
-            pts = oc + rr[:, None] * d + bend[:, None] * perp
-            probes = oc + np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
-                                    (sg * 0.18, 0.2)])
-            lines.append(_Line("crow", f"crow_{s}", pts, crow_fade, (0.0, -1.0), probes))
+        for _ in range(3):
+            along, bend, probes, crow_fade = next(crows)
+            lines.append(_Line("crow", f"crow_{s}", oc + along + bend, crow_fade, (0.0, -1.0),
+                               oc + probes))
     # ---- forehead: three horizontal lines between the brows and the hairline
     brow = np.array([q(f"brow_r_u{k}") for k in range(1, 6)] + [q(f"brow_l_u{k}")
                                                               for k in range(1, 6)])
@@ -307,10 +337,10 @@ def _fold_lines(face: Face) -> list[_Line]:
     top = np.array([q(f"forehead_2_{k}") for k in range(1, 8)])
     top = top[np.argsort(top[:, 0])]
     xs = linspace(brow[1, 0], brow[-2, 0], 40)
-    yb = np.interp(xs, brow[:, 0], brow[:, 1])
+    yb = interp(xs, brow[:, 0], brow[:, 1])
     # the lines curve gently like the brows (half as much), not with the brows' gap
     yb_s = 0.5 * yb + 0.5 * float(median(yb))
-    yh = np.interp(xs, top[:, 0], top[:, 1])
+    yh = interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
     t = linspace(0.0, 1.0, len(xs))
     # real lines are irregular: uneven waviness, breaks, lengths and strength along the line
@@ -394,19 +424,18 @@ def _fold_lines(face: Face) -> list[_Line]:
     # its curve, driven by how far the skin under the eye is pushed up (the cheek raiser
     # AU6, and the lid tightener AU7; FoldStyle.lift) (added after the others: their random
     # draws stay the same)
+    lid_taper, lid_utaper = fixed["lower_lid"]
     for s in ("r", "l"):
         lid = np.array([q(f"eye_{s}_c0")] + [q(f"eye_{s}_d{k}") for k in range(1, 6)]
                        + [q(f"eye_{s}_c1")])
         lid = lid[np.argsort(lid[:, 0])]
         xs_l = linspace(lid[0, 0] + 0.1 * (lid[-1, 0] - lid[0, 0]),
                         lid[-1, 0] + 0.05 * (lid[-1, 0] - lid[0, 0]), 16)
-        y_l = np.interp(xs_l, lid[:, 0], lid[:, 1]) + LID_FURROW
-        t_l = linspace(0.0, 1.0, len(xs_l))
+        y_l = interp(xs_l, lid[:, 0], lid[:, 1]) + LID_FURROW
         mid = lid[1:-1].mean(0)
         probes = mid + np.array([(-0.06, 0.05), (0.06, 0.05), (-0.06, 0.18), (0.06, 0.18)])
-        lines.append(_Line("lower_lid", f"lower_lid_{s}", np.stack([xs_l, y_l], 1),
-                           _fade(t_l, 0.3, 0.3), (0.0, -1.0), probes, (0.0, 1.0),
-                           utaper=np.zeros(len(t_l))))
+        lines.append(_Line("lower_lid", f"lower_lid_{s}", np.stack([xs_l, y_l], 1), lid_taper,
+                           (0.0, -1.0), probes, (0.0, 1.0), utaper=lid_utaper))
     return lines
 
 
@@ -430,15 +459,24 @@ def _segments(pos: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray
 
 def _normals(pts: np.ndarray) -> np.ndarray:
     """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
+    return _lines_normals([pts])[0]
+
+
+def _lines_normals(lines: list[np.ndarray]) -> list[np.ndarray]:
+    """:func:`_normals` of each polyline (n >= 2), all in one pass over their concatenated
+    points (the same values line by line: a point's central difference reads its two
+    neighbours; each line's ends are its own one-sided differences, written after)."""
     # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
     # central differences inside, one-sided at the ends)
     # (in place into preallocated arrays, no np.stack: -(ty / n) is -ty / n bit for bit)
-    p = np.asarray(pts, np.float64)
+    p = np.concatenate(lines).astype(np.float64, copy=False)
+    ends = np.cumsum([len(x) for x in lines])
+    first, last = np.concatenate(([0], ends[:-1])), ends - 1
     tang = np.empty_like(p)
     np.subtract(p[2:], p[:-2], out=tang[1:-1])
     tang[1:-1] /= 2.0
-    tang[0] = p[1] - p[0]
-    tang[-1] = p[-1] - p[-2]
+    tang[first] = p[first + 1] - p[first]
+    tang[last] = p[last] - p[last - 1]
     tx, ty = tang[:, 0], tang[:, 1]
     n = np.sqrt(tx * tx + ty * ty)
     np.maximum(n, 1e-9, out=n)
@@ -446,7 +484,7 @@ def _normals(pts: np.ndarray) -> np.ndarray:
     np.divide(ty, n, out=out[:, 0])
     np.negative(out[:, 0], out=out[:, 0])
     np.divide(tx, n, out=out[:, 1])
-    return out
+    return np.split(out, ends[:-1])
 
 
 def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
@@ -608,12 +646,12 @@ def _build_plan(face: Face) -> CreasePlan:
     # every point that is located on the mesh (the lines, their probes), in one batch
     queries: list[np.ndarray] = []
     lines = []
-    for ln in _fold_lines(face):
+    layout = _fold_lines(face)
+    on_image = [fr.to_image(ln.pts * iod) for ln in layout]
+    for ln, pts, nrm in zip(layout, on_image, _lines_normals(on_image), strict=True):
         kind, group, taper = ln.kind, ln.group, ln.taper
         utaper = taper if ln.utaper is None else ln.utaper
         st = STYLES[kind]
-        pts = fr.to_image(ln.pts * iod)
-        nrm = _normals(pts)
         if float((nrm @ (fr.rot @ np.asarray(ln.side))).mean()) < 0:
             # orient the line so that its normal points to the ridge side (the reversed
             # line's normals are these, reversed and negated: its central differences are
@@ -2295,7 +2333,7 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
     np.minimum(d, np.float32(0.3) * d, out=d)  # the level minus ref
     np.multiply(d, d, out=d)
     dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))
-    ref_l = np.float32(1.0 / max(float(np.mean(ref)), 20.0))
+    ref_l = np.float32(1.0 / float(fa.ref_l[g]))  # (max(float(np.mean(ref)), 20.0))
     wgt = clamp((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
     return cv2.merge([C, wgt.astype(np.float32)])
 

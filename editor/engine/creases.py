@@ -800,6 +800,68 @@ class _Fast:
     gain_mat: list[np.ndarray] = field(init=False)
 
 
+@dataclass(frozen=True, eq=False)
+class _LayoutStructure:
+    """What :func:`_fast` takes from the fold layout alone (the folds' kinds, groups and
+    sample counts: the same for every face, :func:`_fold_lines`); read-only arrays."""
+
+    depth: np.ndarray  # (N,) per sample, its fold style's
+    c0: np.ndarray
+    spread: np.ndarray
+    dead: np.ndarray
+    neg: np.ndarray  # the samples of folds with FoldStyle.sign < 0
+    edge: np.ndarray  # (N,) bool: first/last two samples of a fold
+    seg_a: np.ndarray  # (M,) first sample of each segment inside a fold (grouped)
+    seg_rng: list[tuple[int, int]]  # per group: its slice of the segments
+    first: list[FoldStyle]  # per group: the style of its first fold
+    count: np.ndarray  # (G,) folds per group
+    lift: np.ndarray  # the samples of folds with FoldStyle.lift
+    keep: np.ndarray  # (N,) 1 - spread
+    seg_b: np.ndarray  # (M,) seg_a + 1
+    twin_a: np.ndarray  # :func:`_twin_samples`
+    twin_b: np.ndarray
+
+
+#: the layouts' structures (one per distinct layout: in practice one per process)
+_STRUCTURES: dict[tuple, _LayoutStructure] = {}
+
+
+def _layout_structure(p: CreasePlan) -> _LayoutStructure:
+    """:class:`_LayoutStructure` of ``p``'s layout (made once per layout: ~0.1 ms of small
+    arrays per face before)."""
+    key = (tuple(p.kinds), tuple(p.group_names), p.group.tobytes(), p.start.tobytes())
+    got = _STRUCTURES.get(key)
+    if got is not None:
+        return got
+    st = [STYLES[k] for k in p.kinds]
+    spread = np.array([x.spread for x in st])[p.fold]
+    n = len(p.fold)
+    edge = np.zeros(n, bool)
+    for off in (0, 1):
+        edge[clamp(p.start[:-1] + off, 0, n - 1)] = True
+        edge[clamp(p.start[1:] - 1 - off, 0, n - 1)] = True
+    seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
+    seg_g = p.group[p.fold[seg_a]]
+    order = np.argsort(seg_g, kind="stable")
+    seg_a, seg_g = seg_a[order], seg_g[order]
+    G = len(p.group_names)
+    got = _LayoutStructure(
+        np.array([x.depth for x in st])[p.fold], np.array([x.c0 for x in st])[p.fold], spread,
+        np.array([x.dead for x in st])[p.fold],
+        np.flatnonzero(np.array([x.sign for x in st])[p.fold] < 0), edge, seg_a,
+        [(int(np.searchsorted(seg_g, g)), int(np.searchsorted(seg_g, g, "right")))
+         for g in range(G)],
+        [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)],
+        np.bincount(p.group, minlength=G),
+        np.flatnonzero(np.array([x.lift for x in st], bool)[p.fold]), 1.0 - spread, seg_a + 1,
+        *_twin_samples(p))
+    for a in vars(got).values():
+        if isinstance(a, np.ndarray):
+            a.setflags(write=False)
+    _STRUCTURES[key] = got
+    return got
+
+
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -816,30 +878,14 @@ def _fast(face: Face) -> _Fast:
     slot = np.zeros(len(mark), np.intp)
     slot[used] = np.arange(len(used))
     inv = slot[flat]
-    st = [STYLES[k] for k in p.kinds]
-    depth = np.array([x.depth for x in st])[p.fold]
-    c0 = np.array([x.c0 for x in st])[p.fold]
-    spread = np.array([x.spread for x in st])[p.fold]
-    dead = np.array([x.dead for x in st])[p.fold]
-    neg = np.flatnonzero(np.array([x.sign for x in st])[p.fold] < 0)
-    n = len(p.fold)
-    edge = np.zeros(n, bool)
-    for off in (0, 1):
-        edge[clamp(p.start[:-1] + off, 0, n - 1)] = True
-        edge[clamp(p.start[1:] - 1 - off, 0, n - 1)] = True
-    seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
-    seg_g = p.group[p.fold[seg_a]]
-    order = np.argsort(seg_g, kind="stable")
-    seg_a, seg_g = seg_a[order], seg_g[order]
+    ls = _layout_structure(p)
+    depth, c0, spread, dead, neg, edge = ls.depth, ls.c0, ls.spread, ls.dead, ls.neg, ls.edge
+    seg_a, rng, first, cnt = ls.seg_a, ls.seg_rng, ls.first, ls.count
     G = len(p.group_names)
-    rng = [(int(np.searchsorted(seg_g, g)), int(np.searchsorted(seg_g, g, "right")))
-           for g in range(G)]
-    first = [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)]
     sig = np.array([max(x.sigma * p.iod, 0.6) for x in first])
     dsig = _draw_sigma(face, sig)
     # (each group's mean of its folds' skin colours, all groups at once: the colours are
     # medians of uint8 values, multiples of 0.5, whose few sums are exact in any order)
-    cnt = np.bincount(p.group, minlength=G)
     skin = np.empty((G, 3))
     for ch in range(3):
         skin[:, ch] = np.bincount(p.group, p.skin[:, ch], minlength=G)
@@ -866,7 +912,7 @@ def _fast(face: Face) -> _Fast:
     f.neg_inv = tuple(np.ascontiguousarray(pinv[..., i, j]) for i in (0, 1) for j in (0, 1))
     f.neg_t = (np.ascontiguousarray(tang[:, :1]), np.ascontiguousarray(tang[:, 1:]))
     f.neg_fade = p.taper[neg]
-    lift = np.flatnonzero(np.array([x.lift for x in st], bool)[p.fold])
+    lift = ls.lift
     f.lift = lift
     f.lift_v = face.mesh.triangles[p.probe_tri[lift]].reshape(len(lift), -1)
     ix = face.mesh.index
@@ -890,9 +936,7 @@ def _fast(face: Face) -> _Fast:
     tri = face.mesh.triangles[p.tri]
     f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
-    f.keep = 1.0 - spread
-    f.seg_b = f.seg_a + 1
-    f.twin_a, f.twin_b = _twin_samples(p)
+    f.keep, f.seg_b, f.twin_a, f.twin_b = ls.keep, ls.seg_b, ls.twin_a, ls.twin_b
     # (per row, as ``max(float(x.mean()), 20.0)`` of each; the transforms (3, 4): identity
     # and the negated colour, views of one array)
     f.ref_l = np.maximum(skin.mean(1).astype(np.float64), 20.0)

@@ -54,8 +54,8 @@ except ImportError:  # another numpy: its public wrapper, the same values
     _correlate = np.correlate
 
 from .fitting import (
+    box_medians,
     catmull_rom,
-    channel_median,
     clamp,
     clip,
     interp,
@@ -706,14 +706,13 @@ def _build_plan(face: Face) -> CreasePlan:
     pos = (V[mesh.triangles[tri]] * bary[..., None]).sum(1)
     h, w = img.shape[:2]
     m = 0.06 * iod
-    skin = np.zeros((len(kinds), 3))
     # (each fold's samples are consecutive: every box at once)
     lo = clamp(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
                  [w - 1, h - 1]).tolist()
     hi = clamp(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
                  [w, h]).tolist()
-    for f, ((x0, y0), (x1, y1)) in enumerate(zip(lo, hi, strict=True)):
-        skin[f] = channel_median(img[y0:y1, x0:x1])
+    skin = box_medians(img, [(x0, y0, x1, y1)
+                             for (x0, y0), (x1, y1) in zip(lo, hi, strict=True)])
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),
                       np.concatenate(all_taper), fold, inv, iod, tint, skin,

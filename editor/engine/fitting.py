@@ -658,6 +658,32 @@ def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarra
     return out
 
 
+def box_medians(img: np.ndarray, boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """``channel_median(img[y0:y1, x0:x1])`` of each box ``(x0, y0, x1, y1)`` (non-empty) of
+    an (h, w, 3) uint8 image, (B, 3) float64, the same values: one histogram of every box's
+    pixels per channel (each box's values offset by 256 x its index), whose cumulative counts
+    give each box's middle rank(s) as :func:`channel_median`'s do (a fold layout's twenty
+    small boxes: one call each cost ~15 us of overheads). Other input: one call a box."""
+    parts = [img[y0:y1, x0:x1].reshape(-1, img.shape[-1]) for x0, y0, x1, y1 in boxes]
+    n = np.array([len(p) for p in parts], np.int64)
+    if img.dtype != np.uint8 or img.ndim != 3 or not len(parts) or not n.all():
+        return np.array([channel_median(img[y0:y1, x0:x1]) for x0, y0, x1, y1 in boxes]
+                        ).reshape(len(boxes), img.shape[-1])
+    B = len(parts)
+    px = np.concatenate(parts)
+    at = np.repeat(np.arange(B, dtype=np.int64) * 256, n)
+    lo_rank, hi_rank = ((n - 1) // 2)[:, None], (n // 2)[:, None]
+    out = np.empty((B, img.shape[-1]))
+    for c in range(img.shape[-1]):
+        cum = np.cumsum(np.bincount(at + px[:, c], minlength=B * 256).reshape(B, 256), 1)
+        # (the value of rank k: the first bin whose cumulative count exceeds k, i.e. the
+        # number of bins whose count is at most k, as np.searchsorted(cum, k, "right"))
+        lo = (cum <= lo_rank).sum(1)
+        hi = (cum <= hi_rank).sum(1)
+        out[:, c] = (lo.astype(np.float64) + hi.astype(np.float64)) / 2.0
+    return out
+
+
 def snap_inner_lips(V: dict[str, np.ndarray], rgb: np.ndarray, points68: np.ndarray,
                     closed_mw: float = 0.05, teeth_ratio: float = 1.25) -> None:
     """Move the inner-lip vertices (in place) onto the photo's own lip edges.

@@ -287,11 +287,13 @@ def _fold_lines(face: Face) -> list[_Line]:
     fr = face.frame
     iod = float(face.interocular)
     m = face.mesh
-    V = face.vertices.astype(np.float64)
     fixed = _line_constants()
+    # every vertex in frame coordinates over the IOD, in one product (a vertex's row is the
+    # value of the product of that vertex alone; ~70 feature points are read)
+    F = fr.to_frame(face.vertices.astype(np.float64)) / iod
 
     def q(name: str) -> np.ndarray:
-        return fr.to_frame(V[m.index(name)]) / iod
+        return F[m.index(name)]
 
     lines: list[_Line] = []
     # ---- nasolabial folds: from above the nose wing, down and out past the mouth corner

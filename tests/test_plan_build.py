@@ -267,3 +267,13 @@ def test_close_is_the_elliptic_closing(dtype):
             img = img.astype(dtype)
             ref = cv2.morphologyEx(img, cv2.MORPH_CLOSE, creases._ellipse(r))
             assert np.array_equal(creases._close(img, r), ref), (r, shape)
+
+
+def test_spread3_is_the_broadcast():
+    rng = np.random.default_rng(9)
+    for trial, h, w, mask in _random_masks(rng, 60):
+        for a in (mask.view(np.uint8), rng.random((h, w)).astype(np.float32), rng.random((h, w)),
+                  rng.random((h + 3, w + 2))[1:1 + h, 2:2 + w]):  # (the last a view)
+            got = gaze.spread3(a)
+            assert got.dtype == a.dtype, trial
+            assert np.array_equal(got, np.repeat(a[..., None], 3, axis=2)), trial

@@ -56,10 +56,12 @@ _ONES3 = (1.0, 1.0, 1.0)  # (cv2 calls below take their arguments positionally: 
 
 
 def spread3(a: np.ndarray) -> np.ndarray:
-    """``cv2.merge([a, a, a])`` of a float32 (or uint8) (h, w) array: the same values, through
-    ``cv2.cvtColor``'s grey-to-RGB copy, which costs about half a merge's call on the layers'
-    small boxes (per-pixel weights spread over 3 channels: numpy's broadcasting of an (h, w, 1)
-    array is several times slower there)."""
+    """``cv2.merge([a, a, a])`` of a float32 (or uint8, or float64) (h, w) array: the same
+    values, for a float32 or uint8 one through ``cv2.cvtColor``'s grey-to-RGB copy, which
+    costs about half a merge's call on the layers' small boxes (per-pixel weights spread over
+    3 channels: numpy's broadcasting of an (h, w, 1) array is several times slower there)."""
+    if a.dtype == np.float64:  # (cvtColor takes no float64)
+        return cv2.merge([a, a, a])
     return cv2.cvtColor(a, cv2.COLOR_GRAY2RGB)
 
 
@@ -222,10 +224,10 @@ def _white_plate(patch: np.ndarray, opening: np.ndarray, rho: np.ndarray, r_fill
         c0, c1 = max(int(xs[0]) - reach, 0), min(int(xs[-1]) + 1 + reach, pw)
         rows, wrow = _row_interp(tel[r0:r1], out[r0:r1], known[r0:r1], disc[r0:r1])
         box = (slice(r0, r1), slice(c0, c1))
-        wv = (clamp((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])[..., None]
+        wv = spread3(clamp((d_lid[box] - 0.5) / 2.0, 0.0, 1.0) * wrow[:, c0:c1])
         fill = wv * rows[:, c0:c1] + (1.0 - wv) * tel[box]
         fill = cv2.GaussianBlur(fill, (0, 0), sigma)
-        w = (clamp(r_fill - rho[box], 0.0, 1.0) * opening[box])[..., None].astype(np.float32)
+        w = spread3((clamp(r_fill - rho[box], 0.0, 1.0) * opening[box]).astype(np.float32))
         out[box] = w * fill + (1.0 - w) * out[box]
     # the lid margin (the opening's outer pixel and a half) is lid, lashes and their shadow:
     # it stays with the lid, so the eyeball's white there continues the nearest white inside
@@ -381,7 +383,7 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     cnt = sel.sum(0)
     ok = cnt > 0
     ref = np.zeros((pw, 3), np.float32)
-    ref[ok] = (plate * sel[..., None]).sum(0)[ok] / cnt[ok, None]
+    ref[ok] = (plate * spread3(sel.view(np.uint8))).sum(0)[ok] / cnt[ok, None]
     for ch in range(3):
         ref[:, ch] = interp(jj, jj[ok], ref[ok, ch])
     ref = cv2.GaussianBlur(ref[None], (0, 0), max(0.8, 0.3 * r))[0]
@@ -395,9 +397,10 @@ def _ball_white(plate: np.ndarray, opening: np.ndarray, r: float, band_up: float
     shade = 1.0 - BALL_SHADE * (1.0 - np.exp(-d / max(r, 1.0)))
     side = (yy < ref_t[None, :]) | (yy > ref_b[None, :])
     # (the float64 products rounded into ``out`` where ``side`` only, as a copy of the whole
-    # product there would: no (h, w, 3) float64 temporary)
-    np.multiply(c_t[None, :, :], shade[..., None], out=out, where=side[..., None],
-                casting="same_kind")
+    # product there would; the shade and the mask spread over the channels first: numpy's
+    # broadcasting of (h, w, 1) arrays costs several times more)
+    np.multiply(c_t[None, :, :], spread3(shade), out=out,
+                where=spread3(side.view(np.uint8)) > 0, casting="same_kind")
     return out
 
 
@@ -466,7 +469,7 @@ def _complete_iris(src: np.ndarray, keep: np.ndarray, vis: np.ndarray, rho: np.n
         rows, cols = np.flatnonzero(near.any(1)), np.flatnonzero(near.any(0))
         b = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
         dist = cv2.distanceTransform(keep.astype(np.uint8), cv2.DIST_L2, 3)[b]
-        w = np.minimum(dist / soft, 1.0).astype(np.float32)[..., None]
+        w = spread3(np.minimum(dist / soft, 1.0).astype(np.float32))
         o, s = out[b], src[b]
         out[b] = np.where(near[b][..., None], o + w * (s - o), s)
     return out
@@ -498,7 +501,7 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     ph, pw = rho.shape
     cover = clamp((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
         clamp(r + 1.0 - rho, 0.0, 1.0)
-    a = cover.astype(np.float32)[..., None]
+    a = spread3(cover.astype(np.float32))
     bare = plate + a * (iris - plate)
     # both smoothed (a shading field; the completed iris's edge is not exactly the photo's:
     # unsmoothed, the ratio along it carried black specks up over the white)
@@ -509,7 +512,7 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     # of the luminance ratio (where the completed iris and the photo's differ in hue, free
     # channel ratios tinted the iris yellow)
     lum = np.array([0.299, 0.587, 0.114], np.float32)
-    rl = clamp((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0)[..., None]
+    rl = spread3(clamp((src @ lum) / np.maximum(bare @ lum, 1.0), 0.0, 1.0))
     ratio = clamp(src / np.maximum(bare, 1.0), 0.75 * rl, np.minimum(1.25 * rl, 1.0))
     ex, ey = axes
     xs = np.arange(pw, dtype=np.float64) + org[0]
@@ -538,7 +541,7 @@ def _band_map(wt: np.ndarray, dark: np.ndarray) -> np.ndarray:
     if len(rows):
         cols = np.flatnonzero(wt.any(0))
         b = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
-        out[b] = 1.0 - wt[b][..., None] * dark[b]
+        out[b] = 1.0 - spread3(wt[b]) * dark[b]
     return out
 
 
@@ -634,7 +637,7 @@ class EyePlan:
             # the photo's white hands over to the ball over the lid margin's blur (a hard
             # switch at the photo's opening shows as a line where the lid was)
             m = np.minimum(d_lid / soft, 1.0)
-            plate = ball + m[..., None].astype(np.float32) * (plate - ball)
+            plate = ball + spread3(m.astype(np.float32)) * (plate - ball)
         else:
             plate = np.where(inside[..., None], plate, ball)
         # corner / 1/5 points in frame coordinates centred on the iris

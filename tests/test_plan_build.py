@@ -277,3 +277,14 @@ def test_spread3_is_the_broadcast():
             got = gaze.spread3(a)
             assert got.dtype == a.dtype, trial
             assert np.array_equal(got, np.repeat(a[..., None], 3, axis=2)), trial
+
+
+def test_zero_alpha_is_the_channels_written_into_zeros():
+    rng = np.random.default_rng(11)
+    for h, w in ((1, 1), (7, 3), (65, 120)):
+        rgb = (rng.random((h, w, 3)) * 510 - 255).astype(np.float32)
+        ref = np.zeros((h, w, 4), np.float32)
+        ref[..., :3] = rgb
+        got = gaze.zero_alpha(rgb)
+        assert got.dtype == np.float32 and np.array_equal(got, ref)
+        assert not np.signbit(got[..., 3]).any()

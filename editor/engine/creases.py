@@ -66,7 +66,7 @@ from .fitting import (
     pad_edge,
     smooth01,
 )
-from .gaze import spread3
+from .gaze import spread3, zero_alpha
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -2054,9 +2054,7 @@ def _photo_gain(face: Face, g: int
             cache[g] = None
         else:
             (S, c4), org = got
-            S4 = np.zeros(S.shape[:2] + (4,), np.float32)
-            S4[..., :3] = S
-            cache[g] = ((S4, np.ascontiguousarray(c4, np.float32)), org)
+            cache[g] = ((zero_alpha(S), np.ascontiguousarray(c4, np.float32)), org)
     return cache[g]
 
 
@@ -2115,9 +2113,7 @@ def _photo_gain_q(face: Face, g: int
         cache[g] = None
         if _photo_lift(face, g) is not None and g in _LIFT_Q.get(face, {}):
             S, c4, at = _LIFT_Q[face][g]
-            S4 = np.zeros(S.shape[:2] + (4,), np.float32)
-            S4[..., :3] = S
-            cache[g] = ((S4, np.ascontiguousarray(c4, np.float32)), at)
+            cache[g] = ((zero_alpha(S), np.ascontiguousarray(c4, np.float32)), at)
     return cache[g]
 
 

@@ -2269,8 +2269,10 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     # level the gain divides by is at most the lightly smoothed photo plus the skin's grain
     # (the grain in proportion to the light: GRAIN levels at the skin's level C, fewer in a
     # dark core, where 6 levels stayed a thin dark line after the gain ~C / S)
-    np.minimum(Si, big[iy, ix] * (1.0 + np.float32(_GRAIN) / np.maximum(C4[..., :3], 1.0)),
-               out=Si)
+    # (C's colour as a contiguous copy: numpy's arithmetic on the strided channel view of
+    # C4 costs several times more)
+    C = cv2.cvtColor(C4, cv2.COLOR_RGBA2RGB)
+    np.minimum(Si, big[iy, ix] * (1.0 + np.float32(_GRAIN) / np.maximum(C, 1.0)), out=Si)
     return Si, C4
 
 
@@ -2323,7 +2325,9 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
     for i, wt in enumerate(wts.tolist()):  # (accumulated in the taps' order, as before)
         cv2.scaleAdd(got[i * hb:(i + 1) * hb], wt, acc, dst=acc)
-    return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
+    # (back to 3 channels by OpenCV's RGBA-to-RGB copy: numpy's copy of the strided channel
+    # view costs ten times more)
+    return cv2.cvtColor(acc, cv2.COLOR_RGBA2RGB) if nc == 3 else acc
 
 
 def _along_filters(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.ndarray,
@@ -2368,9 +2372,11 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
     ref = fa.skin[g]
     # (_skin_weight of min(C, ref + 0.3 (C - ref)), tolerance 0.6, in float32 and OpenCV's
     # per-pixel channel arithmetic: numpy's on channel views costs several times more)
-    ref32 = np.asarray(ref, np.float32)
-    d: np.ndarray = np.asarray(cv2.subtract(
-        C, cv2.merge([np.full(C.shape[:2], v, np.float32) for v in ref32])), np.float32)
+    # (the reference as OpenCV's per-channel scalar, (4,) float64 holding float32 values:
+    # subtracted in float32)
+    sc = np.zeros(4)
+    sc[:3] = np.asarray(ref, np.float32)
+    d: np.ndarray = np.asarray(cv2.subtract(C, sc), np.float32)
     np.minimum(d, np.float32(0.3) * d, out=d)  # the level minus ref
     np.multiply(d, d, out=d)
     dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))

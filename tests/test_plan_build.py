@@ -288,3 +288,11 @@ def test_zero_alpha_is_the_channels_written_into_zeros():
         got = gaze.zero_alpha(rgb)
         assert got.dtype == np.float32 and np.array_equal(got, ref)
         assert not np.signbit(got[..., 3]).any()
+
+
+def test_neutral_vertices_are_the_zero_deformation(sample_face):
+    # (creases._fast reads the neutral mesh as face.neutral_vertices)
+    assert sample_face.has_expression
+    got = sample_face.deform(None)
+    assert got.dtype == sample_face.neutral_vertices.dtype
+    assert np.array_equal(got, sample_face.neutral_vertices)

@@ -296,3 +296,14 @@ def test_neutral_vertices_are_the_zero_deformation(sample_face):
     got = sample_face.deform(None)
     assert got.dtype == sample_face.neutral_vertices.dtype
     assert np.array_equal(got, sample_face.neutral_vertices)
+
+
+def test_running_sum_of_planes_is_the_first_axis_mean():
+    # (MouthPlan.build's gum colour: the mean of (n, 3) pixels over the first axis, from
+    # (3, n) planes as a running sum)
+    rng = np.random.default_rng(13)
+    for _ in range(200):
+        n = int(rng.integers(1, 9000))
+        x = rng.normal(size=(n, 3)) * rng.choice([1.0, 1e3, 1e8]) + rng.normal(size=3) * 1e4
+        planes = np.ascontiguousarray(x.T)
+        assert np.array_equal(np.cumsum(planes, axis=1)[:, -1] / n, x.mean(0))

@@ -705,7 +705,8 @@ def _build_plan(face: Face) -> CreasePlan:
     bary = np.concatenate(all_bary)
     # skin colour around each fold in the photo: the median of a box around the line (the
     # majority of it is skin unless hair covers the place)
-    pos = (V[mesh.triangles[tri]] * bary[..., None]).sum(1)
+    t = mesh.triangles[tri]  # (the samples on the mesh: _on_mesh's sum, the same values)
+    pos = _on_mesh(V, (t[:, 0], t[:, 1], t[:, 2]), (bary[:, 0:1], bary[:, 1:2], bary[:, 2:3]))
     h, w = img.shape[:2]
     m = 0.06 * iod
     # (each fold's samples are consecutive: every box at once)
@@ -1594,7 +1595,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     p = crease_plan(face)
     fa = _fast(face)
     V = face.vertices.astype(np.float64)
-    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    pos = _on_mesh(V, fa.sample_tri, fa.bary)  # (the fold samples on the photo's mesh)
     tri, bary = p.tri.copy(), p.bary.copy()
     H, W = face.image.shape[:2]  # (the valleys are looked for on the sealed photo: the
     # mouth's dark corners are no valley; each fold's box only)
@@ -2070,9 +2071,8 @@ def _photo_lift(face: Face, g: int
         return cache[g]
     p = crease_plan(face)
     fa = _fast(face)
-    tri, bary = _own_valleys(face)
     V = face.vertices.astype(np.float64)
-    pos = (V[face.mesh.triangles[tri]] * bary[..., None]).sum(1)
+    pos = _on_mesh(V, *_valley_samples(face))  # (the own valleys on the photo's mesh)
     ia = fa.seg_a[slice(*fa.seg_rng[g])]
     un = p.utaper.astype(np.float64)  # the strength's shape along the line (its scale cancels)
     got = None

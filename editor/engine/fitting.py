@@ -649,7 +649,9 @@ def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarra
     n = img.shape[0] * img.shape[1] if m is None else int(cv2.countNonZero(m))
     # (a partition is quicker below ~4000 pixels; the counts are float32: exact below 2^24)
     if img.dtype != np.uint8 or img.ndim != 3 or n < 4096 or n >= 1 << 24:
-        return median(img.reshape(-1, img.shape[-1]) if m is None else img[m > 0], axis=0)
+        # (img[m > 0]'s pixels in order by take, ~2x faster than the boolean mask's gather)
+        px = np.ascontiguousarray(img).reshape(-1, img.shape[-1])
+        return median(px if m is None else px.take(np.flatnonzero(m), 0), axis=0)
     out = np.empty(img.shape[2])
     for c in range(img.shape[2]):
         cum = np.cumsum(cv2.calcHist([img], [c], m, [256], [0, 256]).ravel().astype(np.int64))

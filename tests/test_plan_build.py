@@ -307,3 +307,12 @@ def test_running_sum_of_planes_is_the_first_axis_mean():
         x = rng.normal(size=(n, 3)) * rng.choice([1.0, 1e3, 1e8]) + rng.normal(size=3) * 1e4
         planes = np.ascontiguousarray(x.T)
         assert np.array_equal(np.cumsum(planes, axis=1)[:, -1] / n, x.mean(0))
+
+
+def test_masked_rows_is_the_boolean_gather():
+    rng = np.random.default_rng(17)
+    for trial, h, w, mask in _random_masks(rng, 100):
+        big = (rng.random((h + 2, w + 3, 3)) * 255).astype((np.float32, np.uint8)[trial % 2])
+        for img in (big[:h, :w], np.ascontiguousarray(big[1:1 + h, 2:2 + w])):
+            got = fitting.masked_rows(img, mask)
+            assert got.dtype == img.dtype and np.array_equal(got, img[mask]), trial

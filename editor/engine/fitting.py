@@ -638,6 +638,14 @@ def gather_px(img: np.ndarray, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
     return img.reshape((h * w,) + img.shape[2:]).take(flat, axis=0)
 
 
+def masked_rows(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``img[mask]`` of an (h, w, c) array and an (h, w) bool mask: the same pixels in the
+    same (row-major) order, gathered by ``take`` on their flat indices (numpy's boolean
+    gather of (h, w, c) rows costs 2-3x more on the plans' boxes)."""
+    h, w = mask.shape
+    return np.ascontiguousarray(img).reshape(h * w, -1).take(np.flatnonzero(mask), 0)
+
+
 def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """``np.median(img[mask > 0], axis=0)`` (every pixel without ``mask``) of an (h, w, 3)
     uint8 image, float64 (3,), the same values from each channel's histogram: the middle rank's
@@ -649,9 +657,8 @@ def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarra
     n = img.shape[0] * img.shape[1] if m is None else int(cv2.countNonZero(m))
     # (a partition is quicker below ~4000 pixels; the counts are float32: exact below 2^24)
     if img.dtype != np.uint8 or img.ndim != 3 or n < 4096 or n >= 1 << 24:
-        # (img[m > 0]'s pixels in order by take, ~2x faster than the boolean mask's gather)
-        px = np.ascontiguousarray(img).reshape(-1, img.shape[-1])
-        return median(px if m is None else px.take(np.flatnonzero(m), 0), axis=0)
+        return median(img.reshape(-1, img.shape[-1]) if m is None else masked_rows(img, m > 0),
+                      axis=0)
     out = np.empty(img.shape[2])
     for c in range(img.shape[2]):
         cum = np.cumsum(cv2.calcHist([img], [c], m, [256], [0, 256]).ravel().astype(np.int64))

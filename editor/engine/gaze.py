@@ -42,6 +42,7 @@ from .fitting import (
     gather_px,
     interp,
     linspace,
+    masked_rows,
     median,
     pad_edge,
     percentile,
@@ -676,7 +677,7 @@ class EyePlan:
         ring = vis & (rho <= r)
         if core.sum() >= 3 and ring.sum() >= 3:
             k = core & (lum <= percentile(lum[core], 25))
-            pupil = src[k].mean(0)
+            pupil = masked_rows(src, k).mean(0)
             iris_l = float(median(lum[ring]))
         else:
             pupil, iris_l = np.full(3, 20.0, np.float32), 60.0
@@ -687,7 +688,7 @@ class EyePlan:
         band = (up_mask > 0) & (opening == 0)
         if band.sum() >= 5:
             lb = lum[band]
-            lash = src[band][lb <= percentile(lb, 20)].mean(0)
+            lash = masked_rows(src, band)[lb <= percentile(lb, 20)].mean(0)
         else:
             lash = np.full(3, 30.0, np.float32)
         x, y = poly[:, 0], poly[:, 1]

@@ -38,7 +38,16 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, clamp, clip, gather_px, median, pad_edge, smooth01
+from .fitting import (
+    channel_median,
+    clamp,
+    clip,
+    gather_px,
+    masked_rows,
+    median,
+    pad_edge,
+    smooth01,
+)
 from .gaze import (
     EXTRA_INDEX,
     EYE_FAPS,
@@ -645,7 +654,7 @@ def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray
     if patch.size == 0:
         return None
     sel = (_poly_mask(patch.shape[:2], poly, np.array([x0, y0])) > 0) & _bright(patch, skin_l)
-    return median(patch[sel], axis=0) if sel.sum() >= 12 else None
+    return median(masked_rows(patch, sel), axis=0) if sel.sum() >= 12 else None
 
 
 def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: float,

@@ -741,7 +741,7 @@ def test_splat_of_many_canvases_equals_one_canvas_at_a_time():
     assert np.array_equal(got[1], alone(*cans[1][:3]))
 
 
-def test_per_face_constants_are_published_only_when_complete():
+def test_per_face_constants_are_published_only_when_complete(monkeypatch):
     """The editor's GUI and render threads may ask for a face's crease constants at once: the
     cached entry appears only after the photo's own folds' fields are set (published before,
     the other thread could render without the unfold: a rare preview differing from a
@@ -751,13 +751,14 @@ def test_per_face_constants_are_published_only_when_complete():
     f = Face.from_image(SAMPLE)
     assert f.has_expression
     seen = []
-    deform = f.deform
+    spacing = creases._spacing
 
-    def watching(vec):
+    def watching(face, vertices, fa=None):
         seen.append(f in creases._FAST)
-        return deform(vec)
+        return spacing(face, vertices, fa)
 
-    f.deform = watching  # the own folds' fields are computed from the neutral mesh
+    # (the own folds' fields are computed from the neutral mesh's spacing)
+    monkeypatch.setattr(creases, "_spacing", watching)
     fa = creases._fast(f)
     assert seen and not any(seen)
     assert fa.own_gap is not None and creases._FAST[f] is fa

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from editor.engine import influence
-from editor.engine.fitting import channel_median
+from editor.engine.fitting import box_medians, channel_median
 from editor.engine.influence import Rect
 
 
@@ -164,6 +164,22 @@ def test_channel_median_is_np_median():
         hist_path += n >= 1024
     assert hist_path > 50
 
+
+def test_box_medians_are_np_medians():
+    rng = np.random.default_rng(23)
+    for trial in range(200):
+        h, w = (int(x) for x in rng.integers(1, 120, 2))
+        hi = int(rng.choice([2, 5, 256]))  # few levels: many ties
+        img = rng.integers(0, hi, (h, w, 3), dtype=np.uint8)
+        boxes = []
+        for _ in range(int(rng.integers(1, 25))):
+            x0, y0 = int(rng.integers(0, w)), int(rng.integers(0, h))
+            boxes.append((x0, y0, int(rng.integers(x0 + 1, w + 1)),
+                          int(rng.integers(y0 + 1, h + 1))))
+        ref = np.array([np.median(img[y0:y1, x0:x1].reshape(-1, 3), axis=0)
+                        for x0, y0, x1, y1 in boxes])
+        got = box_medians(img, boxes)
+        assert got.dtype == ref.dtype and np.array_equal(got, ref), trial
 
 def test_landmark_jacobian_is_one_product_per_fap(sample_face):
     from editor.engine.deform import LIP_PAIRS

@@ -233,3 +233,86 @@ def test_unmasked_median_abs_is_the_median_of_the_unmasked():
             continue
         ref = float(np.median(np.abs(hp[free])))
         assert lipseal._unmasked_median_abs(hp, mask) == ref, trial
+
+
+def test_median_binned_is_numpys():
+    """fitting.median_binned: np.median's value (a zero's sign aside) on float arrays large
+    enough for its histogram (ties, skewed values, constant arrays, odd and even counts), and
+    np.median's itself below that size."""
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        n = int(rng.integers(1, 60_000))
+        dt = (np.float32, np.float64)[trial % 2]
+        a = rng.standard_normal(n) * rng.choice([1e-3, 1.0, 300.0])
+        if trial % 3 == 0:
+            a = np.round(a)  # ties
+        if trial % 4 == 0:
+            a = np.exp(np.clip(a, -50, 50))  # skewed: most values in a few bins
+        if trial % 25 == 0:
+            a[:] = a[0]  # constant
+        a = a.astype(dt)
+        got, ref = fitting.median_binned(a), float(np.median(a))
+        assert got == ref, (trial, n, got, ref)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+def test_close_is_the_elliptic_closing(dtype):
+    """creases._close: OpenCV's closing by the elliptic kernel, bit for bit, at every radius
+    (through the chain of lines from creases._CLOSE_STEPS_MIN), on boxes smaller and larger
+    than the kernel, one and three channels."""
+    rng = np.random.default_rng(3)
+    for r in range(1, 26):
+        for shape in ((3, 5), (40, 31), (90, 118, 3), (2 * r + 7, 17)):
+            img = cv2.GaussianBlur(rng.uniform(0, 255, shape).astype(np.float32), (0, 0), 1.5)
+            img = img.astype(dtype)
+            ref = cv2.morphologyEx(img, cv2.MORPH_CLOSE, creases._ellipse(r))
+            assert np.array_equal(creases._close(img, r), ref), (r, shape)
+
+
+def test_spread3_is_the_broadcast():
+    rng = np.random.default_rng(9)
+    for trial, h, w, mask in _random_masks(rng, 60):
+        for a in (mask.view(np.uint8), rng.random((h, w)).astype(np.float32), rng.random((h, w)),
+                  rng.random((h + 3, w + 2))[1:1 + h, 2:2 + w]):  # (the last a view)
+            got = gaze.spread3(a)
+            assert got.dtype == a.dtype, trial
+            assert np.array_equal(got, np.repeat(a[..., None], 3, axis=2)), trial
+
+
+def test_zero_alpha_is_the_channels_written_into_zeros():
+    rng = np.random.default_rng(11)
+    for h, w in ((1, 1), (7, 3), (65, 120)):
+        rgb = (rng.random((h, w, 3)) * 510 - 255).astype(np.float32)
+        ref = np.zeros((h, w, 4), np.float32)
+        ref[..., :3] = rgb
+        got = gaze.zero_alpha(rgb)
+        assert got.dtype == np.float32 and np.array_equal(got, ref)
+        assert not np.signbit(got[..., 3]).any()
+
+
+def test_neutral_vertices_are_the_zero_deformation(sample_face):
+    # (creases._fast reads the neutral mesh as face.neutral_vertices)
+    assert sample_face.has_expression
+    got = sample_face.deform(None)
+    assert got.dtype == sample_face.neutral_vertices.dtype
+    assert np.array_equal(got, sample_face.neutral_vertices)
+
+
+def test_running_sum_of_planes_is_the_first_axis_mean():
+    # (MouthPlan.build's gum colour: the mean of (n, 3) pixels over the first axis, from
+    # (3, n) planes as a running sum)
+    rng = np.random.default_rng(13)
+    for _ in range(200):
+        n = int(rng.integers(1, 9000))
+        x = rng.normal(size=(n, 3)) * rng.choice([1.0, 1e3, 1e8]) + rng.normal(size=3) * 1e4
+        planes = np.ascontiguousarray(x.T)
+        assert np.array_equal(np.cumsum(planes, axis=1)[:, -1] / n, x.mean(0))
+
+
+def test_masked_rows_is_the_boolean_gather():
+    rng = np.random.default_rng(17)
+    for trial, h, w, mask in _random_masks(rng, 100):
+        big = (rng.random((h + 2, w + 3, 3)) * 255).astype((np.float32, np.uint8)[trial % 2])
+        for img in (big[:h, :w], np.ascontiguousarray(big[1:1 + h, 2:2 + w])):
+            got = fitting.masked_rows(img, mask)
+            assert got.dtype == img.dtype and np.array_equal(got, img[mask]), trial

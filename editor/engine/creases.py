@@ -41,6 +41,7 @@ import itertools
 import math
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal, overload
 
@@ -53,10 +54,11 @@ except ImportError:  # another numpy: its public wrapper, the same values
     _correlate = np.correlate
 
 from .fitting import (
+    box_medians,
     catmull_rom,
-    channel_median,
     clamp,
     clip,
+    interp,
     is_grey,
     linspace,
     luminance,
@@ -64,7 +66,7 @@ from .fitting import (
     pad_edge,
     smooth01,
 )
-from .gaze import spread3
+from .gaze import spread3, zero_alpha
 from .layers import _blur, _rebox, _union, layer_plan
 from .lipseal import sealed_box
 from .warp import WarpResult, box_maps
@@ -250,18 +252,57 @@ class _Line:
     utaper: np.ndarray | None = None  # fade of the photo's own fold (default: ``taper``)
 
 
+@functools.cache
+def _line_constants() -> dict[str, list]:
+    """The parts of :func:`_fold_lines` that do not depend on the face and draw nothing at
+    random, made once per process (read-only): the nasolabial folds', the lower lids' and
+    the crow's feet's tapers, and the crow's feet's offsets from their eye corner (each
+    line's arithmetic stays in its own order: the same values; the irregular lines' random
+    draws stay in :func:`_fold_lines`)."""
+    out: dict[str, list] = {"crow": []}
+    # ---- nasolabial folds (28 samples, their upper part 16) and the lower lids' (16)
+    t = linspace(0.0, 1.0, 28)
+    tu = linspace(0.0, 1.0, int(0.6 * 28))
+    t_l = linspace(0.0, 1.0, 16)
+    out["nasolabial"] = [_fade(t, 0.2, 0.45), _fade(t, 0.2, 0.25), _fade(tu, 0.3, 0.5),
+                         np.zeros(len(tu))]
+    out["lower_lid"] = [_fade(t_l, 0.3, 0.3), np.zeros(len(t_l))]
+    # ---- crow's feet: per side and line, the points' offsets ``rr d`` and ``bend perp``
+    crow_fade = _fade(linspace(0, 1, 10), 0.35, 0.6)
+    for sg in (-1.0, 1.0):
+        for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
+            a = np.deg2rad(ang)
+            d = np.array([sg * np.cos(a), np.sin(a)])
+            rr = linspace(r0, r1, 10)
+            bend = 0.015 * np.sin(np.pi * (rr - r0) / (r1 - r0))  # slightly curved
+            perp = np.array([-d[1], d[0]])
+            probes = np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
+                               (sg * 0.18, 0.2)])
+            out["crow"].append((rr[:, None] * d, bend[:, None] * perp, probes, crow_fade))
+    for v in out.values():  # (shared by every face's lines: read-only)
+        for a in v:
+            for x in (a if isinstance(a, tuple) else (a,)):
+                if isinstance(x, np.ndarray):
+                    x.setflags(write=False)
+    return out
+
+
 def _fold_lines(face: Face) -> list[_Line]:
     """Every fold of the face (x towards the subject's left, y down)."""
     fr = face.frame
     iod = float(face.interocular)
     m = face.mesh
-    V = face.vertices.astype(np.float64)
+    fixed = _line_constants()
+    # every vertex in frame coordinates over the IOD, in one product (a vertex's row is the
+    # value of the product of that vertex alone; ~70 feature points are read)
+    F = fr.to_frame(face.vertices.astype(np.float64)) / iod
 
     def q(name: str) -> np.ndarray:
-        return fr.to_frame(V[m.index(name)]) / iod
+        return F[m.index(name)]
 
     lines: list[_Line] = []
     # ---- nasolabial folds: from above the nose wing, down and out past the mouth corner
+    nl_taper, nl_utaper, up_taper, up_utaper = fixed["nasolabial"]
     for s, sg in (("r", -1.0), ("l", 1.0)):
         ala = q(f"ala_{s}")
         corner = q(f"lipo_c{0 if s == 'r' else 1}")
@@ -272,14 +313,12 @@ def _fold_lines(face: Face) -> list[_Line]:
         bow = np.array([-d[1], d[0]]) * (0.12 * sg)  # slightly convex towards the cheek
         ctrl = np.array([top, 0.5 * (top + mid) - bow, mid, bot])  # mirror images
         pts = catmull_rom(ctrl, 28)
-        t = linspace(0.0, 1.0, len(pts))
         # a smiling photo's own fold reaches from the nose wing down past the corner
-        lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, _fade(t, 0.2, 0.45),
-                           (sg, -0.5), utaper=_fade(t, 0.2, 0.25)))
+        lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, nl_taper, (sg, -0.5),
+                           utaper=nl_utaper))
         # its upper part, driven by the skin between the nose wing and the upper lip's
         # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
         up = pts[: int(0.6 * len(pts))]
-        tu = linspace(0.0, 1.0, len(up))
         lip = q(f"lipo_u{2 if s == 'r' else 6}")
         # (probes 0.55 and 0.8 of the way to the lip: they straddle the philtrum row, where
         # the lip's lift compresses the skin; at 0.4 / 0.65 they sat above it on some fits, so
@@ -287,23 +326,17 @@ def _fold_lines(face: Face) -> list[_Line]:
         probes = np.array([0.45 * ala + 0.55 * lip, 0.2 * ala + 0.8 * lip,
                            0.45 * (ala + (sg * 0.06, 0.0)) + 0.55 * lip,
                            0.2 * (ala + (sg * 0.06, 0.0)) + 0.8 * lip])
-        lines.append(_Line("upper_lip", f"nasolabial_{s}", up, _fade(tu, 0.3, 0.5),
-                           (sg, -0.5), probes, (0.0, 1.0), utaper=np.zeros(len(up))))
+        lines.append(_Line("upper_lip", f"nasolabial_{s}", up, up_taper, (sg, -0.5), probes,
+                           (0.0, 1.0), utaper=up_utaper))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
     # skin below them (the cheek raiser pushes it up; a lowered brow does not count)
-    crow_fade = _fade(linspace(0, 1, 10), 0.35, 0.6)  # (the same for every crow's foot)
-    for s, sg in (("r", -1.0), ("l", 1.0)):
+    crows = iter(fixed["crow"])
+    for s in ("r", "l"):
         oc = q(f"eye_{s}_c{0 if s == 'r' else 1}")
-        for ang, r0, r1 in ((-24.0, 0.14, 0.27), (-2.0, 0.12, 0.29), (22.0, 0.12, 0.26)):
-            a = np.deg2rad(ang)
-            d = np.array([sg * np.cos(a), np.sin(a)])
-            rr = linspace(r0, r1, 10)
-            bend = 0.015 * np.sin(np.pi * (rr - r0) / (r1 - r0))  # slightly curved
-            perp = np.array([-d[1], d[0]])
-            pts = oc + rr[:, None] * d + bend[:, None] * perp
-            probes = oc + np.array([(sg * 0.12, 0.12), (sg * 0.22, 0.1), (sg * 0.05, 0.2),
-                                    (sg * 0.18, 0.2)])
-            lines.append(_Line("crow", f"crow_{s}", pts, crow_fade, (0.0, -1.0), probes))
+        for _ in range(3):
+            along, bend, probes, crow_fade = next(crows)
+            lines.append(_Line("crow", f"crow_{s}", oc + along + bend, crow_fade, (0.0, -1.0),
+                               oc + probes))
     # ---- forehead: three horizontal lines between the brows and the hairline
     brow = np.array([q(f"brow_r_u{k}") for k in range(1, 6)] + [q(f"brow_l_u{k}")
                                                               for k in range(1, 6)])
@@ -311,10 +344,10 @@ def _fold_lines(face: Face) -> list[_Line]:
     top = np.array([q(f"forehead_2_{k}") for k in range(1, 8)])
     top = top[np.argsort(top[:, 0])]
     xs = linspace(brow[1, 0], brow[-2, 0], 40)
-    yb = np.interp(xs, brow[:, 0], brow[:, 1])
+    yb = interp(xs, brow[:, 0], brow[:, 1])
     # the lines curve gently like the brows (half as much), not with the brows' gap
     yb_s = 0.5 * yb + 0.5 * float(median(yb))
-    yh = np.interp(xs, top[:, 0], top[:, 1])
+    yh = interp(xs, top[:, 0], top[:, 1])
     h = (yb_s - yh) / 0.7  # brow -> hairline
     t = linspace(0.0, 1.0, len(xs))
     # real lines are irregular: uneven waviness, breaks, lengths and strength along the line
@@ -398,19 +431,18 @@ def _fold_lines(face: Face) -> list[_Line]:
     # its curve, driven by how far the skin under the eye is pushed up (the cheek raiser
     # AU6, and the lid tightener AU7; FoldStyle.lift) (added after the others: their random
     # draws stay the same)
+    lid_taper, lid_utaper = fixed["lower_lid"]
     for s in ("r", "l"):
         lid = np.array([q(f"eye_{s}_c0")] + [q(f"eye_{s}_d{k}") for k in range(1, 6)]
                        + [q(f"eye_{s}_c1")])
         lid = lid[np.argsort(lid[:, 0])]
         xs_l = linspace(lid[0, 0] + 0.1 * (lid[-1, 0] - lid[0, 0]),
                         lid[-1, 0] + 0.05 * (lid[-1, 0] - lid[0, 0]), 16)
-        y_l = np.interp(xs_l, lid[:, 0], lid[:, 1]) + LID_FURROW
-        t_l = linspace(0.0, 1.0, len(xs_l))
+        y_l = interp(xs_l, lid[:, 0], lid[:, 1]) + LID_FURROW
         mid = lid[1:-1].mean(0)
         probes = mid + np.array([(-0.06, 0.05), (0.06, 0.05), (-0.06, 0.18), (0.06, 0.18)])
-        lines.append(_Line("lower_lid", f"lower_lid_{s}", np.stack([xs_l, y_l], 1),
-                           _fade(t_l, 0.3, 0.3), (0.0, -1.0), probes, (0.0, 1.0),
-                           utaper=np.zeros(len(t_l))))
+        lines.append(_Line("lower_lid", f"lower_lid_{s}", np.stack([xs_l, y_l], 1), lid_taper,
+                           (0.0, -1.0), probes, (0.0, 1.0), utaper=lid_utaper))
     return lines
 
 
@@ -434,15 +466,24 @@ def _segments(pos: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray
 
 def _normals(pts: np.ndarray) -> np.ndarray:
     """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
+    return _lines_normals([pts])[0]
+
+
+def _lines_normals(lines: list[np.ndarray]) -> list[np.ndarray]:
+    """:func:`_normals` of each polyline (n >= 2), all in one pass over their concatenated
+    points (the same values line by line: a point's central difference reads its two
+    neighbours; each line's ends are its own one-sided differences, written after)."""
     # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
     # central differences inside, one-sided at the ends)
     # (in place into preallocated arrays, no np.stack: -(ty / n) is -ty / n bit for bit)
-    p = np.asarray(pts, np.float64)
+    p = np.concatenate(lines).astype(np.float64, copy=False)
+    ends = np.cumsum([len(x) for x in lines])
+    first, last = np.concatenate(([0], ends[:-1])), ends - 1
     tang = np.empty_like(p)
     np.subtract(p[2:], p[:-2], out=tang[1:-1])
     tang[1:-1] /= 2.0
-    tang[0] = p[1] - p[0]
-    tang[-1] = p[-1] - p[-2]
+    tang[first] = p[first + 1] - p[first]
+    tang[last] = p[last] - p[last - 1]
     tx, ty = tang[:, 0], tang[:, 1]
     n = np.sqrt(tx * tx + ty * ty)
     np.maximum(n, 1e-9, out=n)
@@ -450,7 +491,7 @@ def _normals(pts: np.ndarray) -> np.ndarray:
     np.divide(ty, n, out=out[:, 0])
     np.negative(out[:, 0], out=out[:, 0])
     np.divide(tx, n, out=out[:, 1])
-    return out
+    return np.split(out, ends[:-1])
 
 
 def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
@@ -612,12 +653,12 @@ def _build_plan(face: Face) -> CreasePlan:
     # every point that is located on the mesh (the lines, their probes), in one batch
     queries: list[np.ndarray] = []
     lines = []
-    for ln in _fold_lines(face):
+    layout = _fold_lines(face)
+    on_image = [fr.to_image(ln.pts * iod) for ln in layout]
+    for ln, pts, nrm in zip(layout, on_image, _lines_normals(on_image), strict=True):
         kind, group, taper = ln.kind, ln.group, ln.taper
         utaper = taper if ln.utaper is None else ln.utaper
         st = STYLES[kind]
-        pts = fr.to_image(ln.pts * iod)
-        nrm = _normals(pts)
         if float((nrm @ (fr.rot @ np.asarray(ln.side))).mean()) < 0:
             # orient the line so that its normal points to the ridge side (the reversed
             # line's normals are these, reversed and negated: its central differences are
@@ -669,17 +710,17 @@ def _build_plan(face: Face) -> CreasePlan:
     bary = np.concatenate(all_bary)
     # skin colour around each fold in the photo: the median of a box around the line (the
     # majority of it is skin unless hair covers the place)
-    pos = (V[mesh.triangles[tri]] * bary[..., None]).sum(1)
+    t = mesh.triangles[tri]  # (the samples on the mesh: _on_mesh's sum, the same values)
+    pos = _on_mesh(V, (t[:, 0], t[:, 1], t[:, 2]), (bary[:, 0:1], bary[:, 1:2], bary[:, 2:3]))
     h, w = img.shape[:2]
     m = 0.06 * iod
-    skin = np.zeros((len(kinds), 3))
     # (each fold's samples are consecutive: every box at once)
     lo = clamp(np.floor(np.minimum.reduceat(pos, starts[:-1]) - m).astype(int), 0,
                  [w - 1, h - 1]).tolist()
     hi = clamp(np.ceil(np.maximum.reduceat(pos, starts[:-1]) + m).astype(int) + 1, 1,
                  [w, h]).tolist()
-    for f, ((x0, y0), (x1, y1)) in enumerate(zip(lo, hi, strict=True)):
-        skin[f] = channel_median(img[y0:y1, x0:x1])
+    skin = box_medians(img, [(x0, y0, x1, y1)
+                             for (x0, y0), (x1, y1) in zip(lo, hi, strict=True)])
     return CreasePlan(kinds, np.array(groups), gnames, np.array(starts), tri, bary,
                       np.concatenate(all_probe), np.concatenate(all_n),
                       np.concatenate(all_taper), fold, inv, iod, tint, skin,
@@ -766,6 +807,68 @@ class _Fast:
     gain_mat: list[np.ndarray] = field(init=False)
 
 
+@dataclass(frozen=True, eq=False)
+class _LayoutStructure:
+    """What :func:`_fast` takes from the fold layout alone (the folds' kinds, groups and
+    sample counts: the same for every face, :func:`_fold_lines`); read-only arrays."""
+
+    depth: np.ndarray  # (N,) per sample, its fold style's
+    c0: np.ndarray
+    spread: np.ndarray
+    dead: np.ndarray
+    neg: np.ndarray  # the samples of folds with FoldStyle.sign < 0
+    edge: np.ndarray  # (N,) bool: first/last two samples of a fold
+    seg_a: np.ndarray  # (M,) first sample of each segment inside a fold (grouped)
+    seg_rng: list[tuple[int, int]]  # per group: its slice of the segments
+    first: list[FoldStyle]  # per group: the style of its first fold
+    count: np.ndarray  # (G,) folds per group
+    lift: np.ndarray  # the samples of folds with FoldStyle.lift
+    keep: np.ndarray  # (N,) 1 - spread
+    seg_b: np.ndarray  # (M,) seg_a + 1
+    twin_a: np.ndarray  # :func:`_twin_samples`
+    twin_b: np.ndarray
+
+
+#: the layouts' structures (one per distinct layout: in practice one per process)
+_STRUCTURES: dict[tuple, _LayoutStructure] = {}
+
+
+def _layout_structure(p: CreasePlan) -> _LayoutStructure:
+    """:class:`_LayoutStructure` of ``p``'s layout (made once per layout: ~0.1 ms of small
+    arrays per face before)."""
+    key = (tuple(p.kinds), tuple(p.group_names), p.group.tobytes(), p.start.tobytes())
+    got = _STRUCTURES.get(key)
+    if got is not None:
+        return got
+    st = [STYLES[k] for k in p.kinds]
+    spread = np.array([x.spread for x in st])[p.fold]
+    n = len(p.fold)
+    edge = np.zeros(n, bool)
+    for off in (0, 1):
+        edge[clamp(p.start[:-1] + off, 0, n - 1)] = True
+        edge[clamp(p.start[1:] - 1 - off, 0, n - 1)] = True
+    seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
+    seg_g = p.group[p.fold[seg_a]]
+    order = np.argsort(seg_g, kind="stable")
+    seg_a, seg_g = seg_a[order], seg_g[order]
+    G = len(p.group_names)
+    got = _LayoutStructure(
+        np.array([x.depth for x in st])[p.fold], np.array([x.c0 for x in st])[p.fold], spread,
+        np.array([x.dead for x in st])[p.fold],
+        np.flatnonzero(np.array([x.sign for x in st])[p.fold] < 0), edge, seg_a,
+        [(int(np.searchsorted(seg_g, g)), int(np.searchsorted(seg_g, g, "right")))
+         for g in range(G)],
+        [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)],
+        np.bincount(p.group, minlength=G),
+        np.flatnonzero(np.array([x.lift for x in st], bool)[p.fold]), 1.0 - spread, seg_a + 1,
+        *_twin_samples(p))
+    for a in vars(got).values():
+        if isinstance(a, np.ndarray):
+            a.setflags(write=False)
+    _STRUCTURES[key] = got
+    return got
+
+
 _FAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -782,30 +885,14 @@ def _fast(face: Face) -> _Fast:
     slot = np.zeros(len(mark), np.intp)
     slot[used] = np.arange(len(used))
     inv = slot[flat]
-    st = [STYLES[k] for k in p.kinds]
-    depth = np.array([x.depth for x in st])[p.fold]
-    c0 = np.array([x.c0 for x in st])[p.fold]
-    spread = np.array([x.spread for x in st])[p.fold]
-    dead = np.array([x.dead for x in st])[p.fold]
-    neg = np.flatnonzero(np.array([x.sign for x in st])[p.fold] < 0)
-    n = len(p.fold)
-    edge = np.zeros(n, bool)
-    for off in (0, 1):
-        edge[clamp(p.start[:-1] + off, 0, n - 1)] = True
-        edge[clamp(p.start[1:] - 1 - off, 0, n - 1)] = True
-    seg_a = np.flatnonzero(p.fold[:-1] == p.fold[1:])
-    seg_g = p.group[p.fold[seg_a]]
-    order = np.argsort(seg_g, kind="stable")
-    seg_a, seg_g = seg_a[order], seg_g[order]
+    ls = _layout_structure(p)
+    depth, c0, spread, dead, neg, edge = ls.depth, ls.c0, ls.spread, ls.dead, ls.neg, ls.edge
+    seg_a, rng, first, cnt = ls.seg_a, ls.seg_rng, ls.first, ls.count
     G = len(p.group_names)
-    rng = [(int(np.searchsorted(seg_g, g)), int(np.searchsorted(seg_g, g, "right")))
-           for g in range(G)]
-    first = [STYLES[p.kinds[int(np.flatnonzero(p.group == g)[0])]] for g in range(G)]
     sig = np.array([max(x.sigma * p.iod, 0.6) for x in first])
     dsig = _draw_sigma(face, sig)
     # (each group's mean of its folds' skin colours, all groups at once: the colours are
     # medians of uint8 values, multiples of 0.5, whose few sums are exact in any order)
-    cnt = np.bincount(p.group, minlength=G)
     skin = np.empty((G, 3))
     for ch in range(3):
         skin[:, ch] = np.bincount(p.group, p.skin[:, ch], minlength=G)
@@ -819,8 +906,11 @@ def _fast(face: Face) -> _Fast:
     f.neg_tri = np.ascontiguousarray(np.moveaxis(ptri, -1, 0))
     tang = np.stack([-p.normal[neg, 1], p.normal[neg, 0]], 1)  # (M, 2) on the photo's mesh
     pinv = p.tri_inv[p.probe_tri[neg]]  # (M, 4, 2, 2)
-    # the neutral mesh (deformed once: it is read three times below)
-    rest = face.deform(None) if face.has_expression else face.vertices
+    # the neutral mesh: what deform(None) gives, the neutralised mesh itself (Face._neutralise
+    # leaves it with lips and lids that meet but never cross and no folded triangle, so the
+    # FAP model at f = 0 returns it as is; tests/test_plan_build.py checks it), without a
+    # deformation's ~0.2 ms
+    rest = face.neutral_vertices if face.has_expression else face.vertices
     if face.has_expression and len(neg):
         N = np.asarray(rest, np.float64)
         E = np.stack([N[ptri[..., 1]] - N[ptri[..., 0]], N[ptri[..., 2]] - N[ptri[..., 0]]],
@@ -832,7 +922,7 @@ def _fast(face: Face) -> _Fast:
     f.neg_inv = tuple(np.ascontiguousarray(pinv[..., i, j]) for i in (0, 1) for j in (0, 1))
     f.neg_t = (np.ascontiguousarray(tang[:, :1]), np.ascontiguousarray(tang[:, 1:]))
     f.neg_fade = p.taper[neg]
-    lift = np.flatnonzero(np.array([x.lift for x in st], bool)[p.fold])
+    lift = ls.lift
     f.lift = lift
     f.lift_v = face.mesh.triangles[p.probe_tri[lift]].reshape(len(lift), -1)
     ix = face.mesh.index
@@ -856,9 +946,7 @@ def _fast(face: Face) -> _Fast:
     tri = face.mesh.triangles[p.tri]
     f.sample_tri = tuple(np.ascontiguousarray(tri[:, k]) for k in range(3))
     f.bary = tuple(np.ascontiguousarray(p.bary[:, k, None]) for k in range(3))
-    f.keep = 1.0 - spread
-    f.seg_b = f.seg_a + 1
-    f.twin_a, f.twin_b = _twin_samples(p)
+    f.keep, f.seg_b, f.twin_a, f.twin_b = ls.keep, ls.seg_b, ls.twin_a, ls.twin_b
     # (per row, as ``max(float(x.mean()), 20.0)`` of each; the transforms (3, 4): identity
     # and the negated colour, views of one array)
     f.ref_l = np.maximum(skin.mean(1).astype(np.float64), 20.0)
@@ -1512,7 +1600,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     p = crease_plan(face)
     fa = _fast(face)
     V = face.vertices.astype(np.float64)
-    pos = (V[face.mesh.triangles[p.tri]] * p.bary[..., None]).sum(1)
+    pos = _on_mesh(V, fa.sample_tri, fa.bary)  # (the fold samples on the photo's mesh)
     tri, bary = p.tri.copy(), p.bary.copy()
     H, W = face.image.shape[:2]  # (the valleys are looked for on the sealed photo: the
     # mouth's dark corners are no valley; each fold's box only)
@@ -1543,8 +1631,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
                                               wq), (0, 0), 0.7 * sig / wq)
             org = (x0 + 0.5 * (wq - 1), y0 + 0.5 * (wq - 1))
             r = int(math.ceil(_VALLEY_WIDTH * sig / wq))
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        hat = cv2.morphologyEx(ls, cv2.MORPH_CLOSE, ker) - ls  # >= 0: depth below shoulders
+        hat = _close(ls, r) - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]
         xy = ((q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - org) / wq
               ).astype(np.float32)
@@ -1813,10 +1900,10 @@ def _frame_closing(view: np.ndarray, r: int) -> np.ndarray:
     (a 4K face's 105 px ellipse cost ~110 ms a fold group at full resolution)."""
     q = max(1, r // 6)
     if q == 1:
-        return cv2.morphologyEx(view, cv2.MORPH_CLOSE, _ellipse(r))
+        return _close(view, r)
     h, w = view.shape[:2]
     small = cv2.resize(view, (max(w // q, 1), max(h // q, 1)), interpolation=cv2.INTER_AREA)
-    small = cv2.morphologyEx(small, cv2.MORPH_CLOSE, _ellipse(max(r // q, 1)))
+    small = _close(small, max(r // q, 1))
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
@@ -1824,6 +1911,70 @@ def _frame_closing(view: np.ndarray, r: int) -> np.ndarray:
 def _ellipse(r: int) -> np.ndarray:
     """The elliptic structuring element of radius ``r`` (kept: a face's radii recur)."""
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+#: From this radius :func:`_close` goes through the ellipse's rectangles (below, OpenCV's
+#: elliptic kernel costs less than their calls)
+_CLOSE_STEPS_MIN = 8
+
+
+def _close(img: np.ndarray, r: int) -> np.ndarray:
+    """``cv2.morphologyEx(img, cv2.MORPH_CLOSE, _ellipse(r))``, the same values. From
+    :data:`_CLOSE_STEPS_MIN` on, as a chain of lines (:func:`_ellipse_steps`): OpenCV's cost
+    for an elliptic kernel grows with its area (each pixel reads every element), a line's
+    with its length; the maxima and minima are exact (a 21 px ellipse on a 1080p face's
+    nasolabial box: 0.42 -> 0.29 ms)."""
+    if r < _CLOSE_STEPS_MIN:
+        return cv2.morphologyEx(img, cv2.MORPH_CLOSE, _ellipse(r))
+    steps = _ellipse_steps(r)
+    return _by_steps(_by_steps(img, steps, cv2.dilate, cv2.max), steps, cv2.erode, cv2.min)
+
+
+@functools.lru_cache(maxsize=16)
+def _ellipse_steps(r: int) -> tuple[tuple[np.ndarray | None, np.ndarray | None], ...]:
+    """:func:`_ellipse` (``r``) as the union of its centred rectangles, one per half-width
+    ``w_k`` of its rows (increasing; ``h_k``, decreasing, the half-height of the rows at least
+    that wide), as steps ``(horizontal line of half-length w_k - w_{k-1}, vertical line of
+    half-length h_k - h_{k+1})`` (``h_{K+1} = 0``; None: no step): a dilation by the ellipse
+    is then ``V_K(... V_2(V_1(H_1 x) | H_2 x) ... | H_K x)`` (``|``: the maximum,
+    ``H_k x`` the dilation by the k-th horizontal line of the ones before: by ``2 w_k + 1``
+    px; each vertical step dilates what has been gathered so far by the height it loses),
+    the same as by the rectangles' union (dilations by lines add their lengths, and
+    distribute over maxima; the default border never wins)."""
+    K = _ellipse(r)
+    half = [int(np.flatnonzero(row).max()) - r if row.any() else -1 for row in K]
+    ws = sorted({x for x in half if x >= 0})
+    hs = []
+    for w in ws:
+        rows = [i for i, x in enumerate(half) if x >= w]
+        # (each row a centred run; the rows at least w wide a centred range of rows)
+        assert rows == list(range(rows[0], rows[-1] + 1)) and rows[0] == 2 * r - rows[-1]
+        hs.append(r - rows[0])
+    assert all(np.flatnonzero(K[i]).tolist() == list(range(r - x, r + x + 1))
+               for i, x in enumerate(half) if x >= 0)
+    steps = []
+    for k, (w, h) in enumerate(zip(ws, hs, strict=True)):
+        dw = w - (ws[k - 1] if k else 0)
+        dh = h - (hs[k + 1] if k + 1 < len(ws) else 0)
+        steps.append((np.ones((1, 2 * dw + 1), np.uint8) if dw else None,
+                      np.ones((2 * dh + 1, 1), np.uint8) if dh else None))
+    return tuple(steps)
+
+
+def _by_steps(img: np.ndarray, steps: tuple[tuple[np.ndarray | None, np.ndarray | None], ...],
+              op: Callable[..., np.ndarray], combine: Callable[..., np.ndarray]) -> np.ndarray:
+    """``img`` dilated (``op`` cv2.dilate, ``combine`` cv2.max) or eroded (cv2.erode,
+    cv2.min) by the ellipse of :func:`_ellipse_steps`' ``steps``."""
+    line = img
+    acc = None
+    for across, down in steps:
+        if across is not None:
+            line = op(line, across)
+        acc = line if acc is None else combine(acc, line)
+        if down is not None:
+            acc = op(acc, down)
+    assert acc is not None  # (a radius has one step at least)
+    return acc
 
 
 def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -1912,9 +2063,7 @@ def _photo_gain(face: Face, g: int
             cache[g] = None
         else:
             (S, c4), org = got
-            S4 = np.zeros(S.shape[:2] + (4,), np.float32)
-            S4[..., :3] = S
-            cache[g] = ((S4, np.ascontiguousarray(c4, np.float32)), org)
+            cache[g] = ((zero_alpha(S), np.ascontiguousarray(c4, np.float32)), org)
     return cache[g]
 
 
@@ -1927,9 +2076,8 @@ def _photo_lift(face: Face, g: int
         return cache[g]
     p = crease_plan(face)
     fa = _fast(face)
-    tri, bary = _own_valleys(face)
     V = face.vertices.astype(np.float64)
-    pos = (V[face.mesh.triangles[tri]] * bary[..., None]).sum(1)
+    pos = _on_mesh(V, *_valley_samples(face))  # (the own valleys on the photo's mesh)
     ia = fa.seg_a[slice(*fa.seg_rng[g])]
     un = p.utaper.astype(np.float64)  # the strength's shape along the line (its scale cancels)
     got = None
@@ -1973,9 +2121,7 @@ def _photo_gain_q(face: Face, g: int
         cache[g] = None
         if _photo_lift(face, g) is not None and g in _LIFT_Q.get(face, {}):
             S, c4, at = _LIFT_Q[face][g]
-            S4 = np.zeros(S.shape[:2] + (4,), np.float32)
-            S4[..., :3] = S
-            cache[g] = ((S4, np.ascontiguousarray(c4, np.float32)), at)
+            cache[g] = ((zero_alpha(S), np.ascontiguousarray(c4, np.float32)), at)
     return cache[g]
 
 
@@ -2131,8 +2277,10 @@ def _lift_fields(fa: _Fast, g: int, img: np.ndarray, pts: np.ndarray, w: np.ndar
     # level the gain divides by is at most the lightly smoothed photo plus the skin's grain
     # (the grain in proportion to the light: GRAIN levels at the skin's level C, fewer in a
     # dark core, where 6 levels stayed a thin dark line after the gain ~C / S)
-    np.minimum(Si, big[iy, ix] * (1.0 + np.float32(_GRAIN) / np.maximum(C4[..., :3], 1.0)),
-               out=Si)
+    # (C's colour as a contiguous copy: numpy's arithmetic on the strided channel view of
+    # C4 costs several times more)
+    C = cv2.cvtColor(C4, cv2.COLOR_RGBA2RGB)
+    np.minimum(Si, big[iy, ix] * (1.0 + np.float32(_GRAIN) / np.maximum(C, 1.0)), out=Si)
     return Si, C4
 
 
@@ -2185,7 +2333,9 @@ def _along_taps(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.nda
     acc = np.zeros((hb, wb, src.shape[2]), np.float32)
     for i, wt in enumerate(wts.tolist()):  # (accumulated in the taps' order, as before)
         cv2.scaleAdd(got[i * hb:(i + 1) * hb], wt, acc, dst=acc)
-    return np.ascontiguousarray(acc[..., :nc]) if nc == 3 else acc
+    # (back to 3 channels by OpenCV's RGBA-to-RGB copy: numpy's copy of the strided channel
+    # view costs ten times more)
+    return cv2.cvtColor(acc, cv2.COLOR_RGBA2RGB) if nc == 3 else acc
 
 
 def _along_filters(sub: np.ndarray, at: tuple[int, int], fc: np.ndarray, fs: np.ndarray,
@@ -2220,26 +2370,25 @@ def _closing(fa: _Fast, g: int, S: np.ndarray, r: int, iy: slice, ix: slice) -> 
         rq = max(r // q, 1)
         small = cv2.resize(S, (max(S.shape[1] // q, 1), max(S.shape[0] // q, 1)),
                            interpolation=cv2.INTER_AREA)
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rq + 1, 2 * rq + 1))
-        C = cv2.GaussianBlur(cv2.morphologyEx(small, cv2.MORPH_CLOSE, ker), (0, 0),
-                             0.6 * r / q)
+        C = cv2.GaussianBlur(_close(small, rq), (0, 0), 0.6 * r / q)
         C = cv2.resize(C, (S.shape[1], S.shape[0]), interpolation=cv2.INTER_LINEAR)
     else:
-        ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        C = cv2.GaussianBlur(cv2.morphologyEx(S, cv2.MORPH_CLOSE, ker), (0, 0), 0.6 * r)
+        C = cv2.GaussianBlur(_close(S, r), (0, 0), 0.6 * r)
     # the lifted level is skin unless it is much darker than the skin or off its colour
     # (hair, brows, eyes); lighter is fine (the reference may be a shaded median)
     C = np.ascontiguousarray(C[iy, ix])
     ref = fa.skin[g]
     # (_skin_weight of min(C, ref + 0.3 (C - ref)), tolerance 0.6, in float32 and OpenCV's
     # per-pixel channel arithmetic: numpy's on channel views costs several times more)
-    ref32 = np.asarray(ref, np.float32)
-    d: np.ndarray = np.asarray(cv2.subtract(
-        C, cv2.merge([np.full(C.shape[:2], v, np.float32) for v in ref32])), np.float32)
+    # (the reference as OpenCV's per-channel scalar, (4,) float64 holding float32 values:
+    # subtracted in float32)
+    sc = np.zeros(4)
+    sc[:3] = np.asarray(ref, np.float32)
+    d: np.ndarray = np.asarray(cv2.subtract(C, sc), np.float32)
     np.minimum(d, np.float32(0.3) * d, out=d)  # the level minus ref
     np.multiply(d, d, out=d)
     dist = np.sqrt(cv2.transform(d, np.full((1, 3), 1.0 / 3.0, np.float32)))
-    ref_l = np.float32(1.0 / max(float(np.mean(ref)), 20.0))
+    ref_l = np.float32(1.0 / float(fa.ref_l[g]))  # (max(float(np.mean(ref)), 20.0))
     wgt = clamp((np.float32(0.6) - dist * ref_l) * np.float32(4.0), 0.0, 1.0)
     return cv2.merge([C, wgt.astype(np.float32)])
 

@@ -514,6 +514,38 @@ def median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
     return (lo64 + part[h].astype(np.float64)) / 2.0
 
 
+def median_binned(a: np.ndarray, bins: int = 1024) -> float:
+    """``float(np.median(a))`` of a 1-d float array whose values are finite, the same value
+    (a zero's sign aside): each middle order statistic from a histogram of ``bins`` equal
+    bins over the values' range (the bin index is monotonic in the value, so the k-th smallest
+    lies in the bin where the counts reach k) and a partition of that bin's few values only;
+    their mean as ``np.median`` takes it, in the array's precision. About a third of
+    ``np.median``'s time on the ~40k values of a 1080p face's grain (two medians: 0.8 ->
+    0.3 ms). Other input: ``np.median``."""
+    a = np.asarray(a)
+    n = a.size
+    if a.ndim != 1 or a.dtype.kind != "f" or n < 2 * bins:
+        return float(np.median(a))
+    lo, hi = a.min(), a.max()
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return float(np.median(a))
+    if lo == hi:
+        return float(lo)
+    at = ((a - lo) * a.dtype.type(bins / (float(hi) - float(lo)))).astype(np.intp)
+    np.minimum(at, bins - 1, out=at)
+    upto = np.cumsum(np.bincount(at, minlength=bins))
+    h = n // 2
+
+    def kth(k: int) -> np.floating:
+        b = int(np.searchsorted(upto, k, side="right"))
+        r = k - (int(upto[b - 1]) if b else 0)
+        return np.partition(a[at == b], r)[r]
+
+    if n % 2:
+        return float(kth(h))
+    return float((kth(h - 1) + kth(h)) / a.dtype.type(2))
+
+
 #: From this many values :func:`median` partitions once per order statistic (below, numpy's
 #: several-kth partition costs less than the extra checks)
 _ONE_KTH_MIN = 6000
@@ -606,6 +638,14 @@ def gather_px(img: np.ndarray, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
     return img.reshape((h * w,) + img.shape[2:]).take(flat, axis=0)
 
 
+def masked_rows(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``img[mask]`` of an (h, w, c) array and an (h, w) bool mask: the same pixels in the
+    same (row-major) order, gathered by ``take`` on their flat indices (numpy's boolean
+    gather of (h, w, c) rows costs 2-3x more on the plans' boxes)."""
+    h, w = mask.shape
+    return np.ascontiguousarray(img).reshape(h * w, -1).take(np.flatnonzero(mask), 0)
+
+
 def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """``np.median(img[mask > 0], axis=0)`` (every pixel without ``mask``) of an (h, w, 3)
     uint8 image, float64 (3,), the same values from each channel's histogram: the middle rank's
@@ -617,12 +657,39 @@ def channel_median(img: np.ndarray, mask: np.ndarray | None = None) -> np.ndarra
     n = img.shape[0] * img.shape[1] if m is None else int(cv2.countNonZero(m))
     # (a partition is quicker below ~4000 pixels; the counts are float32: exact below 2^24)
     if img.dtype != np.uint8 or img.ndim != 3 or n < 4096 or n >= 1 << 24:
-        return median(img.reshape(-1, img.shape[-1]) if m is None else img[m > 0], axis=0)
+        return median(img.reshape(-1, img.shape[-1]) if m is None else masked_rows(img, m > 0),
+                      axis=0)
     out = np.empty(img.shape[2])
     for c in range(img.shape[2]):
         cum = np.cumsum(cv2.calcHist([img], [c], m, [256], [0, 256]).ravel().astype(np.int64))
         lo, hi = np.searchsorted(cum, [(n - 1) // 2, n // 2], side="right")
         out[c] = (float(lo) + float(hi)) / 2.0
+    return out
+
+
+def box_medians(img: np.ndarray, boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """``channel_median(img[y0:y1, x0:x1])`` of each box ``(x0, y0, x1, y1)`` (non-empty) of
+    an (h, w, 3) uint8 image, (B, 3) float64, the same values: one histogram of every box's
+    pixels per channel (each box's values offset by 256 x its index), whose cumulative counts
+    give each box's middle rank(s) as :func:`channel_median`'s do (a fold layout's twenty
+    small boxes: one call each cost ~15 us of overheads). Other input: one call a box."""
+    parts = [img[y0:y1, x0:x1].reshape(-1, img.shape[-1]) for x0, y0, x1, y1 in boxes]
+    n = np.array([len(p) for p in parts], np.int64)
+    if img.dtype != np.uint8 or img.ndim != 3 or not len(parts) or not n.all():
+        return np.array([channel_median(img[y0:y1, x0:x1]) for x0, y0, x1, y1 in boxes]
+                        ).reshape(len(boxes), img.shape[-1])
+    B = len(parts)
+    px = np.concatenate(parts)
+    at = np.repeat(np.arange(B, dtype=np.int64) * 256, n)
+    lo_rank, hi_rank = ((n - 1) // 2)[:, None], (n // 2)[:, None]
+    out = np.empty((B, img.shape[-1]))
+    for c in range(img.shape[-1]):
+        cum = np.cumsum(np.bincount(at + px[:, c], minlength=B * 256).reshape(B, 256), 1)
+        # (the value of rank k: the first bin whose cumulative count exceeds k, i.e. the
+        # number of bins whose count is at most k, as np.searchsorted(cum, k, "right"))
+        lo = (cum <= lo_rank).sum(1)
+        hi = (cum <= hi_rank).sum(1)
+        out[:, c] = (lo.astype(np.float64) + hi.astype(np.float64)) / 2.0
     return out
 
 

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from .fitting import median_binned
 from .perface import per_face
 from .warp import WarpResult
 
@@ -191,7 +192,9 @@ def _build(face: Face) -> GrainPlan | None:
     # the pixels where the high-pass is grain rather than an edge (lids, lips, brows: a
     # minority of the face's pixels, beyond 3 robust standard deviations) give its level and
     # its fineness (at the face's centre)
-    mad = 1.4826 * float(np.median(np.abs(sub - np.median(sub))))
+    # (median_binned: np.median's values, a zero's sign aside, which the absolute values
+    # drop)
+    mad = 1.4826 * median_binned(np.abs(sub - np.float32(median_binned(sub))))
     calm = np.abs(sub) < 3.0 * mad
     level = float(sub[calm].std()) if calm.any() else 0.0
     if level < MIN_LEVEL:

@@ -38,7 +38,16 @@ import numpy as np
 import numpy.typing as npt
 
 from .deform import eye_state
-from .fitting import channel_median, clamp, clip, gather_px, median, pad_edge, smooth01
+from .fitting import (
+    channel_median,
+    clamp,
+    clip,
+    gather_px,
+    masked_rows,
+    median,
+    pad_edge,
+    smooth01,
+)
 from .gaze import (
     EXTRA_INDEX,
     EYE_FAPS,
@@ -134,9 +143,8 @@ def _build_rest(face: Face, img: np.ndarray, v: np.ndarray, mesh: StandardMesh,
     """:func:`layer_plan` after the eyes were started: the mouth, then the eyes (``eyes_of``)
     and the edge ramp they measure."""
     # the photo's lighting: the cheeks' skin, its own teeth when the mouth shows some
-    cheek = np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)
     # drawn in the cheeks' box only (the same pixels as on the whole photo)
-    q = np.round(v[mesh.triangles[cheek]] * 16).astype(np.int32)  # (n, 3, 2)
+    q = np.round(v[_cheek_triangles(mesh)] * 16).astype(np.int32)  # (n, 3, 2)
     h, w = img.shape[:2]
     if len(q):
         bx0, by0 = clamp(q.reshape(-1, 2).min(0) // 16 - 1, 0, (w, h))
@@ -161,6 +169,15 @@ def _build_rest(face: Face, img: np.ndarray, v: np.ndarray, mesh: StandardMesh,
                      0.5 * (eyes["eye_l"].r0 + eyes["eye_r"].r0))
     mouth.soften(soft)
     return LayerPlan(mouth, eyes, soft)
+
+
+@lru_cache(maxsize=4)
+def _cheek_triangles(mesh: StandardMesh) -> np.ndarray:
+    """(n, 3) vertex indices of the mesh's triangles whose corners all lie on the cheeks (per
+    mesh, read-only: the comparison of its region names cost ~25 us a face)."""
+    t = mesh.triangles[np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)]
+    t.flags.writeable = False
+    return t
 
 
 @lru_cache(maxsize=4)
@@ -637,7 +654,7 @@ def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray
     if patch.size == 0:
         return None
     sel = (_poly_mask(patch.shape[:2], poly, np.array([x0, y0])) > 0) & _bright(patch, skin_l)
-    return median(patch[sel], axis=0) if sel.sum() >= 12 else None
+    return median(masked_rows(patch, sel), axis=0) if sel.sum() >= 12 else None
 
 
 def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: float,
@@ -741,7 +758,9 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     # (stacked straight into float32: no float64 stack, no second copy)
     own = np.concatenate([own_up[..., None], own_low[..., None]], axis=2, dtype=np.float32)
     sliver = np.convolve(pad_edge(sliver.astype(np.float64), 2), kern, mode="valid")
-    rgb = np.concatenate([rgb_up, patch], axis=2, dtype=np.float32)
+    # (the two float32 colour arrays side by side by cv2.merge: numpy's concatenation along
+    # the channels writes every 3 values apart, several times slower)
+    rgb = cv2.merge([np.asarray(rgb_up, np.float32), patch])
     return (off, own, rgb, bool(ext.sum() >= 3), has_low, sliver.astype(np.float32), ext_mask)
 
 

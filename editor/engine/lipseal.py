@@ -51,6 +51,7 @@ import cv2
 import numpy as np
 
 from .fitting import channel_median, clamp, is_grey, luminance, median
+from .gaze import spread3, zero_alpha
 from .layers import _blur_wide, _rebox, _union, layer_plan
 from .warp import WarpResult, box_maps
 
@@ -221,7 +222,11 @@ def _add(img: np.ndarray, q: _Patch) -> None:
     x0, y0 = q.org
     h, w = q.diff.shape[:2]
     box = img[y0:y0 + h, x0:x0 + w]
-    box[:] = np.clip(box + q.diff[..., :3] + 0.5, 0, 255).astype(np.uint8)
+    # (the difference's colour as a contiguous copy: numpy's arithmetic on the strided
+    # channel view costs several times more)
+    v: np.ndarray = box + np.asarray(cv2.cvtColor(q.diff, cv2.COLOR_RGBA2RGB), np.float32)
+    v += np.float32(0.5)
+    box[:] = np.clip(v, 0, 255, out=v).astype(np.uint8)
 
 
 def _area(poly: np.ndarray) -> float:
@@ -251,7 +256,7 @@ def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
     # within the photo's grain (a mirror landing on an edge would print it as a speckle)
     lim = 2.0 * _unmasked_median_abs(hp, mask) / 0.6745 + 1.0
     np.clip(grain, -lim, lim, out=grain)
-    return np.where((mask > 0)[..., None], filled + grain, f)
+    return np.where(spread3(mask) > 0, filled + grain, f)
 
 
 def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
@@ -264,7 +269,7 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     if free == 0:
         return float(median(np.abs(hp[mask == 0])))
     a = np.abs(hp)
-    np.copyto(a, np.float32(np.inf), where=(mask > 0)[..., None])
+    np.copyto(a, np.float32(np.inf), where=spread3((mask > 0).view(np.uint8)) > 0)
     n = hp.shape[2] * free
     h = n // 2
     s = np.partition(a.reshape(-1), h)
@@ -396,8 +401,7 @@ def _grow(mask: np.ndarray, soft: float) -> np.ndarray:
 def _difference(filled: np.ndarray, patch: np.ndarray, soft: float) -> np.ndarray:
     """(h, w, 4) float32 fill minus photo (4th channel zero), feathered over the edge ramp
     ``soft`` on a soft photo (a patch cut at one pixel shows its outline there)."""
-    diff: np.ndarray = np.zeros(patch.shape[:2] + (4,), np.float32)
-    diff[..., :3] = filled - patch.astype(np.float32)
+    diff = zero_alpha(filled - patch.astype(np.float32))
     if soft > 1.0:
         diff = cv2.GaussianBlur(diff, (0, 0), 0.31 * soft)  # (a 10-90 % width of 0.8 soft)
     return diff
@@ -451,7 +455,7 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
         side = ((xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1] + 0.02 * iod) \
             / max(0.05 * iod, 1.0)
         wgt = clamp((R - d) / (R / 3.0), 0.0, 1.0) * clamp(side, 0.0, 1.0)
-        filled = patch + (wgt * wgt * (3.0 - 2.0 * wgt))[..., None].astype(np.float32) \
+        filled = patch + spread3((wgt * wgt * (3.0 - 2.0 * wgt)).astype(np.float32)) \
             * (filled - patch.astype(np.float32))
     return _Corner(vertex, p0, disp, _Patch(_difference(filled, patch, soft), (x0, y0)))
 

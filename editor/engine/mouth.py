@@ -123,7 +123,8 @@ def _texture_parts() -> dict[str, tuple[np.ndarray, ...]]:
     """Per texture, what :func:`_tint` and :func:`_opaque_mean` take from it whatever the
     photo, in channel planes: the luminance (h, w), the chroma ``colour - luminance``
     (3, h, w) and the alpha (h, w); over the opaque pixels (alpha > 0.9; for the teeth, their
-    crowns without the gum) their luminance (n,) and chroma (3, n). (The same values as
+    crowns without the gum) their luminance (n,) and chroma (3, n), and the same of the gum
+    band (the upper teeth's top eighth, alpha > 0.5). (The same values as
     computed on the (h, w, 3) colours; planes, because numpy is several times slower
     spreading an (h, w, 1) array over 3 channels.)"""
     out = {}
@@ -149,7 +150,7 @@ def _texture_parts() -> dict[str, tuple[np.ndarray, ...]]:
             lum[..., 0], (c - lum).transpose(2, 0, 1), rgba[..., 3], lum_o[:, 0],
             (co - lum_o).T, pre, np.asarray(bound, np.float64),
             np.array([lum_o.mean(dtype=np.float64)]), (co - lum_o).mean(0, dtype=np.float64),
-            lum_t[:, 0], top - lum_t))
+            lum_t[:, 0], (top - lum_t).T))
     return out
 
 
@@ -328,11 +329,13 @@ class MouthPlan:
         self.photo_upper, self.photo_lower, self.sliver, self.ext = has_up, has_low, sliver, ext
         self._own_a = [np.ascontiguousarray(own[..., k]) for k in (0, 1)]
         # (four channels, the 4th zero: OpenCV resamples 4-channel float images about twice
-        # as fast as 3-channel ones, with the same values per channel)
+        # as fast as 3-channel ones, with the same values per channel; the channels copied
+        # by cv2.mixChannels: numpy's strided copy between channel views costs 4x more)
         self._own_c = []
         for k in (0, 1):
             c4 = np.zeros(own_rgb.shape[:2] + (4,), np.float32)
-            c4[..., :3] = own_rgb[..., 3 * k:3 * k + 3]
+            cv2.mixChannels([np.asarray(own_rgb, np.float32)], [c4],
+                            [3 * k, 0, 3 * k + 1, 1, 3 * k + 2, 2])
             self._own_c.append(c4)
         self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
         self._own_parts()
@@ -412,8 +415,17 @@ class MouthPlan:
             tex[name] = _tinted_at(name, sat, gain * shade, (tw_, th_))
         # the gum: the tinted upper teeth's top band (alpha > 0.5), unpremultiplied
         lum_g, chroma_g = _texture_parts()["upper_teeth"][9:11]
-        gum_rgb = (clamp((lum_g[:, None] + sat * chroma_g) * gain_t.astype(np.float64), 0.0,
-                           255.0).mean(0) if len(lum_g) else 0.6 * target)
+        if len(lum_g):
+            # (lum + sat chroma) gain clipped, per channel plane; its mean over the band's
+            # pixels summed one after the other, as numpy's mean over the first axis of the
+            # (n, 3) pixels sums them (a running sum: its last value; numpy's mean over a
+            # plane's contiguous axis would sum pairwise)
+            g = sat * chroma_g
+            g += lum_g
+            g *= gain_t.astype(np.float64)[:, None]
+            gum_rgb = np.cumsum(clamp(g, 0.0, 255.0), axis=1)[:, -1] / len(lum_g)
+        else:
+            gum_rgb = 0.6 * target
         cav_l = float(_lum(CAVITY_RGB))
         cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)
         anchor0 = _jaw_anchor(v, i21, i23, ex, ey)

@@ -131,9 +131,9 @@ def _teeth_p90(image: np.ndarray) -> float | None:
     a real photo and on a render; None when the lips part by less than 0.05 IOD."""
     from editor.engine.landmarks import detect_landmarks
 
-    p = detect_landmarks(image).points.astype(np.float32)
+    lm = detect_landmarks(image)
+    p, iod = lm.points.astype(np.float32), lm.interocular
     L = _lum(image)
-    iod = float(np.linalg.norm(p[36:42].mean(0) - p[42:48].mean(0)))
     if p[66, 1] - p[62, 1] < 0.05 * iod:
         return None
     inner = np.zeros(L.shape, np.uint8)

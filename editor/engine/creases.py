@@ -464,15 +464,11 @@ def _segments(pos: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray
     return a, d, np.sqrt(dx * dx + dy * dy)  # (an axis-1 sum of (n, 2) costs more)
 
 
-def _normals(pts: np.ndarray) -> np.ndarray:
-    """Unit normals (n, 2) of a polyline: its tangent turned by +90 degrees."""
-    return _lines_normals([pts])[0]
-
-
 def _lines_normals(lines: list[np.ndarray]) -> list[np.ndarray]:
-    """:func:`_normals` of each polyline (n >= 2), all in one pass over their concatenated
-    points (the same values line by line: a point's central difference reads its two
-    neighbours; each line's ends are its own one-sided differences, written after)."""
+    """Unit normals (n, 2) of each polyline (n >= 2): its tangent turned by +90 degrees, all
+    in one pass over their concatenated points (the same values line by line: a point's
+    central difference reads its two neighbours; each line's ends are its own one-sided
+    differences, written after)."""
     # (np.gradient's and np.linalg.norm's arithmetic without their Python-level overhead:
     # central differences inside, one-sided at the ends)
     # (in place into preallocated arrays, no np.stack: -(ty / n) is -ty / n bit for bit)

@@ -512,3 +512,69 @@ def test_jaffe_smile_narrows_the_eyes_from_below_as_real_ones():
         pytest.skip("../shared/data/jaffe is not available")
     r, d = float(np.median(real)), float(np.median(drawn))
     assert 0.5 * r < d < 1.5 * r, (r, d)
+
+
+#: stable points (inner eye corners, nose bridge and base) that align a photo to its neutral
+_STABLE = [39, 42, 27, 28, 29, 30, 31, 35]
+
+
+def _upper_lid_edges(image: np.ndarray, ref: np.ndarray) -> float:
+    """The dark eye's upper edge at 0.4, 0.55, 0.7 and 0.85 of the eye's width (inner -> outer
+    corner, mean of both eyes) in inter-ocular distances under the corners' chord of ``ref``
+    (the neutral photo's landmarks), after aligning ``image`` to ``ref`` by a similarity on
+    :data:`_STABLE`: per column, from the darkest row near the chord up to the first row lighter
+    than halfway from the eye's darkest 5 % to the skin 0.14-0.2 IOD above the chord."""
+    from editor.engine.landmarks import detect_landmarks
+
+    p = detect_landmarks(image).points.astype(np.float32)
+    m, _ = cv2.estimateAffinePartial2D(p[_STABLE], ref[_STABLE].astype(np.float32))
+    g = cv2.warpAffine(_lum(image), m, (image.shape[1], image.shape[0]),
+                       borderMode=cv2.BORDER_REPLICATE)
+    g = cv2.GaussianBlur(g, (0, 0), 0.7)
+    iod = float(np.linalg.norm(ref[36:42].mean(0) - ref[42:48].mean(0)))
+    edges = []
+    for a, b in ((39, 36), (42, 45)):
+        pa, pb = ref[a].astype(np.float64), ref[b].astype(np.float64)
+        box = g[int(min(pa[1], pb[1]) - 0.08 * iod):int(max(pa[1], pb[1]) + 0.06 * iod),
+                int(min(pa[0], pb[0])):int(max(pa[0], pb[0]))]
+        dark = np.percentile(box, 5)
+        for t in (0.4, 0.55, 0.7, 0.85):
+            q = pa + t * (pb - pa)
+            x, yq = int(round(q[0])), int(round(q[1]))
+            col = g[:, x - 1:x + 2].mean(1)
+            skin = np.median(col[int(q[1] - 0.2 * iod):int(q[1] - 0.14 * iod)])
+            lo = yq - int(0.06 * iod)
+            start = lo + int(np.argmin(col[lo:yq + int(0.04 * iod) + 1]))
+            above = col[start::-1] >= dark + 0.5 * (skin - dark)
+            edges.append((start - int(above.argmax()) - q[1]) / iod)
+    return float(np.mean(edges))
+
+
+def test_jaffe_smile_lowers_the_upper_lids_as_real_ones():
+    # JAFFE's ten women, each photo aligned to her neutral on the inner eye corners and the
+    # nose: the dark eye's upper edge over its middle and outer part drops a median 0.015 IOD
+    # from the neutral photo to her real smiles (31). Joy drawn with the upper lids at 60
+    # dropped it 0.005 (the eyes kept their neutral opening from above; the blind raters:
+    # "the eyes are unchanged"); at 120, as far as real smiles
+    from conftest import jaffe_images
+
+    from editor.engine.imageio import load_image
+    from editor.engine.landmarks import detect_landmarks
+    from editor.formats.presets import apply_preset
+
+    real, drawn = [], []
+    for ne in jaffe_images("*.NE1.*.tiff"):
+        smiles = jaffe_images(f"{ne.name[:2]}.HA*.tiff")
+        if not smiles:
+            continue
+        f = Face.from_image(ne, own_expression=False)
+        ref = detect_landmarks(f.image).points
+        n0 = _upper_lid_edges(f.image, ref)
+        real.append(float(np.median([_upper_lid_edges(load_image(p), ref) for p in smiles]))
+                    - n0)
+        drawn.append(_upper_lid_edges(f.render(apply_preset("joy")), ref) - n0)
+    if len(drawn) < 8:
+        pytest.skip("../shared/data/jaffe is not available")
+    r, d = float(np.median(real)), float(np.median(drawn))
+    assert r > 0.005, r  # (the measure sees the real lids come down)
+    assert 0.6 * r < d < 1.5 * r, (r, d)

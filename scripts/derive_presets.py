@@ -209,29 +209,46 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                           "real fear photos' do (corners 0.03 IOD further apart, median of 20 "
                           "fitted meshes): at 55 it widened 0.075 and blind raters called the "
                           "open mouth swollen and pasted on"),
-        "jaw": (260, "AU26 jaw drop (fear prototype; it read as worry with the mouth nearly "
+        "jaw": (220, "AU26 jaw drop (fear prototype; it read as worry with the mouth nearly "
                      "closed): median 190, p90 815 MNS; at 300 (with the corners at -60) the "
                      "150 % mouth gaped as in surprise (a classifier of real JAFFE "
                      "expressions, editor/synthesis/recognise.py, named it fear on 5 of 10 "
                      "women, surprise on 3); 260 with the corners at -150 and the lower lip at "
-                     "-170: fear on 8 of 10 at 100 % and at 150 %, never surprise"),
+                     "-170: fear on 8 of 10 at 100 % and at 150 %, never surprise. With the "
+                     "upper lip held (t_mid -10) the lips parted 0.125 IOD at 260 (real open "
+                     "fear 0.102) and the classifier named surprise on 2 of 10 at 100 %: at "
+                     "220 they part 0.107 (the chin 0.071 down, real open fear 0.117, all 32 "
+                     "photos 0.055), fear on 10 of 10 at 100 %, 9 at 150 %"),
         "b_mid": (-170, "with the jaw, the lower lip drops ~320 MNS (the open mouth of fear): "
                         "median -208 (outer -254), p10 -565 (outer -679), min -680; -170 so "
                         "that the lower lip's middle drops as far as its mid-points (10/11 = "
                         "-100): at -30 it stayed 1-2 px above them on KA, NA and TM and the "
                         "inner lower lip read as a W (-130 sufficed with the corners at -60)"),
         "b_mids": (-100, "as b_mid (median -232/-193, p10 -513/-541, min -688/-735)"),
-        "t_mid": (60, "the upper lip stays down over the upper teeth (AU20 stretches it "
-                      "flat; a raised upper lip showing the upper teeth reads as a smile): "
-                      "median -3 (outer -11) MNS, p90 173 (outer 131)"),
-        "t_mids": (60, "as t_mid (median -4/-1, outer 2/1; p90 194/209, outer 166/204)"),
-        "c_raise": (-150, "no AU12 in fear (AU20 pulls the lips sideways and down): the fit's "
-                          "+160 against the jaw's pull made the open mouth read as a smile; "
-                          "the corners drop with the jaw (median -127/-68, p10 -435/-428 MNS; "
-                          "150 % inside the min -569/-595). At -60 the slightly open mouth "
-                          "kept the crescent of a smile over the teeth: a blind rater named "
-                          "the sample's fear joy (-150 with the jaw at 200: the recogniser "
-                          "named 7 of 10 fear, 3 sadness; with the jaw at 260, 8 to 10)"),
+        "t_mid": (-10, "the upper lip stays where it is and the upper teeth show under it, "
+                       "as in JAFFE's open fear photos (16 of 32 with the inner lips more than "
+                       "0.05 IOD apart; landmarks re-detected, each photo aligned to her "
+                       "neutral on the eye corners and nose, median): the inner upper lip "
+                       "moves +0.007 IOD, the outer -0.008 (landmark median -3, outer -11 MNS, "
+                       "p90 173). At +60 (a raised upper lip showing the teeth read as a smile "
+                       "on a wider mouth) the jaw's and corners' pull took it down +0.044 / "
+                       "+0.025, six times as far, over the teeth: a dark lens with a sliver of "
+                       "teeth, raters 'lips very dark' and fear named on 4 of 7 faces at 150 %; "
+                       "now +0.012 / +0.003 (with jaw 220). A full match of the open mouth "
+                       "(jaw 500, inner "
+                       "lower lip +190 and outer -40 against the jaw: chin 0.118 against real "
+                       "0.117, lower lip 0.155 / 0.102 against 0.157 / 0.096) kept the lower "
+                       "lip's shadow on the skin under it (0.66-0.78 of the forehead where real "
+                       "fear is 0.83-0.87: liptone lifts it for a lip pulled towards the chin, "
+                       "which that lip is not), so the jaw and lower lip stay"),
+        "t_mids": (-10, "as t_mid (median -4/-1, outer 2/1; p90 194/209, outer 166/204)"),
+        "c_raise": (-80, "no AU12 in fear (AU20 pulls the lips sideways and down): the fit's "
+                         "+160 against the jaw's pull made the open mouth read as a smile. "
+                         "Real open fear's corners drop 0.036 IOD (median of 16, re-detected "
+                         "and aligned as for t_mid; landmark median -127/-68 MNS, p10 "
+                         "-435/-428): at -150 ours dropped 0.072, now 0.045. At -60 (with the "
+                         "upper lip at +60) the slightly open mouth kept the crescent of a "
+                         "smile over the teeth and a blind rater named the sample's fear joy"),
         },
     "disgust": {
         41: (100, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "

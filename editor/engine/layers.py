@@ -309,7 +309,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE if k == 3 else _disc(k))
     res = opened.astype(np.float32)
     res -= patch
-    res *= cv2.merge([w, w, w])
+    res *= spread3(w)
     res += patch
     _to_uint8(res, out[y0:y1, x0:x1])
 

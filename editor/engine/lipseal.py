@@ -564,7 +564,9 @@ def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray) -> War
         return res
     view = out[y0:y1, x0:x1]
     acc = view.astype(np.float32)
-    acc *= 1.0 - line[..., None] * plan.tint
+    # (line (h, w) spread over the channels first: numpy's broadcasting of (h, w, 1) over 3
+    # channels is several times slower; the same float32 products)
+    acc *= 1.0 - spread3(line) * plan.tint
     view[:] = (acc + 0.5).astype(np.uint8)
     bbox = _union(res.bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox else _rebox(res, bbox, {})

@@ -909,7 +909,7 @@ class EyePlan:
                                        cv2.BORDER_CONSTANT, _ONES3)
                 np.subtract(1.0, got, out=got)
                 s_rows = (ss if n == 2 else ss[lids_moved[0]]).reshape(n * h, w)
-                s3 = cv2.merge([s_rows, s_rows, s_rows])
+                s3 = spread3(s_rows)
                 s3 *= got.reshape(n * h, w, 3)
                 got = np.subtract(1.0, s3, out=s3).astype(np.float32).reshape(n, h, w, 3)
                 band3 = got[0] if n == 1 else np.minimum(got[0], got[1])

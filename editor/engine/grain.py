@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import median_binned
+from .fitting import clip, median_binned
 from .perface import per_face
 from .warp import WarpResult
 
@@ -228,10 +228,11 @@ def apply_grain(face: Face, res: WarpResult) -> WarpResult:
            - (cx[1:, :-1] - x00) * (cy[:-1, 1:] - y00)) * np.float32(1.0 / (n * n))
     k = r.take(np.rint((x00 - np.floor(x00)) * _STEPS).astype(np.intp))
     k *= r.take(np.rint((y00 - np.floor(y00)) * _STEPS).astype(np.intp))
-    k *= np.clip(det, 0.0, 1.0)
-    amp = np.sqrt(np.clip(1.0 - k, 0.0, 1.0)) * np.float32(plan.level)
+    # (clip: np.clip's ufunc without its Python layers; count_nonzero: any's answer)
+    k *= clip(det, 0.0, 1.0)
+    amp = np.sqrt(clip(1.0 - k, 0.0, 1.0)) * np.float32(plan.level)
     hot = amp > _MIN_AMP
-    if not hot.any():
+    if not np.count_nonzero(hot):
         return res
     rows = np.flatnonzero(hot.any(1))
     cols = np.flatnonzero(hot.any(0))
@@ -253,9 +254,10 @@ def apply_grain(face: Face, res: WarpResult) -> WarpResult:
     w = map_y[y0 - by0:y1 - by0, x0 - bx0:x1 - bx0] - np.arange(y0, y1, dtype=np.float32
                                                                  )[:, None]
     a *= (np.abs(u) >= _TAB) | (np.abs(w) >= _TAB)
-    a *= _tiled(plan.tile, x0, y0, x1 - x0, y1 - y0)
+    a *= _tiled(plan.sigma, x0, y0, x1 - x0, y1 - y0)
     out = res.image[y0:y1, x0:x1]
-    cv2.add(out, cv2.merge([a, a, a]), dst=out, dtype=cv2.CV_8U)
+    # (cvtColor's grey-to-RGB copy: cv2.merge's values at about half its cost)
+    cv2.add(out, cv2.cvtColor(a, cv2.COLOR_GRAY2RGB), out, None, cv2.CV_8U)
     return res
 
 
@@ -268,12 +270,27 @@ def grain_over(face: Face, box: tuple[int, int, int, int]) -> np.ndarray | None:
     if plan is None:
         return None
     x0, y0, x1, y1 = box
-    return _tiled(plan.tile, x0, y0, x1 - x0, y1 - y0) * np.float32(plan.level)
+    return _tiled(plan.sigma, x0, y0, x1 - x0, y1 - y0) * np.float32(plan.level)
 
 
-def _tiled(tile: np.ndarray, x0: int, y0: int, w: int, h: int) -> np.ndarray:
-    """The repeating ``tile`` over the frame's window (x0, y0, w, h) (a new array)."""
-    T = tile.shape[0]
-    ox, oy = x0 % T, y0 % T
-    reps = ((oy + h + T - 1) // T, (ox + w + T - 1) // T)
-    return np.tile(tile, reps)[oy:oy + h, ox:ox + w]
+def _tiled(sigma: float, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+    """The repeating tile of fineness ``sigma`` over the frame's window (x0, y0, w, h): a
+    read-only view of the tile repeated (:func:`_repeated`; a box's size recurs from frame to
+    frame, so the repeat is not redone and copied for every frame)."""
+    ox, oy = x0 % TILE, y0 % TILE
+    reps = ((oy + h + TILE - 1) // TILE, (ox + w + TILE - 1) // TILE)
+    if reps[0] * reps[1] > _KEEP_REPS:  # (a box of megapixels: not kept)
+        return np.tile(_tiles(sigma)[1], reps)[oy:oy + h, ox:ox + w]
+    return _repeated(sigma, *reps)[oy:oy + h, ox:ox + w]
+
+
+#: repeats of the tile kept by :func:`_repeated` (at most 64 tiles, 4 MB each, 4 kept)
+_KEEP_REPS = 64
+
+
+@functools.lru_cache(maxsize=4)
+def _repeated(sigma: float, ry: int, rx: int) -> np.ndarray:
+    """The tile of fineness ``sigma`` repeated ``ry`` x ``rx`` times (read-only, kept)."""
+    t = np.tile(_tiles(sigma)[1], (ry, rx))
+    t.setflags(write=False)
+    return t

@@ -309,7 +309,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, _SQUARE if k == 3 else _disc(k))
     res = opened.astype(np.float32)
     res -= patch
-    res *= cv2.merge([w, w, w])
+    res *= spread3(w)
     res += patch
     _to_uint8(res, out[y0:y1, x0:x1])
 
@@ -414,8 +414,8 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         # on the opening's first pixel row. (The mouth's outline is blurred as a whole, below,
         # and a re-detection of its lips reads this colour: cloning's round trip of fear on
         # the 3x sample fell below its bar with it.)
-        wgt = np.clip((np.asarray(depth, np.float32) - np.float32(1.0)) * np.float32(2.0 / soft),
-                      0.0, 1.0)
+        wgt = clip((np.asarray(depth, np.float32) - np.float32(1.0)) * np.float32(2.0 / soft),
+                   0.0, 1.0)
         rim -= raw
         rim *= spread3(wgt)
         rim += raw
@@ -430,7 +430,7 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
         lim = _blur_wide(np.ascontiguousarray(alpha, np.float32), soft / 2.56)
         lim -= np.float32(EDGE_CUT)
         lim *= np.float32(1.0 / (1.0 - EDGE_CUT))
-        np.clip(lim, 0.0, 1.0, out=lim)
+        clip(lim, 0.0, 1.0, out=lim)
         lim -= alpha  # (fading in with the outline's first pixel of motion, as the coverage)
         lim *= np.float32(t)
         lim += alpha
@@ -612,7 +612,10 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             elif closure[k_open] < 0.6:
                 # an open eye on a sharp photo: its upper lid's margin continued dark
                 # (_composite); the rows above the opening's mean height are the upper lid's
-                margin = (int(round(float(poly[:, 1].mean()))) - box[1],
+                # (``poly[:, 1].mean()``'s value: the sum in poly's type over the count in
+                # float64, rounded to poly's type, without mean's Python layers)
+                mean_y = poly.dtype.type(float(np.add.reduce(poly[:, 1])) / len(poly))
+                margin = (int(round(float(mean_y))) - box[1],
                           min((0.6 - closure[k_open]) * 5.0, 1.0))
         _composite(out, box, alpha_c, hole, interior, lip_shade, inside, margin)
         if kind == "mouth":

@@ -56,6 +56,7 @@ import numpy as np
 
 from .creases import SHADOW_TINT
 from .fitting import channel_median, clamp, is_grey, smooth01
+from .gaze import spread3
 from .layers import _rebox, _union
 from .perface import per_face
 from .warp import WarpResult, box_maps
@@ -360,7 +361,7 @@ def _pale(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, a: float
     view = out[y0:y1, x0:x1]
     up = plan.skin - view.astype(np.float32)
     np.maximum(up, 0.0, out=up)
-    up *= cv2.merge([w, w, w])
+    up *= spread3(w)  # (cv2.merge's values at about half its cost)
     cv2.add(view, up, dst=view, dtype=cv2.CV_8U)
     return x0, y0, x1, y1
 
@@ -390,5 +391,5 @@ def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: f
     f *= np.float32(share)
     f += np.float32(1.0)
     view = out[y0:y1, x0:x1]
-    cv2.multiply(view, cv2.merge([f, f, f]), dst=view, dtype=cv2.CV_8U)
+    cv2.multiply(view, spread3(f), dst=view, dtype=cv2.CV_8U)
     return x0, y0, x1, y1

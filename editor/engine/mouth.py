@@ -607,7 +607,7 @@ class MouthPlan:
             drawn = np.ones(grain.shape, np.float32) if a_up is None else 1.0 - a_up
         if a_up is not None:
             p_up -= out  # out (1 - a) + p a
-            p_up *= cv2.merge([a_up, a_up, a_up])
+            p_up *= spread3(a_up)
             p_up += out  # (the sum out + p_up, in place)
             out = p_up
         if a_lo is not None:
@@ -615,7 +615,7 @@ class MouthPlan:
                 rest = 1.0 - a_up
                 a_lo = np.minimum(a_lo, rest)
                 a_lo /= np.maximum(rest, 1e-6)
-            out = out + (p_lo - out) * cv2.merge([a_lo, a_lo, a_lo])
+            out = out + (p_lo - out) * spread3(a_lo)
             if grain is not None:
                 drawn *= 1.0 - a_lo
         if alpha is not None:

@@ -331,14 +331,21 @@ def test_the_corners_of_an_opening_are_in_shadow(jaffe_faces):
 def test_lower_lip_edge_does_not_ride_down_with_the_jaw(sample_face):
     # the sample's opening ends in a one-to-three-pixel run of lower-lip edge under its upper
     # teeth (3x: 1536 px); carried down with the jaw it drew a bright line across the dark
-    # opening (fear 150 %: 110 pixels of the opening's lower part above 0.85 of the skin; now
-    # 6, the anti-aliased rim of the drawn lower teeth)
+    # opening (fear 150 %: 110 pixels of the opening's lower part above 0.85 of the skin; 6
+    # after the fix, 17 with the drawn lower teeth's light since: their anti-aliased rim).
+    # The mouth of fear at 150 % as it was then (the preset's upper lip now holds over the
+    # upper teeth, whose tips reach into the opening's lower part)
+    from editor.engine.faps import FAPS
     from editor.engine.imageio import load_image
 
     img0 = cv2.resize(load_image(sample_face.source), None, fx=3, fy=3,
                       interpolation=cv2.INTER_CUBIC)
     big = Face.from_image(img0)
-    faps = apply_preset("fear", 1.5)
+    mouth = {"raise_b_midlip": -255, "raise_b_lip_lm": -150, "raise_b_lip_rm": -150,
+             "lower_t_midlip": 90, "lower_t_lip_lm": 90, "lower_t_lip_rm": 90,
+             "raise_l_cornerlip": -225, "raise_r_cornerlip": -225,
+             "stretch_l_cornerlip": 37.5, "stretch_r_cornerlip": 37.5}
+    faps = FAPS.vector({"open_jaw": 390, **mouth, **{f"{k}_o": x for k, x in mouth.items()}})
     img, v = big.render(faps), big.deform(faps)
     inside = cv2.erode(_opening(big, v, img.shape).astype(np.uint8), np.ones((5, 5), np.uint8))
     L = _lum(img) / _skin(big)

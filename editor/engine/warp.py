@@ -750,16 +750,18 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike):
     # its first pixel's flat index (of the ids, of the resized maps) and position per node,
     # its s x s pixels at fixed offsets from it (2-d fancy indexing and a mask of the (n, s, s)
-    # pixels cost 3 ms more); only the nodes on the box's edge have pixels outside it
+    # pixels cost 3 ms more), offset by offset: (s s, n) (the (n, s s) layout's short rows
+    # cost numpy 4 times as much); only the nodes on the box's edge have pixels outside it
     d = np.arange(s)
     dx, dy = np.tile(d, s), np.repeat(d, s)
     fw = full_x.shape[1]
     if (nk >= 1).all() and (nk * s <= nx).all() and (nj >= 1).all() and (nj * s <= ny).all():
         px0, py0 = (nk - 1) * s, (nj - 1) * s
-        flat = (py0 * nx + px0)[:, None] + (dy * nx + dx)
-        at = (nj * (s * fw) + nk * s)[:, None] + (dy * fw + dx)
-        xs = (px0 + x0).astype(np.float32)[:, None] + dx.astype(np.float32)
-        ys = (py0 + y0).astype(np.float32)[:, None] + dy.astype(np.float32)
+        flat = (dy * nx + dx)[:, None] + (py0 * nx + px0)
+        at = (dy * fw + dx)[:, None] + (nj * (s * fw) + nk * s)
+        # (float32 sums: the same either way round)
+        xs = dx.astype(np.float32)[:, None] + (px0 + x0).astype(np.float32)
+        ys = dy.astype(np.float32)[:, None] + (py0 + y0).astype(np.float32)
     else:
         px = ((nk - 1) * s)[:, None] + dx
         py = ((nj - 1) * s)[:, None] + dy

@@ -762,9 +762,15 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     if gx1 <= gx0 or gy1 <= gy0:
         nj = nk = np.zeros(0, np.intp)
     else:
-        nj, nk = np.nonzero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
-        nj += gy0
-        nk += gx0
+        # (OpenCV's list of the nonzero points: the same points in the same order as
+        # np.nonzero's, 3 times faster)
+        pts = cv2.findNonZero(cv2.dilate(near[gy0:gy1, gx0:gx1], np.ones((5, 5), np.uint8)))
+        if pts is None:
+            nj = nk = np.zeros(0, np.intp)
+        else:
+            pts = pts.reshape(-1, 2)  # (x, y) each
+            nk = pts[:, 0].astype(np.intp) + gx0
+            nj = pts[:, 1].astype(np.intp) + gy0
     # the exact ids where they are read (the rasterizer's cost grows with the area it fills:
     # the forehead and the cheeks beside the face's features are not drawn)
     if reads is None:

@@ -548,18 +548,20 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     # (each coefficient taken from its own contiguous row of the table's transpose, by the
     # band's ids made indices once: contiguous operands throughout, the same float32
     # arithmetic; on the 4K face's coarse grid ~1 ms less than one ``take`` of 24-byte
-    # records and arithmetic on their strided fields)
+    # records and arithmetic on their strided fields. The ids are rows of the table: the takes
+    # here and below in mode "wrap", the same values without the bounds' checks of "raise",
+    # 20 % faster)
     tp = np.ascontiguousarray(table.T)  # (6, rows)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
         at = ids[r0:r1].astype(np.intp)
         yr = ys[r0:r1]
         for out, k in ((map_x[r0:r1], 0), (map_y[r0:r1], 3)):
-            np.multiply(tp[k].take(at), xs, out=out)
-            c = tp[k + 1].take(at)
+            np.multiply(tp[k].take(at, mode="wrap"), xs, out=out)
+            c = tp[k + 1].take(at, mode="wrap")
             c *= yr
             out += c
-            out += tp[k + 2].take(at)
+            out += tp[k + 2].take(at, mode="wrap")
     if risky.any():
         _clamp_rows(ids, tb, x0, y0, step, map_x, map_y, risky, drawn)
     return map_x, map_y
@@ -588,7 +590,7 @@ def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: fl
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        g = rec.take(ids[r0:r1], 0)  # (band, nx, 10)
+        g = rec.take(ids[r0:r1], 0, mode="wrap")  # (band, nx, 10)
         yr = ys[r0:r1]
         mx, my = map_x[r0:r1], map_y[r0:r1]
         np.multiply(g[..., 0], xs, out=mx)
@@ -671,7 +673,7 @@ def _clamp_rows(ids: np.ndarray, tb: np.ndarray, x0: float, y0: float, step: int
     if i1 <= i0 or j1 <= j0:
         return
     sub = ids[j0:j1, i0:i1]
-    k = np.flatnonzero(risky.take(sub))
+    k = np.flatnonzero(risky.take(sub, mode="wrap"))
     if not len(k):
         return
     rid = sub.reshape(-1).take(k)
@@ -807,11 +809,11 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
         flat, at = py * nx + px, (py + s) * fw + (px + s)
         xs, ys = (px + x0).astype(np.float32), (py + y0).astype(np.float32)
     if flat.size:
-        pid = ids.reshape(-1).take(flat.ravel())
+        pid = ids.reshape(-1).take(flat.ravel(), mode="wrap")
         xs, ys = xs.ravel(), ys.ravel()
         mx, my = _evaluate_at(plan, pid, table, xs, ys)
         if hook is not None:  # (the hook's pixels take its map)
-            k = np.flatnonzero(hook.lut.take(pid))
+            k = np.flatnonzero(hook.lut.take(pid, mode="wrap"))
             if len(k):
                 mx[k], my[k] = hook.points(xs.take(k), ys.take(k))
         at = at.ravel()
@@ -835,7 +837,7 @@ def _hook_nodes(hook: NodeHook, nid: np.ndarray, cx: np.ndarray, cy: np.ndarray,
     if k1 <= k0 or j1 <= j0:
         return None
     sub = (slice(j0, j1), slice(k0, k1))
-    band = hook.lut.take(nid[sub])
+    band = hook.lut.take(nid[sub], mode="wrap")
     if not band.any():
         return None
     mx, my = hook.nodes(x0 + s * k0, y0 + s * j0, s, k1 - k0, j1 - j0)
@@ -927,15 +929,15 @@ def _evaluate_at(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, xs: np.ndar
     y = ys.astype(np.float32, copy=False)
     out = []
     for k in (0, 1):
-        m = tp[3 * k].take(i)
+        m = tp[3 * k].take(i, mode="wrap")
         m *= x
-        c = tp[3 * k + 1].take(i)
+        c = tp[3 * k + 1].take(i, mode="wrap")
         c *= y
         m += c
-        m += tp[3 * k + 2].take(i)
+        m += tp[3 * k + 2].take(i, mode="wrap")
         # (np.clip to the source box, as two contiguous passes: the box's low <= its high)
-        np.maximum(m, bp[k].take(i), out=m)
-        np.minimum(m, bp[k + 2].take(i), out=m)
+        np.maximum(m, bp[k].take(i, mode="wrap"), out=m)
+        np.minimum(m, bp[k + 2].take(i, mode="wrap"), out=m)
         out.append(m)
     return out[0], out[1]
 

@@ -124,3 +124,30 @@ def test_render_of_a_large_face_close_to_the_exact_render(large_face):
     d = np.abs(got.astype(np.int16) - exact)
     assert d.mean() <= IMG_MEAN
     assert (d > 8).mean() <= 1e-4
+
+
+def test_jaw_hook_joins_the_map_on_its_nodes(large_face):
+    """The jaw's hook gives its map on a grid of nodes (the coarse map takes it there instead
+    of calling it pixel by pixel): within a small fraction of a pixel of its map evaluated at
+    each node (the shift's fade interpolated from nodes twice as far apart, as the hook's
+    pixels from its own grid), and exactly the node's own position where it has faded out."""
+    from editor.engine.jawband import _band
+    from editor.engine.warp import NodeHook
+
+    face = large_face
+    v = face.deform(_vector(EXPRESSIONS["bench"]))
+    hook = jaw_map(face, v)
+    assert isinstance(hook, NodeHook)
+    x0, y0, x1, y1 = hook.box
+    s = warp_mod.MAP_STEP
+    nx, ny = (x1 - x0) // s, (y1 - y0) // s
+    mx, my = hook.nodes(x0 + 0.25, y0 + 0.25, s, nx, ny)
+    xs = (x0 + 0.25 + s * np.arange(nx)).astype(np.float32)
+    ys = (y0 + 0.25 + s * np.arange(ny)).astype(np.float32)
+    gx, gy = np.meshgrid(xs, ys)
+    px, py = hook.points(gx.ravel(), gy.ravel())
+    err = np.maximum(np.abs(mx.ravel() - px), np.abs(my.ravel() - py))
+    assert err.max() <= 0.3 and err.mean() <= 0.01
+    moved = (mx != gx) | (my != gy)
+    assert moved.any() and not moved.all()  # (the neck below the fade maps to itself)
+    assert len(_band(face).idx) > 0

@@ -156,20 +156,96 @@ def jaw_map(face: Face, vertices: np.ndarray
     # the pixels the hook may read and write: the extent grown by the rasterizer's reach
     reach = (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
              math.ceil(ext[3]) + 2)
-    return _JawHook(partial(_hook, fr, b, reach, new, drop, ring, ramp), reach)
+    args = (fr, b, reach, new, drop, ring, ramp)
+    return _JawHook(partial(_hook, *args), reach, b.lut, partial(_points, *args),
+                    partial(_nodes, *args))
 
 
 @dataclass(frozen=True, eq=False)
 class _JawHook:
     """:func:`jaw_map`'s hook (:func:`_hook`) and ``box``, the pixels (x0, y0, x1, y1) whose
-    triangle ids it reads and whose map it may change (the warp needs its ids nowhere else)."""
+    triangle ids it reads and whose map it may change (the warp needs its ids nowhere else);
+    ``lut`` (T + 4,) bool: the warp's ids whose map it replaces (the band's triangles), and
+    ``points(xs, ys)``: that map at any points (float32 arrays; of the band, inside ``box``)
+    and ``nodes(x0, y0, s, nx, ny)`` on a grid of nodes, for a warp that evaluates its map on
+    a grid of nodes (:func:`_points`, :func:`_nodes`)."""
 
     call: Callable[..., tuple[int, int, int, int] | None]
     box: tuple[int, int, int, int]
+    lut: np.ndarray
+    points: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+    nodes: Callable[[float, float, int, int, int], tuple[np.ndarray, np.ndarray]]
 
     def __call__(self, ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
                  box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
         return self.call(ids, map_x, map_y, box)
+
+
+def _nodes(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
+           drop: np.ndarray, ring: np.ndarray, ramp: float, x0: float, y0: float, s: int,
+           nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_hook`'s map (ny, nx) at the nodes ``(x0 + k s, y0 + j s)`` (of the band's:
+    the others' values are meaningless): the shift evaluated on nodes ``2 s`` apart and
+    interpolated bilinearly (x 2, ``cv2.resize``), as :func:`_hook` interpolates it to the
+    pixels from nodes :data:`_COARSE` px apart."""
+    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
+    # coarse node m at node k = 2 m - 3 / 2: the resize's pixel i at node i - 2
+    mw, mh = (nx + 2) // 2 + 2, (ny + 2) // 2 + 2
+    cx0, cy0 = x0 - 1.5 * s, y0 - 1.5 * s
+    box = (math.floor(cx0) - 1, math.floor(cy0) - 1, math.ceil(cx0 + 2 * s * mw) + 1,
+           math.ceil(cy0 + 2 * s * mh) + 1)
+    table, lo_x = _jaw_table(fr, b, box, new, drop, ring, ramp)
+    xs = (cx0 + 2 * s * np.arange(mw, dtype=np.float64) - o0).astype(np.float32)[None, :]
+    ys = (cy0 + 2 * s * np.arange(mh, dtype=np.float64) - o1).astype(np.float32)[:, None]
+    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
+        + ys * np.float32(r10 / _STEP)  # the node's frame x, in table steps
+    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR, None,
+                    cv2.BORDER_REPLICATE)
+    shift = _shift(xs * np.float32(r01) + ys * np.float32(r11), got)
+    shift = cv2.resize(shift, (2 * mw, 2 * mh), None, 0, 0, cv2.INTER_LINEAR)[2:2 + ny, 2:2 + nx]
+    mx = np.multiply(shift, np.float32(-r01))
+    mx += (x0 + s * np.arange(nx)).astype(np.float32)[None, :]
+    my = np.multiply(shift, np.float32(-r11))
+    my += (y0 + s * np.arange(ny)).astype(np.float32)[:, None]
+    return mx, my
+
+
+#: Points per row of the (rows, _ROW) maps through which :func:`_points` reads the jaw table
+#: (OpenCV's remap takes maps up to 32767 wide)
+_ROW = 4096
+
+
+def _points(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,
+            drop: np.ndarray, ring: np.ndarray, ramp: float, xs: np.ndarray, ys: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_hook`'s map at the points ``(xs, ys)`` (float32, image pixels, inside
+    ``reach``): the chin's map evaluated at each point (not interpolated from the nodes of a
+    coarser grid, as :func:`_hook` does over a large box)."""
+    n = len(xs)
+    if not n:
+        return xs.copy(), ys.copy()
+    # (the table over the box grown by a few pixels: a node the warp's coarse rasterizer gives
+    # a band triangle lies up to a node spacing outside it)
+    grown = (reach[0] - 8, reach[1] - 8, reach[2] + 8, reach[3] + 8)
+    table, lo_x = _jaw_table(fr, b, grown, new, drop, ring, ramp)
+    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
+    u = xs - np.float32(o0)
+    v = ys - np.float32(o1)
+    m = -(-n // _ROW) * _ROW
+    tx = np.zeros(m, np.float32)  # the point's frame x, in table steps
+    np.multiply(u, np.float32(r00 / _STEP), out=tx[:n])
+    tx[:n] -= np.float32(lo_x / _STEP)
+    tx[:n] += v * np.float32(r10 / _STEP)
+    got = cv2.remap(table, tx.reshape(-1, _ROW), _zeros32((m // _ROW, _ROW)),
+                    cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE).reshape(-1, 4)[:n]
+    d = u * np.float32(r01)  # the point's frame y
+    d += v * np.float32(r11)
+    shift = _shift(d, got)
+    mx = shift * np.float32(-r01)
+    mx += xs
+    my = shift * np.float32(-r11)
+    my += ys
+    return mx, my
 
 
 def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,

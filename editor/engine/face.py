@@ -50,6 +50,7 @@ from .jawband import jaw_map
 from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
+from .liprims import apply_lip_rims
 from .lipseal import apply_contact_line, apply_lip_seal
 from .liptone import apply_lip_tone
 from .mesh import StandardMesh, signed_areas, standard_mesh
@@ -546,7 +547,7 @@ class Face:
         w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v),
                  interpolation=cv2.INTER_CUBIC if sharp else cv2.INTER_LINEAR)
         w = apply_lid_skin(self, apply_grain(self, w), v)
-        w = apply_lip_tone(self, apply_lip_seal(self, w, v), v)
+        w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v), v), v)
         res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
         return apply_creases(self, res, v) if creases else res
 

@@ -49,6 +49,25 @@ def jaffe_images(pattern: str = "*.tiff") -> list[Path]:
     return sorted((JAFFE / "images").glob(pattern))
 
 
+def jaffe_real_and_drawn(measure, code: str, preset: str) -> tuple[float, float]:
+    """Medians of ``measure(image)`` (None: not measurable) over JAFFE's real ``code`` photos
+    (e.g. "HA") and over ``preset`` at 100 % rendered on each woman's first neutral photo;
+    skips the test when JAFFE is absent (or fewer than 8 renders measure)."""
+    import numpy as np
+
+    from editor.core import Face
+    from editor.engine.imageio import load_image
+    from editor.formats.presets import apply_preset
+
+    real = [m for p in jaffe_images(f"*.{code}*.tiff") if (m := measure(load_image(p)))]
+    drawn = [m for ne in jaffe_images("*.NE1.*.tiff")
+             if (m := measure(Face.from_image(ne, own_expression=False)
+                              .render(apply_preset(preset)))) is not None]
+    if len(drawn) < 8:
+        pytest.skip("../shared/data/jaffe is not available")
+    return float(np.median(real)), float(np.median(drawn))
+
+
 @pytest.fixture(scope="session")
 def jaffe_faces():
     """Five JAFFE neutral faces (different people); skipped when the data is absent."""

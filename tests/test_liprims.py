@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from conftest import jaffe_images
+from conftest import jaffe_real_and_drawn
 
 from editor.core import Face, save_image
 from editor.engine import face as face_module
@@ -94,17 +94,6 @@ def test_parted_lower_lip_is_as_light_at_its_rim_as_real_ones(emotion, code, mon
     # JAFFE's open mouths: the lower lip's rim 0.98 (smiles) and 0.92 (surprise) of its body;
     # the presets on the women's neutral photos without the layer 0.69 and 0.80 (the upper
     # lip's shadow carried down with the lower lip), with it 0.86 and 0.95
-    from editor.engine.imageio import load_image
-
-    real = [r for p in jaffe_images(f"*.{code}*.tiff") if (r := _rim_index(load_image(p)))]
-    drawn = []
-    for ne in jaffe_images("*.NE1.*.tiff"):
-        f = Face.from_image(ne, own_expression=False)
-        r = _rim_index(f.render(apply_preset(emotion)))
-        if r is not None:
-            drawn.append(r)
-    if len(drawn) < 8:
-        pytest.skip("../shared/data/jaffe is not available")
-    r, d = float(np.median(real)), float(np.median(drawn))
+    r, d = jaffe_real_and_drawn(_rim_index, code, emotion)
     assert r > 0.85, r
     assert r - 0.14 < d < r + 0.1, (r, d)

@@ -129,21 +129,31 @@ def _teeth_p90(image: np.ndarray) -> float | None:
     """The 90th percentile of the luminance inside the detected inner lips (eroded a pixel)
     over the skin's median in a ring 0.08-0.16 IOD outside the outer lips, the same measure on
     a real photo and on a render; None when the lips part by less than 0.05 IOD."""
-    from editor.engine.landmarks import detect_landmarks
-
-    lm = detect_landmarks(image)
-    p, iod = lm.points.astype(np.float32), lm.interocular
-    L = _lum(image)
-    if p[66, 1] - p[62, 1] < 0.05 * iod:
+    got = _open_mouth(image)
+    if got is None:
         return None
+    L, p, _, skin = got
     inner = np.zeros(L.shape, np.uint8)
     cv2.fillPoly(inner, [np.round(p[60:68]).astype(np.int32)], 1)
     inner = cv2.erode(inner, np.ones((3, 3), np.uint8)).astype(bool)
+    return float(np.percentile(L[inner], 90)) / skin
+
+
+def _open_mouth(image: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    """Luminance, detected landmarks (68), inter-ocular distance and the skin's median
+    luminance in a ring 0.08-0.16 IOD outside the outer lips; None when the inner lips part by
+    less than 0.05 IOD."""
+    from editor.engine.landmarks import detect_landmarks
+
+    lm = detect_landmarks(image)
+    p, iod = lm.points.astype(np.float32), float(lm.interocular)
+    L = _lum(image)
+    if p[66, 1] - p[62, 1] < 0.05 * iod:
+        return None
     outer = np.zeros(L.shape, np.uint8)
     cv2.fillPoly(outer, [np.round(p[48:60]).astype(np.int32)], 1)
     d = cv2.distanceTransform(1 - outer, cv2.DIST_L2, 3)
-    skin = float(np.median(L[(d > 0.08 * iod) & (d < 0.16 * iod)]))
-    return float(np.percentile(L[inner], 90)) / skin
+    return L, p, iod, float(np.median(L[(d > 0.08 * iod) & (d < 0.16 * iod)]))
 
 
 def test_drawn_teeth_are_as_bright_as_real_smiles_teeth():
@@ -561,17 +571,10 @@ def _opening_top(image: np.ndarray) -> float | None:
     landmarks 62 -> 66), the rows at 0.1, 0.2 and 0.3 of the way down, each row's 75th
     percentile over +-0.06 IOD about the middle over the skin's median in a ring 0.08-0.16 IOD
     outside the outer lips; their mean. None when the lips part by less than 0.05 IOD."""
-    from editor.engine.landmarks import detect_landmarks
-
-    lm = detect_landmarks(image)
-    p, iod = lm.points.astype(np.float32), lm.interocular
-    L = _lum(image)
-    if p[66, 1] - p[62, 1] < 0.05 * iod:
+    got = _open_mouth(image)
+    if got is None:
         return None
-    outer = np.zeros(L.shape, np.uint8)
-    cv2.fillPoly(outer, [np.round(p[48:60]).astype(np.int32)], 1)
-    d = cv2.distanceTransform(1 - outer, cv2.DIST_L2, 3)
-    skin = float(np.median(L[(d > 0.08 * iod) & (d < 0.16 * iod)]))
+    L, p, iod, skin = got
     x0, x1 = int(p[62, 0] - 0.06 * iod), int(p[62, 0] + 0.06 * iod) + 1
     rows = [int(round(p[62, 1] + t * (p[66, 1] - p[62, 1]))) for t in (0.1, 0.2, 0.3)]
     return float(np.mean([np.percentile(L[y, x0:x1], 75) for y in rows])) / skin
@@ -582,17 +585,8 @@ def test_fear_shows_the_upper_teeth_under_the_upper_lip_as_real_open_fear():
     # stays where it is: the top of the opening 0.92-0.99 of the skin (median per row). Fear
     # drawn with the upper lip pulled down over the teeth (lower_t_midlip +60: +0.044 IOD by
     # the landmarks, real +0.007) was a dark lens there, 0.45-0.59; held (-10): 0.93-0.99
-    from editor.formats.presets import apply_preset
+    from conftest import jaffe_real_and_drawn
 
-    real = [t for p in jaffe_images("*.FE*.tiff") if (t := _opening_top(load_image(p)))]
-    drawn = []
-    for ne in jaffe_images("*.NE1.*.tiff"):
-        f = Face.from_image(ne, own_expression=False)
-        t = _opening_top(f.render(apply_preset("fear")))
-        if t is not None:
-            drawn.append(t)
-    if len(drawn) < 8:
-        pytest.skip("../shared/data/jaffe is not available")
-    r, d = float(np.median(real)), float(np.median(drawn))
+    r, d = jaffe_real_and_drawn(_opening_top, "FE", "fear")
     assert r > 0.85, r
     assert d > r - 0.12, (r, d)

@@ -32,7 +32,6 @@ colour at the opening's edge).
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -42,7 +41,9 @@ import numpy as np
 from .fitting import luminance, smooth01
 from .gaze import spread3, zero_alpha
 from .layers import _rebox, _union
-from .warp import WarpResult, box_maps
+from .lipseal import add_carried, lip_curves
+from .perface import per_face
+from .warp import WarpResult
 
 if TYPE_CHECKING:
     from .face import Face
@@ -84,37 +85,20 @@ class RimPlan:
     iod: float
 
 
-_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_MISSING = object()  # (a face whose plan is None is cached too)
-
-
-def rim_plan(face: Face) -> RimPlan | None:
-    """The face's :class:`RimPlan` (cached for its lifetime; None: its lips are apart, or
-    there is no shadow between them to lift)."""
-    p = _PLANS.get(face, _MISSING)
-    if p is not _MISSING:
-        return p
-    p = _build(face)
-    _PLANS[face] = p
-    return p
-
-
 def _mean_gap(v: np.ndarray, upper: np.ndarray, lower: np.ndarray) -> float:
     """Mean distance between facing inner-lip points (corners left out), px."""
     d = v[lower[1:-1]] - v[upper[1:-1]]
     return float(np.hypot(d[:, 0], d[:, 1]).mean())
 
 
-def _build(face: Face) -> RimPlan | None:
+@per_face
+def rim_plan(face: Face) -> RimPlan | None:
+    """The face's :class:`RimPlan` (cached for its lifetime; None: its lips are apart, or
+    there is no shadow between them to lift)."""
     m = face.mesh
     iod = float(face.interocular)
     V = face.vertices.astype(np.float64)
-    upper = np.array([m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)]
-                     + [m.index("lipi_c1")])
-    lower = np.array([m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)]
-                     + [m.index("lipi_c1")])
-    outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
-                     + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
+    upper, lower, outer = lip_curves(m)
     lower_outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
                            + [m.index("lipo_c1")])
     gap0 = _mean_gap(V, upper, lower)
@@ -186,12 +170,7 @@ def apply_lip_rims(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     y1 = min(int(max(oy + h, float(q[:, 1].max()) + pad)) + 1, H)
     if x1 - x0 < 2 or y1 - y0 < 2:
         return res
-    mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))
-    d = cv2.remap(plan.diff, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
-    d3 = np.asarray(cv2.cvtColor(d, cv2.COLOR_RGBA2RGB), np.float32)
-    d3 *= np.float32(o)
-    view = out[y0:y1, x0:x1]
-    cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
+    add_carried(out, res.maps, (x0, y0, x1, y1), plan.diff, (ox, oy), o)
     bbox = _union(res.bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 

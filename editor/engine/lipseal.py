@@ -57,6 +57,7 @@ from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
     from .face import Face
+    from .mesh import StandardMesh
 
 #: an opening's pixel on the lips is darker than this share of the lips' median luminance
 DARK = 0.8
@@ -278,17 +279,24 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     return float((s[:h].max() + s[h]) / np.float32(2))
 
 
-def _build(face: Face) -> SealPlan | None:
-    m = face.mesh
-    iod = float(face.interocular)
-    V = face.vertices.astype(np.float64)
-    hole = np.asarray(m.holes["mouth"])
+def lip_curves(m: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertex indices of the upper and the lower inner lip (inner corner to inner corner,
+    facing point by point) and of the outer lip contour (a closed loop, upper lip first)."""
     upper = np.array([m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     lower = np.array([m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
                      + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
+    return upper, lower, outer
+
+
+def _build(face: Face) -> SealPlan | None:
+    m = face.mesh
+    iod = float(face.interocular)
+    V = face.vertices.astype(np.float64)
+    hole = np.asarray(m.holes["mouth"])
+    upper, lower, outer = lip_curves(m)
     img = face.image
     area0 = _area(face.vertices.take(hole, 0))  # as closing_share measures it
     opening = None
@@ -529,14 +537,24 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         y1 = min(int(max(oy + h, oy + h + sy) + m) + 1, H)
         if res.maps is None or x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))
-        d = cv2.remap(patch.diff, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
-        d3 = np.asarray(cv2.cvtColor(d, cv2.COLOR_RGBA2RGB), np.float32)
-        d3 *= np.float32(share)
-        view = out[y0:y1, x0:x1]
-        cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
+        add_carried(out, res.maps, (x0, y0, x1, y1), patch.diff, (ox, oy), share)
         bbox = _union(bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
+
+
+def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
+                box: tuple[int, int, int, int], diff: np.ndarray, org: tuple[int, int],
+                share: float) -> None:
+    """Add ``share`` times a photo difference ``diff`` ((h, w, 4) float32 whose top-left
+    corner is ``org`` on the photo) to ``out``'s ``box`` (in place, rounded and saturated),
+    carried to the frame by the warp's backward ``maps`` (zeros where they leave it)."""
+    x0, y0, x1, y1 = box
+    mx, my = box_maps(maps, box, org)
+    d = cv2.remap(diff, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
+    d3 = np.asarray(cv2.cvtColor(d, cv2.COLOR_RGBA2RGB), np.float32)
+    d3 *= np.float32(share)
+    view = out[y0:y1, x0:x1]
+    cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
 
 
 def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:

@@ -124,7 +124,8 @@ def rim_plan(face: Face) -> RimPlan | None:
     xs = np.arange(x1 - x0, dtype=np.float64)
     y_line = np.interp(xs, mid[order, 0], mid[order, 1])
     below = (np.arange(y1 - y0, dtype=np.float64)[:, None] - y_line[None, :]) / iod
-    w = smooth01(np.clip(below / 0.02 + 1.0, 0.0, 1.0))  # (a pixel's feather at the line)
+    # (feathered over 0.02 IOD above the line: the photo's line is a pixel or two wide)
+    w = smooth01(np.clip(below / 0.02 + 1.0, 0.0, 1.0))
     w *= 1.0 - smooth01(np.clip((below - REACH_IOD) / REACH_IOD, 0.0, 1.0))
     c0, c1 = float(mid[:, 0].min()), float(mid[:, 0].max())
     fade = max(CORNER_FADE * (c1 - c0), 1.0)

@@ -218,7 +218,8 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                      "upper lip held (t_mid -10) the lips parted 0.125 IOD at 260 (real open "
                      "fear 0.102) and the classifier named surprise on 2 of 10 at 100 %: at "
                      "220 they part 0.107 (the chin 0.071 down, real open fear 0.117, all 32 "
-                     "photos 0.055), fear on 10 of 10 at 100 %, 9 at 150 %"),
+                     "photos 0.055), fear on 10 of 10 at 100 %, 9 at 150 % (0.101 with the "
+                     "corners at -120: see c_raise)"),
         "b_mid": (-170, "with the jaw, the lower lip drops ~320 MNS (the open mouth of fear): "
                         "median -208 (outer -254), p10 -565 (outer -679), min -680; -170 so "
                         "that the lower lip's middle drops as far as its mid-points (10/11 = "
@@ -234,21 +235,27 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                        "on a wider mouth) the jaw's and corners' pull took it down +0.044 / "
                        "+0.025, six times as far, over the teeth: a dark lens with a sliver of "
                        "teeth, raters 'lips very dark' and fear named on 4 of 7 faces at 150 %; "
-                       "now +0.012 / +0.003 (with jaw 220). A full match of the open mouth "
-                       "(jaw 500, inner "
-                       "lower lip +190 and outer -40 against the jaw: chin 0.118 against real "
+                       "now +0.014 / +0.007 (jaw 220, corners -120). A full match of the open "
+                       "mouth (jaw 500, inner lower lip +190 and outer -40 against the jaw: "
+                       "chin 0.118 against real "
                        "0.117, lower lip 0.155 / 0.102 against 0.157 / 0.096) kept the lower "
                        "lip's shadow on the skin under it (0.66-0.78 of the forehead where real "
                        "fear is 0.83-0.87: liptone lifts it for a lip pulled towards the chin, "
                        "which that lip is not), so the jaw and lower lip stay"),
         "t_mids": (-10, "as t_mid (median -4/-1, outer 2/1; p90 194/209, outer 166/204)"),
-        "c_raise": (-80, "no AU12 in fear (AU20 pulls the lips sideways and down): the fit's "
-                         "+160 against the jaw's pull made the open mouth read as a smile. "
-                         "Real open fear's corners drop 0.036 IOD (median of 16, re-detected "
-                         "and aligned as for t_mid; landmark median -127/-68 MNS, p10 "
-                         "-435/-428): at -150 ours dropped 0.072, now 0.045. At -60 (with the "
-                         "upper lip at +60) the slightly open mouth kept the crescent of a "
-                         "smile over the teeth and a blind rater named the sample's fear joy"),
+        "c_raise": (-120, "no AU12 in fear (AU20 pulls the lips sideways and down): the "
+                          "fit's +160 against the jaw's pull made the open mouth read as a "
+                          "smile. Real open fear's corners drop 0.036 IOD (median of 16, "
+                          "re-detected and aligned as for t_mid; landmark median -127/-68 MNS, "
+                          "p10 -435/-428): at -150 ours dropped 0.072; at -80 0.045, but with "
+                          "the upper teeth showing under the held upper lip two blind raters "
+                          "out of two read a faint smile on NA and YM at 100 % and one named "
+                          "fear joy on them and the sample ('slight smile with teeth, corners "
+                          "slightly up'); at -120 they drop 0.055 and the mouth no longer "
+                          "turns up on those faces (the classifier: fear 8 of 10 at 100 %, 2 "
+                          "surprise; 9 at 150 %; at -80 10 and 9). At -60 (with the upper lip "
+                          "at +60) the slightly open mouth kept a smile's crescent over the "
+                          "teeth and a blind rater named the sample's fear joy"),
         },
     "disgust": {
         41: (100, "AU9 nose wrinkler lifts the cheeks (no landmark; chosen, half of joy's); it "

@@ -188,20 +188,15 @@ def _nodes(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.nd
     the others' values are meaningless): the shift evaluated on nodes ``2 s`` apart and
     interpolated bilinearly (x 2, ``cv2.resize``), as :func:`_hook` interpolates it to the
     pixels from nodes :data:`_COARSE` px apart."""
-    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
+    o0, o1, _, _, r01, r11 = _frame_numbers(fr)
     # coarse node m at node k = 2 m - 3 / 2: the resize's pixel i at node i - 2
     mw, mh = (nx + 2) // 2 + 2, (ny + 2) // 2 + 2
     cx0, cy0 = x0 - 1.5 * s, y0 - 1.5 * s
     box = (math.floor(cx0) - 1, math.floor(cy0) - 1, math.ceil(cx0 + 2 * s * mw) + 1,
            math.ceil(cy0 + 2 * s * mh) + 1)
-    table, lo_x = _jaw_table(fr, b, box, new, drop, ring, ramp)
     xs = (cx0 + 2 * s * np.arange(mw, dtype=np.float64) - o0).astype(np.float32)[None, :]
     ys = (cy0 + 2 * s * np.arange(mh, dtype=np.float64) - o1).astype(np.float32)[:, None]
-    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
-        + ys * np.float32(r10 / _STEP)  # the node's frame x, in table steps
-    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR, None,
-                    cv2.BORDER_REPLICATE)
-    shift = _shift(xs * np.float32(r01) + ys * np.float32(r11), got)
+    shift = _table_shift(fr, _jaw_table(fr, b, box, new, drop, ring, ramp), xs, ys)
     shift = cv2.resize(shift, (2 * mw, 2 * mh), None, 0, 0, cv2.INTER_LINEAR)[2:2 + ny, 2:2 + nx]
     mx = np.multiply(shift, np.float32(-r01))
     mx += (x0 + s * np.arange(nx)).astype(np.float32)[None, :]
@@ -227,20 +222,9 @@ def _points(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.n
     # (the table over the box grown by a few pixels: a node the warp's coarse rasterizer gives
     # a band triangle lies up to a node spacing outside it)
     grown = (reach[0] - 8, reach[1] - 8, reach[2] + 8, reach[3] + 8)
-    table, lo_x = _jaw_table(fr, b, grown, new, drop, ring, ramp)
-    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
-    u = xs - np.float32(o0)
-    v = ys - np.float32(o1)
-    m = -(-n // _ROW) * _ROW
-    tx = np.zeros(m, np.float32)  # the point's frame x, in table steps
-    np.multiply(u, np.float32(r00 / _STEP), out=tx[:n])
-    tx[:n] -= np.float32(lo_x / _STEP)
-    tx[:n] += v * np.float32(r10 / _STEP)
-    got = cv2.remap(table, tx.reshape(-1, _ROW), _zeros32((m // _ROW, _ROW)),
-                    cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE).reshape(-1, 4)[:n]
-    d = u * np.float32(r01)  # the point's frame y
-    d += v * np.float32(r11)
-    shift = _shift(d, got)
+    o0, o1, _, _, r01, r11 = _frame_numbers(fr)
+    shift = _table_shift(fr, _jaw_table(fr, b, grown, new, drop, ring, ramp),
+                         xs - np.float32(o0), ys - np.float32(o1))
     mx = shift * np.float32(-r01)
     mx += xs
     my = shift * np.float32(-r11)
@@ -279,20 +263,14 @@ def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.nda
     # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
     # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
     # than a tenth of a pixel)
-    table, lo_x = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
-    o0, o1, r00, r10, r01, r11 = _frame_numbers(fr)
+    o0, o1, _, _, r01, r11 = _frame_numbers(fr)
     s = _COARSE
     nw, nh = -(-w // s) + 1, -(-h // s) + 1
     off = 0.5 * s - 0.5
     xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]
     ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
-    tx = (xs * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) \
-        + ys * np.float32(r10 / _STEP)  # the pixel's frame x, in table steps
-    # (the four channels read as views: cheaper than splitting them into new arrays)
-    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR,
-                    None, cv2.BORDER_REPLICATE)
-    d = xs * np.float32(r01) + ys * np.float32(r11)  # the pixel's frame y ...
-    shift = _shift(d, got)
+    shift = _table_shift(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp),
+                         xs, ys)
     shift = cv2.resize(shift, (nw * s, nh * s), None, 0, 0, cv2.INTER_LINEAR)[:h, :w]
     # x - shift r01 as shift (-r01) + x: the same float32 values (IEEE negation is exact),
     # one temporary of the box fewer each
@@ -343,6 +321,26 @@ def _jaw_table(fr: FaceFrame, b: _Band, box: tuple[int, int, int, int], new: np.
     room -= t_strip
     table[:, :, 3] = np.maximum(np.minimum(ramp, room, out=room), 0.5, out=room)
     return table, lo_x
+
+
+def _table_shift(fr: FaceFrame, tab: tuple[np.ndarray, float], u: np.ndarray, v: np.ndarray
+                 ) -> np.ndarray:
+    """The band's shift at image offsets ``u = x - o0``, ``v = y - o1`` from the frame's
+    origin (float32, broadcast against each other: a grid's row and column, or two lists of
+    points): each one's frame x, in table steps, reads the jaw table ``tab``
+    (:func:`_jaw_table`) with one cv2.remap, its frame y gives the shift (:func:`_shift`)."""
+    table, lo_x = tab
+    _, _, r00, r10, r01, r11 = _frame_numbers(fr)
+    tx = (u * np.float32(r00 / _STEP) - np.float32(lo_x / _STEP)) + v * np.float32(r10 / _STEP)
+    n = tx.size
+    if tx.ndim == 1:  # (a list of points: rows of _ROW, OpenCV's maps are at most 32767 wide)
+        tx = np.concatenate([tx, np.zeros(-n % _ROW, np.float32)]).reshape(-1, _ROW)
+    # (the four channels read as views: cheaper than splitting them into new arrays)
+    got = cv2.remap(table, tx, _zeros32(tx.shape), cv2.INTER_LINEAR, None,
+                    cv2.BORDER_REPLICATE)
+    if u.ndim == 1:
+        got = got.reshape(-1, 4)[:n]
+    return _shift(u * np.float32(r01) + v * np.float32(r11), got)
 
 
 def _shift(d: np.ndarray, got: np.ndarray) -> np.ndarray:

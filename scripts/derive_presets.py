@@ -307,6 +307,20 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                         "snarl without them; towards p10, as for anger; 150 % stays above "
                         "the real min (-147 on the left)"),
         "brow_m": (-100, "as brow_i (median -92/-66, p10 -145/-178, min -158 on the left)"),
+        "lid_t": (220, "AU7 lid tightener narrows the eyes from above too, measured on the "
+                       "image (the dark eye's upper edge, neutral -> disgust, at 0.4/0.55/0.7 "
+                       "of the eye's width: real JAFFE disgust +0.033/+0.030/+0.039 IOD down, "
+                       "median of 29): the fit's 125 drew +0.016/+0.024/+0.016, eyes wide "
+                       "beside the real squint (KL, KM, TM); at 220 +0.028/+0.033/+0.024, the "
+                       "eye's height -0.066/-0.069/-0.037 against the real -0.062/-0.061/"
+                       "-0.033"),
+        "squeeze": (50, "AU4 corrugator draws the brow heads together; its furrows are "
+                        "disgust's strongest cue above the eyes. The fine dark lines between "
+                        "the brows (black top-hat energy, x +-0.22 IOD, 0.08-0.5 IOD above "
+                        "the eyes, disgust minus neutral): JAFFE disgust +0.0113 (median of "
+                        "29), the renders +0.0047 at the fit's 40 (the crease layer added "
+                        "almost nothing), +0.0066 at 50, +0.0101 at 70; 50 keeps 150 % inside "
+                        "the real max (80 on the right; median 38/41 ES, p90 85/72)"),
     },
 }
 

@@ -550,12 +550,15 @@ def _upper_lid_edges(image: np.ndarray, ref: np.ndarray) -> float:
     return float(np.mean(edges))
 
 
-def test_jaffe_smile_lowers_the_upper_lids_as_real_ones():
+@pytest.mark.parametrize("emotion,code", [("joy", "HA"), ("disgust", "DI")])
+def test_jaffe_expression_lowers_the_upper_lids_as_real_ones(emotion, code):
     # JAFFE's ten women, each photo aligned to her neutral on the inner eye corners and the
     # nose: the dark eye's upper edge over its middle and outer part drops a median 0.015 IOD
     # from the neutral photo to her real smiles (31). Joy drawn with the upper lids at 60
     # dropped it 0.005 (the eyes kept their neutral opening from above; the blind raters:
-    # "the eyes are unchanged"); at 120, as far as real smiles
+    # "the eyes are unchanged"); at 120, as far as real smiles (0.0137 against 0.0134).
+    # Disgust (29 photos): 0.033; its fitted 125 dropped it 0.021 (0.63 x), the eyes open
+    # from above beside the real squint; at 220 0.025 (0.76 x)
     from conftest import jaffe_images
 
     from editor.engine.imageio import load_image
@@ -564,7 +567,7 @@ def test_jaffe_smile_lowers_the_upper_lids_as_real_ones():
 
     real, drawn = [], []
     for ne in jaffe_images("*.NE1.*.tiff"):
-        smiles = jaffe_images(f"{ne.name[:2]}.HA*.tiff")
+        smiles = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
         if not smiles:
             continue
         f = Face.from_image(ne, own_expression=False)
@@ -572,9 +575,9 @@ def test_jaffe_smile_lowers_the_upper_lids_as_real_ones():
         n0 = _upper_lid_edges(f.image, ref)
         real.append(float(np.median([_upper_lid_edges(load_image(p), ref) for p in smiles]))
                     - n0)
-        drawn.append(_upper_lid_edges(f.render(apply_preset("joy")), ref) - n0)
+        drawn.append(_upper_lid_edges(f.render(apply_preset(emotion)), ref) - n0)
     if len(drawn) < 8:
         pytest.skip("../shared/data/jaffe is not available")
     r, d = float(np.median(real)), float(np.median(drawn))
     assert r > 0.005, r  # (the measure sees the real lids come down)
-    assert 0.6 * r < d < 1.5 * r, (r, d)
+    assert 0.7 * r < d < 1.5 * r, (emotion, r, d)

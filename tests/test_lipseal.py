@@ -50,11 +50,13 @@ def _dark_at_corners(face: Face, vec) -> int:
 def test_closed_lips_of_a_smiling_photo_show_no_cavity_corners(sample_face):
     """The sample smiles with its teeth: neutralised, angry or saying p/b/m, the closed lips
     carry none of the opening's dark corners (before: 9 px at the image-right corner of the
-    neutralised face, 9 under anger)."""
+    neutralised face, 9 under anger). Since the smile's corners are completed (the neutral
+    corners 0.015 IOD lower as seen) the contact line reaches that corner: 2 px, as a closed
+    mouth's line does (JAFFE's neutral photos: 24-54 px by this measure)."""
     f = sample_face
     assert lipseal.seal_plan(f) is not None
     for vec in (None, apply_preset("anger"), apply_preset("viseme_pbm")):
-        assert _dark_at_corners(f, vec) == 0
+        assert _dark_at_corners(f, vec) <= 3
 
 
 def test_closed_lips_meet_in_a_contact_line(sample_face):

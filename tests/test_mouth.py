@@ -342,7 +342,9 @@ def test_lower_lip_edge_does_not_ride_down_with_the_jaw(sample_face):
     # the sample's opening ends in a one-to-three-pixel run of lower-lip edge under its upper
     # teeth (3x: 1536 px); carried down with the jaw it drew a bright line across the dark
     # opening (fear 150 %: 110 pixels of the opening's lower part above 0.85 of the skin; 6
-    # after the fix, 17 with the drawn lower teeth's light since: their anti-aliased rim).
+    # after the fix, 17 with the drawn lower teeth's light since: their anti-aliased rim; 33
+    # since the neutral's corners sit lower (own_expression.CORNER_LAG): the corners drawn down
+    # from there open more of the drawn lower teeth, whose rim is the rest).
     # The mouth of fear at 150 % as it was then (the preset's upper lip now holds over the
     # upper teeth, whose tips reach into the opening's lower part)
     from editor.engine.faps import FAPS
@@ -364,7 +366,7 @@ def test_lower_lip_edge_does_not_ride_down_with_the_jaw(sample_face):
         rows = np.flatnonzero(inside[:, x])
         low = rows[rows > rows.min() + 0.55 * np.ptp(rows)]
         bright += int((L[low, x] > 0.85).sum())
-    assert bright < 20, bright
+    assert bright < 40, bright
 
 
 def test_a_soft_photos_mouth_edges_are_as_soft_as_its_own():

@@ -442,6 +442,25 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     return alpha * fade, rim
 
 
+def _shown(box: tuple[int, int, int, int], hole: np.ndarray, alpha: np.ndarray,
+           alpha_c: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[slice, slice]]:
+    """The part of an opening's ``box`` whose interior colours the composite reads (as a box
+    of the frame, and as slices of ``box``): the pixels where the interior shows (``alpha_c``
+    above zero: the coverage, or the soft edge's) or where the face is continued into the
+    opening (``hole``: an open eye's margin takes the interior there, :func:`_composite`), and
+    those of the coverage ``alpha`` (the mouth's thin-gap measure sums it over a window:
+    zeros beyond it, as at the box's edge). Elsewhere ``(interior - face) * 0 + face`` is the
+    face: the interior is not drawn there (the box's margin and the corners of a slanted
+    opening: a third to half of the mouth's box)."""
+    m = alpha_c != 0
+    if alpha is not alpha_c:
+        m |= alpha != 0
+    m |= hole
+    x, y, w, h = cv2.boundingRect(m.view(np.uint8))
+    return ((box[0] + x, box[1] + y, box[0] + x + w, box[1] + y + h),
+            (slice(y, y + h), slice(x, x + w)))
+
+
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
                hole: np.ndarray, interior: np.ndarray, shade: np.ndarray | None = None,
                inside: np.ndarray | None = None,
@@ -583,11 +602,16 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             # is the lips' surface turning in: the two read as a drawn outline)
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
                                                fade_in, with_shade=lp.soft <= 1.0)
-            interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha,
-                                       grain_over(face, box))
             if lp.soft > 1.0:
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
                                              (depth, rim))
+            # the interior drawn only where it shows (see _shown), embedded in the box
+            sub, (ys, xs) = _shown(box, hole, alpha, alpha_c)
+            interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
+            if sub[2] > sub[0]:
+                interior[ys, xs] = lp.mouth.render(
+                    sub, v, faps, tf, rim[ys, xs], depth[ys, xs],
+                    np.ascontiguousarray(alpha[ys, xs]), grain_over(face, sub))
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -601,8 +625,16 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft,
-                                     max(1, int(lp.soft // EYE_BLOCK_SOFT)))
+                q = max(1, int(lp.soft // EYE_BLOCK_SOFT))
+                if q > 1:  # (blocks upsampled over the box: drawn over all of it)
+                    interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv,
+                                         lp.soft, q)
+                else:  # drawn only where it shows (see _shown), embedded in the box
+                    sub, (ys, xs) = _shown(box, hole, alpha, alpha)
+                    interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
+                    if sub[2] > sub[0]:
+                        interior[ys, xs] = ep.render(sub, tf, shift, r_new, p_new, poly, lids,
+                                                     inv, lp.soft, 1, box)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)

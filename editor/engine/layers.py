@@ -442,23 +442,31 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     return alpha * fade, rim
 
 
-def _shown(box: tuple[int, int, int, int], hole: np.ndarray, alpha: np.ndarray,
-           alpha_c: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[slice, slice]]:
+def _shown(box: tuple[int, int, int, int], outline: tuple[int, int, int, int],
+           alpha_c: np.ndarray | None = None
+           ) -> tuple[tuple[int, int, int, int], tuple[slice, slice]]:
     """The part of an opening's ``box`` whose interior colours the composite reads (as a box
-    of the frame, and as slices of ``box``): the pixels where the interior shows (``alpha_c``
-    above zero: the coverage, or the soft edge's) or where the face is continued into the
-    opening (``hole``: an open eye's margin takes the interior there, :func:`_composite`), and
-    those of the coverage ``alpha`` (the mouth's thin-gap measure sums it over a window:
-    zeros beyond it, as at the box's edge). Elsewhere ``(interior - face) * 0 + face`` is the
-    face: the interior is not drawn there (the box's margin and the corners of a slanted
-    opening: a third to half of the mouth's box)."""
-    m = alpha_c != 0
-    if alpha is not alpha_c:
-        m |= alpha != 0
-    m |= hole
-    x, y, w, h = cv2.boundingRect(m.view(np.uint8))
-    return ((box[0] + x, box[1] + y, box[0] + x + w, box[1] + y + h),
-            (slice(y, y + h), slice(x, x + w)))
+    of the frame, and as slices of ``box``): the pixels where the interior shows (its
+    coverage above zero) or where the face is continued into the opening (its pixel set: an
+    open eye's margin takes the interior there, :func:`_composite`). Elsewhere
+    ``(interior - face) * 0 + face`` is the face: the interior is not drawn there (the box's
+    margin and the corners of a slanted opening: a third to half of the mouth's box).
+
+    ``outline``: the box of the outline's pixels (:func:`_box_of` without margin; a pixel
+    more for the mouth, whose coverage is blurred over 3 x 3). It holds both (the pixel set
+    is filled where the outline's fixed-point vertices round to, the coverage counts samples
+    strictly inside it), and so all of the coverage the mouth's thin-gap measure sums over a
+    window (zeros beyond it, as at the box's edge); found without a pass over the pixels.
+    ``alpha_c``: the soft edge's coverage, which the photo's blur spreads past the outline
+    (the bounding box of its pixels above zero is added)."""
+    x0, y0, x1, y1 = outline
+    if alpha_c is not None:
+        x, y, w, h = cv2.boundingRect((alpha_c != 0).view(np.uint8))
+        if w > 0:
+            x0, y0 = min(x0, box[0] + x), min(y0, box[1] + y)
+            x1, y1 = max(x1, box[0] + x + w), max(y1, box[1] + y + h)
+    return ((x0, y0, x1, y1),
+            (slice(y0 - box[1], y1 - box[1]), slice(x0 - box[0], x1 - box[0])))
 
 
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
@@ -606,7 +614,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
                                              (depth, rim))
             # the interior drawn only where it shows (see _shown), embedded in the box
-            sub, (ys, xs) = _shown(box, hole, alpha, alpha_c)
+            # (a pixel more: the mouth's coverage was blurred over 3 x 3)
+            sub, (ys, xs) = _shown(box, _box_of(lo_all[2], hi_all[2], out.shape, 1),
+                                   alpha_c if lp.soft > 1.0 else None)
             interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
             if sub[2] > sub[0]:
                 interior[ys, xs] = lp.mouth.render(
@@ -630,7 +640,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                     interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv,
                                          lp.soft, q)
                 else:  # drawn only where it shows (see _shown), embedded in the box
-                    sub, (ys, xs) = _shown(box, hole, alpha, alpha)
+                    sub, (ys, xs) = _shown(box, _box_of(lo_all[k_open], hi_all[k_open],
+                                                        out.shape, 0))
                     interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
                     if sub[2] > sub[0]:
                         interior[ys, xs] = ep.render(sub, tf, shift, r_new, p_new, poly, lids,

@@ -753,16 +753,19 @@ class EyePlan:
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,
                lids: tuple[np.ndarray, np.ndarray] | None = None,
-               inv: np.ndarray | None = None, soft: float = 1.0, q: int = 1) -> np.ndarray:
+               inv: np.ndarray | None = None, soft: float = 1.0, q: int = 1,
+               whole: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball over ``box`` of the output image (see
         :meth:`_render`); ``q`` > 1: evaluated at the centres of the box's ``q x q`` blocks
         and upsampled bilinearly (a soft photo's eye, whose edges ramp over several times
-        ``q`` px: the bench's 4K face, 15 px, at ``q`` 2 in a third of the time)."""
+        ``q`` px: the bench's 4K face, 15 px, at ``q`` 2 in a third of the time). ``whole``
+        (with ``q`` 1): the box that ``box`` is part of; its pixels decide whether each lid
+        moved (:meth:`_render`), so that the part's colours are the whole's there."""
         x0, y0, x1, y1 = box
         if q <= 1:
             return self._render(np.arange(x0, x1, dtype=np.float64),
                                 np.arange(y0, y1, dtype=np.float64), sim, shift, r_new, p_new,
-                                poly, lids, inv, soft)
+                                poly, lids, inv, soft, whole)
         hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
         c = 0.5 * (q - 1)  # (block k's centre: pixel x0 + k q + c, where cv2.resize puts it)
         col = self._render(x0 + c + q * np.arange(wq, dtype=np.float64),
@@ -774,7 +777,8 @@ class EyePlan:
     def _render(self, xs: np.ndarray, ys: np.ndarray, sim: np.ndarray, shift: np.ndarray,
                 r_new: float, p_new: float, poly: np.ndarray | None = None,
                 lids: tuple[np.ndarray, np.ndarray] | None = None,
-                inv: np.ndarray | None = None, soft: float = 1.0) -> np.ndarray:
+                inv: np.ndarray | None = None, soft: float = 1.0,
+                whole: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Colours (h, w, 3) float32 of the eyeball at the points (``xs``, ``ys``: the output
         image's columns and rows, float64).
 
@@ -788,6 +792,7 @@ class EyePlan:
         pixel of motion. ``lids``: :meth:`lid_frame` of ``poly`` and ``sim`` if already known,
         ``inv`` the inverse of ``sim``. ``soft``: the face's edge ramp (px,
         ``layers.LayerPlan.soft``) over which the iris and the white's lid bands blend.
+        ``whole``: the output box the points are part of (:meth:`render`).
         """
         k = self.r0 / self.r_det
         r_new, p_new = r_new * k, p_new * k
@@ -858,7 +863,12 @@ class EyePlan:
             # (smooth01's values, its clamp one clip ufunc; dd itself is read below)
             ss = clip(dd, 0.0, 1.0)
             ss = ss * ss * (3.0 - 2.0 * ss)
-            up_moved, low_moved = np.count_nonzero(ss[0]) > 0, np.count_nonzero(ss[1]) > 0
+            up_moved, low_moved = bool(np.count_nonzero(ss[0])), bool(np.count_nonzero(ss[1]))
+            if whole is not None and not (up_moved and low_moved):
+                # a lid counts as moved when it moved over any pixel of the whole box (it
+                # decides the blend of every pixel), not only over these
+                up_moved, low_moved = self._moved_over(whole, cu, c0, (up, low),
+                                                       (up_moved, low_moved))
             if low_moved:
                 # the iris that a lowered lower lid uncovers (hidden under the photo's lid, the
                 # completed sprite's) fades in over the lid's first pixel of motion, as the
@@ -965,6 +975,24 @@ class EyePlan:
             col *= band3
         return col
 
+
+    def _moved_over(self, box: tuple[int, int, int, int], cu: np.ndarray, c0: np.ndarray,
+                    lids: tuple[np.ndarray, np.ndarray], seen: tuple[bool, bool]
+                    ) -> tuple[bool, bool]:
+        """Whether the upper and the lower lid moved over some pixel of ``box`` (``seen``:
+        already found moving over a part of it): :meth:`_render`'s test (``ss`` non-zero),
+        over the box's frame u (``cu``, ``c0``: its row and column parts, the same values)."""
+        x0, y0, x1, y1 = box
+        U = (cu[0, 0] * np.arange(x0, x1, dtype=np.float64) + c0[0])[None, :] \
+            + (cu[0, 1] * np.arange(y0, y1, dtype=np.float64))[:, None]
+        out = list(seen)
+        for k, (now, rest) in enumerate(zip(lids, (self.lid_up, self.lid_low), strict=True)):
+            if out[k]:
+                continue
+            w, w0 = interp(U, now[:, 0], now[:, 1]), interp(U, rest[:, 0], rest[:, 1])
+            ss = clip(w0 - w if k == 0 else w - w0, 0.0, 1.0)
+            out[k] = bool(np.count_nonzero(ss * ss * (3.0 - 2.0 * ss)))
+        return out[0], out[1]
 
     def lash_fade(self, poly: np.ndarray) -> float:
         """How far the lash line of the opening ``poly`` (its 12 vertices, deformed) has faded

@@ -442,6 +442,33 @@ def _soft_edge(out: np.ndarray, box: tuple[int, int, int, int], hole: np.ndarray
     return alpha * fade, rim
 
 
+def _shown(box: tuple[int, int, int, int], outline: tuple[int, int, int, int],
+           alpha_c: np.ndarray | None = None
+           ) -> tuple[tuple[int, int, int, int], tuple[slice, slice]]:
+    """The part of an opening's ``box`` whose interior colours the composite reads (as a box
+    of the frame, and as slices of ``box``): the pixels where the interior shows (its
+    coverage above zero) or where the face is continued into the opening (its pixel set: an
+    open eye's margin takes the interior there, :func:`_composite`). Elsewhere
+    ``(interior - face) * 0 + face`` is the face: the interior is not drawn there (the box's
+    margin and the corners of a slanted opening: a third to half of the mouth's box).
+
+    ``outline``: the box of the outline's pixels (:func:`_box_of` without margin; a pixel
+    more for the mouth, whose coverage is blurred over 3 x 3). It holds both (the pixel set
+    is filled where the outline's fixed-point vertices round to, the coverage counts samples
+    strictly inside it), and so all of the coverage the mouth's thin-gap measure sums over a
+    window (zeros beyond it, as at the box's edge); found without a pass over the pixels.
+    ``alpha_c``: the soft edge's coverage, which the photo's blur spreads past the outline
+    (the bounding box of its pixels above zero is added)."""
+    x0, y0, x1, y1 = outline
+    if alpha_c is not None:
+        x, y, w, h = cv2.boundingRect((alpha_c != 0).view(np.uint8))
+        if w > 0:
+            x0, y0 = min(x0, box[0] + x), min(y0, box[1] + y)
+            x1, y1 = max(x1, box[0] + x + w), max(y1, box[1] + y + h)
+    return ((x0, y0, x1, y1),
+            (slice(y0 - box[1], y1 - box[1]), slice(x0 - box[0], x1 - box[0])))
+
+
 def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarray,
                hole: np.ndarray, interior: np.ndarray, shade: np.ndarray | None = None,
                inside: np.ndarray | None = None,
@@ -583,11 +610,18 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             # is the lips' surface turning in: the two read as a drawn outline)
             rim, depth, lip_shade = _mouth_rim(out, box, hole, alpha, lp.mouth.mouth_nose,
                                                fade_in, with_shade=lp.soft <= 1.0)
-            interior = lp.mouth.render(box, v, faps, tf, rim, depth, alpha,
-                                       grain_over(face, box))
             if lp.soft > 1.0:
                 alpha_c, inside = _soft_edge(out, box, hole, alpha, lp.soft, float(fade_in),
                                              (depth, rim))
+            # the interior drawn only where it shows (see _shown), embedded in the box
+            # (a pixel more: the mouth's coverage was blurred over 3 x 3)
+            sub, (ys, xs) = _shown(box, _box_of(lo_all[2], hi_all[2], out.shape, 1),
+                                   alpha_c if lp.soft > 1.0 else None)
+            interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
+            if sub[2] > sub[0]:
+                interior[ys, xs] = lp.mouth.render(
+                    sub, v, faps, tf, rim[ys, xs], depth[ys, xs],
+                    np.ascontiguousarray(alpha[ys, xs]), grain_over(face, sub))
         else:
             ep = lp.eyes[name]
             k = EXTRA_INDEX[name]
@@ -601,8 +635,17 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lids = ep.lid_frame(poly, tf, inv)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
-                interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv, lp.soft,
-                                     max(1, int(lp.soft // EYE_BLOCK_SOFT)))
+                q = max(1, int(lp.soft // EYE_BLOCK_SOFT))
+                if q > 1:  # (blocks upsampled over the box: drawn over all of it)
+                    interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv,
+                                         lp.soft, q)
+                else:  # drawn only where it shows (see _shown), embedded in the box
+                    sub, (ys, xs) = _shown(box, _box_of(lo_all[k_open], hi_all[k_open],
+                                                        out.shape, 0))
+                    interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
+                    if sub[2] > sub[0]:
+                        interior[ys, xs] = ep.render(sub, tf, shift, r_new, p_new, poly, lids,
+                                                     inv, lp.soft, 1, box)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)

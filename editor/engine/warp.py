@@ -841,15 +841,19 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
             nj = pts[:, 1].astype(np.intp) + gy0
     # the exact ids where they are read (the rasterizer's cost grows with the area it fills:
     # the forehead and the cheeks beside the face's features are not drawn)
+    near_t = None
     if reads is None:
         where = [(x0, y0, x0 + nx, y0 + ny)]
     else:
         where = [*reads, *_opening_boxes(plan, dst)]
-        if len(nj):
+        if len(nj) and _NEAR_TILE:
+            # (the triangles near the exact map's nodes themselves, not near their box)
+            near_t = _reaching_nodes(tri_pts, nj, nk, s, x0, y0, (gy, gx))
+        elif len(nj):
             where.append((x0 + (int(nk.min()) - 1) * s, y0 + (int(nj.min()) - 1) * s,
                           x0 + int(nk.max()) * s, y0 + int(nj.max()) * s))
-    ids = _ids(plan, dst, *_reaching_boxes(moved_t, tri_pts, where, (x0, y0, nx, ny)), x0, y0,
-               nx, ny)
+    ids = _ids(plan, dst, *_reaching_boxes(moved_t, tri_pts, where, (x0, y0, nx, ny), near_t),
+               x0, y0, nx, ny)
     if not len(nj):
         return ids, map_x, map_y, moving
     # node (j, k) is the nearest node of the pixels x in [(k - 1) s, k s) (and y alike):
@@ -952,24 +956,62 @@ def _corner_extremes(tri_pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _reaching_boxes(moved_t: np.ndarray, tri_pts: np.ndarray,
-                    boxes: list[tuple[int, int, int, int]], grid: tuple[int, int, int, int]
-                    ) -> tuple[np.ndarray, np.ndarray]:
+                    boxes: list[tuple[int, int, int, int]], grid: tuple[int, int, int, int],
+                    more: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The moved triangles (ids, points) that reach one of ``boxes`` (image pixels, x0, y0,
-    x1, y1) and the box of ``grid`` (x0, y0, nx, ny): drawn alone, in the same order, they
-    give every pixel of those boxes the id all the moved triangles give it (a triangle draws
-    only pixels within :data:`_RASTER_REACH` of it, and so only those it can take from
-    another; the others lie more than two pixels away)."""
+    x1, y1) and the box of ``grid`` (x0, y0, nx, ny), or are kept by ``more`` (bool per
+    triangle): drawn alone, in the same order, they give every pixel of those boxes the id all
+    the moved triangles give it (a triangle draws only pixels within :data:`_RASTER_REACH` of
+    it, and so only those it can take from another; the others lie more than two pixels
+    away)."""
     if not len(moved_t):
         return moved_t, tri_pts
     gx0, gy0, gnx, gny = grid
     lo, hi = _corner_extremes(tri_pts)
-    keep = np.zeros(len(moved_t), bool)
+    keep = np.zeros(len(moved_t), bool) if more is None else more.copy()
     for a0, b0, a1, b1 in boxes:
         a0, b0, a1, b1 = max(a0, gx0), max(b0, gy0), min(a1, gx0 + gnx), min(b1, gy0 + gny)
         if a1 > a0 and b1 > b0:
             keep |= ((hi[:, 0] >= a0 - 2) & (lo[:, 0] <= a1 + 1)
                      & (hi[:, 1] >= b0 - 2) & (lo[:, 1] <= b1 + 1))
     return (moved_t, tri_pts) if keep.all() else (moved_t[keep], tri_pts[keep])
+
+
+#: Nodes per side of the tiles in which :func:`_reaching_nodes` looks for the exact map's
+#: nodes (the smaller, the fewer triangles drawn beside the sharp edges' thin bands; the
+#: more tiles to sum)
+_NEAR_TILE = 8
+
+
+def _reaching_nodes(tri_pts: np.ndarray, nj: np.ndarray, nk: np.ndarray, s: int, x0: int,
+                    y0: int, shape: tuple[int, int]) -> np.ndarray:
+    """(n,) bool: the moved triangles (points ``tri_pts``) that may reach a pixel of the nodes
+    ``(nj, nk)`` of :func:`_maps_coarse`'s grid (``shape``; node ``(j, k)``: the box's pixels
+    ``[(k - 1) s, k s)``, the box at ``(x0, y0)``), looked up by tiles of
+    :data:`_NEAR_TILE` nodes (a triangle's pixels lie within two pixels of its corners' box,
+    as :func:`_reaching_boxes` reads it; a superset: every triangle that reaches such a pixel
+    is kept). On the 4K face the exact map's nodes are thin bands along the sharp edges, the
+    openings and the jaw line, whose box spans the face: about a sixth of the triangles drawn
+    for it reach none of them (the rasterizer's cost, ~5 us a triangle at that size, follows
+    the triangles it draws)."""
+    gy, gx = shape
+    T = _NEAR_TILE
+    ty, tx = -(-gy // T), -(-gx // T)
+    # the tiles holding a node, as a summed-area table (a zero row and column first)
+    sat = np.zeros((ty + 1, tx + 1), np.int32)
+    sat[1:, 1:][nj // T, nk // T] = 1
+    sat = sat.cumsum(0).cumsum(1)
+    lo, hi = _corner_extremes(tri_pts)
+    # each triangle's pixels, grown by two, as nodes (pixel p of the box: node p // s + 1)
+    kl = (np.floor(lo[:, 0] - x0).astype(np.intp) - 2) // s + 1
+    kh = (np.ceil(hi[:, 0] - x0).astype(np.intp) + 2) // s + 1
+    jl = (np.floor(lo[:, 1] - y0).astype(np.intp) - 2) // s + 1
+    jh = (np.ceil(hi[:, 1] - y0).astype(np.intp) + 2) // s + 1
+    inside = (kh >= 0) & (kl < gx) & (jh >= 0) & (jl < gy)
+    a0, a1 = np.clip(kl, 0, gx - 1) // T, np.clip(kh, 0, gx - 1) // T + 1
+    b0, b1 = np.clip(jl, 0, gy - 1) // T, np.clip(jh, 0, gy - 1) // T + 1
+    hits = sat[b1, a1] - sat[b0, a1] - sat[b1, a0] + sat[b0, a0]
+    return inside & (hits > 0)
 
 
 def _opening_boxes(plan: WarpPlan, dst: np.ndarray) -> list[tuple[int, int, int, int]]:

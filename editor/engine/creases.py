@@ -1418,16 +1418,28 @@ def _shifted(pts: np.ndarray, x: float, y: float) -> np.ndarray:
     return pts - (x, y)
 
 
-def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int) -> np.ndarray:
+def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int,
+               scale: np.float32 | None = None, cap: float | None = None) -> np.ndarray:
     """A splatted canvas of :func:`_on_canvas` (without its extra row and column) blurred by
     ``sigma`` px of the photo and, when it is coarse (``f`` > 1), resized back to the box
-    (``h`` x ``w``): float32. The weight a line leaves per coarse pixel is ``f^2`` times the
-    full-resolution one (the caller scales)."""
+    (``h`` x ``w``): float32, times ``scale`` and at most ``cap`` when given. The weight a
+    line leaves per coarse pixel is ``f^2`` times the full-resolution one (the caller
+    scales)."""
     if f == 1:
-        return np.asarray(_blur(canvas[:-1, :-1], sigma), np.float32)
-    hc, wc = canvas.shape[0] - 1, canvas.shape[1] - 1
-    return np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f), None,
-                                 0, 0, cv2.INTER_LINEAR)[:h, :w], np.float32)
+        out = np.asarray(_blur(canvas[:-1, :-1], sigma), np.float32)
+        full = out
+    else:
+        hc, wc = canvas.shape[0] - 1, canvas.shape[1] - 1
+        full = np.asarray(cv2.resize(_blur(canvas[:-1, :-1], sigma / f), (wc * f, hc * f),
+                                     None, 0, 0, cv2.INTER_LINEAR), np.float32)
+        out = full[:h, :w]
+    # (scaled and capped over the whole resized canvas, then cropped: numpy's element-wise
+    # passes over the crop's strided rows cost several times as much; the same values)
+    if scale is not None:
+        full *= scale
+    if cap is not None:
+        np.minimum(full, np.float32(cap), out=full)
+    return out
 
 
 #: A fold line is drawn at 1/f of the photo's resolution when its drawn half-width (sigma,
@@ -1452,12 +1464,10 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     factor (:func:`_work_factor`), the gain computed on ``q x q`` blocks (:func:`_fold_blocks`)."""
     x0, y0, x1, y1 = box
     sig = float(fa.dsig[g])
-    dark = _blur_back(dark, sig, f, y1 - y0, x1 - x0)
-    light = _blur_back(light, 1.6 * sig, f, y1 - y0, x1 - x0)
-    if f > 1:  # (a line's weight per coarse pixel: f^2 times its own)
-        k = np.float32(1.0 / (f * f))
-        dark *= k
-        light *= k
+    # (a line's weight per coarse pixel: f^2 times its own)
+    k = np.float32(1.0 / (f * f)) if f > 1 else None
+    dark = _blur_back(dark, sig, f, y1 - y0, x1 - x0, k)
+    light = _blur_back(light, 1.6 * sig, f, y1 - y0, x1 - x0, k)
     H, W = out.shape[:2]
     hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
     if q > 1 and y0 + hq * q <= H and x0 + wq * q <= W:
@@ -1777,9 +1787,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         sb = max(2.5 * sig, 1.0)
         # flat across the valley, falling off over the band's edge
         k = np.float32(1.6 * math.sqrt(2 * math.pi) * sb / (f * f))
-        band = _blur_back(drawn[ci], sb, f, y1 - y0, x1 - x0)
-        band *= k
-        np.minimum(band, 1.0, out=band)
+        band = _blur_back(drawn[ci], sb, f, y1 - y0, x1 - x0, k, 1.0)
         hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
         got_q = None if q == 1 or got is None else _photo_gain_q(face, g)
         if got_q is not None and maps is not None and y0 + hq * q <= H and x0 + wq * q <= W:
@@ -1856,7 +1864,8 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band
     hb, wb = y1 - y0, x1 - x0
     hq, wq = -(-hb // q), -(-wb // q)
     (S, Cw), (ox, oy) = got
-    mx, my = box_maps(maps, (x0, y0, x0 + wq * q, y0 + hq * q))
+    # (the maps' own memory where they cover the box: only read, by the block means)
+    mx, my = box_maps(maps, (x0, y0, x0 + wq * q, y0 + hq * q), view=True)
     # each block's mean map: the map at its centre, where the block lies in one triangle;
     # read on the photo's fields at their blocks' resolution (the fields' own pixels, not
     # their upsampling: a ninth of the memory to read at q 3)
@@ -1880,9 +1889,12 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band
     np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)
     gain -= 1.0
     gain *= spread3(bq)
+    # (+ 1 over the whole resized blocks, then cropped: on the crop's strided rows numpy's
+    # add costs 4 times as much)
     lift = np.asarray(cv2.resize(gain, (wq * q, hq * q), None, 0, 0, cv2.INTER_LINEAR),
-                      np.float32)[:hb, :wb]
+                      np.float32)
     lift += 1.0
+    lift = lift[:hb, :wb]
     view = out[y0:y1, x0:x1]
     # per pixel, never above the frame's own closing (where it is above the closing, the
     # frame itself): the blocks' cap holds for their means, not for a pixel brighter than its

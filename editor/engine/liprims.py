@@ -41,7 +41,7 @@ import numpy as np
 from .fitting import luminance, smooth01
 from .gaze import spread3, zero_alpha
 from .layers import _rebox, _union
-from .lipseal import add_carried, lip_curves
+from .lipseal import add_carried, lip_curves, lower_outer_curve
 from .perface import per_face
 from .warp import WarpResult
 
@@ -99,8 +99,7 @@ def rim_plan(face: Face) -> RimPlan | None:
     iod = float(face.interocular)
     V = face.vertices.astype(np.float64)
     upper, lower, outer = lip_curves(m)
-    lower_outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
-                           + [m.index("lipo_c1")])
+    lower_outer = lower_outer_curve(m)
     gap0 = _mean_gap(V, upper, lower)
     if gap0 > CLOSED_IOD * iod:
         return None

@@ -301,6 +301,13 @@ def lip_curves(m: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return upper, lower, outer
 
 
+def lower_outer_curve(m: StandardMesh) -> np.ndarray:
+    """Vertex indices of the lower outer lip, outer corner to outer corner (facing
+    :func:`lip_curves`' lower inner lip point by point)."""
+    return np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
+                    + [m.index("lipo_c1")])
+
+
 def _build(face: Face) -> SealPlan | None:
     m = face.mesh
     iod = float(face.interocular)
@@ -313,9 +320,8 @@ def _build(face: Face) -> SealPlan | None:
     # the photo's edge ramp (1 px on a sharp photo: the fills as before)
     soft = layer_plan(face).soft
     if area0 >= 0.005 * iod * iod:
-        lower_out = np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
-                             + [m.index("lipo_c1")])
-        opening = _opening_patch(img, V[hole], V[outer], iod, soft, (V[lower], V[lower_out]))
+        opening = _opening_patch(img, V[hole], V[outer], iod, soft,
+                                 (V[lower], V[lower_outer_curve(m)]))
     if opening is None:
         area0 = 0.0
     # the corners' notches are looked for on the photo with its opening filled (a pixel of

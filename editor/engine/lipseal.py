@@ -643,13 +643,20 @@ def _reached(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
         return box
     sx0, sy0, sx1, sy1 = support
     ox, oy = org
-    # (the maps' own memory, read once; cv2.inRange: both bounds inclusive)
-    m = cv2.inRange(map_x[y0 - b0:y1 - b0, x0 - a0:x1 - a0],
-                    float(ox + sx0 - 2), float(ox + sx1 + 1))
-    cv2.bitwise_and(m, cv2.inRange(map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0],
-                                   float(oy + sy0 - 2), float(oy + sy1 + 1)), m)
+    # (the maps' own memory; cv2.inRange: both bounds inclusive. The rows first: the x map
+    # is then read only in the rows whose y map reaches the support, a third fewer of its
+    # cold pixels on the bench face's corners and shadow)
+    m = cv2.inRange(map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0],
+                    float(oy + sy0 - 2), float(oy + sy1 + 1))
+    _, r0, _, nr = cv2.boundingRect(m)
+    if not nr:
+        return None
+    r0 += y0
+    m = m[r0 - y0:r0 - y0 + nr]
+    cv2.bitwise_and(m, cv2.inRange(map_x[r0 - b0:r0 + nr - b0, x0 - a0:x1 - a0],
+                                   float(ox + sx0 - 2), float(ox + sx1 + 1)), m)
     x, y, w, h = cv2.boundingRect(m)
-    return (x0 + x, y0 + y, x0 + x + w, y0 + y + h) if w else None
+    return (x0 + x, r0 + y, x0 + x + w, r0 + y + h) if w else None
 
 
 def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:

@@ -45,6 +45,7 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import cv2
@@ -106,6 +107,12 @@ class _Patch:
 
     diff: np.ndarray
     org: tuple[int, int]
+
+    @cached_property
+    def support(self) -> tuple[int, int, int, int] | None:
+        """The box ``(x0, y0, x1, y1)`` of ``diff``'s nonzero pixels (its own coordinates;
+        None: none), for :func:`add_carried`."""
+        return _support(self.diff)
 
 
 @dataclass(eq=False)
@@ -587,17 +594,26 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         y1 = min(int(max(oy + h, oy + h + sy) + m) + 1, H)
         if res.maps is None or x1 - x0 < 2 or y1 - y0 < 2:
             continue
-        add_carried(out, res.maps, (x0, y0, x1, y1), patch.diff, (ox, oy), share)
+        add_carried(out, res.maps, (x0, y0, x1, y1), patch.diff, (ox, oy), share,
+                    patch.support)
         bbox = _union(bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 
 
 def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
                 box: tuple[int, int, int, int], diff: np.ndarray, org: tuple[int, int],
-                share: float) -> None:
+                share: float, support: tuple[int, int, int, int] | None = None) -> None:
     """Add ``share`` times a photo difference ``diff`` ((h, w, 4) float32 whose top-left
     corner is ``org`` on the photo) to ``out``'s ``box`` (in place, rounded and saturated),
-    carried to the frame by the warp's backward ``maps`` (zeros where they leave it)."""
+    carried to the frame by the warp's backward ``maps`` (zeros where they leave it).
+    ``support``: :func:`_support` of ``diff`` when known; then only the part of ``box``
+    whose map reaches it is resampled (elsewhere the carried difference is zero and adds
+    nothing: the same frame)."""
+    if support is not None:
+        sub = _reached(maps, box, org, support)
+        if sub is None:
+            return
+        box = sub
     x0, y0, x1, y1 = box
     mx, my = box_maps(maps, box, org)
     d = cv2.remap(diff, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
@@ -605,6 +621,48 @@ def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, 
     d3 *= np.float32(share)
     view = out[y0:y1, x0:x1]
     cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
+
+
+def _support(diff: np.ndarray) -> tuple[int, int, int, int] | None:
+    """The box ``(x0, y0, x1, y1)`` of the pixels of ``diff`` (h, w, c) that are not zero in
+    every channel (None: none are)."""
+    nz = np.ascontiguousarray((diff != 0).any(axis=-1), np.uint8)
+    x, y, w, h = cv2.boundingRect(nz)
+    return (x, y, x + w, y + h) if w else None
+
+
+def _reached(maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]],
+             box: tuple[int, int, int, int], org: tuple[int, int],
+             support: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
+    """The part of the frame's ``box`` whose backward ``maps`` may sample a photo difference
+    whose nonzero pixels lie in ``support`` (its coordinates, its top-left corner at ``org``
+    on the photo): the bounding box of the pixels whose map lies within 2 px of it (None:
+    none does). Elsewhere the bilinear sample reads only zeros (a map rounded to 1/32 px
+    reads its floor and the next pixel: beyond 1.5 px of the support both are outside), so
+    the carried difference is exactly zero there. ``box`` itself when the maps do not cover
+    it (the identity beyond them: not worth a finer box). On the 4K bench face the lip
+    seal's three boxes shrink to 61 % of their pixels (the opening's reaches 72 % of its
+    box, the corners' ~40 %)."""
+    x0, y0, x1, y1 = box
+    map_x, map_y, (a0, b0, a1, b1) = maps
+    if not (a0 <= x0 and b0 <= y0 and x1 <= a1 and y1 <= b1):
+        return box
+    sx0, sy0, sx1, sy1 = support
+    ox, oy = org
+    # (the maps' own memory; cv2.inRange: both bounds inclusive. The rows first: the x map
+    # is then read only in the rows whose y map reaches the support, a third fewer of its
+    # cold pixels on the bench face's corners and shadow)
+    m = cv2.inRange(map_y[y0 - b0:y1 - b0, x0 - a0:x1 - a0],
+                    float(oy + sy0 - 2), float(oy + sy1 + 1))
+    _, r0, _, nr = cv2.boundingRect(m)
+    if not nr:
+        return None
+    r0 += y0
+    m = m[r0 - y0:r0 - y0 + nr]
+    cv2.bitwise_and(m, cv2.inRange(map_x[r0 - b0:r0 + nr - b0, x0 - a0:x1 - a0],
+                                   float(ox + sx0 - 2), float(ox + sx1 + 1)), m)
+    x, y, w, h = cv2.boundingRect(m)
+    return (x0 + x, r0 + y, x0 + x + w, r0 + y + h) if w else None
 
 
 def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:

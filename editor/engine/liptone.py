@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import cv2
@@ -58,6 +59,7 @@ from .creases import SHADOW_TINT
 from .fitting import channel_median, clamp, is_grey, smooth01
 from .gaze import spread3
 from .layers import _rebox, _union
+from .lipseal import _reached, _support
 from .perface import per_face
 from .warp import WarpResult, box_maps
 
@@ -127,6 +129,11 @@ class TonePlan:
     pull0: float = 1.0  # their distance on the photo's mesh (px)
     nose: int = 0  # the nose's base 9.15
     nose0: float = 1.0  # its distance to the chin on the photo's mesh (px)
+
+    @cached_property
+    def shadow_support(self) -> tuple[int, int, int, int] | None:
+        """The box of :attr:`shadow`'s nonzero pixels (its coordinates; :func:`_lift_shadow`)."""
+        return None if self.shadow is None else _support(self.shadow[..., None])
 
 
 @per_face
@@ -385,11 +392,19 @@ def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: f
     y1 = min(int(max(oy + h, oy + h + sy)) + m + 1, H)
     if x1 - x0 < 2 or y1 - y0 < 2:
         return None
-    mx, my = box_maps(res.maps, (x0, y0, x1, y1), (ox, oy))
+    box = (x0, y0, x1, y1)
+    # only where the map reaches the shadow's nonzero pixels (elsewhere the lift is a gain of
+    # exactly 1: the same frame); on the 4K bench face 65 % of the box
+    sup = plan.shadow_support
+    sub = None if sup is None else _reached(res.maps, box, (ox, oy), sup)
+    if sub is None:
+        return box
+    x0, y0, x1, y1 = sub
+    mx, my = box_maps(res.maps, sub, (ox, oy))
     # (zeros outside: the default)
     f = np.asarray(cv2.remap(plan.shadow, mx, my, cv2.INTER_LINEAR), np.float32)
     f *= np.float32(share)
     f += np.float32(1.0)
     view = out[y0:y1, x0:x1]
     cv2.multiply(view, spread3(f), dst=view, dtype=cv2.CV_8U)
-    return x0, y0, x1, y1
+    return box

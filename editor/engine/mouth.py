@@ -532,7 +532,9 @@ class MouthPlan:
             g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
                 [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
-            deep = np.asarray(cv2.transform(back, cav_rgb), np.float32)
+            # (spread, then times the cavity's colour as a per-channel scalar: the same float32
+            # products as cv2.transform's 3 x 1 matrix, at a fraction of its cost)
+            deep = np.asarray(cv2.multiply(spread3(back), self._cavity_scalar), np.float32)
             out = 0.45 * np.asarray(rim, np.float32) - deep
             out *= spread3(g)
             out += deep
@@ -652,6 +654,12 @@ class MouthPlan:
         """(width, height) of the lower teeth, upper teeth and tongue at the neutral scale."""
         return tuple((float(w), float(h)) for w, h in
                      (self.size[k] for k in ("lower_teeth", "upper_teeth", "tongue")))
+
+    @cached_property
+    def _cavity_scalar(self) -> np.ndarray:
+        """:attr:`cavity` as OpenCV's per-channel scalar (a (3,) float64 array: 3 x 1, one
+        value a channel of a 3-channel image)."""
+        return self.cavity.astype(np.float64)
 
     @cached_property
     def _exy(self) -> np.ndarray:

@@ -208,7 +208,9 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     box (x0, y0, x1, y1) it changed, None when it changed nothing; the band path of a moving
     margin (head rotation) does not call it. A hook that is also a :class:`NodeHook` (its map
     at any points) joins the interpolated map of a large face (:attr:`WarpPlan.map_step` > 1)
-    on its nodes instead (see :func:`_maps_coarse`); it is not called then.
+    on its nodes instead (see :func:`_maps_coarse`); it is not called then. On the exact map
+    the pixels of the ids a hook's ``lut`` marks (if it has one) carry the identity when it is
+    called: it replaces their map wherever that differs from the identity.
     ``interpolation``: how the photo is resampled (``cv2.INTER_LINEAR``, the live preview's;
     ``cv2.INTER_CUBIC`` keeps the moved skin as sharp as the photo's, at ~1.3 x the render's
     cost: stills for export).
@@ -263,7 +265,8 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     else:
         s = 1
         # (a hook that names the ids whose map it replaces (``lut``) replaces it at every such
-        # pixel: their affine maps are not evaluated, see :func:`_evaluate_clamped`)
+        # pixel where it differs from the identity: their points carry the identity, their
+        # affine maps are not evaluated, see :func:`_evaluate_clamped`)
         ids, map_x, map_y = _maps(plan, dst, layers, moved_t, tri_pts, x0, y0, x1 - x0,
                                   y1 - y0, skip=getattr(hook, "lut", None))
     touched = None if hook is None else hook(ids, map_x, map_y, (x0, y0, x1, y1))
@@ -566,10 +569,11 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
     # rasterizer's reach, every point is clamped)
     risky = _risky(plan, table, tb, x0, y0, step, ids.shape, drawn) if grow else None
     if risky is None:
+        own = skip if skip is not None and drawn is not None and step == 1 else None
         return _evaluate_clamped(ids, table, tb, x0, y0, step,
-                                 None if skip is None or drawn is None or step != 1
+                                 None if own is None or drawn is None
                                  or ids.size < _SKIP_MIN_PX else
-                                 _skip_blocks(plan, drawn, skip, x0, y0, *ids.shape))
+                                 _skip_blocks(plan, drawn, own, x0, y0, *ids.shape), own)
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     # (each coefficient taken from its own contiguous row of the table's transpose, by the
     # band's ids made indices once: contiguous operands throughout, the same float32
@@ -665,16 +669,22 @@ def _map_grid(shape: tuple[int, ...], x0: float, y0: float, step: int
 
 def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: float,
                       y0: float, step: int,
-                      blocks: list[tuple[int, int, int, int]] | None = None
-                      ) -> tuple[np.ndarray, np.ndarray]:
+                      blocks: list[tuple[int, int, int, int]] | None = None,
+                      own: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_evaluate` with every point clamped to its row's box ``tb``: the six
     coefficients and the four bounds of each point's row gathered in one ``take`` of a
     (rows, 10) table (a 40-byte record per point: on the 1920 x 1080 face's box half the cost
     of three nearest-neighbour remaps of 3, 3 and 4 channels), then the same float32
     arithmetic on its channels. ``blocks`` (:func:`_blocks`): evaluated only over their
-    columns, the identity beside them (see :func:`_evaluate_blocks`)."""
+    columns, the identity beside them (see :func:`_evaluate_blocks`). ``own`` (rows,) bool:
+    the rows a hook overwrites (its ``lut``) take the identity's record, so that their points
+    carry their own position wherever they are evaluated or not (the hook then writes only
+    where its map differs from that: the jaw's shift, whose fade ends above the band's lower
+    part)."""
     ny, nx = ids.shape
     rec = np.concatenate([table, tb], axis=1)  # (rows, 10): a b c (x), d e f (y), box
+    if own is not None:
+        rec[own] = rec[len(table) - 1 - len(LAYERS)]
     xs, ys, map_x, map_y, rows = _map_grid(ids.shape, x0, y0, step)
     if blocks is not None:
         _evaluate_blocks(ids, rec, xs, ys, map_x, map_y, blocks)

@@ -755,8 +755,6 @@ def _skip_blocks(plan: WarpPlan, drawn: tuple[np.ndarray, np.ndarray, np.ndarray
     dst, moved_t, tri_pts = drawn
     B = _SPAN_ROWS
     nb = -(-ny // B)
-    if not len(moved_t):
-        return [(0, ny, 0, 0)]
     lo, hi = _corner_extremes(tri_pts)
     # the openings' loops' boxes too (their ids are evaluated: a layer's own map)
     starts, k = [], 0

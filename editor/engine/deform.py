@@ -469,22 +469,15 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     convex parabola whose vertex lies inside (0, 1), at the vertex. Triangles at or below the
     limit at ``t = 0`` are left to the guard, as in :func:`_tau`.
     """
-    T = len(plan.triangles)
     if base.shape[0] == 1:
-        # one vector: its (V, 4) positions and displacements, all corners gathered in one take
-        # (C, A, B of every triangle) and viewed component first, (4, 1, T) each
-        G = np.concatenate([base[0], D[0]], axis=1).take(_tri_gather(plan), 0).T
-        XC = G[:, None, :T]
-        u = XC - G[:, None, T:2 * T]
-        w = XC - G[:, None, 2 * T:]
-    else:
-        t0, t1, t2 = _tri_columns(plan)
-        # (B, V, 4) viewed component first: the corners gathered with take (fancy indexing
-        # costs several us more) into (4, B, T)
-        X = np.concatenate([base, D], axis=2).transpose(2, 0, 1)
-        XC = X.take(t2, 2)
-        u = XC - X.take(t0, 2)
-        w = XC - X.take(t1, 2)
+        return _folds_none_1(plan, D[0], base[0])
+    t0, t1, t2 = _tri_columns(plan)
+    # (B, V, 4) viewed component first: the corners gathered with take (fancy indexing
+    # costs several us more) into (4, B, T)
+    X = np.concatenate([base, D], axis=2).transpose(2, 0, 1)
+    XC = X.take(t2, 2)
+    u = XC - X.take(t0, 2)
+    w = XC - X.take(t1, 2)
     ux, uy, dux, duy = u
     wx, wy, dwx, dwy = w
     sg, lim, tol = _fold_limits(plan)
@@ -492,6 +485,40 @@ def _folds_none(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
     a1 = sg * (ux * dwy - uy * dwx + dux * wy - duy * wx)
     a0 = sg * (ux * wy - uy * wx) - lim
     return _stays_above(a0, a1, a2, tol)
+
+
+def _folds_none_1(plan: DeformPlan, D: np.ndarray, base: np.ndarray) -> bool:
+    """:func:`_folds_none` of one vector (``D``, ``base`` (V, 2)): its (V, 4) positions and
+    displacements, all corners gathered in one take (C, A, B of every triangle) and viewed
+    component first, (4, T) each; the same element-wise arithmetic on (T,) rows and the
+    decision of :func:`_stays_above` without its broadcasts and ``ndarray.all`` wrappers
+    (each a few us: a neutralised face's every frame; the guard keeps its own)."""
+    T = len(plan.triangles)
+    G = np.concatenate([base, D], axis=1).take(_tri_gather(plan), 0).T
+    XC = G[:, :T]
+    ux, uy, dux, duy = XC - G[:, T:2 * T]
+    wx, wy, dwx, dwy = XC - G[:, 2 * T:]
+    sg, lim, tol = _fold_rows(plan)
+    a2 = sg * (dux * dwy - duy * dwx)
+    a1 = sg * (ux * dwy - uy * dwx + dux * wy - duy * wx)
+    a0 = sg * (ux * wy - uy * wx) - lim
+    p1 = a0 + a1 + a2
+    if np.count_nonzero((a0 <= 0) | (p1 > tol)) < T:
+        return False
+    inner = np.flatnonzero((a2 > 0) & (a1 < 0) & (-a1 < 2.0 * a2) & (a0 > 0))
+    if not len(inner):
+        return True
+    a1, a2 = a1.take(inner), a2.take(inner)
+    return np.count_nonzero(a0.take(inner) - a1 * a1 / (4.0 * a2) > tol.take(inner)) == len(inner)
+
+
+def _fold_rows(plan: DeformPlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_fold_limits` as (T,) rows (once per plan)."""
+    got = plan.__dict__.get("_fold_rows")
+    if got is None:
+        got = tuple(np.ascontiguousarray(a[0]) for a in _fold_limits(plan))
+        object.__setattr__(plan, "_fold_rows", got)
+    return got
 
 
 def _stays_above(a0: np.ndarray, a1: np.ndarray, a2: np.ndarray, tol: np.ndarray) -> bool:

@@ -247,9 +247,9 @@ def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.nda
     if x1 <= x0 or y1 <= y0:
         return None
     sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
-    sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
     w, h = x1 - x0, y1 - y0
     if w * h <= _COARSE_AREA:
+        sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
         # a small box: the table is read and the shift evaluated at the band's pixels only
         # (their flat indices: np.nonzero of a 2-d mask costs several times more)
         k = sel.ravel().nonzero()[0]
@@ -258,32 +258,64 @@ def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.nda
         _hook_pixels(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp), sel,
                      k, sub, (x0, y0, x1, y1), map_x, map_y)
         return x0, y0, x1, y1
-    if not np.count_nonzero(sel):
-        return None
     # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
     # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
     # than a tenth of a pixel)
     o0, o1, _, _, r01, r11 = _frame_numbers(fr)
     s = _COARSE
+    tab = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
+    # the warp gave the band's pixels the identity (see warp.warp): the rows below the fade's
+    # end, where the shift is 0, keep it (on the 1080p bench face a third of the box). The
+    # first h rows' nodes and shifts are the whole box's (the same nodes; a pixel reads the
+    # two nodes about it, both in the grid)
+    h = min(h, _fade_rows(fr, tab, y0, s, new, b.tau, ramp))
+    if h <= 0:
+        return None
+    sub = (slice(y0 - by0, y0 - by0 + h), sub[1])
+    sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
+    if not np.count_nonzero(sel):
+        return None
     nw, nh = -(-w // s) + 1, -(-h // s) + 1
     off = 0.5 * s - 0.5
     xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]
     ys = (y0 + off + s * np.arange(nh, dtype=np.float32) - np.float32(o1))[:, None]
-    shift = _table_shift(fr, _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp),
-                         xs, ys)
+    shift = _table_shift(fr, tab, xs, ys)
     shift = cv2.resize(shift, (nw * s, nh * s), None, 0, 0, cv2.INTER_LINEAR)[:h, :w]
     # x - shift r01 as shift (-r01) + x: the same float32 values (IEEE negation is exact),
     # one temporary of the box fewer each
     mx = np.multiply(shift, np.float32(-r01))
     mx += np.arange(x0, x1, dtype=np.float32)[None, :]
     my = np.multiply(shift, np.float32(-r11))
-    my += np.arange(y0, y1, dtype=np.float32)[:, None]
+    my += np.arange(y0, y0 + h, dtype=np.float32)[:, None]
     # (OpenCV's masked copy, into the maps' own memory: np.copyto with where= costs 3 times
     # more on this box, many times more on a ragged mask)
     m8 = sel.view(np.uint8)
     cv2.copyTo(mx, m8, map_x[sub])
     cv2.copyTo(my, m8, map_y[sub])
-    return x0, y0, x1, y1
+    return x0, y0, x1, y0 + h
+
+
+def _fade_rows(fr: FaceFrame, tab: tuple[np.ndarray, float], y0: int, s: int,
+               new: np.ndarray, tau: float, ramp: float) -> int:
+    """How many rows from image row ``y0`` down may carry a shift (:func:`_hook`'s, its
+    nodes ``s`` px apart, over the box of the jaw table ``tab``): the shift is 0 at a node
+    whose frame height is past the jaw line, strip and fade of its column (``Y >= jaw +
+    strip + fade``), so at every pixel whose two nodes above and below are; those lie below
+    the lowest image row of that curve (its image y ``o1 + r10 X + r11 (jaw + strip +
+    fade)``, bounded by the jaw line's lowest vertex ``new``, the strip's and the fade's
+    largest values, ``tau`` and ``max(ramp, 0.5)`` (see :func:`_jaw_table`), and the frame
+    x's extremes, the grid's nodes reaching ``2 s`` px beyond the table's), plus a node
+    spacing and a pixel (the table's float32 rounding). All rows when the frame is rolled by
+    more than 60 degrees."""
+    table, lo_x = tab
+    _, o1, _, r10, _, r11 = _frame_numbers(fr)
+    if r11 < 0.5:
+        return 1 << 30
+    reach = 2 * s + 2
+    hi_x = lo_x + _STEP * (table.shape[1] - 1)
+    y_max = o1 + r11 * (max(new[:, 1].tolist()) + tau + max(ramp, 0.5)) + max(
+        r10 * (lo_x - reach), r10 * (hi_x + reach))
+    return math.ceil(y_max) + s + 3 - y0
 
 
 def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, float]:

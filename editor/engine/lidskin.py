@@ -251,17 +251,24 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         Hs = np.where(closing, lid_s - ring_s, Hs)
         ex = Hd - Hs
         hs = np.maximum(Hs, 1e-6)
-    s_bar = Hs / np.maximum(Hd, 1e-6)
-    lam = np.maximum(-pull, 0.0) * fade * clamp(2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6),
-                                                0.0, 1.0)
-    live = (ex > _MIN_STRETCH) & (Hs > 0.5) & ((m != 0) | (lam != 0))
+        s_bar = Hs / np.maximum(Hd, 1e-6)
+        lam = np.maximum(-pull, 0.0) * fade * clamp(
+            2.0 * s_bar / np.maximum(1.0 - s_bar, 1e-6), 0.0, 1.0)
+        live = (ex > _MIN_STRETCH) & (Hs > 0.5) & ((m != 0) | (lam != 0))
+        k2 = np.where(live, lam * ex * Hd / hs, 0.0)
+        closing = bool(np.count_nonzero(k2))
+    else:
+        # (no lid closes: lam and k2 are 0 throughout, the table carries no k2 channel and
+        # the pixels' k2 (1 - 2 t) term, 0, is not added: the same values, fewer calls)
+        live = (ex > _MIN_STRETCH) & (Hs > 0.5) & (m != 0)
+        closing = False
     k = np.where(live, m * ex * Hd / hs, 0.0)
-    k2 = np.where(live, lam * ex * Hd / hs, 0.0)
-    tab_all = np.empty((len(u), 4))
+    tab_all = np.empty((len(u), 4 if closing else 3))
     tab_all[:, 0] = lid_y
     tab_all[:, 1] = 1.0 / np.maximum(Hd, 1e-6)
     tab_all[:, 2] = k
-    tab_all[:, 3] = k2
+    if closing:
+        tab_all[:, 3] = k2
     jobs = []  # per stretched strip: box, table, its first frame x
     a = 0
     sides = []  # each job's strip (0 left eye, 1 right)
@@ -275,10 +282,10 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     # the boxes side by side: per column its image x, first row, table row and first frame x
     hmax = max(b[3] - b[1] for b, _, _ in jobs)
     n_tab = max(len(t) for _, t, _ in jobs)
-    # (4 channels: lid line, 1 / Hd, k, k2; one more row, a copy of the last, which the rows'
-    # exact integer positions weigh by 0: without it every pixel of the last strip takes
-    # OpenCV's slow border path)
-    table = np.zeros((len(jobs) + 1, n_tab, 4), np.float32)
+    # (4 channels: lid line, 1 / Hd, k, k2 (3 without k2); one more row, a copy of the last,
+    # which the rows' exact integer positions weigh by 0: without it every pixel of the last
+    # strip takes OpenCV's slow border path)
+    table = np.zeros((len(jobs) + 1, n_tab, tab_all.shape[1]), np.float32)
     widths, shifts, y0s, los = [], [], [], []
     c = 0
     for j, ((x0, y0, x1, _y1), tab, lo) in enumerate(jobs):
@@ -301,16 +308,16 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     tx = tx.astype(np.float32)[None, :] + rows_f * np.float32(R[1, 0] / _STEP)
     ty = _job_rows(tuple(widths), hmax)
     got = cv2.remap(table, tx, ty, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-    ly, inv_hd, kk, kk2 = cv2.split(got)
+    ly, inv_hd, kk, *kk2 = cv2.split(got)
     ly -= (xo * R[0, 1] + yo * R[1, 1]).astype(np.float32)[None, :]
     ly -= rows_f * np.float32(R[1, 1])  # lid line - Y
-    closing = bool(np.count_nonzero(k2))
     above = ly.copy() if closing else None  # px above the lid's edge (its lashes: kept)
     t = ly
     t *= inv_hd
     clip(t, 0.0, 1.0, out=t)  # (one pass: on a box, faster than maximum then minimum)
-    kk2 *= 1.0 - 2.0 * t
-    kk += kk2  # k + k2 (1 - 2 t)
+    if kk2:
+        kk2[0] *= 1.0 - 2.0 * t
+        kk += kk2[0]  # k + k2 (1 - 2 t)
     t -= t * t  # t (1 - t)
     t *= kk
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t

@@ -588,13 +588,7 @@ def _evaluate(plan: WarpPlan, ids: np.ndarray, table: np.ndarray, x0: float, y0:
         bands = _spans(plan, drawn, skip, x0, y0, step, ny, nx)
     for r0, r1, k0, k1 in bands:
         yr = ys[r0:r1]
-        if k0 > 0 or k1 < nx:
-            # the columns no evaluated point reaches: the identity's row (1 x + 0 y + 0 and
-            # 0 x + 1 y + 0: exactly the points' own x and y, as evaluated)
-            map_x[r0:r1, :k0] = xs[:, :k0]
-            map_x[r0:r1, k1:] = xs[:, k1:]
-            map_y[r0:r1, :k0] = yr
-            map_y[r0:r1, k1:] = yr
+        _identity_beside(map_x, map_y, xs, yr, r0, r1, k0, k1)
         if k1 <= k0:
             continue
         at = ids[r0:r1, k0:k1].astype(np.intp)
@@ -691,18 +685,36 @@ def _evaluate_clamped(ids: np.ndarray, table: np.ndarray, tb: np.ndarray, x0: fl
         return map_x, map_y
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        g = rec.take(ids[r0:r1], 0, mode="wrap")  # (band, nx, 10)
-        yr = ys[r0:r1]
-        mx, my = map_x[r0:r1], map_y[r0:r1]
-        np.multiply(g[..., 0], xs, out=mx)
-        mx += g[..., 1] * yr
-        mx += g[..., 2]
-        np.multiply(g[..., 3], xs, out=my)
-        my += g[..., 4] * yr
-        my += g[..., 5]
-        np.clip(mx, g[..., 6], g[..., 8], out=mx)
-        np.clip(my, g[..., 7], g[..., 9], out=my)
+        _apply_records(rec.take(ids[r0:r1], 0, mode="wrap"), xs, ys[r0:r1], map_x[r0:r1],
+                       map_y[r0:r1])
     return map_x, map_y
+
+
+def _identity_beside(map_x: np.ndarray, map_y: np.ndarray, xs: np.ndarray, yr: np.ndarray,
+                     r0: int, r1: int, k0: int, k1: int) -> None:
+    """Rows ``[r0, r1)`` of the maps outside the columns ``[k0, k1)``: the points' own x and
+    y (``xs`` (1, cols), ``yr`` (rows, 1)), what the identity's row (1 x + 0 y + 0 and
+    0 x + 1 y + 0) evaluates to there exactly: the columns no evaluated point reaches."""
+    if k0 > 0 or k1 < xs.shape[1]:
+        map_x[r0:r1, :k0] = xs[:, :k0]
+        map_x[r0:r1, k1:] = xs[:, k1:]
+        map_y[r0:r1, :k0] = yr
+        map_y[r0:r1, k1:] = yr
+
+
+def _apply_records(g: np.ndarray, xs: np.ndarray, yr: np.ndarray, mx: np.ndarray,
+                   my: np.ndarray) -> None:
+    """The points' maps from their gathered records ``g`` (rows, cols, 10: a b c, d e f, the
+    box), in place into ``mx``, ``my``: ``a x + b y + c`` and ``d x + e y + f`` clamped to the
+    box, in float32 (``xs`` (1, cols), ``yr`` (rows, 1) the points' coordinates)."""
+    np.multiply(g[..., 0], xs, out=mx)
+    mx += g[..., 1] * yr
+    mx += g[..., 2]
+    np.multiply(g[..., 3], xs, out=my)
+    my += g[..., 4] * yr
+    my += g[..., 5]
+    np.clip(mx, g[..., 6], g[..., 8], out=mx)
+    np.clip(my, g[..., 7], g[..., 9], out=my)
 
 
 def _evaluate_blocks(ids: np.ndarray, rec: np.ndarray, xs: np.ndarray, ys: np.ndarray,
@@ -715,24 +727,11 @@ def _evaluate_blocks(ids: np.ndarray, rec: np.ndarray, xs: np.ndarray, ys: np.nd
     face the jaw's band beside the face and below the chin: 30 % of the exact map's box."""
     for r0, r1, k0, k1 in blocks:
         yr = ys[r0:r1]
-        if k0 > 0 or k1 < xs.shape[1]:
-            map_x[r0:r1, :k0] = xs[:, :k0]
-            map_x[r0:r1, k1:] = xs[:, k1:]
-            map_y[r0:r1, :k0] = yr
-            map_y[r0:r1, k1:] = yr
+        _identity_beside(map_x, map_y, xs, yr, r0, r1, k0, k1)
         if k1 <= k0:
             continue
-        g = rec.take(ids[r0:r1, k0:k1], 0, mode="wrap")  # (rows, cols, 10)
-        xk = xs[:, k0:k1]
-        mx, my = map_x[r0:r1, k0:k1], map_y[r0:r1, k0:k1]
-        np.multiply(g[..., 0], xk, out=mx)
-        mx += g[..., 1] * yr
-        mx += g[..., 2]
-        np.multiply(g[..., 3], xk, out=my)
-        my += g[..., 4] * yr
-        my += g[..., 5]
-        np.clip(mx, g[..., 6], g[..., 8], out=mx)
-        np.clip(my, g[..., 7], g[..., 9], out=my)
+        _apply_records(rec.take(ids[r0:r1, k0:k1], 0, mode="wrap"), xs[:, k0:k1], yr,
+                       map_x[r0:r1, k0:k1], map_y[r0:r1, k0:k1])
 
 
 #: The exact map's box skips the points a hook overwrites (:func:`_skip_blocks`) from this

@@ -69,13 +69,6 @@ def spread3(a: np.ndarray) -> np.ndarray:
 _ONES4 = (1.0, 1.0, 1.0, 1.0)
 
 
-def _rgba(rgb: np.ndarray) -> np.ndarray:
-    """(h, w, 4) float32: a float32 (h, w, 3) patch with a 4th channel of ones (what OpenCV
-    resamples faster than 3 channels; :func:`_rgb` drops it again)."""
-    return np.asarray(cv2.cvtColor(np.ascontiguousarray(rgb, np.float32), cv2.COLOR_RGB2RGBA),
-                      np.float32)
-
-
 def _rgb(rgba: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:
     """The first 3 channels of a float32 (h, w, 4) array as a new (or ``dst``'s) contiguous
     (h, w, 3) one."""
@@ -618,13 +611,15 @@ class EyePlan:
         self._band_off = np.array([self.band_up, self.band_low])[:, None, None]
         # the neutral lids' heights between the corners (:meth:`lid_opening`)
         self._lid_w = (self.lid_up[1:-1, 1].tolist(), self.lid_low[1:-1, 1].tolist())
-        # the patches :meth:`_render` resamples, as 4 channels (a 4th of ones, never read):
-        # OpenCV's 4-channel float remap plus the copy back to 3 channels costs about half
-        # its 3-channel remap (the same values per channel; ~12 vs 23 us on the 4K bench
-        # face's eye blocks)
+        # the patches :meth:`_render` resamples, as 4 channels (zero_alpha: the 4th never
+        # read; :func:`_rgb` drops it): OpenCV's 4-channel float remap plus the copy back to
+        # 3 channels costs about half its 3-channel remap (the same values per channel;
+        # ~12 vs 23 us on the 4K bench face's eye blocks)
         self._plate4, self._photo4, self._ball4, self._iris4 = (
-            _rgba(a) for a in (self.plate, self.photo, self.ball, self.iris))
-        self._bands4 = tuple(_rgba(b) for b in self.bands)
+            zero_alpha(np.ascontiguousarray(a, np.float32))
+            for a in (self.plate, self.photo, self.ball, self.iris))
+        self._bands4 = tuple(zero_alpha(np.ascontiguousarray(b, np.float32))
+                             for b in self.bands)
 
     @classmethod
     def build(cls, image: np.ndarray, vertices: np.ndarray, hole: np.ndarray, name: str,
@@ -998,7 +993,6 @@ class EyePlan:
         if band3 is not None:
             col *= band3
         return col
-
 
     def _moved_over(self, box: tuple[int, int, int, int], cu: np.ndarray, c0: np.ndarray,
                     lids: tuple[np.ndarray, np.ndarray], seen: tuple[bool, bool]

@@ -827,8 +827,9 @@ def test_jaffe_anger_chin_groove_as_deep_as_real_ones():
     pushed-up lower lip as deep as her own anger photos (two each) do (:func:`_chin_groove`):
     real median 0.18 (0.04 on the neutral photos); at 100 % the median over the women within
     0.7-1.5 x, at 150 % no deeper than the deeper real ones (p90). Before the groove was
-    drawn: 0.02 (measured now: 0.213, 0.292 at 150 %; 0.154 and 0.243 before the pressed lips
-    pouted, 52/57/58 above 5/10/11)."""
+    drawn: 0.02 (measured now: 0.183, 0.264 at 150 %, with the chin boss's shade and no light
+    ridge; 0.213 and 0.292 before that, 0.154 and 0.243 before the pressed lips pouted, 52/57/58
+    above 5/10/11)."""
     _assert_as_deep_as_real("anger", "AN", lambda f, img, v: [_chin_groove(f, img, v)], 0.178)
 
 

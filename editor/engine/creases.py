@@ -169,8 +169,11 @@ STYLES: dict[str, FoldStyle] = {
     # drawn 0.022 before this fold existed, now 0.154 / 0.243 at 100 / 150 % (p90 0.304;
     # tests). Drawn only with the chin boss raised and the lips together (_closed_lips): the
     # JAFFE closed loop's estimates of smiles and sad faces drew it too (lips 2.37 -> 2.50 %
-    # IOD; now 2.41: the detector reads the groove a little as the lower lip's edge)
-    "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.35, ridge_off=2.4,
+    # IOD; now 2.41: the detector reads the groove a little as the lower lip's edge). No light
+    # ridge beside it (0.35 before, on the chin side): JAFFE's angry chins have none (the
+    # bunched boss below the groove is shaded, chinboss.py), and the ridge lit a pale band
+    # under the lower lip; 0.183 / 0.264 at 100 / 150 % with the boss's shade
+    "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.0, ridge_off=2.4,
                       probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the
     # image's median luminance; 0.009 on the neutral ones: their grain). Depth 0.13 drew 0.073

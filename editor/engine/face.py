@@ -30,6 +30,7 @@ import numpy as np
 from editor.errors import NoFaceError
 
 from . import prefault
+from .chinboss import apply_chin_boss
 from .creases import apply_creases
 from .deform import (
     EXTRA_POINTS,
@@ -549,7 +550,7 @@ class Face:
         w = apply_lid_skin(self, apply_grain(self, w), v)
         w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v), v), v)
         res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
-        return apply_creases(self, res, v) if creases else res
+        return apply_chin_boss(self, apply_creases(self, res, v), v) if creases else res
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
         """2x3 source->destination maps of what lies behind the openings (see ``warp``).

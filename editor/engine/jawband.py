@@ -321,7 +321,8 @@ def _fade_rows(fr: FaceFrame, tab: tuple[np.ndarray, float], y0: int, s: int,
     largest values, ``tau`` and ``max(ramp, 0.5)`` (see :func:`_jaw_table`), and the frame
     x's extremes, the grid's nodes reaching ``2 s`` px beyond the table's), plus a node
     spacing and a pixel (the table's float32 rounding). All rows when the frame is rolled by
-    more than 60 degrees."""
+    more than 60 degrees. (:func:`_nodes` reads it from row 0 for its coarse grid, nodes
+    ``2 s`` apart.)"""
     table, lo_x = tab
     _, o1, _, r10, _, r11 = _frame_numbers(fr)
     if r11 < 0.5:

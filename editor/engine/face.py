@@ -55,7 +55,7 @@ from .liprims import apply_lip_rims
 from .lipseal import apply_contact_line, apply_lip_seal
 from .liptone import apply_lip_tone
 from .mesh import StandardMesh, signed_areas, standard_mesh
-from .transform import similarity
+from .transform import similarity_pairs, similarity_to, source_fit
 from .warp import WarpPlan, WarpResult, map_step, warp
 
 #: estimate_own rounds, each against the FAPU of the neutral the previous one implies
@@ -558,8 +558,27 @@ class Face:
         Each eyeball follows its two eye corners (a similarity); the mouth interior (teeth)
         follows the skull: a least-squares similarity of the inner eye corners and the nose.
         """
-        return {name: similarity(self.vertices[idx], v[idx])
-                for name, idx in self._layer_anchors.items()}
+        # (the two eyes' two-point fits at once, :func:`similarity_pairs`: their values)
+        anchors = self._layer_anchors
+        eyes = similarity_pairs(self._eye_anchor_src,
+                                np.asarray(v).take(self._eye_anchor_idx, 0))
+        return {"eye_l": eyes[0], "eye_r": eyes[1],
+                "mouth": similarity_to(self._mouth_anchor_fit, v[anchors["mouth"]])}
+
+    @cached_property
+    def _mouth_anchor_fit(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """:func:`source_fit` of the mouth's anchors on the photo's mesh (once per face)."""
+        return source_fit(self.vertices[self._layer_anchors["mouth"]])
+
+    @cached_property
+    def _eye_anchor_idx(self) -> np.ndarray:
+        """(2, 2) the eyes' anchors (:attr:`_layer_anchors`), left eye first."""
+        return np.stack([self._layer_anchors["eye_l"], self._layer_anchors["eye_r"]])
+
+    @cached_property
+    def _eye_anchor_src(self) -> np.ndarray:
+        """(2, 2, 2) float64: where the photo's mesh has them (once per face)."""
+        return self.vertices.take(self._eye_anchor_idx, 0).astype(np.float64)
 
     @cached_property
     def _layer_anchors(self) -> dict[str, np.ndarray]:

@@ -194,14 +194,29 @@ def _nodes(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.nd
     cx0, cy0 = x0 - 1.5 * s, y0 - 1.5 * s
     box = (math.floor(cx0) - 1, math.floor(cy0) - 1, math.ceil(cx0 + 2 * s * mw) + 1,
            math.ceil(cy0 + 2 * s * mh) + 1)
+    tab = _jaw_table(fr, b, box, new, drop, ring, ramp)
+    # the coarse rows from image row _fade_rows(.., 0, 2 s, ..) down have a shift of 0 (past
+    # the fade; on the 4K bench face the lower third of the grid): evaluated are the rows above
+    # it and one of those, so that the resize (x 2 exactly: each output row reads the same two
+    # coarse rows, the last one replicated below) gives the whole grid's values on the output
+    # rows it covers, and the rows below them are the nodes themselves (a shift of 0)
+    mh = min(mh, max(math.ceil((_fade_rows(fr, tab, 0, 2 * s, new, b.tau, ramp) - cy0)
+                               / (2 * s)), 0) + 1)
+    rows = min(ny, 2 * mh - 2)
     xs = (cx0 + 2 * s * np.arange(mw, dtype=np.float64) - o0).astype(np.float32)[None, :]
     ys = (cy0 + 2 * s * np.arange(mh, dtype=np.float64) - o1).astype(np.float32)[:, None]
-    shift = _table_shift(fr, _jaw_table(fr, b, box, new, drop, ring, ramp), xs, ys)
-    shift = cv2.resize(shift, (2 * mw, 2 * mh), None, 0, 0, cv2.INTER_LINEAR)[2:2 + ny, 2:2 + nx]
-    mx = np.multiply(shift, np.float32(-r01))
-    mx += (x0 + s * np.arange(nx)).astype(np.float32)[None, :]
-    my = np.multiply(shift, np.float32(-r11))
-    my += (y0 + s * np.arange(ny)).astype(np.float32)[:, None]
+    shift = _table_shift(fr, tab, xs, ys)
+    shift = cv2.resize(shift, (2 * mw, 2 * mh), None, 0, 0, cv2.INTER_LINEAR)[2:2 + rows, 2:2 + nx]
+    gx = (x0 + s * np.arange(nx)).astype(np.float32)[None, :]
+    gy = (y0 + s * np.arange(ny)).astype(np.float32)[:, None]
+    mx = np.empty((ny, nx), np.float32)
+    my = np.empty((ny, nx), np.float32)
+    np.multiply(shift, np.float32(-r01), out=mx[:rows])
+    mx[:rows] += gx
+    mx[rows:] = gx
+    np.multiply(shift, np.float32(-r11), out=my[:rows])
+    my[:rows] += gy[:rows]
+    my[rows:] = gy[rows:]
     return mx, my
 
 
@@ -306,7 +321,8 @@ def _fade_rows(fr: FaceFrame, tab: tuple[np.ndarray, float], y0: int, s: int,
     largest values, ``tau`` and ``max(ramp, 0.5)`` (see :func:`_jaw_table`), and the frame
     x's extremes, the grid's nodes reaching ``2 s`` px beyond the table's), plus a node
     spacing and a pixel (the table's float32 rounding). All rows when the frame is rolled by
-    more than 60 degrees."""
+    more than 60 degrees. (:func:`_nodes` reads it from row 0 for its coarse grid, nodes
+    ``2 s`` apart.)"""
     table, lo_x = tab
     _, o1, _, r10, _, r11 = _frame_numbers(fr)
     if r11 < 0.5:

@@ -968,3 +968,58 @@ def _fold_depths(f, img, v, kind: str) -> list[float]:
     lum = _lum(img)
     return [_valley(lum, pts, f.interocular, *_WINDOWS[kind])[0] / max(float(np.median(lum)), 1.0)
             for k, pts, _s in fold_lines(f, v) if k == kind]
+
+
+def _fine_lines(img: np.ndarray, box: tuple[float, float, float, float]) -> float:
+    """Dark fine-line energy of a face region: the black top-hat (a closing of 0.1 IOD less
+    the image, over the closing) averaged over ``box`` (x0, x1, y0, y1 in IOD from the eyes'
+    middle, y down), on re-detected landmarks."""
+    import cv2
+
+    from editor.engine.landmarks import detect_landmarks
+
+    L = cv2.GaussianBlur(_lum(img).astype(np.float32), (0, 0), 0.6)
+    p = detect_landmarks(img).points.astype(np.float64)
+    a, b = p[36:42].mean(0), p[42:48].mean(0)
+    c, ex = 0.5 * (a + b), b - a
+    iod = float(np.linalg.norm(ex))
+    ex /= iod
+    ey = np.array([-ex[1], ex[0]])
+    k = max(3, int(round(0.10 * iod)) | 1)
+    clo = cv2.morphologyEx(L, cv2.MORPH_CLOSE,
+                           cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    th = (clo - L) / np.maximum(clo, 1)
+    X, Y = np.meshgrid(np.arange(box[0], box[1], 0.008), np.arange(box[2], box[3], 0.008))
+    mx = (c[0] + (X * ex[0] + Y * ey[0]) * iod).astype(np.float32)
+    my = (c[1] + (X * ex[1] + Y * ey[1]) * iod).astype(np.float32)
+    return float(cv2.remap(th, mx, my, cv2.INTER_LINEAR).mean())
+
+
+@pytest.mark.skipif(not jaffe_images("*.NE1.*"), reason="needs ../shared/data/jaffe")
+@pytest.mark.parametrize(("emotion", "code"), [("fear", "FE"), ("sadness", "SA")])
+def test_jaffe_glabellar_lines_of_raised_knitted_brows_as_real_ones(emotion, code):
+    """JAFFE's ten women: the fine lines between the brows (:func:`_fine_lines`, x +-0.22 IOD,
+    0.08-0.5 IOD above the eyes; each photo less her neutral one). Fear and sadness raise the
+    inner brows while drawing them together (AU1 + 4); the real photos' lines are the deepest
+    of the six expressions (x 1000: fear 7.5, sadness 6.2; anger 2.6), the landmarks barely
+    move. Drawn from the mesh's compression alone: fear 1.9, sadness 3.2; with the brow
+    effort (creases._brow_effort) 4.0 and 6.1 (sharp renders). At 100 % at least 45 % of the
+    real median; at 150 % no more than the real p90."""
+    from editor.formats.presets import apply_preset as shipped
+
+    box = (-0.22, 0.22, -0.50, -0.08)
+    real, ours, strong = [], [], []
+    for ne in jaffe_images("*.NE1.*.tiff"):
+        photos = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
+        if not photos:
+            continue
+        f = Face.from_image(ne, own_expression=False)
+        base = _fine_lines(f.image, box)
+        real += [_fine_lines(load_image(p), box) - base for p in photos]
+        ours.append(_fine_lines(f.render(shipped(emotion, 1.0), sharp=True), box) - base)
+        strong.append(_fine_lines(f.render(shipped(emotion, 1.5), sharp=True), box) - base)
+    if len(ours) < 8:
+        pytest.skip("../shared/data/jaffe is not available")
+    assert np.median(ours) >= 0.45 * np.median(real), (np.median(ours), np.median(real))
+    assert np.median(strong) <= np.percentile(real, 90), (np.median(strong),
+                                                          np.percentile(real, 90))

@@ -766,12 +766,14 @@ class _Fast:
     # (M,) their taper: a sample where the line fades out does not drive it (towards the
     # mouth corners a smile spreads that skin a little too)
     neg_fade: np.ndarray = field(init=False)
-    # the samples of folds with FoldStyle.lift and what _lift_push reads for them: (K, 12)
-    # vertices of their 4 probe triangles, (K, 2) their eye's corners, the frame's up
+    # the samples of folds with FoldStyle.lift and what _lift_push reads for them: (U, 12)
+    # vertices of the 4 probe triangles and (U, 2) the eye's corners of each of the U distinct
+    # rows (a line's samples share their probes) and (K,) each sample's row, the frame's up
     # direction over the IOD, and (K,) the push measured on the photo's mesh
     lift: np.ndarray = field(init=False)
     lift_v: np.ndarray = field(init=False)
     lift_a: np.ndarray = field(init=False)
+    lift_row: np.ndarray = field(init=False)
     lift_up: np.ndarray = field(init=False)
     lift_base: np.ndarray = field(init=False)
     # the inner lips' middle (2.2, 2.3) and their gap on the neutral mesh, IOD: lips that part
@@ -945,12 +947,17 @@ def _fast(face: Face) -> _Fast:
     f.neg_fade = p.taper[neg]
     lift = ls.lift
     f.lift = lift
-    f.lift_v = face.mesh.triangles[p.probe_tri[lift]].reshape(len(lift), -1)
+    lift_v = face.mesh.triangles[p.probe_tri[lift]].reshape(len(lift), -1)
     ix = face.mesh.index
     # (each lift fold's group is named after its eye: "lower_lid_r", "lower_lid_l")
     side = [p.group_names[g][-1] for g in p.group[p.fold[lift]].tolist()]
-    f.lift_a = np.array([[ix(f"eye_{sd}_c0"), ix(f"eye_{sd}_c1")] for sd in side],
-                        np.intp).reshape(len(lift), 2)
+    lift_a = np.array([[ix(f"eye_{sd}_c0"), ix(f"eye_{sd}_c1")] for sd in side],
+                      np.intp).reshape(len(lift), 2)
+    rows, f.lift_row = np.unique(np.concatenate([lift_v, lift_a], 1).reshape(len(lift), -1),
+                                 axis=0, return_inverse=True)
+    f.lift_row = f.lift_row.reshape(-1)
+    f.lift_v = np.ascontiguousarray(rows[:, :lift_v.shape[1]])
+    f.lift_a = np.ascontiguousarray(rows[:, lift_v.shape[1]:])
     f.lift_up = -face.frame.rot[:, 1] / float(face.interocular)
     f.lift_base = np.zeros(len(lift))  # (the push on the photo's mesh, measured from zero)
     f.lift_base = _lift_push(f, face.vertices)
@@ -1121,10 +1128,10 @@ def _lift_push(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     relative to their eye's corners, beyond where it lies on the photo's mesh."""
     V = np.asarray(vertices, np.float64)
     # (``mean(1)``'s values: its sum along the axis over the count, without its Python layers;
-    # rows gathered with take)
+    # rows gathered with take; each distinct row once, then given to its samples)
     d = np.add.reduce(V.take(fa.lift_v, 0), 1) / fa.lift_v.shape[1]
     d -= np.add.reduce(V.take(fa.lift_a, 0), 1) / fa.lift_a.shape[1]
-    return d @ fa.lift_up - fa.lift_base
+    return (d @ fa.lift_up).take(fa.lift_row) - fa.lift_base
 
 
 def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
@@ -1335,7 +1342,7 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     result whose ``bbox`` also covers every pixel written.
 
     Every canvas of the frame (the unfold bands, each fold group's line and ridge) depends on
-    the mesh only: they are laid out first and splatted together (:func:`_splat_many`), then
+    the mesh only: they are laid out and splatted together first (:func:`_layout`), then
     drawn in the same order as one at a time (the unfold bands, then the folds).
     """
     s, un = _strengths(face, vertices)
@@ -1346,25 +1353,19 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     out = res.image
-    H, W = out.shape[:2]
     bbox = res.bbox
-    canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]] = []
-    # the segments of the fold samples and of the valley's on the deformed mesh (both sets
-    # in one gather and one measurement when both are drawn: the same values row by row)
-    fold_segs = valley_segs = None
+    # the segments of the fold samples, followed by the valley's on the deformed mesh when
+    # unfolds are drawn (both sets in one gather and one measurement: the same values row
+    # by row)
     if any_unfold:
         tri, bary, seg_a, seg_b = _both_samples(face)
-        a, d, L = _segments(_on_mesh(V, tri, bary), seg_a, seg_b)
-        m = len(fa.seg_a)
-        fold_segs, valley_segs = (a[:m], d[:m], L[:m]), (a[m:], d[m:], L[m:])
-    elif any_fold:
-        fold_segs = _segments(_on_mesh(V, fa.sample_tri, fa.bary), fa.seg_a, fa.seg_b)
-    unfolds = _unfold_layout(face, valley_segs, un, (H, W), res.maps, canvases) \
-        if valley_segs is not None else []
-    folds = _fold_layout(face, fold_segs, s, (H, W), canvases)
-    if not canvases:
+        segs = _segments(_on_mesh(V, tri, bary), seg_a, seg_b)
+    else:
+        segs = _segments(_on_mesh(V, fa.sample_tri, fa.bary), fa.seg_a, fa.seg_b)
+    unfolds, folds, drawn = _layout(face, segs, s, un if any_unfold else None, out.shape[:2],
+                                    res.maps)
+    if not drawn:
         return res
-    drawn = _splat_many(canvases)
     q = _frame_blocks(face)
     if unfolds:
         bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation)
@@ -1387,104 +1388,246 @@ def _draw_sigma(face: Face, sig: np.ndarray) -> np.ndarray:
     return np.sqrt(sig * sig + (soft / 2.56) ** 2)
 
 
-def _live_groups(fa, live: np.ndarray) -> list[tuple[int, int, int]]:
-    """``(group, first segment, end)`` of every fold group with a ``live`` segment (all groups
-    tested in one ``reduceat``: the non-empty groups' segments are consecutive, in order)."""
-    got = _GROUPS.get(fa)
+@dataclass(frozen=True, eq=False)
+class _SegConstants:
+    """Per fast plan, what the frame's layout (:func:`_layout`) reads of the segments: the
+    non-empty fold groups ``(group, first segment, end)`` and the first segment of each
+    (their segments are consecutive, in order), and for the segments of the fold samples
+    followed by the valley's (2M, the strengths ``s`` followed by ``un``): their end samples
+    ``sa2``, ``sb2`` and the strength above which a segment is drawn ``thr2``."""
+
+    nonempty: list[tuple[int, int, int]]
+    starts: list[int]
+    sa2: np.ndarray
+    sb2: np.ndarray
+    thr2: np.ndarray
+
+
+#: per fast plan: its :class:`_SegConstants`
+_SEGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _seg_constants(fa: _Fast) -> _SegConstants:
+    got = _SEGS.get(fa)
     if got is None:
         nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
-        got = (nonempty, [g0 for _, g0, _ in nonempty])
-        _GROUPS[fa] = got
-    nonempty, starts = got
-    if not nonempty:
-        return []
-    hit = np.logical_or.reduceat(live[:nonempty[-1][2]], starts).tolist()
-    return [grp for grp, h in zip(nonempty, hit, strict=True) if h]
+        n, m = len(fa.depth), len(fa.seg_a)
+        got = _SegConstants(
+            nonempty, [g0 for _, g0, _ in nonempty],
+            np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]),
+            np.concatenate([np.full(m, _MIN_STRENGTH), np.full(m, _MIN_UNFOLD)]))
+        _SEGS[fa] = got
+    return got
 
 
-#: per fast plan: its non-empty fold groups and their first segments (see _live_groups)
-_GROUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+@dataclass(frozen=True, eq=False)
+class _Subsamples:
+    """The sub-samples of a frame's canvases (:func:`_subsamples`), canvas after canvas, each
+    segment's ``K`` ones in order: per sub-sample its segment ``si``, its place along it
+    ``uu`` (``(k + 0.5) / K``, also as a column ``uu2``), ``K`` itself as a float ``kk``, the
+    ridge's offset from the line ``rm2`` (a column; 0 off a ridge) and its weight factor ``wm``
+    (1 off a ridge); per canvas its first sub-sample ``cut`` and its count ``count``, and per
+    sub-sample its canvas ``cpt``."""
+
+    si: np.ndarray
+    uu: np.ndarray
+    uu2: np.ndarray
+    kk: np.ndarray
+    rm2: np.ndarray
+    wm: np.ndarray
+    cut: list[int]
+    count: list[int]
+    cpt: np.ndarray
 
 
-def _fold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                 s: np.ndarray, shape: tuple[int, int],
-                 canvases: list) -> list[tuple[int, tuple[int, int, int, int], int, int]]:
-    """Each fold group with a sample above :data:`_MIN_STRENGTH`: its box and two canvases
-    (the dark line's samples, then the ridge's beside it) appended to ``canvases``. Returns
-    ``(group, box, index of its first canvas, f)`` per group (canvases at 1/f resolution,
-    :func:`_fold_scale`). ``segs``: :func:`_segments` of
-    the fold samples on the deformed mesh (None: no sample is above the minimum)."""
+@functools.lru_cache(maxsize=256)
+def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsamples:
+    """:class:`_Subsamples` of canvases ``(first segment, end, K, ridge offset, ridge weight)``
+    (kept: a frame's spec recurs from frame to frame; read-only arrays)."""
+    si, uu, kk, rm, wm, count = [], [], [], [], [], []
+    for s0, s1, K, off, wr in spec:
+        n = (s1 - s0) * K
+        si.append(np.arange(s0, s1).repeat(K))
+        uu.append(np.tile(_sub_steps(K), s1 - s0))
+        kk.append(np.full(n, float(K)))
+        rm.append(np.full(n, off))
+        wm.append(np.full(n, wr))
+        count.append(n)
+    cat = np.concatenate
+    u = cat(uu)
+    got = _Subsamples(cat(si), u, u[:, None], cat(kk), cat(rm)[:, None], cat(wm),
+                      list(itertools.accumulate([0, *count[:-1]])), count,
+                      np.arange(len(spec)).repeat(count))
+    for a in vars(got).values():
+        if isinstance(a, np.ndarray):
+            a.setflags(write=False)
+    return got
+
+
+def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.ndarray,
+            un: np.ndarray | None, shape: tuple[int, int],
+            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None
+            ) -> tuple[list[tuple], list[tuple[int, tuple[int, int, int, int], int, int]],
+                       list[np.ndarray]]:
+    """Every canvas of the frame, laid out and splatted: the bands of :func:`_unfold_draw`
+    (per group with a live own fold, ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``:
+    the band's sub-samples ``pts`` (every segment's ``K``, at most 0.5 ``f`` px apart) and
+    weights ``w``, its segments ``d`` and lengths ``L``, ``M`` of them), then per fold group
+    with a sample above :data:`_MIN_STRENGTH` its box and two canvases, the dark line's
+    samples and the ridge's beside it (``(group, box, index of its first canvas, f)``,
+    canvases at 1/f resolution, :func:`_fold_scale`); and the canvases splatted
+    (:func:`_splat_many`'s values).
+
+    ``segs``: :func:`_segments` of the fold samples on the deformed mesh, followed by those
+    of the valley's when ``un`` is given (the unfold shares; None: no unfold is drawn). All
+    canvases' sub-samples are placed, weighted and splatted as one array (the same values,
+    point by point, as canvas by canvas)."""
     fa = _fast(face)
+    sc = _seg_constants(fa)
     H, W = shape
-    sa, sb = s.take(fa.seg_a), s.take(fa.seg_b)
-    groups = _live_groups(fa, np.maximum(sa, sb) > _MIN_STRENGTH)
-    if not groups:
-        return []
-    assert segs is not None  # (a live group has a sample above the minimum)
-    # every segment at once: start, direction, length, normal (-dy, dx) / L
-    a_all, d_all, L_all = segs
-    n_all = d_all[:, ::-1] * _TURN / np.maximum(L_all, 1e-9)[:, None]
-    lines, scales = [], []
-    for g, g0, g1 in groups:
-        a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
+    A, D, L = segs
+    m = len(fa.seg_a)
+    thr: float | np.ndarray
+    if un is None:  # (the fold segments only)
+        sv, sa_i, sb_i, thr = s, fa.seg_a, fa.seg_b, _MIN_STRENGTH
+        starts = sc.starts
+    else:
+        sv, sa_i, sb_i, thr = np.concatenate((s, un)), sc.sa2, sc.sb2, sc.thr2
+        starts = sc.starts + [g0 + m for g0 in sc.starts]
+    sa, sb = sv.take(sa_i), sv.take(sb_i)
+    if not sc.nonempty:
+        return [], [], []
+    end = sc.nonempty[-1][2] + (m if un is not None else 0)
+    hit = np.logical_or.reduceat((np.maximum(sa, sb) > thr)[:end], starts).tolist()
+    ng = len(sc.nonempty)
+    # (hit and the longest segments: the fold groups', then the valley's when unfolds are drawn)
+    folds = [grp for grp, h in zip(sc.nonempty, hit[:ng], strict=True) if h]
+    valleys = [grp for grp, h in zip(sc.nonempty, hit[ng:], strict=False) if h]
+    if not folds and not valleys:
+        return [], [], []
+    # each group's longest segment (the same reductions: one per group in both halves)
+    longest = np.maximum.reduceat(L[:end], starts).tolist()
+    names = [g for g, _, _ in sc.nonempty]
+    lf = dict(zip(names, longest[:ng], strict=True))
+    lv = dict(zip(names, longest[ng:], strict=False))
+    # per canvas: (first segment, end, K, ridge offset, ridge weight); its job's data
+    spec: list[tuple[int, int, int, float, float]] = []
+    bands = []
+    for g, g0, g1 in valleys:
+        sb_ = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
+        got = None if maps is None else _photo_gain(face, g)
+        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
+        f = 1 if got is None else max(1, int(sb_ / 1.5))
+        K = int(min(max(math.ceil(lv[g] / (0.5 * f)), 1), 64))
+        spec.append((m + g0, m + g1, K, 0.0, 1.0))
+        bands.append((g, sb_, got, f, K))
+    lines = []
+    for g, g0, g1 in folds:
         sig = float(fa.sig[g])
         f = _fold_scale(float(fa.dsig[g]))
-        scales.append(f)
-        K = int(min(max(math.ceil(max(L.tolist()) / (min(0.5, 0.5 * sig) * f)), 1), 64))
-        u = _sub_steps(K)
-        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        ga, gb = sa[g0:g1], sb[g0:g1]
-        w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        ridge = pts + (n_all[g0:g1] * fa.off[g]).repeat(K, 0)  # the ridge beside the line
-        lines += [pts, ridge]
-        lines.append(w)
-    # the extent of each line and ridge in one pass
-    pr = [x for i, x in enumerate(lines) if i % 3 != 2]
-    cut = list(itertools.accumulate([0, *[len(x) for x in pr[:-1]]]))  # (np.cumsum costs more)
-    both = np.concatenate(pr)
-    lo, hi = np.minimum.reduceat(both, cut).tolist(), np.maximum.reduceat(both, cut).tolist()
-    jobs = []
-    for j, (g, _, _) in enumerate(groups):
-        pts, ridge, w = lines[3 * j:3 * j + 3]
-        (lx, ly), (rx, ry) = lo[2 * j], lo[2 * j + 1]
-        (hx, hy), (sx, sy) = hi[2 * j], hi[2 * j + 1]
+        K = int(min(max(math.ceil(lf[g] / (min(0.5, 0.5 * sig) * f)), 1), 64))
+        spec += [(g0, g1, K, 0.0, 1.0), (g0, g1, K, float(fa.off[g]), float(fa.ridge[g]))]
+        lines.append((g, f))
+    ss = _subsamples(tuple(spec))
+    si = ss.si
+    # every sub-sample at once: a + d u (+ the ridge's offset along the normal (-dy, dx) / L)
+    nrm = D[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]
+    xy = A.take(si, 0) + D.take(si, 0) * ss.uu2 + nrm.take(si, 0) * ss.rm2
+    dsv = sb - sa
+    w = (sa.take(si) + dsv.take(si) * ss.uu) * (L.take(si) / ss.kk) * ss.wm
+    # the extent of each canvas's points in one pass
+    lo = np.minimum.reduceat(xy, ss.cut).tolist()
+    hi = np.maximum.reduceat(xy, ss.cut).tolist()
+    boxes: list[tuple[int, int, int, int] | None] = []
+    for c, band in enumerate(bands):
+        sb_ = band[1]
+        (lx, ly), (hx, hy) = lo[c], hi[c]
+        x0, y0 = max(int(lx - 3.0 * sb_), 0), max(int(ly - 3.0 * sb_), 0)
+        x1, y1 = min(int(hx + 3.0 * sb_) + 1, W), min(int(hy + 3.0 * sb_) + 1, H)
+        boxes.append(None if x1 - x0 < 4 or y1 - y0 < 4 else (x0, y0, x1, y1))
+    nb = len(bands)
+    for j, (g, _) in enumerate(lines):
+        (lx, ly), (rx, ry) = lo[nb + 2 * j], lo[nb + 2 * j + 1]
+        (hx, hy), (sx, sy) = hi[nb + 2 * j], hi[nb + 2 * j + 1]
         pad = 3.0 * (1.6 * float(fa.dsig[g])) + 2.0
         x0, y0 = max(int(min(lx, rx) - pad), 0), max(int(min(ly, ry) - pad), 0)
         x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
-        if x1 - x0 < 2 or y1 - y0 < 2:
+        box = None if x1 - x0 < 2 or y1 - y0 < 2 else (x0, y0, x1, y1)
+        boxes += [box, box]
+    if None in boxes:  # (a box off the image: its canvases left out; rare)
+        keep = np.array([b is not None for b in boxes]).repeat(ss.count)
+        ci = np.cumsum([b is not None for b in boxes]) - 1
+        xy, w = xy[keep], w[keep]
+        cpt = ci[ss.cpt[keep]]
+        count = [n for n, b in zip(ss.count, boxes, strict=True) if b is not None]
+        cut = list(itertools.accumulate([0, *count[:-1]]))
+    else:
+        cpt, count, cut = ss.cpt, ss.count, ss.cut
+    # each canvas's shape and its points' shift into its pixels (see _on_canvas)
+    shapes: list[tuple[int, int]] = []
+    sub: list[tuple[float, float]] = []
+    div, post, safe = [], [], True
+    fs = [b[3] for b in bands] + [f for _, f in lines for _ in (0, 1)]
+    for box, f in zip(boxes, fs, strict=True):
+        if box is None:
             continue
-        f = scales[j]
-        jobs.append((g, (x0, y0, x1, y1), len(canvases), f))
-        safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (pad >= 2 px around the points)
-        cs, on = _on_canvas(pts, (x0, y0, x1, y1), f)
-        canvases.append((cs, on, w, safe))
-        canvases.append((cs, _on_canvas(ridge, (x0, y0, x1, y1), f)[1], w * fa.ridge[g], safe))
-    return jobs
+        x0, y0, x1, y1 = box
+        safe = safe and x0 > 0 and y0 > 0 and x1 < W and y1 < H
+        if f == 1:
+            shapes.append((y1 - y0 + 1, x1 - x0 + 1))
+            sub.append((x0, y0))
+            post.append(0.0)
+        else:
+            shapes.append((-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1))
+            sub.append((x0 - 0.5, y0 - 0.5))
+            post.append(0.5)
+        div.append(float(f))
+    q = xy - np.array(sub).take(cpt, 0)
+    if max(fs) > 1:
+        q /= np.array(div).take(cpt)[:, None]
+        q -= np.array(post).take(cpt)[:, None]
+    # the jobs, their canvases' indices counted over the canvases kept
+    unfolds, jobs, k = [], [], 0
+    for c, (g, _, got, f, K) in enumerate(bands):
+        if boxes[c] is None:
+            continue
+        s0, s1 = spec[c][:2]
+        a, b = cut[k], cut[k] + count[k]
+        unfolds.append((g, f, got, xy[a:b], w[a:b], D[s0:s1], L[s0:s1], K, s1 - s0, boxes[c],
+                        k))
+        k += 1
+    for j, (g, f) in enumerate(lines):
+        box = boxes[nb + 2 * j]
+        if box is None:
+            continue
+        jobs.append((g, box, k, f))
+        k += 2
+    if not safe:  # a box clipped by the image's edge: canvas by canvas
+        drawn = _splat_many([(sh, q[a:a + n], w[a:a + n], False)
+                             for sh, a, n in zip(shapes, cut, count, strict=True)])
+    else:
+        drawn = _splat_stacked(shapes, q, w, cpt)
+    return unfolds, jobs, drawn
 
 
-def _on_canvas(pts: np.ndarray, box: tuple[int, int, int, int], f: int
-               ) -> tuple[tuple[int, int], np.ndarray]:
-    """The canvas shape (h, w) for the box ``box`` at 1/``f`` resolution (one extra row and
-    column for the splat's corners) and the points ``pts`` (n, 2) in its pixels: coarse pixel
-    k's centre lies at ``x0 + (k + 0.5) f - 0.5`` (where ``cv2.resize`` by f puts it, see
-    :func:`_blur_back`)."""
-    x0, y0, x1, y1 = box
-    if f == 1:
-        return (y1 - y0 + 1, x1 - x0 + 1), _shifted(pts, x0, y0)
-    q = _shifted(pts, x0 - 0.5, y0 - 0.5)
-    q /= f
-    q -= 0.5
-    return (-(-(y1 - y0) // f) + 1, -(-(x1 - x0) // f) + 1), q
-
-
-def _shifted(pts: np.ndarray, x: float, y: float) -> np.ndarray:
-    """``pts - (x, y)`` of float64 points (n, 2), a new array: the points seen as complex
-    numbers (one contiguous pass; a complex subtraction is the two real ones, exactly) where
-    they are contiguous, several times cheaper than numpy's broadcasting over rows of two."""
-    if pts.flags.c_contiguous and pts.dtype == np.float64 and pts.ndim == 2 \
-            and pts.shape[1] == 2:
-        return np.subtract(pts.view(np.complex128), complex(x, y)).view(np.float64)
-    return pts - (x, y)
+def _splat_stacked(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
+                   cpt: np.ndarray) -> list[np.ndarray]:
+    """:func:`_splat_many`'s stacked path for canvases of ``shapes`` whose points ``xy``
+    (weights ``w``, canvas ``cpt``) lie at least a pixel inside them, already concatenated:
+    the same values."""
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    ws = _bilinear_weights(F, w)
+    wide = max(wd for _, wd in shapes)
+    rows = [h for h, _ in shapes]
+    top = list(itertools.accumulate([0, *rows[:-1]]))
+    base = ip[:, 1] * wide + ip[:, 0] + (np.array(top) * wide).take(cpt)
+    idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
+    total = int(sum(rows)) * wide
+    acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
+    acc = acc.reshape(-1, wide)
+    return [acc[t:t + h, :wd] for t, (h, wd) in zip(top, shapes, strict=True)]
 
 
 def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int,
@@ -1610,25 +1753,15 @@ def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bo
     a row's end wraps into the next row, as on a canvas of its own).
     """
     n = [len(w) for _, _, w, _ in canvases]
-    xy = np.concatenate([c[1] for c in canvases])
-    ww = np.concatenate([c[2] for c in canvases])
-    P0 = np.floor(xy)
-    F = xy - P0
-    ip = P0.astype(np.int64)
-    ws = _bilinear_weights(F, ww)
-    wide = max(wd for (_, wd), _, _, _ in canvases)
-    rows = [h for (h, _), _, _, _ in canvases]
     # every point's corners inside its canvas: its box was not clipped by the image's edge
-    inside = all(c[3] for c in canvases)
-    if inside:
-        top = np.array(list(itertools.accumulate([0, *rows[:-1]])))  # (np.cumsum costs more)
-        base = ip[:, 1] * wide + ip[:, 0] + (top * wide).repeat(n)
-        idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
-        total = int(sum(rows)) * wide
-        acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
-        acc = acc.reshape(-1, wide)
-        return [acc[t:t + h, :wd] for t, ((h, wd), _, _, _) in zip(top.tolist(), canvases,
-                                                                 strict=True)]
+    if all(c[3] for c in canvases):
+        return _splat_stacked([c[0] for c in canvases], np.concatenate([c[1] for c in canvases]),
+                              np.concatenate([c[2] for c in canvases]),
+                              np.arange(len(canvases)).repeat(n))
+    xy = np.concatenate([c[1] for c in canvases])
+    P0 = np.floor(xy)
+    ip = P0.astype(np.int64)
+    ws = _bilinear_weights(xy - P0, np.concatenate([c[2] for c in canvases]))
     got = []
     k = 0
     for ((h, wd), _, _, _), m in zip(canvases, n, strict=True):
@@ -1766,51 +1899,6 @@ def _line_kernel(angle: float, along: float, across: float) -> np.ndarray:
     u, v = x * c + y * s, -x * s + y * c
     k = np.exp(-0.5 * ((u / along) ** 2 + (v / across) ** 2))
     return (k / k.sum()).astype(np.float32)
-
-
-def _unfold_layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray],
-                   un: np.ndarray, shape: tuple[int, int],
-                   maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
-                   canvases: list) -> list[tuple]:
-    """The bands of :func:`_unfold_draw`: per group with a live own fold, its band's canvas
-    appended to ``canvases`` and ``(g, f, got, pts, w, d, L, K, M, box, canvas index)``
-    (:func:`_band_samples` of the group's segments, all segments measured at once: ``segs``,
-    :func:`_segments` of the valley's samples on the deformed mesh)."""
-    fa = _fast(face)
-    H, W = shape
-    ua, ub = un.take(fa.seg_a), un.take(fa.seg_b)
-    groups = _live_groups(fa, np.maximum(ua, ub) > _MIN_UNFOLD)
-    if not groups:
-        return []
-    a_all, d_all, L_all = segs
-    bands = []
-    for g, g0, g1 in groups:
-        sb = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
-        got = None if maps is None else _photo_gain(face, g)
-        # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
-        f = 1 if got is None else max(1, int(sb / 1.5))
-        a, d, L = a_all[g0:g1], d_all[g0:g1], L_all[g0:g1]
-        K = int(min(max(math.ceil(max(L.tolist()) / (0.5 * f)), 1), 64))  # (no ndarray.max)
-        u = _sub_steps(K)
-        pts = (a[:, None, :] + d[:, None, :] * u[None, :, None]).reshape(-1, 2)
-        ga, gb = ua[g0:g1], ub[g0:g1]
-        w = ((ga[:, None] + (gb - ga)[:, None] * u[None]) * (L / K)[:, None]).ravel()
-        bands.append((g, sb, got, f, pts, w, d, L, K, g1 - g0))
-    # the box that is written (each band's), in one pass (cuts: np.cumsum costs more)
-    cut = list(itertools.accumulate([0, *[len(b[4]) for b in bands[:-1]]]))
-    P = np.concatenate([b[4] for b in bands])
-    lo, hi = np.minimum.reduceat(P, cut).tolist(), np.maximum.reduceat(P, cut).tolist()
-    jobs = []
-    for (g, sb, got, f, pts, w, d, L, K, M), (lx, ly), (hx, hy) in zip(bands, lo, hi,
-                                                                         strict=True):
-        x0, y0 = max(int(lx - 3.0 * sb), 0), max(int(ly - 3.0 * sb), 0)
-        x1, y1 = min(int(hx + 3.0 * sb) + 1, W), min(int(hy + 3.0 * sb) + 1, H)
-        if x1 - x0 < 4 or y1 - y0 < 4:
-            continue
-        jobs.append((g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), len(canvases)))
-        safe = x0 > 0 and y0 > 0 and x1 < W and y1 < H  # (3 sb >= 1.5 f px around them)
-        canvases.append((*_on_canvas(pts, (x0, y0, x1, y1), f), w, safe))
-    return jobs
 
 
 def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: int
@@ -2136,7 +2224,9 @@ def _photo_gain(face: Face, g: int
     ``Cw`` (h, w, 4), ``C`` with the skin weight, over the box at ``(x0, y0)`` (cached per
     face; None: no own fold). (Four channels: OpenCV resamples a 4-channel float image about
     twice as fast as a 3-channel one, with the same values per channel.)"""
-    cache = _GAIN.setdefault(face, {})
+    cache = _GAIN.get(face)
+    if cache is None:
+        cache = _GAIN.setdefault(face, {})
     if g not in cache:
         got = _photo_lift(face, g)
         if got is None:

@@ -169,8 +169,8 @@ STYLES: dict[str, FoldStyle] = {
                           probe=0.06),
     # JAFFE's glabellar fine lines (tests/test_creases.py, x 1000 over each woman's neutral):
     # fear 7.5, sadness 6.2, anger 2.6; from the mesh's compression alone fear drew 1.9 and
-    # sadness 3.2 (their brows close in half as far as anger's); with the brow effort 4.0
-    # and 6.1 (anger unchanged: 5.2)
+    # sadness 3.2 (their brows close in half as far as anger's); with the brow effort 3.8
+    # and 5.8 (anger unchanged: 5.2)
     "glabella": FoldStyle(sigma=0.013, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
                           probe=0.05, effort=0.6),
     # the mentolabial sulcus under an angry pout (AU17 + AU24 push the lower lip up over the
@@ -1089,30 +1089,42 @@ def _neg_compression(fa: _Fast, vertices: np.ndarray) -> np.ndarray | float:
     return (_spread(fa, vertices) - 1.0) * (fa.neg_fade * pout)
 
 
-#: inner brow rise (AU1) and closing-in (AU4) beyond rest (IOD) at which each reaches 63 % of
-#: its share of the brow effort
-_EFFORT_RISE = 0.04
-_EFFORT_SQUEEZE = 0.04
+#: inner brow rise (AU1) and closing-in (AU4) beyond rest (in inner eye corners' distances,
+#: about 0.45 IOD) at which each reaches 63 % of its share of the brow effort
+_EFFORT_RISE = 0.07
+_EFFORT_SQUEEZE = 0.07
+#: effort below this is none (a turned head's brows and eye corners are not foreshortened
+#: exactly alike in the mesh: up to 0.03 on the bench's head rotation); the rest rescaled
+_EFFORT_DEAD = 0.05
 
 
 def _brow_pose(fa: _Fast, vertices: np.ndarray) -> tuple[float, float]:
-    """The inner brow heads' mean height over the inner eye corners and their distance, IOD."""
+    """The inner brow heads' mean height over the inner eye corners' line and their distance,
+    both over the eye corners' distance: a turned, nodded, tilted or scaled head keeps them
+    (the brows and the eye corners are foreshortened alike), or lowers the height (a nod)."""
     (blx, bly), (brx, bry), (elx, ely), (erx, ery) = np.asarray(vertices).take(
         fa.brow_v, 0).astype(np.float64).tolist()
-    ux, uy = float(fa.lift_up[0]), float(fa.lift_up[1])  # the frame's up over the IOD
-    rise = 0.5 * ((blx - elx + brx - erx) * ux + (bly - ely + bry - ery) * uy)
-    return rise, math.hypot(blx - brx, bly - bry) / fa.iod
+    dx, dy = erx - elx, ery - ely
+    d2 = dx * dx + dy * dy
+    # (the corners' line turned a quarter, towards the frame's up)
+    nx, ny = dy, -dx
+    if nx * float(fa.lift_up[0]) + ny * float(fa.lift_up[1]) < 0.0:
+        nx, ny = -nx, -ny
+    rise = 0.5 * ((blx - elx + brx - erx) * nx + (bly - ely + bry - ery) * ny) / d2
+    return rise, math.hypot(blx - brx, bly - bry) / math.sqrt(d2)
 
 
 def _brow_effort(fa: _Fast, vertices: np.ndarray) -> float:
     """How hard the inner brows are raised while drawn together (0..1): the product of the
-    rise's and the closing-in's saturating shares beyond rest. Fear and sadness (AU1 + 4)
-    score 0.4-0.6; surprise (no closing-in), anger and disgust (lowered brows) score 0."""
+    rise's and the closing-in's saturating shares beyond rest, less a dead zone. Fear and
+    sadness (AU1 + 4) score 0.3-0.4 at 100 %, 0.5-0.6 at 150 %; surprise (no closing-in),
+    anger and disgust (lowered brows) and a turned head score 0."""
     rise, gap = _brow_pose(fa, vertices)
     r, q = rise - fa.brow_rise0, fa.brow_gap0 - gap
     if r <= 0.0 or q <= 0.0:
         return 0.0
-    return (1.0 - math.exp(-r / _EFFORT_RISE)) * (1.0 - math.exp(-q / _EFFORT_SQUEEZE))
+    e = (1.0 - math.exp(-r / _EFFORT_RISE)) * (1.0 - math.exp(-q / _EFFORT_SQUEEZE))
+    return max(e - _EFFORT_DEAD, 0.0) / (1.0 - _EFFORT_DEAD)
 
 
 def _add_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import is_grey
+from .fitting import is_grey, smooth01_float
 from .layers import _rebox, _union
 from .perface import per_face
 from .warp import WarpResult
@@ -134,8 +134,7 @@ def bunching(plan: ChinPlan, vertices: np.ndarray) -> float:
     rise = _gap(v, plan.boss) / plan.iod - plan.boss_gap0
     if rise <= 0.0:
         return 0.0
-    opened = min(max((_gap(v, plan.lips) / plan.iod - plan.lips_gap0) / OPEN, 0.0), 1.0)
-    closed = 1.0 - opened * opened * (3.0 - 2.0 * opened)
+    closed = 1.0 - smooth01_float((_gap(v, plan.lips) / plan.iod - plan.lips_gap0) / OPEN)
     return DARKEST * (1.0 - math.exp(-rise / RISE)) * closed
 
 

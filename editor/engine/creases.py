@@ -65,6 +65,7 @@ from .fitting import (
     median,
     pad_edge,
     smooth01,
+    smooth01_float,
 )
 from .gaze import spread3, zero_alpha
 from .layers import _blur, _rebox, _union, layer_plan
@@ -1068,13 +1069,7 @@ def _closed_lips(fa: _Fast, vertices: np.ndarray) -> float:
         (i0, i1, j0, j1), 0).astype(np.float64).tolist()
     opened = (math.hypot(bx - ax, by - ay) / fa.iod - fa.lips_gap0) / _POUT_OPEN
     raised = (math.hypot(dx - cx, dy - cy) / fa.iod - fa.boss_gap0) / _POUT_BOSS
-    return (1.0 - _smooth01_float(opened)) * _smooth01_float(raised)
-
-
-def _smooth01_float(x: float) -> float:
-    """:func:`smooth01` of a Python float (clamped to [0, 1] first)."""
-    c = min(max(x, 0.0), 1.0)
-    return c * c * (3.0 - 2.0 * c)
+    return (1.0 - smooth01_float(opened)) * smooth01_float(raised)
 
 
 def _neg_compression(fa: _Fast, vertices: np.ndarray) -> np.ndarray | float:

@@ -629,6 +629,13 @@ def smooth01(t: ArrayLike) -> np.ndarray:
     return c * c * (3.0 - 2.0 * c)
 
 
+def smooth01_float(x: float) -> float:
+    """:func:`smooth01` of a Python float (clamped to [0, 1] first): the same value without
+    numpy's per-call cost on a scalar."""
+    c = min(max(x, 0.0), 1.0)
+    return c * c * (3.0 - 2.0 * c)
+
+
 def gather_px(img: np.ndarray, rows: ArrayLike, cols: ArrayLike) -> np.ndarray:
     """``img[rows, cols]`` of an (h, w) or (h, w, c) array for in-range (non-negative)
     integer index arrays (broadcast): the same pixels by ``take`` on the flattened pixels,

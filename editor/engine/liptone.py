@@ -59,7 +59,7 @@ from .creases import SHADOW_TINT
 from .fitting import channel_median, clamp, interp, is_grey, smooth01
 from .gaze import spread3
 from .layers import _rebox, _union
-from .lipseal import _reached, _support
+from .lipseal import _reached, _support, reach_step
 from .perface import per_face
 from .warp import WarpResult, box_maps
 
@@ -339,7 +339,7 @@ def apply_lip_tone(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     box: tuple[int, int, int, int] | None = None
     if lift > 0.0:
         if plan.shadow is not None and res.maps is not None:
-            box = _lift_shadow(plan, res, vertices, lift)
+            box = _lift_shadow(plan, res, vertices, lift, reach_step(face))
     else:
         n = narrowing_share(plan, vertices)
         if n > 0.0:
@@ -382,10 +382,11 @@ def _pale(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, a: float
     return x0, y0, x1, y1
 
 
-def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: float
-                 ) -> tuple[int, int, int, int] | None:
+def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: float,
+                 step: int = 1) -> tuple[int, int, int, int] | None:
     """Lift the lower lip's shadow in ``res.image`` by ``share`` of :attr:`TonePlan.shadow`,
-    carried from the photo by the warp's backward map; the box written, or None."""
+    carried from the photo by the warp's backward map; the box written, or None. ``step``:
+    ``lipseal._reached``'s."""
     assert plan.shadow is not None and res.maps is not None
     out = res.image
     H, W = out.shape[:2]
@@ -405,7 +406,7 @@ def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: f
     # only where the map reaches the shadow's nonzero pixels (elsewhere the lift is a gain of
     # exactly 1: the same frame); on the 4K bench face 65 % of the box
     sup = plan.shadow_support
-    sub = None if sup is None else _reached(res.maps, box, (ox, oy), sup)
+    sub = None if sup is None else _reached(res.maps, box, (ox, oy), sup, step)
     if sub is None:
         return box
     x0, y0, x1, y1 = sub

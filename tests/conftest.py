@@ -49,6 +49,20 @@ def jaffe_images(pattern: str = "*.tiff") -> list[Path]:
     return sorted((JAFFE / "images").glob(pattern))
 
 
+def cheek_light(g, points) -> tuple[float, float]:
+    """``(light, iod)``: the median of luminance ``g`` (h, w) over two squares of cheek
+    (0.24 IOD wide) 0.45 IOD under the eyes of the 68 landmarks ``points``, and their
+    inter-ocular distance: the reference light of the JAFFE shading measures."""
+    import numpy as np
+
+    iod = float(np.linalg.norm(points[36:42].mean(0) - points[42:48].mean(0)))
+    skin = []
+    for e in (points[36:42].mean(0), points[42:48].mean(0)):
+        cx, cy, r = int(e[0]), int(e[1] + 0.45 * iod), int(0.12 * iod)
+        skin.append(g[cy - r:cy + r, cx - r:cx + r].ravel())
+    return float(np.median(np.concatenate(skin))), iod
+
+
 def jaffe_real_and_drawn(measure, code: str, preset: str) -> tuple[float, float]:
     """Medians of ``measure(image)`` (None: not measurable) over JAFFE's real ``code`` photos
     (e.g. "HA") and over ``preset`` at 100 % rendered on each woman's first neutral photo;

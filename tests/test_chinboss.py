@@ -5,16 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import jaffe_images, jaffe_real_and_drawn
+from conftest import cheek_light, jaffe_images, jaffe_real_and_drawn
 
 from editor.engine import face as face_module
 from editor.engine.chinboss import bunching, chin_plan
+from editor.engine.fitting import luminance
 from editor.engine.imageio import load_image
 from editor.formats.presets import apply_preset
-
-
-def _lum(img: np.ndarray) -> np.ndarray:
-    return img.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
 
 
 def _chin_mask(face, v: np.ndarray, t0: float, t1: float, half: float) -> np.ndarray:
@@ -61,7 +58,7 @@ def test_darkens_the_chin_and_nothing_below_it(sample_neutral, monkeypatch):
     plain = f.render(vec, creases=False)
     band = _chin_mask(f, v, 0.2, 0.8, 0.12)
     assert band.sum() > 50
-    ratio = float(_lum(with_it)[band].mean() / _lum(without)[band].mean())
+    ratio = float(luminance(with_it)[band].mean() / luminance(without)[band].mean())
     assert 0.7 < ratio < 0.95, ratio
     changed = np.any(with_it != without, axis=2)
     # nothing beyond the chin's outline, nor on the lips above it
@@ -79,17 +76,12 @@ def _chin_light(img: np.ndarray) -> float | None:
     0.1 IOD either side, over the median of two squares of cheek 0.45 IOD under the eyes."""
     from editor.engine.landmarks import detect_landmarks
 
-    g = _lum(img) if img.ndim == 3 else img.astype(np.float32)
+    g = luminance(img) if img.ndim == 3 else img.astype(np.float32)
     try:
         p = detect_landmarks(img).points.astype(np.float64)
     except Exception:  # noqa: BLE001 - no face found: not measurable
         return None
-    iod = float(np.linalg.norm(p[36:42].mean(0) - p[42:48].mean(0)))
-    cheeks = []
-    for e in (p[36:42].mean(0), p[42:48].mean(0)):
-        cx, cy, r = int(e[0]), int(e[1] + 0.45 * iod), int(0.12 * iod)
-        cheeks.append(g[cy - r:cy + r, cx - r:cx + r].ravel())
-    ref = float(np.median(np.concatenate(cheeks)))
+    ref, iod = cheek_light(g, p)
     rows = []
     for t in np.linspace(0.15, 0.75, 9):
         q = p[57] + t * (p[8] - p[57])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from conftest import JAFFE
+from conftest import JAFFE, cheek_light
 
 from editor.core import Face
 from editor.engine import lipseal
@@ -299,12 +299,7 @@ def _lower_lip_profile(img: np.ndarray) -> np.ndarray:
 
     g = luminance(img)
     p = detect_landmarks(img).points.astype(np.float64)
-    iod = float(np.linalg.norm(p[36:42].mean(0) - p[42:48].mean(0)))
-    skin = []
-    for e in (p[36:42].mean(0), p[42:48].mean(0)):
-        cx, cy, r = int(e[0]), int(e[1] + 0.45 * iod), int(0.12 * iod)
-        skin.append(g[cy - r:cy + r, cx - r:cx + r].ravel())
-    ref = float(np.median(np.concatenate(skin)))
+    ref, iod = cheek_light(g, p)
     out = []
     for t0, t1 in ((0.3, 0.45), (0.8, 0.95)):
         vals = []

@@ -61,7 +61,7 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
     alpha = np.zeros((h, w))
     ivory = np.array([0.93, 0.90, 0.83])
     neck = np.array([0.86, 0.80, 0.66])
-    edge = np.array([0.80, 0.80, 0.80])
+    edge = np.array([0.76, 0.78, 0.82])
     gum = np.array([0.78, 0.42, 0.44])
     # arch: tooth k spans arc [s0, s1] -> angles -> projected x = R sin(phi)
     s0 = 0.0
@@ -73,8 +73,14 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
             break
         spans.append((radius * np.sin(phi0), radius * np.sin(min(phi1, np.pi / 2)),
                       0.5 * (phi0 + min(phi1, np.pi / 2)), ln, pointed))
+    rng = np.random.default_rng(11 if upper else 12)
     for side in (-1.0, 1.0):
-        for x0, x1, phi, ln, pointed in spans:
+        for x0, x1, phi, ln0, pointed in spans:
+            # no two upper teeth alike: each a little lighter or darker and longer or shorter
+            # (the lower ones, mostly hidden and in shadow, stay even)
+            vary = float(upper)
+            tone = 1.0 + vary * float(rng.uniform(-0.035, 0.035))
+            ln = ln0 + vary * float(rng.uniform(-0.25, 0.25))
             a, b = (x0, x1) if side > 0 else (-x1, -x0)
             tw = b - a
             t = (X - a) / max(tw, 1e-6)  # 0..1 across the tooth
@@ -107,10 +113,22 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
             v = np.clip((Y - margin) / np.maximum(tip_here - margin, 1e-6), 0, 1)
             col = (neck[None, None] * (1 - _smooth(v / 0.35))[..., None]
                    + ivory[None, None] * _smooth(v / 0.35)[..., None])
-            near_edge = _smooth((v - 0.86) / 0.14)[..., None]
-            col = col * (1 - 0.35 * near_edge) + edge[None, None] * 0.35 * near_edge
+            # the translucent incisal edge: greyer and a little blue, over its last fifth
+            near_edge = _smooth((v - 0.80) / 0.20)[..., None]
+            col = col * (1 - 0.45 * near_edge) + edge[None, None] * 0.45 * near_edge
             roundness = 0.72 + 0.28 * np.sin(np.pi * np.clip(t, 0, 1)) ** 0.6
-            light = shade * (0.45 + 0.55 * np.cos(phi) ** 1.3) * roundness * (0.78 + 0.22 * v)
+            # the labial surface: a faint groove between the lobes of the incisors (at a
+            # third and two thirds of the width, fading towards the edge) and the wet
+            # enamel's soft highlight a little mesial of the crown's middle, strongest in its
+            # middle third (a crown of even light reads as a plastic block at a large size);
+            # the lower teeth, in the upper ones' shadow, have neither
+            lobes = 1.0 - (0.035 if upper and ln > 8.5 else 0.0) * (
+                np.exp(-((t - 1 / 3) / 0.05) ** 2) + np.exp(-((t - 2 / 3) / 0.05) ** 2)) * (
+                1.0 - _smooth((v - 0.55) / 0.35))
+            tc = 0.42 if side > 0 else 0.58  # (mesial of the middle)
+            gloss = 1.0 + (0.09 if upper else 0.0) * np.exp(-((t - tc) / 0.09) ** 2) * np.exp(-((v - 0.45) / 0.25) ** 2)
+            light = (shade * tone * (0.45 + 0.55 * np.cos(phi) ** 1.3) * roundness
+                     * (0.78 + 0.22 * v) * lobes * gloss)
             col = col * light[..., None]
             # contact lines between neighbours: the interproximal shadow, ~0.35 mm on each
             # side and darkest towards the incisal edge and the gum (the embrasures), so that

@@ -126,7 +126,8 @@ def draw_teeth(widths: list[tuple[float, float, bool]], radius: float, size_mm: 
                 np.exp(-((t - 1 / 3) / 0.05) ** 2) + np.exp(-((t - 2 / 3) / 0.05) ** 2)) * (
                 1.0 - _smooth((v - 0.55) / 0.35))
             tc = 0.42 if side > 0 else 0.58  # (mesial of the middle)
-            gloss = 1.0 + (0.09 if upper else 0.0) * np.exp(-((t - tc) / 0.09) ** 2) * np.exp(-((v - 0.45) / 0.25) ** 2)
+            gloss = 1.0 + (0.09 if upper else 0.0) * (np.exp(-((t - tc) / 0.09) ** 2)
+                                                      * np.exp(-((v - 0.45) / 0.25) ** 2))
             light = (shade * tone * (0.45 + 0.55 * np.cos(phi) ** 1.3) * roundness
                      * (0.78 + 0.22 * v) * lobes * gloss)
             col = col * light[..., None]

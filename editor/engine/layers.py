@@ -276,13 +276,24 @@ def _nearest_outside(face: np.ndarray, hole: np.ndarray, labels: np.ndarray,
     when every pixel is in the hole.
 
     (One gather of rows by flat indices composed from the labels: a boolean mask of a
-    3-channel view, ``face[~hole]``, costs several times more on these small boxes.)"""
+    3-channel view, ``face[~hole]``, costs several times more on these small boxes. From
+    :data:`GATHER4_PX` pixels the rows are gathered as 4-byte words of an RGBA copy, a
+    third faster than 3-byte rows: the 4K bench face's boxes, ~0.1 ms of ~0.3.)"""
     outside = (~hole).ravel().nonzero()[0]  # (np.flatnonzero's values, without its wrappers)
     if not len(outside):
         return np.zeros(face.shape, np.float32) if empty is None else empty.astype(np.float32)
+    at = outside.take(labels - 1, mode="clip")
+    if at.size >= GATHER4_PX:
+        words = cv2.cvtColor(face, cv2.COLOR_RGB2RGBA).view(np.uint32).reshape(-1)
+        got = words.take(at).view(np.uint8).reshape(*face.shape[:2], 4)
+        return cv2.cvtColor(got, cv2.COLOR_RGBA2RGB).astype(np.float32)
     rows = np.ascontiguousarray(face).reshape(-1, 3)
-    return rows.take(outside.take(labels - 1, mode="clip"), 0).reshape(face.shape) \
-        .astype(np.float32)
+    return rows.take(at, 0).reshape(face.shape).astype(np.float32)
+
+
+#: From this many pixels :func:`_nearest_outside` gathers 4-byte words (the 1080p bench
+#: face's boxes, ~1000 px, gather 3-byte rows: there the RGBA copies cost more than they save)
+GATHER4_PX = 4096
 
 
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,

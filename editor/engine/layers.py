@@ -1027,6 +1027,8 @@ def _coverage(poly: np.ndarray, box: tuple[int, int, int, int], ss: int = 4,
     else:
         k = 2 * dilate * ss + 1
         big = cv2.dilate(big, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    if ss == 4:
+        return _area4_coverage(big, w, h)
     small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA)
     return np.multiply(small, np.float32(1.0 / 255.0), dtype=np.float32)
 

@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 
 from .fitting import clamp, clip, interp, smooth01
-from .gaze import spread3
+from .gaze import remap_rgb, spread3
 from .layers import _rebox, _to_uint8, _union, layer_plan
 from .mouth import _lum
 from .warp import WarpResult
@@ -321,7 +321,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         t, above = _shift(table, xc, y0c, lo_c, rows_f, tuple(widths), R, org, closing)
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
-    new = _resample(img, mx, my)
+    new = remap_rgb(img, mx, my)
     if above is not None:  # a closing lid (the evening-out is for its band over the eye)
         # the lashes' band kept above the lid's edge, per column: LASH_KEEP of the interocular
         # distance while the eye is open, none once it is closed (from a closure of 0.6 to 0.9
@@ -344,36 +344,6 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
         return res
     return _rebox(res, bbox, {})
-
-
-#: From this many pixels (the boxes side by side) :func:`_resample` reads a 4-channel copy
-#: of the frame's part the maps reach (the 1080p bench face's boxes: ~4600 px, the 4K face's
-#: ~96000)
-RESAMPLE4_PX = 16384
-
-
-def _resample(img: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarray:
-    """``cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)`` of the uint8
-    RGB frame at float32 maps, the same values. On boxes of :data:`RESAMPLE4_PX` pixels and
-    more it resamples a 4-channel (RGBA) copy of the part of the frame the maps reach (their
-    extent, 2 px more, inside the frame: the replicated border is the frame's own there) with
-    the maps moved to it by whole pixels (exact in float32: every value minus an integer no
-    larger than it, the region's origin clamped at 0 aside, which subtracts nothing), and
-    keeps the first 3 channels: OpenCV 5's float-map bilinear remap of 8-bit images is
-    vectorised for 4 channels and not for 3 (per channel the same arithmetic: the same
-    values; the 4K bench face's lid boxes, 96000 px: ~0.23 ms instead of ~0.6 ms, the copy
-    and the maps' moves ~0.05 ms)."""
-    if mx.size < RESAMPLE4_PX:
-        return cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-    H, W = img.shape[:2]
-    lo_x, hi_x = cv2.minMaxLoc(mx)[:2]
-    lo_y, hi_y = cv2.minMaxLoc(my)[:2]
-    x0, y0 = min(max(math.floor(lo_x) - 2, 0), W - 1), min(max(math.floor(lo_y) - 2, 0), H - 1)
-    x1, y1 = max(min(math.ceil(hi_x) + 3, W), x0 + 1), max(min(math.ceil(hi_y) + 3, H), y0 + 1)
-    src = cv2.cvtColor(img[y0:y1, x0:x1], cv2.COLOR_RGB2RGBA)
-    got = cv2.remap(src, mx - np.float32(x0) if x0 else mx, my - np.float32(y0) if y0 else my,
-                    cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-    return cv2.cvtColor(got, cv2.COLOR_RGBA2RGB)
 
 
 def _shift(table: np.ndarray, xc: np.ndarray, y0c: np.ndarray, lo_c: np.ndarray,

@@ -340,3 +340,23 @@ def test_soft_edge_continues_the_face_without_a_step_at_the_outline():
     assert np.abs(edge - out[19, 10:50, 0]).max() < 15, edge
     deep = inside[30, 10:50, 0]  # well inside: smoothed
     assert np.ptp(deep) < 20, deep
+
+
+def test_nearest_outside_gathers_the_labelled_pixels():
+    """:func:`layers._nearest_outside` returns at every pixel the colour of the outside pixel
+    its label names, on small boxes (3-byte rows) and large ones (4-byte words of an RGBA
+    copy), boxes given as views into a frame included."""
+    from editor.engine.layers import GATHER4_PX, _nearest_outside
+
+    rng = np.random.default_rng(11)
+    frame = rng.integers(0, 256, (300, 400, 3), np.uint8)
+    for h, w in ((20, 30), (70, 130)):
+        face = frame[17:17 + h, 23:23 + w]
+        hole = np.zeros((h, w), np.uint8)
+        cv2.ellipse(hole, (w // 2, h // 2), (w // 2 - 3, h // 2 - 3), 10, 0, 360, 1, -1)
+        _, labels = cv2.distanceTransformWithLabels(hole, cv2.DIST_L2, 3,
+                                                    labelType=cv2.DIST_LABEL_PIXEL)
+        zy, zx = np.nonzero(hole == 0)  # the labels number these in this (row-major) order
+        want = face[zy[labels - 1], zx[labels - 1]].astype(np.float32)
+        assert (h * w >= GATHER4_PX) == (h == 70)
+        assert np.array_equal(_nearest_outside(face, hole.view(bool), labels), want)

@@ -286,3 +286,24 @@ def test_a_half_closed_lid_keeps_its_lashes(jaffe_faces, monkeypatch):
         m.setattr(ls, "LASH_KEEP", 1e-6)
         lost = [edge_dark(f) for f in jaffe_faces]
     assert np.median(np.array(lost) - np.array(kept)) > 8.0, (kept, lost)
+
+
+def test_remap_rgb_is_the_remap_of_the_frame():
+    """:func:`gaze.remap_rgb` (the lid skin's and the still eyes' resampling: a 4-channel copy
+    of the part of the frame its maps reach, on large boxes) returns ``cv2.remap``'s values to
+    the bit: maps inside the frame, past its edges (the replicated border) and on both sides
+    of the size from which it copies."""
+    from editor.engine.gaze import RESAMPLE4_PX, remap_rgb
+
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (300, 420, 3), np.uint8)
+    for h, w, x0, y0, reach in ((100, 200, 150, 120, 3.0), (40, 60, 80, 90, 2.0),
+                                (140, 180, -5, 170, 9.0), (130, 150, 300, -3, 6.0),
+                                (60, 120, 10, 10, 1.0)):
+        xs = np.arange(x0, x0 + w, dtype=np.float32)[None, :]
+        ys = np.arange(y0, y0 + h, dtype=np.float32)[:, None]
+        mx = (xs + rng.uniform(-reach, reach, (h, w))).astype(np.float32)
+        my = (ys + rng.uniform(-reach, reach, (h, w))).astype(np.float32)
+        want = cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+        assert (h * w >= RESAMPLE4_PX) == (h not in (40, 60))
+        assert np.array_equal(remap_rgb(img, mx, my), want), (h, w, x0, y0)

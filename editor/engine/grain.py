@@ -231,15 +231,15 @@ def apply_grain(face: Face, res: WarpResult) -> WarpResult:
     # (clip: np.clip's ufunc without its Python layers; count_nonzero: any's answer)
     k *= clip(det, 0.0, 1.0)
     amp = np.sqrt(clip(1.0 - k, 0.0, 1.0)) * np.float32(plan.level)
-    hot = amp > _MIN_AMP
-    if not np.count_nonzero(hot):
+    # (the bounding box of the nodes above the threshold: one OpenCV call on the bytes of the
+    # comparison's bool array; empty: nothing to add)
+    cj, ci, cw, ch = cv2.boundingRect((amp > _MIN_AMP).view(np.uint8))
+    if not cw:
         return res
-    rows = np.flatnonzero(hot.any(1))
-    cols = np.flatnonzero(hot.any(0))
     # the hot part of the box in pixels (node i at pixel n i), a node's margin either side
     # for the interpolation
-    i0, i1 = max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, amp.shape[0])
-    j0, j1 = max(int(cols[0]) - 1, 0), min(int(cols[-1]) + 2, amp.shape[1])
+    i0, i1 = max(ci - 1, 0), min(ci + ch + 1, amp.shape[0])
+    j0, j1 = max(cj - 1, 0), min(cj + cw + 1, amp.shape[1])
     y0, y1 = by0 + n * i0, min(by0 + n * i1, by1)
     x0, x1 = bx0 + n * j0, min(bx0 + n * j1, bx1)
     if y1 <= y0 or x1 <= x0:

@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 
 from .fitting import clamp, clip, interp, smooth01
-from .gaze import spread3
+from .gaze import remap_rgb, spread3
 from .layers import _rebox, _to_uint8, _union, layer_plan
 from .mouth import _lum
 from .warp import WarpResult
@@ -321,7 +321,7 @@ def apply_lid_skin(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRes
         t, above = _shift(table, xc, y0c, lo_c, rows_f, tuple(widths), R, org, closing)
     mx = xc.astype(np.float32)[None, :] - np.float32(R[0, 1]) * t
     my = (y0c.astype(np.float32)[None, :] + rows_f) - np.float32(R[1, 1]) * t
-    new = cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+    new = remap_rgb(img, mx, my)
     if above is not None:  # a closing lid (the evening-out is for its band over the eye)
         # the lashes' band kept above the lid's edge, per column: LASH_KEEP of the interocular
         # distance while the eye is open, none once it is closed (from a closure of 0.6 to 0.9

@@ -26,7 +26,7 @@ from typing import Protocol, cast, runtime_checkable
 import cv2
 import numpy as np
 
-from .prefault import copy_of
+from .prefault import copy_of, empty_of
 
 _SHIFT = 4
 _ONE = 1 << _SHIFT
@@ -249,7 +249,6 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         if 2 * _area(inner) < _area((x0, y0, x1, y1)):
             return _warp_band(plan, dst, layers, cavity, moved_t, tri_pts, inner,
                               (x0, y0, x1, y1), interpolation)
-    out = copy_of(img)
     s = plan.map_step
     if s > 1 and min(x1 - x0, y1 - y0) >= 8 * s:
         # (where the hook reads the triangle ids: its ``box`` if it tells, else anywhere)
@@ -281,12 +280,16 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         if touched is not None:  # (the hook's pixels are resampled too)
             _mark(moving, touched, s, x0, y0)
         if pending is not None and not pending.done:
+            # (the photo copied part by part as it is resampled, see _resample_strips)
+            out = empty_of(img)
             _resample_strips(plan, out, pending, moving, s, x0, y0, y1 - y0, x1 - x0,
                              interpolation)
         else:
+            out = copy_of(img)
             _remap_moving(img, out, map_x, map_y, moving, s, x0, y0, interpolation)
     else:
         # (resampled straight into the copy's box: no temporary box and second copy)
+        out = copy_of(img)
         cv2.remap(img, map_x, map_y, interpolation, dst=out[y0:y1, x0:x1],
                   borderMode=cv2.BORDER_REPLICATE)
     return _finish(plan, dst, out, ids, map_x, map_y, (x0, y0, x1, y1), cavity,
@@ -392,7 +395,10 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
                      s: int, x0: int, y0: int, ny: int, nx: int,
                      interpolation: int = cv2.INTER_LINEAR) -> None:
     """:func:`_maps_coarse`'s deferred maps written (``p``: the same maps as written whole)
-    and the box resampled through them as :func:`_remap_moving` does, part by part of
+    and ``out`` (of the photo's shape, its values undefined) made the photo (copied part by
+    part, each part's rows just before they are resampled: in the cache then) with the box at
+    ``(x0, y0)`` (``nx`` x ``ny``) resampled through them as :func:`_remap_moving` does, part
+    by part of
     :data:`_RESIZE_PX` rows: each part's rows interpolated (:func:`_resize_rows`), its exact
     pixels written, then resampled while its maps are in the cache (written whole first, the
     4K face's 23 MB of maps were read back from memory). With ``cv2.INTER_LINEAR`` the photo
@@ -429,8 +435,12 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
                   zip((np.minimum, np.minimum, np.maximum, np.maximum), p.ext,
                       (inf, inf, -inf, -inf), strict=True)]
     fx, fy = p.full_x.reshape(-1), p.full_y.reshape(-1)
+    img = plan.image
+    out[:y0] = img[:y0]
     for i, r0 in enumerate(starts):
         r1 = min(r0 + _RESIZE_PX, ny)
+        # (the part's rows of the photo copied first: in the cache for what reads them)
+        out[y0 + r0:y0 + r1] = img[y0 + r0:y0 + r1]
         _resize_rows(p, s, r0, r1)
         a, b = cut[i], cut[i + 1]
         if b > a:
@@ -454,9 +464,10 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
                 b4 = [min(b4[0], ex[0][i]), min(b4[1], ex[1][i]), max(b4[2], ex[2][i]),
                       max(b4[3], ex[3][i])]
             _to_rgba(plan, src4, (b4[0], b4[1]), (b4[2], b4[3]))
-        _remap_moving(plan.image, out, p.full_x[s:s + ny, s:s + nx],
+        _remap_moving(img, out, p.full_x[s:s + ny, s:s + nx],
                       p.full_y[s:s + ny, s:s + nx], moving, s, x0, y0, interpolation, (r0, r1),
                       extent, src4)
+    out[y0 + ny:] = img[y0 + ny:]
 
 
 def _rgba_buffer(plan: WarpPlan) -> np.ndarray:

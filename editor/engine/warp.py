@@ -530,8 +530,9 @@ MAP_KINK_PX = 0.5
 #: a pixel more), beyond it over those within two nodes (as along an opening's edge, where the
 #: map jumps and the coarse and the fine rasterizer may differ by a pixel). On the 4K bench
 #: face 22 % fewer pixels take the exact map (114,000 instead of 146,000): the warp 0.5-1.7 ms
-#: less (thread CPU, interleaved runs). Its renders (the bench expression and the six presets at 100 and 150 %)
-#: differ from the two-node band's on 75-359 pixels, by at most 2 levels (1.0 on average)
+#: less (thread CPU, interleaved runs). Its renders (the bench expression and the six presets
+#: at 100 and 150 %) differ from the two-node band's on 75-359 pixels, by at most 2 levels
+#: (1.0 on average)
 MAP_KINK_NEAR_PX = 1.0
 
 #: A face whose inter-ocular distance is at least this (px), in a photo larger than

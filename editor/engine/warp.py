@@ -279,7 +279,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
     if s > 1:
         if touched is not None:  # (the hook's pixels are resampled too)
             _mark(moving, touched, s, x0, y0)
-        if pending is not None and not pending.done:
+        if pending is not None:
             # (the photo copied part by part as it is resampled, see _resample_strips)
             out = empty_of(img)
             _resample_strips(plan, out, pending, moving, s, x0, y0, y1 - y0, x1 - x0,
@@ -353,8 +353,7 @@ class _Pending:
     """The interpolated maps of :func:`_maps_coarse` still to be written: the coarse maps
     ``cx, cy`` (gy, gx) to interpolate into ``full_x, full_y`` (gy s, gx s; the box's maps at
     offset ``(s, s)``), then the exact map's pixels: ``mx, my`` at the flat indices ``at``
-    (n, s s) of the full maps, one row per node, the nodes' rows ``nj`` (n,) ascending.
-    ``done``: the maps are whole already."""
+    (n, s s) of the full maps, one row per node, the nodes' rows ``nj`` (n,) ascending."""
 
     cx: np.ndarray
     cy: np.ndarray
@@ -366,7 +365,6 @@ class _Pending:
     my: np.ndarray | None = None
     #: each node's lowest x, y and highest x, y of ``mx, my`` ((n,) each)
     ext: tuple[np.ndarray, ...] | None = None
-    done: bool = False
 
 
 def _resize_rows(p: _Pending, s: int, r0: int, r1: int) -> None:
@@ -416,7 +414,7 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
     # the exact pixels' nodes by part (node row j: box rows [(j - 1) s, j s))
     starts = list(range(0, ny, _RESIZE_PX))
     cut = ([0] * (len(starts) + 1) if p.nj is None else
-           np.searchsorted(p.nj, [r // s + 1 for r in [*starts, ny]]).tolist())
+           [*np.searchsorted(p.nj, [r // s + 1 for r in starts]).tolist(), len(p.nj)])
     extent = _moving_extent(moving)
     src4 = None
     if interpolation == cv2.INTER_LINEAR:
@@ -1236,9 +1234,6 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
     fw = full_x.shape[1]
     aligned = bool((nk >= 1).all() and (nk * s <= nx).all() and (nj >= 1).all()
                    and (nj * s <= ny).all())
-    if pending is not None and not aligned:  # (the maps whole first, then their pixels)
-        _resize_rows(pending, s, 0, ny)
-        pending = _Pending(cx, cy, full_x, full_y, done=True)
     if aligned:
         px0, py0 = (nk - 1) * s, (nj - 1) * s
         flat = (dy * nx + dx)[:, None] + (py0 * nx + px0)
@@ -1246,6 +1241,13 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
         # (float32 sums: the same either way round)
         xs = dx.astype(np.float32)[:, None] + (px0 + x0).astype(np.float32)
         ys = dy.astype(np.float32)[:, None] + (py0 + y0).astype(np.float32)
+    elif pending is not None:
+        # (the (s s, n) layout kept for the deferred maps: a pixel outside the box takes the
+        # nearest one inside, written again with its own exact map)
+        px = np.clip(dx[:, None] + (nk - 1) * s, 0, nx - 1)
+        py = np.clip(dy[:, None] + (nj - 1) * s, 0, ny - 1)
+        flat, at = py * nx + px, (py + s) * fw + (px + s)
+        xs, ys = (px + x0).astype(np.float32), (py + y0).astype(np.float32)
     else:
         px = ((nk - 1) * s)[:, None] + dx
         py = ((nj - 1) * s)[:, None] + dy
@@ -1261,10 +1263,9 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
             k = np.flatnonzero(hook.lut.take(pid, mode="wrap"))
             if len(k):
                 mx[k], my[k] = hook.points(xs.take(k), ys.take(k))
-        if pending is not None and not pending.done:
-            # (written strip by strip after each strip's interpolation: (s s, nodes) each,
-            # the nodes in the order of their rows)
-            # (node by node: each part's nodes' pixels contiguous)
+        if pending is not None:
+            # (written part by part after each part's interpolation: node by node, each
+            # part's nodes' pixels contiguous, the nodes in the order of their rows)
             mx, my = mx.reshape(at.shape), my.reshape(at.shape)
             pending.at, pending.nj = np.ascontiguousarray(at.T), nj
             pending.mx, pending.my = np.ascontiguousarray(mx.T), np.ascontiguousarray(my.T)

@@ -344,8 +344,9 @@ def _frame_numbers(fr: FaceFrame) -> tuple[float, float, float, float, float, fl
 def _jaw_table(fr: FaceFrame, b: _Band, box: tuple[int, int, int, int], new: np.ndarray,
                drop: np.ndarray, ring: np.ndarray, ramp: float) -> tuple[np.ndarray, float]:
     """The jaw line now, its drop, the strip and the fade along the frame's x over ``box``,
-    tabulated every _STEP px (2, n, 4) float32 (read per pixel with one cv2.remap: np.interp
-    per pixel costs several times more), and the frame x of its first entry."""
+    tabulated every _STEP px (3, n, 4) float32, its rows alike (read per pixel with one
+    cv2.remap on row 0: np.interp per pixel costs several times more), and the frame x of its
+    first entry."""
     x0, y0, x1, y1 = box
     o0, o1, r00, r10, _, _ = _frame_numbers(fr)
     # the frame's x over the box is extreme at its corners (Python floats: the same float64
@@ -355,7 +356,10 @@ def _jaw_table(fr: FaceFrame, b: _Band, box: tuple[int, int, int, int], new: np.
     bx = (ax + by, ay + by, ax + cy, ay + cy)
     lo_x = min(bx)
     u = lo_x + _STEP * np.arange(math.ceil((max(bx) - lo_x) / _STEP) + 2)
-    table = np.empty((2, len(u), 4), np.float32)  # 2 rows: no border path on the last
+    # (3 rows, read on row 0: OpenCV's vectorised remap takes a sample whose row below its
+    # two lies inside the source too; with 2 rows every sample took the slow border path,
+    # 3 x the time, for the same values)
+    table = np.empty((3, len(u), 4), np.float32)
     jaw = interp(u, new[:, 0], new[:, 1])
     table[:, :, 0] = jaw
     table[:, :, 1] = interp(u, new[:, 0], drop)

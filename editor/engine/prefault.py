@@ -48,17 +48,33 @@ def reserve(shape: tuple[int, ...], dtype: np.dtype | type = np.uint8) -> None:
 def copy_of(img: np.ndarray) -> np.ndarray:
     """``img.copy()`` (C order), in the reserved buffer when one of its shape and type is
     pending (waiting for its thread if it is not done)."""
-    if not _SPARE:  # (no lock: the common case, every frame)
+    out = _reserved(img)
+    if out is None:
         return img.copy()
+    np.copyto(out, img)
+    return out
+
+
+def empty_of(img: np.ndarray) -> np.ndarray:
+    """An array of ``img``'s shape and type (C order), its values undefined: the reserved
+    buffer as :func:`copy_of` takes it, else new memory (for a caller that writes every
+    pixel itself)."""
+    out = _reserved(img)
+    return np.empty_like(img, order="C") if out is None else out
+
+
+def _reserved(img: np.ndarray) -> np.ndarray | None:
+    """The reserved buffer if it is of ``img``'s shape and type (taken: handed out once),
+    else None."""
+    if not _SPARE:  # (no lock: the common case, every frame)
+        return None
     with _LOCK:
         got = _SPARE[0] if _SPARE and _SPARE[0][:2] == (img.shape, img.dtype) else None
         if got is not None:
             _SPARE.clear()
     if got is None:
-        return img.copy()
+        return None
     try:
-        out = got[2].result()
+        return got[2].result()
     except (MemoryError, RuntimeError):  # (no memory; a fork while it was touched)
-        return img.copy()
-    np.copyto(out, img)
-    return out
+        return None

@@ -30,6 +30,7 @@ import numpy as np
 from editor.errors import NoFaceError
 
 from . import prefault
+from .cheeks import apply_cheeks
 from .chinboss import apply_chin_boss
 from .creases import apply_creases
 from .deform import (
@@ -550,7 +551,9 @@ class Face:
         w = apply_lid_skin(self, apply_grain(self, w), v)
         w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v), v), v)
         res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
-        return apply_chin_boss(self, apply_creases(self, res, v), v) if creases else res
+        if not creases:
+            return res
+        return apply_cheeks(self, apply_chin_boss(self, apply_creases(self, res, v), v), v)
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
         """2x3 source->destination maps of what lies behind the openings (see ``warp``).

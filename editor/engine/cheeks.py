@@ -40,8 +40,9 @@ from .warp import WarpResult
 if TYPE_CHECKING:
     from .face import Face
 
-#: darkening of the lower flank's core at full lift, lightening of the upper flank's
-DARKEST, LIGHTEST = 0.20, 0.12
+#: darkening of the lower flank's core at full lift, and the upper flank's lightening (its
+#: share of the way to white: a screen, so that a bright skin does not clip into a blob)
+DARKEST, LIGHTEST = 0.20, 0.25
 #: the corner's pull towards the cheekbone (IOD, beyond the neutral mesh) at which the shade
 #: reaches 63 % of its full strength: joy at 100 % pulls the corners 0.13-0.14 IOD on the
 #: JAFFE neutrals, 0.20 at 150 %
@@ -53,7 +54,7 @@ DARK_AT = (0.20, 0.15, 0.25, 0.40)
 DARK_HALF = (0.20, 0.10)
 #: the upper flank's (round)
 LIGHT_AT = (-0.1, 0.0, -0.15, 1.25)
-LIGHT_HALF = 0.11
+LIGHT_HALF = 0.14
 #: the shade's share on red, green and blue (skin in shadow is warmer than the same skin lit)
 TINT = (0.8, 1.0, 1.1)
 #: below this strength nothing is drawn
@@ -69,7 +70,7 @@ class CheekSide:
     pull: np.ndarray  # (2,) unit: the zygomaticus's line, mouth corner -> cheekbone (5.3)
     rise0: float  # the corner's place along it on the neutral mesh (IOD)
     solve: np.ndarray  # (3, 4): the affine fit's pseudo-inverse of the photo's anchors
-    field: np.ndarray  # (h, w) float32: darkening (> 0) and lightening (< 0) at full lift
+    field: np.ndarray  # (h, w, 2) float32: darkening and lightening at full lift
     box: tuple[int, int, int, int]  # (x0, y0, x1, y1) of ``field`` on the photo
 
 
@@ -119,10 +120,9 @@ def cheek_plan(face: Face) -> CheekPlan | None:
         if x1 - x0 < 3 or y1 - y0 < 3:
             continue
         ys, xs = np.mgrid[y0:y1, x0:x1].astype(np.float64)
-        field = (DARKEST * _ellipse(xs, ys, dark_c, along, (DARK_HALF[0] * iod,
-                                                             DARK_HALF[1] * iod))
-                 - LIGHTEST * _ellipse(xs, ys, light_c, along, (LIGHT_HALF * iod,
-                                                                LIGHT_HALF * iod)))
+        field = np.dstack([
+            DARKEST * _ellipse(xs, ys, dark_c, along, (DARK_HALF[0] * iod, DARK_HALF[1] * iod)),
+            LIGHTEST * _ellipse(xs, ys, light_c, along, (LIGHT_HALF * iod, LIGHT_HALF * iod))])
         P = np.hstack([rest[idx], np.ones((4, 1))])
         # the drive's zero: the neutral mesh's corner or the photo's own, whichever is
         # further along the muscle's line
@@ -173,11 +173,16 @@ def apply_cheeks(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResul
             continue
         M = A.copy()
         M[:, 2] = A[:, :2] @ np.array([bx0, by0], np.float64) + A[:, 2] - np.array([x0, y0])
-        shade = cv2.warpAffine(side.field, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-        gain = 1.0 - (np.float32(s) * shade)[..., None] * plan.tint
+        shade = np.asarray(cv2.warpAffine(side.field, M, (x1 - x0, y1 - y0),
+                                          flags=cv2.INTER_LINEAR,
+                                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0),
+                           np.float32) * np.float32(s)
         view = out[y0:y1, x0:x1]
-        view[:] = np.clip(view.astype(np.float32) * gain + 0.5, 0, 255).astype(np.uint8)
+        px = view.astype(np.float32)
+        px *= 1.0 - shade[..., :1] * plan.tint
+        # the lit top towards white as a screen does (a highlight never clips a bright skin)
+        px += shade[..., 1:] * (255.0 - px)
+        view[:] = np.clip(px + 0.5, 0, 255).astype(np.uint8)
         bbox = _union(bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 

@@ -537,7 +537,8 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     coordinates are those of the test against every triangle; the points outside the mesh are
     tested against every triangle (:func:`_locate_all`)."""
     points = np.asarray(points, np.float64)
-    a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
+    corners = verts.take(tris, 0)  # (T, 3, 2): one gather (three fancy indexings cost more)
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
     e1, e2 = b - a, c - a
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
@@ -589,7 +590,13 @@ def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
     if len(thin):
         pt_t = np.concatenate([pt_t, np.repeat(thin, n)])
         pt_p = np.concatenate([pt_p, np.tile(np.arange(n), len(thin))])
-    srt = np.argsort(pt_p * T + pt_t)  # by point, then triangle (unique keys)
+    if len(thin) or n > 1 << 16:
+        srt = np.argsort(pt_p * T + pt_t)  # by point, then triangle (unique keys)
+    else:
+        # (the pairs are listed by triangle, increasing: a stable sort by point alone puts
+        # them in the same order, by point, then triangle; on 16-bit keys numpy's radix sort,
+        # several times faster than a sort of the combined keys)
+        srt = np.argsort(pt_p.astype(np.uint16), kind="stable")
     pt_t, pt_p = pt_t.take(srt), pt_p.take(srt)
     # the same arithmetic as _locate_all, pair by pair
     dx = px.take(pt_p) - np.ascontiguousarray(a[:, 0]).take(pt_t)
@@ -686,12 +693,33 @@ def _build_plan(face: Face) -> CreasePlan:
     queries: list[np.ndarray] = []
     lines = []
     layout = _fold_lines(face)
-    on_image = [fr.to_image(ln.pts * iod) for ln in layout]
-    for ln, pts, nrm in zip(layout, on_image, _lines_normals(on_image), strict=True):
+    # (every line's points, and every probe, to the image in one product each: a row's value
+    # is that of the product of its line alone)
+    ends = np.cumsum([len(ln.pts) for ln in layout])
+    on_image = np.split(fr.to_image(np.concatenate([ln.pts for ln in layout]) * iod), ends[:-1])
+    probed = [ln for ln in layout if ln.probes is not None]
+    probes = iter(np.split(fr.to_image(np.concatenate([ln.probes for ln in probed]) * iod),
+                           np.cumsum([len(ln.probes) for ln in probed])[:-1])
+                  ) if probed else iter(())
+    measures: dict[tuple[float, float], np.ndarray] = {}
+    normals = _lines_normals(on_image)
+    # which lines to reverse: the sign of the mean of their normals along their ridge side,
+    # for all lines at once (a line whose mean is near zero, where the batched arithmetic's
+    # rounding could tell, takes its own line's product as before)
+    first = np.concatenate(([0], ends[:-1]))
+    sides = np.repeat(np.array([ln.side for ln in layout], np.float64) @ fr.rot.T,
+                      ends - first, 0)
+    nrm_all = np.concatenate(normals)
+    along = nrm_all[:, 0] * sides[:, 0] + nrm_all[:, 1] * sides[:, 1]
+    mean = np.add.reduceat(along, first) / (ends - first)
+    flip = (mean < 0).tolist()
+    for i in np.flatnonzero(np.abs(mean) < 1e-6).tolist():
+        flip[i] = float((normals[i] @ (fr.rot @ np.asarray(layout[i].side))).mean()) < 0
+    for ln, pts, nrm, rev in zip(layout, on_image, normals, flip, strict=True):
         kind, group, taper = ln.kind, ln.group, ln.taper
         utaper = taper if ln.utaper is None else ln.utaper
         st = STYLES[kind]
-        if float((nrm @ (fr.rot @ np.asarray(ln.side))).mean()) < 0:
+        if rev:
             # orient the line so that its normal points to the ridge side (the reversed
             # line's normals are these, reversed and negated: its central differences are
             # the negated ones, exactly)
@@ -702,8 +730,11 @@ def _build_plan(face: Face) -> CreasePlan:
         if ln.probes is None:
             queries += [pts + k * st.probe * iod * nrm for k in (-1.0, -0.33, 0.33, 1.0)]
         else:
-            queries.append(fr.to_image(ln.probes * iod))
-            nrm = np.repeat((fr.rot @ np.asarray(ln.measure))[None], len(pts), 0)
+            queries.append(next(probes))
+            m = measures.get(ln.measure)
+            if m is None:
+                m = measures[ln.measure] = fr.rot @ np.asarray(ln.measure)
+            nrm = np.repeat(m[None], len(pts), 0)
         lines.append((ln, kind, group, taper, utaper, pts, nrm, q0, len(queries)))
     sizes = [len(q) for q in queries]
     ti_all, bary_all = _locate(np.concatenate(queries), V, tris)

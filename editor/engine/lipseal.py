@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .fitting import channel_median, clamp, clip, is_grey, luminance, median
+from .fitting import channel_median, clamp, clip, is_grey, luminance, median, median_binned
 from .gaze import spread3, zero_alpha
 from .layers import _blur_wide, _rebox, _union, layer_plan
 from .warp import WarpResult, box_maps
@@ -282,10 +282,17 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     the masked pixels set to +inf in a copy, which sorts them after every value the median
     reads (a whole-array selection costs less than gathering the unmasked pixels first): the
     middle order statistic from one single-kth ``np.partition`` (a third of a full sort's time
-    on a mouth's box), the lower one of an even count the largest value partitioned below it."""
+    on a mouth's box), the lower one of an even count the largest value partitioned below it.
+    From :data:`_BINNED_MIN` values on, the unmasked pixels gathered and their median taken
+    by :func:`median_binned` (the same order statistics: ~0.11 instead of 0.17 ms on a 1080p
+    face's mouth box)."""
     free = int(np.count_nonzero(mask == 0))
     if free == 0:
         return float(median(np.abs(hp[mask == 0])))
+    if hp.shape[2] * free >= _BINNED_MIN:
+        h, w = mask.shape
+        px = hp.reshape(h * w, -1).take(np.flatnonzero(mask.reshape(-1) == 0), 0)
+        return median_binned(np.abs(px).reshape(-1))
     a = np.abs(hp)
     np.copyto(a, np.float32(np.inf), where=spread3((mask > 0).view(np.uint8)) > 0)
     n = hp.shape[2] * free
@@ -294,6 +301,11 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     if n % 2:
         return float(s[h])
     return float((s[:h].max() + s[h]) / np.float32(2))
+
+
+#: From this many values :func:`_unmasked_median_abs` takes :func:`median_binned` (its
+#: histogram's 1024 bins: below 2048 values it is ``np.median``)
+_BINNED_MIN = 2048
 
 
 def lip_curves(m: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

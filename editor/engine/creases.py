@@ -697,10 +697,9 @@ def _build_plan(face: Face) -> CreasePlan:
     # is that of the product of its line alone)
     ends = np.cumsum([len(ln.pts) for ln in layout])
     on_image = np.split(fr.to_image(np.concatenate([ln.pts for ln in layout]) * iod), ends[:-1])
-    probed = [ln for ln in layout if ln.probes is not None]
-    probes = iter(np.split(fr.to_image(np.concatenate([ln.probes for ln in probed]) * iod),
-                           np.cumsum([len(ln.probes) for ln in probed])[:-1])
-                  ) if probed else iter(())
+    probed = [ln.probes for ln in layout if ln.probes is not None]
+    probes = iter(np.split(fr.to_image(np.concatenate(probed) * iod),
+                           np.cumsum([len(x) for x in probed])[:-1])) if probed else iter(())
     measures: dict[tuple[float, float], np.ndarray] = {}
     normals = _lines_normals(on_image)
     # which lines to reverse: the sign of the mean of their normals along their ridge side,
@@ -731,10 +730,10 @@ def _build_plan(face: Face) -> CreasePlan:
             queries += [pts + k * st.probe * iod * nrm for k in (-1.0, -0.33, 0.33, 1.0)]
         else:
             queries.append(next(probes))
-            m = measures.get(ln.measure)
-            if m is None:
-                m = measures[ln.measure] = fr.rot @ np.asarray(ln.measure)
-            nrm = np.repeat(m[None], len(pts), 0)
+            way = measures.get(ln.measure)
+            if way is None:
+                way = measures[ln.measure] = fr.rot @ np.asarray(ln.measure)
+            nrm = np.repeat(way[None], len(pts), 0)
         lines.append((ln, kind, group, taper, utaper, pts, nrm, q0, len(queries)))
     sizes = [len(q) for q in queries]
     ti_all, bary_all = _locate(np.concatenate(queries), V, tris)
@@ -1892,6 +1891,7 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
     ds = np.arange(-reach, reach + 1e-6, 0.25)
     cand = _skin_triangles(face.mesh)
     wq = _work_factor(p.iod)
+    found: list[tuple[int, int, np.ndarray, tuple[float, float], np.ndarray, int]] = []
     for f in range(p.n_folds):
         a, b = int(p.start[f]), int(p.start[f + 1])
         if fa.own_gap is None or fa.own_gap[f] < _OWN_MIN or not p.utaper[a:b].any():
@@ -1914,7 +1914,14 @@ def _own_valleys(face: Face) -> tuple[np.ndarray, np.ndarray]:
                                               wq), (0, 0), 0.7 * sig / wq)
             org = (x0 + 0.5 * (wq - 1), y0 + 0.5 * (wq - 1))
             r = int(math.ceil(_VALLEY_WIDTH * sig / wq))
-        hat = _close(ls, r) - ls  # >= 0: depth below shoulders
+        found.append((a, b, q, org, ls, r))
+    # (the folds' closings of one radius in one image: _close_many)
+    closed: dict[int, np.ndarray] = {}
+    for r in sorted({x[5] for x in found}):
+        at = [i for i, x in enumerate(found) if x[5] == r]
+        closed.update(zip(at, _close_many([found[i][4] for i in at], r), strict=True))
+    for i, (a, b, q, org, ls, _r) in enumerate(found):
+        hat = closed[i] - ls  # >= 0: depth below shoulders
         nrm = p.normal[a:b]
         xy = ((q[:, None, :] + ds[None, :, None] * nrm[:, None, :] - org) / wq
               ).astype(np.float32)
@@ -2168,6 +2175,34 @@ def _close(img: np.ndarray, r: int) -> np.ndarray:
         return cv2.morphologyEx(img, cv2.MORPH_CLOSE, _ellipse(r))
     steps = _ellipse_steps(r)
     return _by_steps(_by_steps(img, steps, cv2.dilate, cv2.max), steps, cv2.erode, cv2.min)
+
+
+def _close_many(imgs: list[np.ndarray], r: int) -> list[np.ndarray]:
+    """``[_close(x, r) for x in imgs]`` of 2-D float images, the same values: side by side in
+    one image, ``r + 1`` columns apart and aligned at the top, padded with -inf for the
+    dilation and +inf for the erosion (neither wins a maximum or a minimum over a
+    neighbourhood that holds a pixel of the image, as the default border does not, and no
+    neighbourhood of the ellipse reaches across the gap): the calls' fixed costs once for
+    all (two 1080p nasolabial boxes: 0.39 -> 0.29 ms)."""
+    if len(imgs) == 1:
+        return [_close(imgs[0], r)]
+    H = max(x.shape[0] for x in imgs)
+    x0 = np.cumsum([0] + [x.shape[1] + r + 1 for x in imgs]).tolist()
+    big = np.full((H, x0[-1] - r - 1), -np.inf, np.result_type(*imgs))
+    free = np.ones(big.shape, bool)
+    for x, c in zip(imgs, x0, strict=False):
+        big[:x.shape[0], c:c + x.shape[1]] = x
+        free[:x.shape[0], c:c + x.shape[1]] = False
+    if r < _CLOSE_STEPS_MIN:
+        big = cv2.dilate(big, _ellipse(r))
+        big[free] = np.inf
+        big = cv2.erode(big, _ellipse(r))
+    else:
+        steps = _ellipse_steps(r)
+        big = _by_steps(big, steps, cv2.dilate, cv2.max)
+        big[free] = np.inf
+        big = _by_steps(big, steps, cv2.erode, cv2.min)
+    return [big[:x.shape[0], c:c + x.shape[1]].copy() for x, c in zip(imgs, x0, strict=False)]
 
 
 @functools.lru_cache(maxsize=16)

@@ -1018,8 +1018,8 @@ def _fast(face: Face) -> _Fast:
     ix = face.mesh.index
     # (each lift fold's group is named after its eye: "lower_lid_r", "lower_lid_l")
     side = [p.group_names[g][-1] for g in p.group[p.fold[lift]].tolist()]
-    lift_a = np.array([[ix(f"eye_{sd}_c0"), ix(f"eye_{sd}_c1")] for sd in side],
-                      np.intp).reshape(len(lift), 2)
+    corners = {sd: [ix(f"eye_{sd}_c0"), ix(f"eye_{sd}_c1")] for sd in set(side)}
+    lift_a = np.array([corners[sd] for sd in side], np.intp).reshape(len(lift), 2)
     rows, f.lift_row = _unique_rows(np.concatenate([lift_v, lift_a], 1).reshape(len(lift), -1))
     f.lift_v = np.ascontiguousarray(rows[:, :lift_v.shape[1]])
     f.lift_a = np.ascontiguousarray(rows[:, lift_v.shape[1]:])

@@ -250,6 +250,21 @@ def _fade(t: np.ndarray, a: float, b: float) -> np.ndarray:
     return x[:n] * x[n:]
 
 
+def _pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.stack([a, b], 1)`` of two 1-D float arrays of one length (the same (n, 2) array
+    without np.stack's Python-level set-up: the layout makes a dozen)."""
+    out = np.empty((len(a), 2), np.result_type(a, b))
+    out[:, 0] = a
+    out[:, 1] = b
+    return out
+
+
+def _cut(a: np.ndarray, ends: list[int]) -> list[np.ndarray]:
+    """``np.split(a, ends[:-1])`` (``ends``: the pieces' cumulative lengths): the same views,
+    without np.split's per-piece axis swaps."""
+    return [a[i:j] for i, j in zip([0, *ends[:-1]], ends, strict=True)]
+
+
 @dataclass
 class _Line:
     """One fold on the photo's mesh, in face-frame coordinates and units of the IOD.
@@ -413,7 +428,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     # look drawn with a ruler
     for f, w1, w2, w3, taper in fixed["forehead"]:
         y = yb_s - f * h + w1 + w2 + w3
-        lines.append(_Line("forehead", "forehead", np.stack([xs, y], 1), taper, (0.0, -1.0)))
+        lines.append(_Line("forehead", "forehead", _pairs(xs, y), taper, (0.0, -1.0)))
     # ---- glabella: two short vertical furrows between the inner brow ends, not mirror images
     # (different lengths, bowed apart towards the top, uneven along their length)
     ri, li = q("brow_r_e1"), q("brow_l_e0")
@@ -426,8 +441,8 @@ def _fold_lines(face: Face) -> list[_Line]:
         y_top, y_bot = y_brow - 0.24 * d_top, max(g[1], y_brow + 0.04)
         ys = linspace(y_top, y_bot, 14)
         u = (ys - y_top) / (y_bot - y_top)
-        pts = np.stack([x + tilt * u - sg * 0.02 * u * u + sg * 0.015 * (1 - u) ** 2
-                        + 0.004 * np.sin(2 * np.pi * 1.5 * u + d_bow), ys], 1)
+        pts = _pairs(x + tilt * u - sg * 0.02 * u * u + sg * 0.015 * (1 - u) ** 2
+                     + 0.004 * np.sin(2 * np.pi * 1.5 * u + d_bow), ys)
         even = 1.0 + 0.15 * np.sin(2 * np.pi * 1.2 * u + d_even)
         lines.append(_Line("glabella", "glabella", pts, _fade(u, d_fade, 0.3) * even,
                            (sg, 0.0)))
@@ -448,7 +463,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     for at, dx, xs_b, bend, slope, wave, taper in fixed["bridge"]:
         c = n27 + at * (n28 - n27)
         y_b = c[1] + bend + slope + wave
-        pts = np.stack([c[0] + dx + xs_b, y_b], 1)
+        pts = _pairs(c[0] + dx + xs_b, y_b)
         lines.append(_Line("bridge", "bridge", pts, taper, (0.0, -1.0), probes, (0.0, 1.0)))
     # ---- mentolabial sulcus: the groove between the lower lip and the chin, deepened when the
     # chin raiser (AU17, anger and disgust) pushes the chin boss up against the lower lip.
@@ -461,7 +476,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     shape_c, wave_c, taper_c, utaper_c = fixed["chin"]
     xs_c = shape_c * half_w
     y_c = c[1] - 0.05 * (xs_c / half_w) ** 2 + wave_c
-    lines.append(_Line("chin", "chin", np.stack([c[0] + xs_c, y_c], 1), taper_c, (0.0, 1.0),
+    lines.append(_Line("chin", "chin", _pairs(c[0] + xs_c, y_c), taper_c, (0.0, 1.0),
                        utaper=utaper_c))
     # ---- the lower lids' furrows: under each lower lid, LID_FURROW below it and following
     # its curve, driven by how far the skin under the eye is pushed up (the cheek raiser
@@ -477,7 +492,7 @@ def _fold_lines(face: Face) -> list[_Line]:
         y_l = interp(xs_l, lid[:, 0], lid[:, 1]) + LID_FURROW
         mid = lid[1:-1].mean(0)
         probes = mid + np.array([(-0.06, 0.05), (0.06, 0.05), (-0.06, 0.18), (0.06, 0.18)])
-        lines.append(_Line("lower_lid", f"lower_lid_{s}", np.stack([xs_l, y_l], 1), lid_taper,
+        lines.append(_Line("lower_lid", f"lower_lid_{s}", _pairs(xs_l, y_l), lid_taper,
                            (0.0, -1.0), probes, (0.0, 1.0), utaper=lid_utaper))
     return lines
 
@@ -523,7 +538,7 @@ def _lines_normals(lines: list[np.ndarray]) -> list[np.ndarray]:
     np.divide(ty, n, out=out[:, 0])
     np.negative(out[:, 0], out=out[:, 0])
     np.divide(tx, n, out=out[:, 1])
-    return np.split(out, ends[:-1])
+    return _cut(out, ends.tolist())
 
 
 def _locate(points: np.ndarray, verts: np.ndarray, tris: np.ndarray
@@ -696,10 +711,10 @@ def _build_plan(face: Face) -> CreasePlan:
     # (every line's points, and every probe, to the image in one product each: a row's value
     # is that of the product of its line alone)
     ends = np.cumsum([len(ln.pts) for ln in layout])
-    on_image = np.split(fr.to_image(np.concatenate([ln.pts for ln in layout]) * iod), ends[:-1])
+    on_image = _cut(fr.to_image(np.concatenate([ln.pts for ln in layout]) * iod), ends.tolist())
     probed = [ln.probes for ln in layout if ln.probes is not None]
-    probes = iter(np.split(fr.to_image(np.concatenate(probed) * iod),
-                           np.cumsum([len(x) for x in probed])[:-1])) if probed else iter(())
+    probes = iter(_cut(fr.to_image(np.concatenate(probed) * iod),
+                       np.cumsum([len(x) for x in probed]).tolist()) if probed else [])
     measures: dict[tuple[float, float], np.ndarray] = {}
     normals = _lines_normals(on_image)
     # which lines to reverse: the sign of the mean of their normals along their ridge side,
@@ -735,24 +750,24 @@ def _build_plan(face: Face) -> CreasePlan:
                 way = measures[ln.measure] = fr.rot @ np.asarray(ln.measure)
             nrm = np.repeat(way[None], len(pts), 0)
         lines.append((ln, kind, group, taper, utaper, pts, nrm, q0, len(queries)))
-    sizes = [len(q) for q in queries]
+    cut = np.cumsum([0] + [len(q) for q in queries]).tolist()
     ti_all, bary_all = _locate(np.concatenate(queries), V, tris)
-    cut = np.cumsum([0] + sizes)
-    located = [(ti_all[cut[i]:cut[i + 1]], bary_all[cut[i]:cut[i + 1]])
-               for i in range(len(queries))]
+    tri_all = cand[ti_all]  # (every query's triangle at once: the same indices)
     for ln, kind, group, taper, utaper, pts, nrm, q0, q1 in lines:
-        ti, bary = located[q0]
+        bary = bary_all[cut[q0]:cut[q0 + 1]]
         if ln.probes is None:
-            pt = np.stack([cand[located[k][0]] for k in range(q0 + 1, q1)], 1)
+            # (the probe queries' blocks follow the line's, one per offset: np.stack of the
+            # blocks along axis 1 is their (4, n) transposed)
+            pt = tri_all[cut[q0 + 1]:cut[q1]].reshape(q1 - q0 - 1, len(pts)).T
         else:
-            fixed = cand[located[q0 + 1][0]]
+            fixed = tri_all[cut[q0 + 1]:cut[q1]]
             pt = np.repeat(fixed[None], len(pts), 0)
         kinds.append(kind)
         if group not in gnames:
             gnames.append(group)
         groups.append(gnames.index(group))
         starts.append(starts[-1] + len(pts))
-        all_tri.append(cand[ti])
+        all_tri.append(tri_all[cut[q0]:cut[q0 + 1]])
         all_bary.append(bary)
         all_probe.append(pt)
         all_n.append(nrm)

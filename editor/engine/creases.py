@@ -1074,9 +1074,14 @@ def _fast(face: Face) -> _Fast:
     # integral), shallower and wider
     k1s, k2s = math.sqrt(2 * math.pi) * sig, math.sqrt(2 * math.pi) * (1.6 * sig)
     # (a negative ridge is a shadow beside the line: it takes the line's colour tint too)
-    f.gain_mat = [np.array([[k2 * (t if r < 0 else 1.0), -k1 * t, 1.0] for t in p.tint],
-                           np.float32)
-                  for k1, k2, r in zip(k1s.tolist(), k2s.tolist(), f.ridge.tolist(), strict=True)]
+    # (per group, rows ``[k2 * (t if ridge < 0 else 1), -k1 * t, 1]`` per tint t: all groups'
+    # at once, the same products, views of one array)
+    tint = np.asarray(p.tint, np.float64)[None, :]
+    mats = np.empty((G, len(p.tint), 3), np.float32)
+    mats[:, :, 0] = np.where((f.ridge < 0)[:, None], k2s[:, None] * tint, k2s[:, None])
+    mats[:, :, 1] = -k1s[:, None] * tint
+    mats[:, :, 2] = 1.0
+    f.gain_mat = list(mats)
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, rest, f), 1e-6))
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])

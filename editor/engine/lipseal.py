@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -318,23 +318,30 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
 _BINNED_MIN = 2048
 
 
+@lru_cache(maxsize=4)
 def lip_curves(m: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertex indices of the upper and the lower inner lip (inner corner to inner corner,
-    facing point by point) and of the outer lip contour (a closed loop, upper lip first)."""
+    facing point by point) and of the outer lip contour (a closed loop, upper lip first).
+    Per mesh, read-only."""
     upper = np.array([m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     lower = np.array([m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
                      + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
+    for a in (upper, lower, outer):
+        a.setflags(write=False)
     return upper, lower, outer
 
 
+@lru_cache(maxsize=4)
 def lower_outer_curve(m: StandardMesh) -> np.ndarray:
     """Vertex indices of the lower outer lip, outer corner to outer corner (facing
-    :func:`lip_curves`' lower inner lip point by point)."""
-    return np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
-                    + [m.index("lipo_c1")])
+    :func:`lip_curves`' lower inner lip point by point). Per mesh, read-only."""
+    out = np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
+                   + [m.index("lipo_c1")])
+    out.setflags(write=False)
+    return out
 
 
 def _build(face: Face) -> SealPlan | None:

@@ -108,8 +108,9 @@ def chin_plan(face: Face) -> ChinPlan | None:
     x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return None
-    ys, xs = np.mgrid[y0:y1, x0:x1].astype(np.float64)
-    dx, dy = xs - centre[0], ys - centre[1]
+    # (np.mgrid's values, broadcast: each pixel's arithmetic is the same)
+    dx = np.arange(x0, x1, dtype=np.float64)[None, :] - centre[0]
+    dy = np.arange(y0, y1, dtype=np.float64)[:, None] - centre[1]
     u = (dx * across[0] + dy * across[1]) / ax
     w = (dx * down[0] + dy * down[1]) / ay
     r2 = u * u + w * w

@@ -45,13 +45,13 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
-from .fitting import channel_median, clamp, clip, is_grey, luminance, median
+from .fitting import channel_median, clamp, clip, is_grey, luminance, median, median_binned
 from .gaze import spread3, zero_alpha
 from .layers import _blur_wide, _rebox, _union, layer_plan
 from .warp import WarpResult, box_maps
@@ -266,15 +266,25 @@ def _fill(img: np.ndarray, mask: np.ndarray, radius: int) -> np.ndarray:
     ny = np.zeros(len(zy) + 1, np.float32)
     nx = np.zeros(len(zx) + 1, np.float32)
     ny[1:], nx[1:] = zy, zx
-    h, w = mask.shape
+    # the grain only over the mask's bounding box (each pixel's sample is its own: the same
+    # values there; elsewhere the photo is kept)
+    x0, y0, bw, bh = cv2.boundingRect(mask)
+    if bw == 0:
+        return f
+    x1, y1 = x0 + bw, y0 + bh
     # (np.mgrid's values, broadcast)
-    yy, xx = np.arange(h, dtype=np.float32)[:, None], np.arange(w, dtype=np.float32)[None, :]
-    grain = cv2.remap(hp, 2 * nx[lab] - xx, 2 * ny[lab] - yy, cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_REFLECT)
+    yy = np.arange(y0, y1, dtype=np.float32)[:, None]
+    xx = np.arange(x0, x1, dtype=np.float32)[None, :]
+    lb = lab[y0:y1, x0:x1]
+    grain: np.ndarray = np.asarray(cv2.remap(hp, 2 * nx[lb] - xx, 2 * ny[lb] - yy,
+                                             cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT),
+                                   np.float32)
     # within the photo's grain (a mirror landing on an edge would print it as a speckle)
     lim = 2.0 * _unmasked_median_abs(hp, mask) / 0.6745 + 1.0
     np.clip(grain, -lim, lim, out=grain)
-    return np.where(spread3(mask) > 0, filled + grain, f)
+    grain += filled[y0:y1, x0:x1]
+    np.copyto(f[y0:y1, x0:x1], grain, where=spread3(mask[y0:y1, x0:x1]) > 0)
+    return f
 
 
 def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
@@ -282,10 +292,17 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     the masked pixels set to +inf in a copy, which sorts them after every value the median
     reads (a whole-array selection costs less than gathering the unmasked pixels first): the
     middle order statistic from one single-kth ``np.partition`` (a third of a full sort's time
-    on a mouth's box), the lower one of an even count the largest value partitioned below it."""
+    on a mouth's box), the lower one of an even count the largest value partitioned below it.
+    From :data:`_BINNED_MIN` values on, the unmasked pixels gathered and their median taken
+    by :func:`median_binned` (the same order statistics: ~0.11 instead of 0.17 ms on a 1080p
+    face's mouth box)."""
     free = int(np.count_nonzero(mask == 0))
     if free == 0:
         return float(median(np.abs(hp[mask == 0])))
+    if hp.shape[2] * free >= _BINNED_MIN:
+        h, w = mask.shape
+        px = hp.reshape(h * w, -1).take(np.flatnonzero(mask.reshape(-1) == 0), 0)
+        return median_binned(np.abs(px).reshape(-1))
     a = np.abs(hp)
     np.copyto(a, np.float32(np.inf), where=spread3((mask > 0).view(np.uint8)) > 0)
     n = hp.shape[2] * free
@@ -296,23 +313,35 @@ def _unmasked_median_abs(hp: np.ndarray, mask: np.ndarray) -> float:
     return float((s[:h].max() + s[h]) / np.float32(2))
 
 
+#: From this many values :func:`_unmasked_median_abs` takes :func:`median_binned` (below,
+#: on a mouth corner's ~2800 values, one partition costs less than its dozen passes)
+_BINNED_MIN = 8192
+
+
+@lru_cache(maxsize=4)
 def lip_curves(m: StandardMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertex indices of the upper and the lower inner lip (inner corner to inner corner,
-    facing point by point) and of the outer lip contour (a closed loop, upper lip first)."""
+    facing point by point) and of the outer lip contour (a closed loop, upper lip first).
+    Per mesh, read-only."""
     upper = np.array([m.index("lipi_c0")] + [m.index(f"lipi_u{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     lower = np.array([m.index("lipi_c0")] + [m.index(f"lipi_d{k}") for k in range(1, 8)]
                      + [m.index("lipi_c1")])
     outer = np.array([m.index("lipo_c0")] + [m.index(f"lipo_u{k}") for k in range(1, 8)]
                      + [m.index("lipo_c1")] + [m.index(f"lipo_d{k}") for k in range(7, 0, -1)])
+    for a in (upper, lower, outer):
+        a.setflags(write=False)
     return upper, lower, outer
 
 
+@lru_cache(maxsize=4)
 def lower_outer_curve(m: StandardMesh) -> np.ndarray:
     """Vertex indices of the lower outer lip, outer corner to outer corner (facing
-    :func:`lip_curves`' lower inner lip point by point)."""
-    return np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
-                    + [m.index("lipo_c1")])
+    :func:`lip_curves`' lower inner lip point by point). Per mesh, read-only."""
+    out = np.array([m.index("lipo_c0")] + [m.index(f"lipo_d{k}") for k in range(1, 8)]
+                   + [m.index("lipo_c1")])
+    out.setflags(write=False)
+    return out
 
 
 def _build(face: Face) -> SealPlan | None:
@@ -497,8 +526,11 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     out_dir = p0 - outer.mean(0)
     out_dir /= max(float(np.hypot(*out_dir)), 1e-9)
     # beside the corner, on its lateral side (not the lips' own shading above or below it)
-    lateral = ((xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1]) > -0.02 * iod
-    disk = np.hypot(xx - p0[0], yy - p0[1]) < R
+    # (the distances and the projections are kept for the fade below)
+    along = (xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1]
+    lateral = along > -0.02 * iod
+    d = np.hypot(xx - p0[0], yy - p0[1])
+    disk = d < R
     L = luminance(patch)
     skin = (lips == 0) & ~disk
     if not skin.any():
@@ -516,9 +548,7 @@ def _corner(face: Face, opening: _Patch | None, vertex: int, outer: np.ndarray, 
     if soft > 1.0:
         # the disc's and the lateral side's edges fade over a third of the radius: a fold
         # crossing them (the nasolabial fold, wide on a large face) is not cut off by a line
-        d = np.hypot(xx - p0[0], yy - p0[1])
-        side = ((xx - p0[0]) * out_dir[0] + (yy - p0[1]) * out_dir[1] + 0.02 * iod) \
-            / max(0.05 * iod, 1.0)
+        side = (along + 0.02 * iod) / max(0.05 * iod, 1.0)
         wgt = clamp((R - d) / (R / 3.0), 0.0, 1.0) * clamp(side, 0.0, 1.0)
         filled = patch + spread3((wgt * wgt * (3.0 - 2.0 * wgt)).astype(np.float32)) \
             * (filled - patch.astype(np.float32))
@@ -628,7 +658,13 @@ def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, 
 def _support(diff: np.ndarray) -> tuple[int, int, int, int] | None:
     """The box ``(x0, y0, x1, y1)`` of the pixels of ``diff`` (h, w, c) that are not zero in
     every channel (None: none are)."""
-    nz = np.ascontiguousarray((diff != 0).any(axis=-1), np.uint8)
+    ne = diff != 0
+    if ne.ndim == 3 and ne.shape[2] == 4 and ne.flags.c_contiguous:
+        # (a pixel's four flags as one 32-bit word: nonzero where any is; numpy's any() over
+        # the short last axis costs ~15 x more: 0.11 ms on a 1080p face's opening patch)
+        nz = (ne.view(np.uint32)[..., 0] != 0).view(np.uint8)
+    else:
+        nz = np.ascontiguousarray(ne.any(axis=-1), np.uint8)
     x, y, w, h = cv2.boundingRect(nz)
     return (x, y, x + w, y + h) if w else None
 

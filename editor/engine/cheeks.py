@@ -29,9 +29,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
+from .chinboss import carried
 from .fitting import is_grey
 from .layers import _rebox, _union
 from .perface import per_face
@@ -147,36 +147,23 @@ def lift(plan: CheekPlan, side: CheekSide, vertices: np.ndarray) -> float:
 
 def apply_cheeks(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Shade the lifted cheeks of ``res.image`` (in place) as far as the deformed mesh
-    ``vertices`` raises the mouth corners (:func:`lift`); the result's ``bbox`` grown to
-    what was written."""
+    ``vertices`` pulls the mouth corners towards the cheekbones (:func:`lift`); the result's
+    ``bbox`` grown to what was written."""
     plan = cheek_plan(face)
     if plan is None:
         return res
     v = np.asarray(vertices, np.float64)
     out = res.image
-    H, W = out.shape[:2]
     bbox = res.bbox
     for side in plan.sides:
         s = lift(plan, side, v)
         if s < _TOL:
             continue
-        A = (side.solve @ v[side.anchors]).T  # photo -> deformed, (2, 3)
-        bx0, by0, bx1, by1 = side.box
-        corners = np.array([[bx0, by0, 1.0], [bx1, by0, 1.0], [bx0, by1, 1.0],
-                            [bx1, by1, 1.0]])
-        dst = corners @ A.T
-        x0 = max(int(math.floor(dst[:, 0].min())), 0)
-        y0 = max(int(math.floor(dst[:, 1].min())), 0)
-        x1 = min(int(math.ceil(dst[:, 0].max())) + 1, W)
-        y1 = min(int(math.ceil(dst[:, 1].max())) + 1, H)
-        if x1 - x0 < 2 or y1 - y0 < 2:
+        got = carried(side.field, side.box, (side.solve @ v[side.anchors]).T, out.shape)
+        if got is None:
             continue
-        M = A.copy()
-        M[:, 2] = A[:, :2] @ np.array([bx0, by0], np.float64) + A[:, 2] - np.array([x0, y0])
-        shade = np.asarray(cv2.warpAffine(side.field, M, (x1 - x0, y1 - y0),
-                                          flags=cv2.INTER_LINEAR,
-                                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0),
-                           np.float32) * np.float32(s)
+        shade, (x0, y0, x1, y1) = got
+        shade *= np.float32(s)
         view = out[y0:y1, x0:x1]
         px = view.astype(np.float32)
         px *= 1.0 - shade[..., :1] * plan.tint

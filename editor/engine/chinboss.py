@@ -139,6 +139,30 @@ def bunching(plan: ChinPlan, vertices: np.ndarray) -> float:
     return DARKEST * (1.0 - math.exp(-rise / RISE)) * closed
 
 
+def carried(field: np.ndarray, box: tuple[int, int, int, int], A: np.ndarray,
+            shape: tuple[int, ...]) -> tuple[np.ndarray, tuple[int, int, int, int]] | None:
+    """A per-face ``field`` (h, w[, c]) float32 laid over ``box`` (x0, y0, x1, y1) of the
+    photo, carried into a frame of ``shape`` by the affine map ``A`` (2, 3; photo ->
+    deformed): the field resampled over the destination box of the box's corners (clipped
+    to the frame), and that box; None when it is under 2 px wide or tall. (The shade layers
+    that ride on a fit of a few mesh points: the chin boss here, the cheeks.)"""
+    bx0, by0, bx1, by1 = box
+    corners = np.array([[bx0, by0, 1.0], [bx1, by0, 1.0], [bx0, by1, 1.0], [bx1, by1, 1.0]])
+    dst = corners @ A.T
+    H, W = shape[:2]
+    x0, y0 = max(int(math.floor(dst[:, 0].min())), 0), max(int(math.floor(dst[:, 1].min())), 0)
+    x1 = min(int(math.ceil(dst[:, 0].max())) + 1, W)
+    y1 = min(int(math.ceil(dst[:, 1].max())) + 1, H)
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return None
+    # field pixel (i, j) sits at photo (bx0 + j, by0 + i); destination box pixel at (x0, y0)
+    M = np.array(A, np.float64)
+    M[:, 2] = M[:, :2] @ np.array([bx0, by0], np.float64) + M[:, 2] - np.array([x0, y0])
+    got = cv2.warpAffine(field, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    return np.asarray(got, np.float32), (x0, y0, x1, y1)
+
+
 def apply_chin_boss(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
     """Darken and pit the chin boss of ``res.image`` (in place) as far as the deformed mesh
     ``vertices`` bunches it (:func:`bunching`); the result's ``bbox`` grown to what was
@@ -151,22 +175,11 @@ def apply_chin_boss(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpRe
     if s < _TOL:
         return res
     # photo -> deformed: the affine least-squares fit of the four anchors
-    A = (plan.solve @ v[plan.anchors]).T  # (2, 3)
-    bx0, by0, bx1, by1 = plan.box
-    corners = np.array([[bx0, by0, 1.0], [bx1, by0, 1.0], [bx0, by1, 1.0], [bx1, by1, 1.0]])
-    dst = corners @ A.T
-    out = res.image
-    H, W = out.shape[:2]
-    x0, y0 = max(int(math.floor(dst[:, 0].min())), 0), max(int(math.floor(dst[:, 1].min())), 0)
-    x1 = min(int(math.ceil(dst[:, 0].max())) + 1, W)
-    y1 = min(int(math.ceil(dst[:, 1].max())) + 1, H)
-    if x1 - x0 < 2 or y1 - y0 < 2:
+    got = carried(plan.field, plan.box, (plan.solve @ v[plan.anchors]).T, res.image.shape)
+    if got is None:
         return res
-    # field pixel (i, j) sits at photo (bx0 + j, by0 + i); destination box pixel at (x0, y0)
-    M = A.copy()
-    M[:, 2] = A[:, :2] @ np.array([bx0, by0], np.float64) + A[:, 2] - np.array([x0, y0])
-    dark = cv2.warpAffine(plan.field, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    dark, (x0, y0, x1, y1) = got
+    out = res.image
     gain = 1.0 - (np.float32(s) * dark)[..., None] * plan.tint
     view = out[y0:y1, x0:x1]
     view[:] = np.clip(view.astype(np.float32) * gain + 0.5, 0, 255).astype(np.uint8)

@@ -2066,23 +2066,74 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, band
     # per pixel, never above the frame's own closing (where it is above the closing, the
     # frame itself): the blocks' cap holds for their means, not for a pixel brighter than its
     # block's mean
-    top = cv2.max(view, _frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))))
+    top = cv2.max(view, _frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25)), True))
     cv2.multiply(view, lift, view, 1.0, cv2.CV_8U)  # rounded, saturated
     cv2.min(view, top, view)
 
 
-def _frame_closing(view: np.ndarray, r: int) -> np.ndarray:
+def _frame_closing(view: np.ndarray, r: int, whole: bool = False) -> np.ndarray:
     """The closing (radius ``r`` px) of a frame's box ``view`` (h, w, 3) uint8: on large faces
     (``r`` above 6) taken on ``q x q`` block means (``q = r // 6``, as the photo's own
     :func:`_closing`) and resized back, so that its cost does not grow with the kernel's area
-    (a 4K face's 105 px ellipse cost ~110 ms a fold group at full resolution)."""
+    (a 4K face's 105 px ellipse cost ~110 ms a fold group at full resolution). ``whole``
+    (:func:`_unfold_blocks`' per-pixel cap, large faces only): the means taken by
+    :func:`_area_means` instead of OpenCV's area reduction (the same means but for a rare
+    rounding tie)."""
     q = max(1, r // 6)
     if q == 1:
         return _close(view, r)
     h, w = view.shape[:2]
-    small = cv2.resize(view, (max(w // q, 1), max(h // q, 1)), interpolation=cv2.INTER_AREA)
+    if whole:
+        small = _area_means(view, max(w // q, 1), max(h // q, 1))
+    else:
+        small = cv2.resize(view, (max(w // q, 1), max(h // q, 1)),
+                           interpolation=cv2.INTER_AREA)
     small = _close(small, max(r // q, 1))
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _area_means(img: np.ndarray, w: int, h: int) -> np.ndarray:
+    """``cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)`` of a uint8 image (H, W, C)
+    reduced by a fractional factor (each output pixel the mean over its ``W / w x H / h`` px
+    footprint, the pixels its edges cut weighed by the part inside), through the image's
+    integral (``cv2.integral``, exact int32 sums): the footprints' sums are the integral's
+    differences at their corners, bilinear between its nodes (the integral of a pixelwise
+    constant image is so), in float64. The same values but where OpenCV's float32 weighted
+    sum and this one round a mean near a half differently (1 of 4,860 values, by 1, on a
+    blurred random box). OpenCV's generic area path costs ~3 ns a pixel: on the 4K bench
+    face's 454 x 361 fold box (to 36 x 45) ~0.5 ms, this one ~0.26 (its two folds' caps:
+    0.37 ms less a frame, thread CPU, interleaved; its renders, the bench expression and the
+    six presets at 100 and 150 %, unchanged)."""
+    H, W = img.shape[:2]
+    I = cv2.integral(img, sdepth=cv2.CV_32S)  # (H + 1, W + 1, C)
+    if I.ndim == 2:
+        I = I[..., None]
+    iy, fy = _lerp_at(H, h)
+    ix, fx = _lerp_at(W, w)
+    # the integral at the footprints' rows, then at their columns (lerp between nodes)
+    a = I[iy].astype(np.float64)
+    rows = I[iy + 1] - a
+    rows *= fy[:, None, None]
+    rows += a
+    a = rows[:, ix]
+    at = rows[:, ix + 1]
+    at -= a
+    at *= fx[None, :, None]
+    at += a
+    sums = at[1:, 1:] - at[:-1, 1:]
+    sums -= at[1:, :-1]
+    sums += at[:-1, :-1]
+    sums *= w * h / (W * H)
+    out = np.rint(sums).astype(np.uint8)
+    return out if img.ndim == 3 else out[..., 0]
+
+
+def _lerp_at(n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``m + 1`` edges ``k n / m`` of ``m`` equal parts of ``[0, n]``: each one's node
+    below (at most ``n - 1``) and its fraction past it."""
+    p = np.arange(m + 1, dtype=np.float64) * (n / m)
+    i = np.minimum(p.astype(np.intp), n - 1)
+    return i, p - i
 
 
 @functools.lru_cache(maxsize=16)

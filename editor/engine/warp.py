@@ -305,7 +305,8 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
                   interpolation: int = cv2.INTER_LINEAR,
                   rows: tuple[int, int] | None = None,
                   extent: tuple[list[int], list[int]] | None = None,
-                  src4: np.ndarray | None = None) -> None:
+                  src4: np.ndarray | None = None, scratch: np.ndarray | None = None
+                  ) -> None:
     """``out``'s box at ``(x0, y0)`` (a copy of ``img``) resampled through the interpolated map
     ``map_x, map_y``, strip by strip of :data:`_STRIP_PX` rows, between the first and the last
     column a moving node (``moving``: the grid of :func:`_maps_coarse`, its nodes whose pixels
@@ -325,7 +326,8 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
     rows ``[r0, r1)`` (``r0`` a multiple of :data:`_STRIP_PX`); ``extent``:
     :func:`_moving_extent` of ``moving``; ``src4``: the photo as RGBA (:func:`_rgba_buffer`,
     converted where these rows read it: :func:`_to_rgba`), resampled instead through the
-    float maps themselves, then made RGB (see :func:`_resample_strips`)."""
+    float maps themselves, then made RGB (see :func:`_resample_strips`); ``scratch``: a
+    (:data:`_STRIP_PX`, ``nx``, 4) uint8 buffer for that RGBA strip (else one per strip)."""
     ny, nx = map_x.shape
     gy, gx = moving.shape
     first, last = _moving_extent(moving) if extent is None else extent
@@ -341,6 +343,7 @@ def _remap_moving(img: np.ndarray, out: np.ndarray, map_x: np.ndarray, map_y: np
         b = max(min((k1 + 1) * s, nx), a)
         if b > a and src4 is not None:
             got = cv2.remap(src4, map_x[r0:r1, a:b], map_y[r0:r1, a:b], interpolation,
+                            dst=None if scratch is None else scratch[:r1 - r0, :b - a],
                             borderMode=cv2.BORDER_REPLICATE)
             cv2.cvtColor(got, cv2.COLOR_RGBA2RGB, dst=out[y0 + r0:y0 + r1, x0 + a:x0 + b])
         elif b > a:
@@ -435,6 +438,8 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
                       (inf, inf, -inf, -inf), strict=True)]
     fx, fy = p.full_x.reshape(-1), p.full_y.reshape(-1)
     img = plan.image
+    # (every strip's RGBA resampled into the same buffer: in the cache, no allocation)
+    scratch = None if src4 is None else np.empty((_STRIP_PX, nx, 4), np.uint8)
     out[:y0] = img[:y0]
     for i, r0 in enumerate(starts):
         r1 = min(r0 + _RESIZE_PX, ny)
@@ -465,7 +470,7 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
             _to_rgba(plan, src4, (b4[0], b4[1]), (b4[2], b4[3]))
         _remap_moving(img, out, p.full_x[s:s + ny, s:s + nx],
                       p.full_y[s:s + ny, s:s + nx], moving, s, x0, y0, interpolation, (r0, r1),
-                      extent, src4)
+                      extent, src4, scratch)
     out[y0 + ny:] = img[y0 + ny:]
 
 

@@ -1049,17 +1049,42 @@ def _risky(plan: WarpPlan, table: np.ndarray, tb: np.ndarray, x0: float, y0: flo
     return None if risky[T:].any() or 4 * np.count_nonzero(risky) > n else risky
 
 
+#: :func:`_clamp_rows` looks for the points of up to this many triangles box by box
+_CLAMP_EACH = 16
+
+
 def _clamp_rows(ids: np.ndarray, tb: np.ndarray, x0: float, y0: float, step: int,
                 map_x: np.ndarray, map_y: np.ndarray, risky: np.ndarray,
                 drawn: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> None:
     """:func:`_evaluate`'s maps clamped to the source boxes ``tb`` (in place) at the points
     whose row is ``risky`` (looked for in those triangles' boxes only, grown by two
-    rasterizer pixels)."""
+    rasterizer pixels). Up to :data:`_CLAMP_EACH` such triangles, each in its own box (the
+    union of a few squashed triangles' boxes spans much of a face: on the 4K bench face
+    four lip triangles', 190,000 of the coarse grid's nodes looked up, 0.4 ms)."""
     ny, nx = ids.shape
     assert drawn is not None
     _, moved_t, tri_pts = drawn
     hit = risky[moved_t]
     if not hit.any():
+        return
+    fx, fy = map_x.reshape(-1), map_y.reshape(-1)
+    each = np.flatnonzero(hit)
+    if len(each) <= _CLAMP_EACH:
+        los, his = tri_pts[each].min(1).tolist(), tri_pts[each].max(1).tolist()
+        for r, lo_t, hi_t in zip(moved_t[each].tolist(), los, his, strict=True):
+            i0 = max(math.floor((lo_t[0] - x0) / step) - 2, 0)
+            j0 = max(math.floor((lo_t[1] - y0) / step) - 2, 0)
+            i1 = min(math.ceil((hi_t[0] - x0) / step) + 3, nx)
+            j1 = min(math.ceil((hi_t[1] - y0) / step) + 3, ny)
+            if i1 <= i0 or j1 <= j0:
+                continue
+            jj, ii = np.nonzero(ids[j0:j1, i0:i1] == r)
+            if not len(jj):
+                continue
+            at = (jj + j0) * nx + (ii + i0)
+            b = tb[r]
+            fx[at] = np.clip(fx.take(at), b[0], b[2])
+            fy[at] = np.clip(fy.take(at), b[1], b[3])
         return
     pts = tri_pts[hit]
     lo, hi = pts.min((0, 1)), pts.max((0, 1))
@@ -1077,7 +1102,6 @@ def _clamp_rows(ids: np.ndarray, tb: np.ndarray, x0: float, y0: float, step: int
     jj, ii = np.divmod(k, i1 - i0)
     at = (jj + j0) * nx + (ii + i0)
     box = tb.take(rid, 0)
-    fx, fy = map_x.reshape(-1), map_y.reshape(-1)
     fx[at] = np.clip(fx.take(at), box[:, 0], box[:, 2])
     fy[at] = np.clip(fy.take(at), box[:, 1], box[:, 3])
 

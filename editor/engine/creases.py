@@ -1688,13 +1688,14 @@ def _fold_draw(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int
     sig = float(fa.dsig[g])
     # (a line's weight per coarse pixel: f^2 times its own)
     k = np.float32(1.0 / (f * f)) if f > 1 else None
-    dark = _blur_back(dark, sig, f, y1 - y0, x1 - x0, k)
-    light = _blur_back(light, 1.6 * sig, f, y1 - y0, x1 - x0, k)
     H, W = out.shape[:2]
     hq, wq = -(-(y1 - y0) // q), -(-(x1 - x0) // q)
     if q > 1 and y0 + hq * q <= H and x0 + wq * q <= W:
-        _fold_blocks(fa, out, g, box, dark, light, q)
+        _fold_blocks(fa, out, g, box, _blur_blocks(dark, sig, f, q, y1 - y0, x1 - x0, k),
+                     _blur_blocks(light, 1.6 * sig, f, q, y1 - y0, x1 - x0, k), q)
         return _union(bbox, box)
+    dark = _blur_back(dark, sig, f, y1 - y0, x1 - x0, k)
+    light = _blur_back(light, 1.6 * sig, f, y1 - y0, x1 - x0, k)
     view = out[y0:y1, x0:x1]
     patch = view.astype(np.float32)
     # skin-likeness: hair, brows, eyes and lashes are not folded (OpenCV calls: on these
@@ -1724,15 +1725,15 @@ def _block_means(a: np.ndarray, q: int) -> np.ndarray:
 def _fold_blocks(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, int],
                  dark: np.ndarray, light: np.ndarray, q: int) -> None:
     """:func:`_fold_draw`'s gain over ``box`` of ``out`` (in place) on a large face (work
-    factor ``q`` > 1, see :func:`_unfold_blocks`): the line and ridge (``dark``, ``light``,
-    blurred over several px) and the skin-likeness are taken on the frame's ``q x q`` block
-    means (the box grown to whole blocks), the gain upsampled bilinearly; only the product is
-    per pixel. (On the soft large face the skin-likeness of a pixel and of its block differ
-    at the brows' and the hair's edges only, by a fraction.)"""
+    factor ``q`` > 1, see :func:`_unfold_blocks`): the line and ridge (``dark``, ``light``
+    (hq, wq), blurred over several px, on the box's blocks: :func:`_blur_blocks`) and the
+    skin-likeness are taken on the frame's ``q x q`` block means (the box grown to whole
+    blocks), the gain upsampled bilinearly; only the product is per pixel. (On the soft large
+    face the skin-likeness of a pixel and of its block differ at the brows' and the hair's
+    edges only, by a fraction.)"""
     x0, y0, x1, y1 = box
     hb, wb = y1 - y0, x1 - x0
     hq, wq = -(-hb // q), -(-wb // q)
-    dark, light = _block_means(dark, q), _block_means(light, q)
     patch = cv2.resize(out[y0:y0 + hq * q, x0:x0 + wq * q], (wq, hq), None, 0, 0,
                        cv2.INTER_AREA).astype(np.float32)
     # (as _fold_draw, on the blocks)
@@ -2013,19 +2014,21 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
 
 
 def _blur_blocks(canvas: np.ndarray, sigma: float, f: int, q: int, h: int, w: int,
-                 scale: np.float32, cap: float) -> np.ndarray:
-    """:func:`_blur_back`'s band (``h`` x ``w``) on the box's ``q x q`` blocks (hq, wq) (the
+                 scale: np.float32 | None = None, cap: float | None = None) -> np.ndarray:
+    """:func:`_blur_back`'s band or line (``h`` x ``w``) on the box's ``q x q`` blocks (hq, wq) (the
     box grown to whole blocks), contiguous float32. From a coarse canvas (``f`` > 1) the
     blurred canvas is read at the blocks' centres (``cv2.resize`` by ``f / q``: output pixel
     ``i`` reads the canvas at ``(i + 1/2) q / f - 1/2``, block ``i``'s centre) instead of
     upsampled to every pixel and averaged over each block: the same where the band is linear
     over a block (its interpolation bends across the canvas's nodes, ``f`` px apart, and the
     cap clips its core) and beyond the box's last row and column (extrapolated, not repeated).
-    On the 4K bench face (``f`` 20, ``q`` 3) the folds 0.33 ms less a frame (thread CPU,
-    interleaved); the bench expression and the six presets at 100 and 150 % differ on 124-544
-    pixels, by 1 level; the soft-blocks contract's mean 0.009392 -> 0.009377. Else the block
-    means of :func:`_blur_back`'s band (the last row and column repeated,
-    :func:`_block_means`)."""
+    On the 4K bench face the unfold bands (``f`` 20, ``q`` 3): the folds 0.33 ms less a
+    frame (thread CPU, interleaved), the bench expression and the six presets at 100 and 150 %
+    differ on 124-544 pixels, by 1 level; the fold lines and ridges of :func:`_fold_draw`
+    (``f`` 3: the canvas's own pixels) 0.54 ms less, the renders differ on 748-15,563 pixels
+    (0.2 % of the frame), by 1 level; the soft-blocks contract's mean (against per-pixel folds)
+    0.009395 -> 0.008039. Else the block means of :func:`_blur_back`'s band (the last row and
+    column repeated, :func:`_block_means`)."""
     if f == 1:
         return _block_means(_blur_back(canvas, sigma, f, h, w, scale, cap), q)
     hq, wq = -(-h // q), -(-w // q)
@@ -2035,8 +2038,9 @@ def _blur_blocks(canvas: np.ndarray, sigma: float, f: int, q: int, h: int, w: in
     e = 1 + q // f
     blurred = cv2.copyMakeBorder(blurred, 0, e, 0, e, cv2.BORDER_REPLICATE)
     at = cv2.resize(blurred, None, None, f / q, f / q, cv2.INTER_LINEAR)
-    bq = np.multiply(at[:hq, :wq], scale)
-    np.minimum(bq, np.float32(cap), out=bq)
+    bq = np.array(at[:hq, :wq]) if scale is None else np.multiply(at[:hq, :wq], scale)
+    if cap is not None:
+        np.minimum(bq, np.float32(cap), out=bq)
     return bq
 
 

@@ -357,7 +357,8 @@ class _Pending:
     """The interpolated maps of :func:`_maps_coarse` still to be written: the coarse maps
     ``cx, cy`` (gy, gx) to interpolate into ``full_x, full_y`` (gy s, gx s; the box's maps at
     offset ``(s, s)``), then the exact map's pixels: ``mx, my`` at the flat indices ``at``
-    (n, s s) of the full maps, one row per node, the nodes' rows ``nj`` (n,) ascending."""
+    (n, s s) of the full maps, one row per node, the nodes' rows ``nj`` (n,) ascending (with
+    ``by_offset``: (s s, n), one column per node, when no two of them write the same pixel)."""
 
     cx: np.ndarray
     cy: np.ndarray
@@ -369,6 +370,8 @@ class _Pending:
     my: np.ndarray | None = None
     #: each node's lowest x, y and highest x, y of ``mx, my`` ((n,) each)
     ext: tuple[np.ndarray, ...] | None = None
+    #: ``at, mx, my`` are (s s, n)
+    by_offset: bool = False
 
 
 def _resize_rows(p: _Pending, s: int, r0: int, r1: int) -> None:
@@ -449,9 +452,14 @@ def _resample_strips(plan: WarpPlan, out: np.ndarray, p: _Pending, moving: np.nd
         a, b = cut[i], cut[i + 1]
         if b > a:
             assert p.at is not None and p.mx is not None and p.my is not None
-            at = p.at[a:b].reshape(-1)
-            fx[at] = p.mx[a:b].reshape(-1)
-            fy[at] = p.my[a:b].reshape(-1)
+            if p.by_offset:  # (each offset's run of the part's nodes: contiguous copies)
+                at = p.at[:, a:b].reshape(-1)
+                fx[at] = p.mx[:, a:b].reshape(-1)
+                fy[at] = p.my[:, a:b].reshape(-1)
+            else:
+                at = p.at[a:b].reshape(-1)
+                fx[at] = p.mx[a:b].reshape(-1)
+                fy[at] = p.my[a:b].reshape(-1)
         if src4 is not None:
             # the part's columns resampled (see _remap_moving) and the photo they read
             j0, j1 = r0 // s, min((r1 - 1) // s + 3, gy)
@@ -1303,8 +1311,16 @@ def _maps_coarse(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] 
             # (written part by part after each part's interpolation: node by node, each
             # part's nodes' pixels contiguous, the nodes in the order of their rows)
             mx, my = mx.reshape(at.shape), my.reshape(at.shape)
-            pending.at, pending.nj = np.ascontiguousarray(at.T), nj
-            pending.mx, pending.my = np.ascontiguousarray(mx.T), np.ascontiguousarray(my.T)
+            pending.nj = nj
+            if aligned:
+                # (no two nodes share a pixel: the order of the writes is free, the (s s, n)
+                # layout kept; its transpose, element by element, cost 0.35 ms on the 4K
+                # bench face)
+                pending.at, pending.mx, pending.my = at, mx, my
+                pending.by_offset = True
+            else:
+                pending.at = np.ascontiguousarray(at.T)
+                pending.mx, pending.my = np.ascontiguousarray(mx.T), np.ascontiguousarray(my.T)
             pending.ext = (mx.min(0), my.min(0), mx.max(0), my.max(0))
         else:
             at = at.ravel()

@@ -2067,8 +2067,9 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, bq: 
     factor ``q`` > 1, :func:`_work_factor`: the photo's fields ``got``,
     :func:`_photo_gain_q`, were made on its ``q x q`` block means, so they hold nothing finer
     than a block): the lift ``(gain - 1) band`` is computed on the frame's ``q x q`` blocks
-    (the box grown to whole blocks; the band and the frame averaged over each, the warp's map
-    read at their centres) and upsampled bilinearly; only the final product is per pixel.
+    (the box grown to whole blocks; the frame averaged over each, the band as
+    :func:`_blur_blocks` gives it, the warp's map read at an odd block's centre, averaged over
+    an even one) and upsampled bilinearly; only the final product is per pixel.
     Per pixel the lift is then capped by the frame's own closing, as :func:`_unfold_draw`
     caps its gain (a pixel brighter than its block is not lifted above the skin either side).
     On the face 1000 px wide at 3840 x 2160 (q = 3) about 3 ms a fold instead of 5; the

@@ -2049,9 +2049,11 @@ def _blur_blocks(canvas: np.ndarray, sigma: float, f: int, q: int, h: int, w: in
     blurred: np.ndarray = np.asarray(_blur(canvas[:-1, :-1], sigma / f), np.float32)
     # (rows and columns repeated below and right: the blocks past the canvas's last centre
     # read it as the clamped border would, and the output covers every block)
-    e = 1 + q // f
+    e = 1 + 2 * -(-q // f)  # (the output then reaches 1.5 blocks past the canvas's end)
     blurred = cv2.copyMakeBorder(blurred, 0, e, 0, e, cv2.BORDER_REPLICATE)
     at = cv2.resize(blurred, None, None, f / q, f / q, cv2.INTER_LINEAR)
+    if at.shape[0] < hq or at.shape[1] < wq:  # (never: the canvas covers the box)
+        return _block_means(_blur_back(canvas, sigma, f, h, w, scale, cap), q)
     bq = np.array(at[:hq, :wq]) if scale is None else np.multiply(at[:hq, :wq], scale)
     if cap is not None:
         np.minimum(bq, np.float32(cap), out=bq)

@@ -163,10 +163,11 @@ def _build_rest(face: Face, img: np.ndarray, v: np.ndarray, mesh: StandardMesh,
     mouth = MouthPlan.build(v, mesh, face.plan, skin_l, sat, _photo_teeth(img, poly, skin_l),
                             skin, face.neutral_vertices)
     lower = v[[mesh.index(f"lipi_d{k}") for k in range(1, 8)]]
-    mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum))
     eyes = eyes_of()
     soft = edge_ramp([*eyes["eye_l"].widths, *eyes["eye_r"].widths],
                      0.5 * (eyes["eye_l"].r0 + eyes["eye_r"].r0))
+    mouth.attach_own(*_own_interior(img, poly, lower, mouth.mouth_nose, skin_l, mouth.gum,
+                                    soft))
     mouth.soften(soft)
     return LayerPlan(mouth, eyes, soft)
 
@@ -715,7 +716,7 @@ def _photo_teeth(img: np.ndarray, poly: np.ndarray, skin_l: float) -> np.ndarray
 
 
 def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: float,
-                  skin_l: float, gum: np.ndarray):
+                  skin_l: float, gum: np.ndarray, soft: float = 1.0):
     """What the photo shows inside its own mouth opening, split into skull and jaw parts.
 
     Per column of the opening: a run of teeth-like pixels starting at the top is the upper
@@ -745,11 +746,20 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
     kern = np.ones(5) / 5.0
     if len(ok):
         split = np.interp(np.arange(pw), ok, split[ok])
-        # a smooth edge along the teeth's tips (upper envelope over 3 columns, then a mean):
-        # a ragged per-column edge shows as dark specks once the jaw part moves away
-        env = pad_edge(split, 1)
-        split = np.maximum(np.maximum(env[:-2], env[1:-1]), env[2:])
-        split = np.convolve(pad_edge(split, 2), kern, mode="valid")
+        # a smooth edge along the teeth's tips (upper envelope over 2 kb + 1 columns, then a
+        # mean): a ragged per-column edge shows as dark specks once the jaw part moves away,
+        # and the dark gap between two teeth (no teeth-like pixel in its columns) would be
+        # split at the opening's middle and slide down with the jaw: on a large or soft photo
+        # the gaps are several pixels wide (the 4K bench face's: ~10), so kb follows the
+        # teeth's scale and the photo's blur (kb = 1 on a face 44 px between the eyes)
+        kb = max(1, int(round(GAP_BRIDGE_D * D + 0.5 * soft)))
+        env = pad_edge(split, kb)
+        split = env[kb:kb + pw].copy()
+        for d in range(1, kb + 1):
+            np.maximum(split, env[kb - d:kb - d + pw], out=split)
+            np.maximum(split, env[kb + d:kb + d + pw], out=split)
+        km = np.ones(2 * kb + 3) / (2 * kb + 3) if kb > 1 else kern
+        split = np.convolve(pad_edge(split, len(km) // 2), km, mode="valid")
     else:
         split[:] = ph
     ys = np.arange(ph, dtype=np.float64)[:, None]
@@ -825,6 +835,9 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
 
 #: Rows (in D) of the photo's upper teeth under its lip lightened towards the crown colour
 LIP_SHADOW_ROWS = 0.08
+#: the widest dark gap between two of the photo's own teeth that their row bridges, in units
+#: of D (mouth-nose distance), plus half the photo's edge ramp (see _own_interior)
+GAP_BRIDGE_D = 0.02
 
 
 def _crown_colours(patch: np.ndarray, bright: np.ndarray, first: np.ndarray,

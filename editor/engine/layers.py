@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, cast
 import cv2
 import numpy as np
 import numpy.typing as npt
+from numpy.lib.stride_tricks import sliding_window_view
 
 from .deform import eye_state
 from .fitting import (
@@ -753,13 +754,9 @@ def _own_interior(img: np.ndarray, poly: np.ndarray, lower_lip: np.ndarray, D: f
         # the gaps are several pixels wide (the 4K bench face's: ~10), so kb follows the
         # teeth's scale and the photo's blur (kb = 1 on a face 44 px between the eyes)
         kb = max(1, int(round(GAP_BRIDGE_D * D + 0.5 * soft)))
-        env = pad_edge(split, kb)
-        split = env[kb:kb + pw].copy()
-        for d in range(1, kb + 1):
-            np.maximum(split, env[kb - d:kb - d + pw], out=split)
-            np.maximum(split, env[kb + d:kb + d + pw], out=split)
-        km = np.ones(2 * kb + 3) / (2 * kb + 3) if kb > 1 else kern
-        split = np.convolve(pad_edge(split, len(km) // 2), km, mode="valid")
+        split = sliding_window_view(pad_edge(split, kb), 2 * kb + 1).max(1)
+        km = np.ones(2 * kb + 3) / (2 * kb + 3)
+        split = np.convolve(pad_edge(split, kb + 1), km, mode="valid")
     else:
         split[:] = ph
     ys = np.arange(ph, dtype=np.float64)[:, None]

@@ -82,6 +82,30 @@ def jaffe_real_and_drawn(measure, code: str, preset: str) -> tuple[float, float]
     return float(np.median(real)), float(np.median(drawn))
 
 
+
+def jaffe_changes(measure, code: str, preset: str) -> tuple[list, list, list]:
+    """``measure(image)`` on JAFFE's real ``code`` photos and on ``preset`` at 100 % and
+    150 % (sharp renders) on each woman's first neutral photo, each less that neutral photo's
+    own value: (real, at 100 %, at 150 %). Skips the test when JAFFE is absent (fewer than 8
+    women)."""
+    from editor.core import Face
+    from editor.engine.imageio import load_image
+    from editor.formats.presets import apply_preset
+
+    real, ours, strong = [], [], []
+    for ne in jaffe_images("*.NE1.*.tiff"):
+        photos = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
+        if not photos:
+            continue
+        f = Face.from_image(ne, own_expression=False)
+        base = measure(f.image)
+        real += [measure(load_image(p)) - base for p in photos]
+        ours.append(measure(f.render(apply_preset(preset, 1.0), sharp=True)) - base)
+        strong.append(measure(f.render(apply_preset(preset, 1.5), sharp=True)) - base)
+    if len(ours) < 8:
+        pytest.skip("../shared/data/jaffe is not available")
+    return real, ours, strong
+
 @pytest.fixture(scope="session")
 def jaffe_faces():
     """Five JAFFE neutral faces (different people); skipped when the data is absent."""

@@ -5,13 +5,11 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-import pytest
-from conftest import jaffe_images
+from conftest import jaffe_changes
 
 from editor.engine import face as face_module
 from editor.engine.cheeks import cheek_plan, lift
 from editor.engine.fitting import luminance
-from editor.engine.imageio import load_image
 from editor.engine.landmarks import detect_landmarks
 from editor.formats.presets import apply_preset
 
@@ -96,20 +94,7 @@ def test_jaffe_smiling_cheeks_as_shaded_as_real_ones():
     a laugh much more: p25 -0.376); the renders without this layer -0.046 (only the nasolabial
     fold's own line; 150 %: -0.114), with it -0.087 (150 %: -0.155). At 100 % at least 60 % of
     the real darkening, at 150 % no darker than the real p25."""
-    from editor.core import Face
-
-    real, ours, strong = [], [], []
-    for ne in jaffe_images("*.NE1.*.tiff"):
-        smiles = jaffe_images(f"{ne.name[:2]}.HA*.tiff")
-        if not smiles:
-            continue
-        f = Face.from_image(ne, own_expression=False)
-        base = _flank(f.image)
-        real += [_flank(load_image(p)) - base for p in smiles]
-        ours.append(_flank(f.render(apply_preset("joy"), sharp=True)) - base)
-        strong.append(_flank(f.render(apply_preset("joy", 1.5), sharp=True)) - base)
-    if len(ours) < 8:
-        pytest.skip("../shared/data/jaffe is not available")
+    real, ours, strong = jaffe_changes(_flank, "HA", "joy")
     r, o, s = float(np.median(real)), float(np.median(ours)), float(np.median(strong))
     assert r < -0.05, r  # (the measure itself)
     assert o <= 0.6 * r, (o, r)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import SAMPLE, jaffe_images
+from conftest import SAMPLE, jaffe_changes, jaffe_images
 
 from editor.core import Face, load_image
 from editor.engine import face as face_module
@@ -1010,21 +1010,8 @@ def test_jaffe_glabellar_lines_of_raised_knitted_brows_as_real_ones(emotion, cod
     move. Drawn from the mesh's compression alone: fear 1.9, sadness 3.2; with the brow
     effort (creases._brow_effort) 3.8 and 5.8 (sharp renders). At 100 % at least 45 % of the
     real median; at 150 % no more than the real p90."""
-    from editor.formats.presets import apply_preset as shipped
-
     box = (-0.22, 0.22, -0.50, -0.08)
-    real, ours, strong = [], [], []
-    for ne in jaffe_images("*.NE1.*.tiff"):
-        photos = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
-        if not photos:
-            continue
-        f = Face.from_image(ne, own_expression=False)
-        base = _fine_lines(f.image, box)
-        real += [_fine_lines(load_image(p), box) - base for p in photos]
-        ours.append(_fine_lines(f.render(shipped(emotion, 1.0), sharp=True), box) - base)
-        strong.append(_fine_lines(f.render(shipped(emotion, 1.5), sharp=True), box) - base)
-    if len(ours) < 8:
-        pytest.skip("../shared/data/jaffe is not available")
+    real, ours, strong = jaffe_changes(lambda img: _fine_lines(img, box), code, emotion)
     assert np.median(ours) >= 0.45 * np.median(real), (np.median(ours), np.median(real))
     assert np.median(strong) <= np.percentile(real, 90), (np.median(strong),
                                                           np.percentile(real, 90))

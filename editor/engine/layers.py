@@ -68,6 +68,7 @@ from .mouth import (
     _sat,
     _smoothstep1,
 )
+from .outline import smooth_loop
 from .threads import Pending
 from .warp import WarpResult
 
@@ -180,6 +181,10 @@ def _cheek_triangles(mesh: StandardMesh) -> np.ndarray:
     t = mesh.triangles[np.all(mesh.regions[mesh.triangles] == "cheek", axis=1)]
     t.flags.writeable = False
     return t
+
+
+#: the mouth loop's corners (:func:`_opening_index`: lipi_c0 first, lipi_c1 after the upper lip)
+_MOUTH_CORNERS = (0, 8)
 
 
 @lru_cache(maxsize=4)
@@ -571,7 +576,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lm = face.landmarks
             state = eye_state(face.plan, faps, np.array([lm.iris_left.r, lm.iris_right.r]))
     # ---- mouth
-    poly = polys[ends[2]:]
+    # (its two lips as smooth arcs once a face is large enough for straight sides to show)
+    poly = smooth_loop(polys[ends[2]:], _MOUTH_CORNERS)
     skull = transforms["mouth"]
     moved = far[2]
     if moved > _TOL or not _is_identity(skull):
@@ -584,6 +590,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     # the three openings' extents at once (as :func:`_box` of each loop)
     lo_all = np.minimum.reduceat(polys, cuts).tolist()
     hi_all = np.maximum.reduceat(polys, cuts).tolist()
+    if len(poly) > len(polys) - ends[2]:  # (the mouth's arcs reach past its vertices)
+        lo_all[2], hi_all[2] = poly.min(0).tolist(), poly.max(0).tolist()
     slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
     # each eye's closure (1 - its area over the neutral one): the lash line is drawn from 0.6
     # on, and an open eye's upper lid margin continues its lash band (_composite's margin)

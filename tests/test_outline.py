@@ -1,0 +1,64 @@
+"""The mouth opening's smooth outline (editor/engine/outline.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from editor.engine.outline import CHORD_PX, smooth_loop
+
+
+def _lips(a: float, b_up: float, b_low: float, n: int = 7) -> tuple[np.ndarray, np.ndarray]:
+    """A mouth loop as the mesh orders it (corner, n upper points, corner, n lower points
+    backwards) on two parabolic arcs of half-width ``a`` that meet at the corners as lips do;
+    and a dense copy of the same two arcs (the true outline)."""
+    x = np.linspace(-a, a, n + 2)
+    up = np.stack([x, -b_up * (1 - (x / a) ** 2)], 1)
+    low = np.stack([x, b_low * (1 - (x / a) ** 2)], 1)[::-1]
+    loop = np.concatenate([up, low[1:-1]]).astype(np.float32)
+    s = np.linspace(-a, a, 4000)
+    dense = np.concatenate([np.stack([s, -b_up * (1 - (s / a) ** 2)], 1),
+                            np.stack([s, b_low * (1 - (s / a) ** 2)], 1)])
+    return loop, dense
+
+
+def _farthest_from(points: np.ndarray, dense: np.ndarray) -> float:
+    """Largest distance of the segments' midpoints (closed loop) to the dense outline."""
+    mid = 0.5 * (points + np.roll(points, -1, 0))
+    d = np.linalg.norm(mid[:, None, :] - dense[None, :, :], axis=2).min(1)
+    return float(d.max())
+
+
+def test_a_small_mouth_stays_the_mesh_polygon():
+    loop, _ = _lips(0.5 * CHORD_PX * 3, 4.0, 5.0)  # sides shorter than CHORD_PX
+    assert smooth_loop(loop, (0, 8)) is loop
+
+
+def test_a_large_mouth_follows_its_lips_arcs_through_the_same_vertices():
+    loop, dense = _lips(300.0, 60.0, 90.0)  # a 4K face's open mouth: sides of ~60-90 px
+    out = smooth_loop(loop, (0, 8))
+    assert out.dtype == loop.dtype and len(out) > 8 * len(loop)
+    # every vertex of the mesh is on the curve, in the loop's order
+    hits = [int(np.argmin(np.linalg.norm(out - p, axis=1))) for p in loop]
+    assert np.allclose(out[hits], loop, atol=1e-3)
+    assert hits == sorted(hits)
+    # the straight sides depart from the lips' arcs by 1.4 px, the curve by 0.08
+    before, after = _farthest_from(loop, dense), _farthest_from(out, dense)
+    assert before > 1.0 and after < 0.15, (before, after)
+    # no side longer than the chord asked for
+    assert np.linalg.norm(np.diff(out, axis=0, append=out[:1]), axis=1).max() <= CHORD_PX + 1e-3
+
+
+def test_closed_lips_stay_closed_and_the_corners_sharp():
+    loop, _ = _lips(300.0, 60.0, 90.0)
+    closed = loop.copy()
+    closed[9:] = closed[1:8][::-1]  # the lower lip on the upper one
+    out = smooth_loop(closed, (0, 8))
+    x, y = out[:, 0].astype(np.float64), out[:, 1].astype(np.float64)
+    assert abs(0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))) < 1e-3
+    # the corners stay points where the lips meet: the curve turns back there (no rounding
+    # past the corner: the samples either side of it lie towards the mouth's middle)
+    for c in (0, 8):
+        k = int(np.argmin(np.linalg.norm(out - loop[c], axis=1)))
+        assert np.allclose(out[k], loop[c], atol=1e-3)
+        side = np.sign(loop[4, 0] - loop[c, 0])
+        assert side * (out[k - 1, 0] - out[k, 0]) > 0 and side * (out[k + 1, 0] - out[k, 0]) > 0

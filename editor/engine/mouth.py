@@ -40,7 +40,7 @@ from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
 from .fitting import clamp, clip, interp
-from .gaze import spread3
+from .gaze import REMAP3_PX, spread3
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -337,6 +337,9 @@ class MouthPlan:
             cv2.mixChannels([np.asarray(own_rgb, np.float32)], [c4],
                             [3 * k, 0, 3 * k + 1, 1, 3 * k + 2, 2])
             self._own_c.append(c4)
+        # (and as 3 contiguous channels: small boxes resample them in one remap, :meth:`_own`)
+        self._own_c3 = [np.ascontiguousarray(own_rgb[..., 3 * k:3 * k + 3], np.float32)
+                        for k in (0, 1)]
         self._own_keep = [a * (1.0 - sliver[None, :]) for a in self._own_a]
         self._own_parts()
 
@@ -729,8 +732,12 @@ class MouthPlan:
         a = cv2.remap(src, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default border)
         if not np.count_nonzero(a):
             return None, None
-        px = cv2.cvtColor(cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR, None,
-                                    cv2.BORDER_REPLICATE), cv2.COLOR_RGBA2RGB)
+        if mx.size < REMAP3_PX:
+            px = cv2.remap(self._own_c3[k], mx, my, cv2.INTER_LINEAR, None,
+                           cv2.BORDER_REPLICATE)
+        else:
+            px = cv2.cvtColor(cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR, None,
+                                        cv2.BORDER_REPLICATE), cv2.COLOR_RGBA2RGB)
         return a, px
 
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):

@@ -62,3 +62,29 @@ def test_closed_lips_stay_closed_and_the_corners_sharp():
         assert np.allclose(out[k], loop[c], atol=1e-3)
         side = np.sign(loop[4, 0] - loop[c, 0])
         assert side * (out[k - 1, 0] - out[k, 0]) > 0 and side * (out[k + 1, 0] - out[k, 0]) > 0
+
+
+def test_a_large_faces_eyes_and_mouth_open_along_smooth_lids(sample_face, monkeypatch):
+    """The pixel sets the layers composite (layers._opening_masks) follow the lids' and lips'
+    arcs on a large face (the sample upscaled 4 x: eye loops with sides of 10-25 px, which drew
+    a chamfered lid margin over the iris) and stay the mesh's polygons at the sample's size."""
+    import cv2
+
+    from editor.core import Face, apply_preset
+    from editor.engine import layers
+
+    seen: list[list[int]] = []
+    real = layers._opening_masks
+
+    def spy(items):
+        seen.append([len(loop) for loop, _, _ in items])
+        return real(items)
+
+    monkeypatch.setattr(layers, "_opening_masks", spy)
+    faps = apply_preset("surprise", 1.5)
+    sample_face.render(faps)
+    assert seen[-1] == [12, 12, 16]
+    big = Face.from_image(cv2.resize(sample_face.image, None, fx=4, fy=4,
+                                     interpolation=cv2.INTER_CUBIC))
+    big.render(faps)
+    assert all(n >= 2 * k for n, k in zip(seen[-1], (12, 12, 16), strict=True)), seen[-1]

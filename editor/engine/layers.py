@@ -186,6 +186,16 @@ def _cheek_triangles(mesh: StandardMesh) -> np.ndarray:
 #: the mouth loop's corners (:func:`_opening_index`: lipi_c0 first, lipi_c1 after the upper lip)
 _MOUTH_CORNERS = (0, 8)
 
+#: an eye loop's corners (eye_*_c0 first, eye_*_c1 after the upper lid)
+_EYE_CORNERS = (0, 6)
+
+#: an eye's lids become smooth arcs once a side of its loop is longer than this (px): on a
+#: JAFFE face (eyes ~25 px wide, sides up to 7 px) the arcs' pixels left the lash band the
+#: eyeball layer carries along the mesh's lid edges, which roughened the lid line (1.31 x the
+#: photo's against 0.96 x); on the 4K bench face (sides of 40-60 px) the straight sides drew a
+#: chamfered lid margin over the iris
+EYE_CHORD_PX = 12.0
+
 
 @lru_cache(maxsize=4)
 def _opening_index(mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -603,13 +613,24 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
         closure = (1.0 - 0.5 * np.abs(np.add.reduceat(ex * ey[nx] - ey * ex[nx], cuts[:2]))
                    / np.maximum([lp.eyes["eye_l"].area0, lp.eyes["eye_r"].area0], 1e-6)).tolist()
     # every opening's box, then their pixel sets and coverages at once (_opening_masks)
-    todo = []
+    # (an eye's pixel set follows its lids as smooth arcs on a large face, as the mouth's
+    # does, once its sides pass EYE_CHORD_PX; the eye's own plans keep reading its 12
+    # vertices)
+    todo, outlines = [], []
     for job in jobs:
         k_open = slot[job[1]]
-        box = _box_of(lo_all[k_open], hi_all[k_open], out.shape, 4 if job[0] == "mouth" else 2)
+        loop = job[2] if job[0] == "mouth" else smooth_loop(job[2], _EYE_CORNERS, EYE_CHORD_PX)
+        lo, hi = lo_all[k_open], hi_all[k_open]
+        if len(loop) != len(job[2]):
+            lo, hi = loop.min(0).tolist(), loop.max(0).tolist()
+            lo_all[k_open], hi_all[k_open] = lo, hi
+        box = _box_of(lo, hi, out.shape, 4 if job[0] == "mouth" else 2)
         if box[2] > box[0] and box[3] > box[1]:
             todo.append((job, box))
-    masks = _opening_masks([(job[2], box, job[5] > _TOL) for job, box in todo]) if todo else []
+            outlines.append(loop)
+    masks = _opening_masks([(loop, box, job[5] > _TOL)
+                            for (job, box), loop in zip(todo, outlines, strict=True)]
+                           ) if todo else []
     for ((kind, name, poly, tf, active, moved), box), (hole, cov) in zip(todo, masks,
                                                                           strict=True):
         k_open = slot[name]

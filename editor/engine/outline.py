@@ -28,16 +28,17 @@ CHORD_PX = 6.0
 MAX_SPLIT = 24
 
 
-def smooth_loop(poly: np.ndarray, corners: tuple[int, int]) -> np.ndarray:
+def smooth_loop(poly: np.ndarray, corners: tuple[int, int], chord_px: float = CHORD_PX
+                ) -> np.ndarray:
     """The closed loop ``poly`` (n, 2) with each of its two arcs (``corners[0]`` ..
     ``corners[1]`` and back) replaced by a centripetal Catmull-Rom curve through the same
-    vertices, in the same order and dtype; the corners stay sharp (two arcs meet there).
-    ``poly`` itself when every side is shorter than :data:`CHORD_PX`."""
+    vertices, in the same order and dtype, sampled at most ``chord_px`` apart; the corners
+    stay sharp (two arcs meet there). ``poly`` itself when every side is shorter than that."""
     p = np.asarray(poly)
     n = len(p)
     d = np.diff(p, axis=0, append=p[:1]).astype(np.float64)
     longest = math.sqrt(float((d * d).sum(1).max()))
-    split = min(MAX_SPLIT, math.ceil(longest / CHORD_PX))
+    split = min(MAX_SPLIT, math.ceil(longest / chord_px))
     if split <= 1:
         return poly
     a, b = corners

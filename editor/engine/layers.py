@@ -68,7 +68,7 @@ from .mouth import (
     _sat,
     _smoothstep1,
 )
-from .outline import smooth_loop
+from .outline import CHORD_PX, smooth_loop, splits
 from .threads import Pending
 from .warp import WarpResult
 
@@ -195,6 +195,9 @@ _EYE_CORNERS = (0, 6)
 #: photo's against 0.96 x); on the 4K bench face (sides of 40-60 px) the straight sides drew a
 #: chamfered lid margin over the iris
 EYE_CHORD_PX = 12.0
+
+#: the longest chord of each opening's outline (eye_l, eye_r, mouth)
+_CHORDS = [EYE_CHORD_PX, EYE_CHORD_PX, CHORD_PX]
 
 
 @lru_cache(maxsize=4)
@@ -586,8 +589,10 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
             lm = face.landmarks
             state = eye_state(face.plan, faps, np.array([lm.iris_left.r, lm.iris_right.r]))
     # ---- mouth
-    # (its two lips as smooth arcs once a face is large enough for straight sides to show)
-    poly = smooth_loop(polys[ends[2]:], _MOUTH_CORNERS)
+    # (its two lips as smooth arcs once a face is large enough for straight sides to show;
+    # the eyes' lids too, later: samples per side for the three loops at once)
+    split = splits(polys, _next_in_loop(tuple(ends[1:])), cuts, _CHORDS)
+    poly = smooth_loop(polys[ends[2]:], _MOUTH_CORNERS, split[2])
     skull = transforms["mouth"]
     moved = far[2]
     if moved > _TOL or not _is_identity(skull):
@@ -619,7 +624,7 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     todo, outlines = [], []
     for job in jobs:
         k_open = slot[job[1]]
-        loop = job[2] if job[0] == "mouth" else smooth_loop(job[2], _EYE_CORNERS, EYE_CHORD_PX)
+        loop = job[2] if job[0] == "mouth" else smooth_loop(job[2], _EYE_CORNERS, split[k_open])
         lo, hi = lo_all[k_open], hi_all[k_open]
         if len(loop) != len(job[2]):
             lo, hi = loop.min(0).tolist(), loop.max(0).tolist()

@@ -15,6 +15,7 @@ straight side could be seen.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -28,50 +29,68 @@ CHORD_PX = 6.0
 MAX_SPLIT = 24
 
 
-def smooth_loop(poly: np.ndarray, corners: tuple[int, int], chord_px: float = CHORD_PX
-                ) -> np.ndarray:
+def splits(loops: np.ndarray, nxt: np.ndarray, cuts: np.ndarray,
+           chord_px: list[float]) -> list[int]:
+    """Samples per side for each of several closed loops stored one after another in
+    ``loops`` (N, 2), loop k starting at ``cuts[k]``, ``nxt`` each point's successor in its
+    loop: the fewest that keep every chord under ``chord_px[k]`` (1: the loop's own sides
+    already are), at most :data:`MAX_SPLIT`. One pass over all the loops (the layers ask it
+    for the eyes and the mouth every frame)."""
+    d = loops.take(nxt, 0) - loops
+    longest = np.maximum.reduceat(np.einsum("ij,ij->i", d, d), cuts).tolist()
+    return [min(MAX_SPLIT, max(1, math.ceil(math.sqrt(q) / c)))
+            for q, c in zip(longest, chord_px, strict=True)]
+
+
+def smooth_loop(poly: np.ndarray, corners: tuple[int, int], split: int) -> np.ndarray:
     """The closed loop ``poly`` (n, 2) with each of its two arcs (``corners[0]`` ..
-    ``corners[1]`` and back) replaced by a centripetal Catmull-Rom curve through the same
-    vertices, in the same order and dtype, sampled at most ``chord_px`` apart; the corners
-    stay sharp (two arcs meet there). ``poly`` itself when every side is shorter than that."""
-    p = np.asarray(poly)
-    n = len(p)
-    d = np.diff(p, axis=0, append=p[:1]).astype(np.float64)
-    longest = math.sqrt(float((d * d).sum(1).max()))
-    split = min(MAX_SPLIT, math.ceil(longest / chord_px))
+    ``corners[1]`` and back, as many points each) replaced by a centripetal Catmull-Rom curve
+    through the same vertices, ``split`` samples per side (see :func:`splits`), in the same
+    order and dtype; the corners stay sharp (two arcs meet there). ``poly`` itself when
+    ``split`` is 1.
+
+    At each arc's ends a phantom point continues the parabola through its last three points,
+    so the arc leaves a corner bent as it is next to it, not along its first chord. Each side
+    is the curve's cubic in Hermite form: the centripetal tangents at its ends (Yuksel,
+    Schaefer and Keyser's non-uniform Catmull-Rom, the same curve as the pyramid of
+    interpolations) against a basis tabulated once per ``split``."""
     if split <= 1:
         return poly
+    idx = _arcs(len(poly), corners)
+    P = np.asarray(poly, np.float64).take(idx, 0)  # (2, m, 2)
+    E = np.concatenate([3.0 * (P[:, :1] - P[:, 1:2]) + P[:, 2:3], P,
+                        3.0 * (P[:, -1:] - P[:, -2:-1]) + P[:, -3:-2]], 1)
+    step = np.diff(E, axis=1)
+    # knot intervals sqrt(chord), never zero (closed lips' twin vertices)
+    dt = np.maximum(np.sqrt(np.sqrt(np.einsum("abi,abi->ab", step, step))), 1e-6)[..., None]
+    # the tangent at each vertex (per unit of knot), then at each side's two ends per unit of
+    # the side's own parameter
+    q = step / dt
+    tan = q[:, :-1] - (step[:, :-1] + step[:, 1:]) / (dt[:, :-1] + dt[:, 1:]) + q[:, 1:]
+    d1 = dt[:, 1:-1]
+    G = np.stack([E[:, 1:-2], tan[:, :-1] * d1, E[:, 2:-1], tan[:, 1:] * d1], 2)
+    out = np.matmul(_hermite(split), G)  # (2, sides, split, 2)
+    return out.reshape(-1, 2).astype(poly.dtype)
+
+
+@lru_cache(maxsize=64)
+def _arcs(n: int, corners: tuple[int, int]) -> np.ndarray:
+    """(2, m) indices of a loop of ``n`` points: corner a .. corner b, then b .. back to a."""
     a, b = corners
-    arcs = [np.arange(a, b + 1), np.r_[np.arange(b, n), np.arange(0, a + 1)]]
-    pieces = [_catmull_rom(p[idx].astype(np.float64), split)[:-1] for idx in arcs]
-    return np.concatenate(pieces).astype(p.dtype)
+    up = np.arange(a, b + 1)
+    low = np.r_[np.arange(b, n), np.arange(0, a + 1)]
+    if len(up) != len(low) or len(up) < 3:
+        raise ValueError(f"a loop of {n} points with corners {corners}: arcs of unequal length")
+    out = np.stack([up, low])
+    out.flags.writeable = False
+    return out
 
 
-def _catmull_rom(pts: np.ndarray, split: int) -> np.ndarray:
-    """Centripetal Catmull-Rom through ``pts`` (m, 2), ``split`` samples per side, both ends
-    included ((m - 1) * split + 1, 2); at each end a phantom point continues the parabola
-    through the last three points (the arc leaves the corner bent as it is next to it, not
-    along its first chord)."""
-    if len(pts) < 3:
-        ext = np.concatenate([2.0 * pts[:1] - pts[1:2], pts, 2.0 * pts[-1:] - pts[-2:-1]])
-    else:
-        ext = np.concatenate([3.0 * (pts[:1] - pts[1:2]) + pts[2:3], pts,
-                              3.0 * (pts[-1:] - pts[-2:-1]) + pts[-3:-2]])
-    p0, p1, p2, p3 = ext[:-3], ext[1:-2], ext[2:-1], ext[3:]
-    # knot spacing sqrt(chord), never zero (coincident points: closed lips' twin vertices)
-    def gap(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return np.maximum(np.sqrt(np.hypot(*(v - u).T)), 1e-6)[:, None, None]
-
-    t1 = gap(p0, p1)
-    t2 = t1 + gap(p1, p2)
-    t3 = t2 + gap(p2, p3)
-    s = np.linspace(0.0, 1.0, split, endpoint=False)[None, :, None]
-    t = t1 + s * (t2 - t1)  # (sides, split, 1)
-    P0, P1, P2, P3 = (q[:, None, :] for q in (p0, p1, p2, p3))
-    a1 = ((t1 - t) * P0 + t * P1) / t1
-    a2 = ((t2 - t) * P1 + (t - t1) * P2) / (t2 - t1)
-    a3 = ((t3 - t) * P2 + (t - t2) * P3) / (t3 - t2)
-    b1 = ((t2 - t) * a1 + t * a2) / t2
-    b2 = ((t3 - t) * a2 + (t - t1) * a3) / (t3 - t1)
-    c = ((t2 - t) * b1 + (t - t1) * b2) / (t2 - t1)
-    return np.concatenate([c.reshape(-1, 2), pts[-1:]])
+@lru_cache(maxsize=MAX_SPLIT + 1)
+def _hermite(split: int) -> np.ndarray:
+    """(split, 4) the cubic Hermite basis (h00, h10, h01, h11) at s = k / split, k < split."""
+    s = np.arange(split, dtype=np.float64) / split
+    s2, s3 = s * s, s * s * s
+    h = np.stack([2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, 3 * s2 - 2 * s3, s3 - s2], 1)
+    h.flags.writeable = False
+    return h

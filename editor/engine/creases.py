@@ -892,6 +892,16 @@ class _Fast:
     skin_shift: list[np.ndarray] = field(init=False)  # per group (3, 4) ``cv2.transform``: - skin
     # per group (3, 3) ``cv2.transform`` of (light, dark, 1) to the per-channel gain
     gain_mat: list[np.ndarray] = field(init=False)
+    # what the per-frame path reads of the plan (its own arrays): each fold's first sample,
+    # each sample's fold and its fade
+    starts: np.ndarray = field(init=False)
+    fold: np.ndarray = field(init=False)
+    taper: np.ndarray = field(init=False)
+    # looked up once per face on the first frame that needs them (the same objects as the
+    # per-face caches' of :func:`_seg_constants`, :func:`_both_samples` and :func:`_photo_gain`)
+    segc: _SegConstants | None = None
+    both: tuple | None = None
+    gains: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1082,6 +1092,7 @@ def _fast(face: Face) -> _Fast:
     mats[:, :, 1] = -k1s[:, None] * tint
     mats[:, :, 2] = 1.0
     f.gain_mat = list(mats)
+    f.starts, f.fold, f.taper = p.start[:-1], p.fold, p.taper
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, rest, f), 1e-6))
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])
@@ -1250,11 +1261,13 @@ def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     return r.mean(1)
 
 
-def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.ndarray:
+def _spacing(face: Face | None, vertices: np.ndarray, fa: _Fast | None = None) -> np.ndarray:
     """(N,) spacing of skin lines parallel to each fold on ``vertices``, relative to the photo's
     mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes (``fa``:
-    the face's :class:`_Fast` while it is being built)."""
+    the face's :class:`_Fast`, when known or while it is being built; then ``face`` is not
+    read)."""
     if fa is None:
+        assert face is not None
         fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     # (laid out as (x / y, ..., triangle or sample): every operation below runs along one
@@ -1346,11 +1359,16 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
 def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`fold_strength` and :func:`unfold_strength` of ``vertices`` together (one
     :func:`_spacing`, the per-face constants looked up once): the same values."""
-    p = crease_plan(face)
-    fa = _fast(face)
-    sp = _spacing(face, vertices)
-    starts = p.start[:-1]
-    edge = fa.edge
+    s, un, _ = _both_strengths(_fast(face), vertices)
+    return s, un
+
+
+def _both_strengths(fa: _Fast, vertices: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`_strengths` of the face of ``fa``, and both as one array (``s`` then ``un``,
+    of which the two are views; None when the photo has no own fold)."""
+    sp = _spacing(None, vertices, fa)
+    starts, fold = fa.starts, fa.fold
     # fold_strength
     c = 1.0 - sp
     if len(fa.neg):
@@ -1360,19 +1378,19 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     if len(fa.effort_idx):
         _add_effort(fa, c, vertices)
     c[c < _C_TOL] = 0.0
-    cmax = np.maximum.reduceat(c, starts).take(p.fold)
+    cmax = np.maximum.reduceat(c, starts).take(fold)
     c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
     s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
     if (fa.own_w is None or fa.own_div is None or fa.own_fade is None or fa.edge2 is None
             or fa.taper2 is None):
-        s = _twins(fa, np.where(edge, s, _correlate(s, _SMOOTH_REV, "same")) * p.taper)
-        return s, np.zeros(len(fa.depth))
+        s = _twins(fa, np.where(fa.edge, s, _correlate(s, _SMOOTH_REV, "same")) * fa.taper)
+        return s, np.zeros(len(fa.depth)), None
     # unfold_strength (its per-fold constants taken once per face)
     e = np.log(np.maximum(sp, 1e-6))
     e[e < _C_TOL] = 0.0
     esum = np.add.reduceat(e * fa.own_w, starts)
     esum /= fa.own_div
-    u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(p.fold)
+    u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(fold)
     # both smoothed along their lines and tapered as one array (s then u): each sample's
     # 5-tap sum is the one of its own array, but for the last two samples of s and the first
     # two of u, which are line ends (``edge``: not smoothed)
@@ -1380,7 +1398,8 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     su = np.where(fa.edge2, su, _correlate(su, _SMOOTH_REV, "same"))
     su *= fa.taper2
     n = len(s)
-    return _twins(fa, su[:n]), su[n:]
+    _twins(fa, su[:n])  # (in place)
+    return su[:n], su[n:], su
 
 
 #: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
@@ -1436,12 +1455,12 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     the mesh only: they are laid out and splatted together first (:func:`_layout`), then
     drawn in the same order as one at a time (the unfold bands, then the folds).
     """
-    s, un = _strengths(face, vertices)
+    fa = _fast(face)
+    s, un, su = _both_strengths(fa, vertices)
     any_fold = bool(np.count_nonzero(s > _MIN_STRENGTH))
     any_unfold = bool(np.count_nonzero(un > _MIN_UNFOLD))
     if not any_fold and not any_unfold:
         return res
-    fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     out = res.image
     bbox = res.bbox
@@ -1449,17 +1468,20 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     # unfolds are drawn (both sets in one gather and one measurement: the same values row
     # by row)
     if any_unfold:
-        tri, bary, seg_a, seg_b = _both_samples(face)
+        if fa.both is None:
+            fa.both = _both_samples(face)
+        tri, bary, seg_a, seg_b = fa.both
         segs = _segments(_on_mesh(V, tri, bary), seg_a, seg_b)
     else:
         segs = _segments(_on_mesh(V, fa.sample_tri, fa.bary), fa.seg_a, fa.seg_b)
     unfolds, folds, drawn = _layout(face, segs, s, un if any_unfold else None, out.shape[:2],
-                                    res.maps)
+                                    res.maps, fa, su)
     if not drawn:
         return res
     q = _frame_blocks(face)
     if unfolds:
-        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation)
+        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation, fa,
+                            q)
     for g, box, k, f in folds:
         bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox, f, q)
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
@@ -1489,6 +1511,7 @@ class _SegConstants:
 
     nonempty: list[tuple[int, int, int]]
     starts: list[int]
+    starts2: list[int]  # ``starts`` followed by the same shifted to the valley's segments
     sa2: np.ndarray
     sb2: np.ndarray
     thr2: np.ndarray
@@ -1503,8 +1526,9 @@ def _seg_constants(fa: _Fast) -> _SegConstants:
     if got is None:
         nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
         n, m = len(fa.depth), len(fa.seg_a)
+        starts = [g0 for _, g0, _ in nonempty]
         got = _SegConstants(
-            nonempty, [g0 for _, g0, _ in nonempty],
+            nonempty, starts, starts + [g0 + m for g0 in starts],
             np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]),
             np.concatenate([np.full(m, _MIN_STRENGTH), np.full(m, _MIN_UNFOLD)]))
         _SEGS[fa] = got
@@ -1557,7 +1581,8 @@ def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsam
 
 def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.ndarray,
             un: np.ndarray | None, shape: tuple[int, int],
-            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None
+            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
+            fa: _Fast | None = None, su: np.ndarray | None = None
             ) -> tuple[list[tuple], list[tuple[int, tuple[int, int, int, int], int, int]],
                        list[np.ndarray]]:
     """Every canvas of the frame, laid out and splatted: the bands of :func:`_unfold_draw`
@@ -1572,9 +1597,13 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
     ``segs``: :func:`_segments` of the fold samples on the deformed mesh, followed by those
     of the valley's when ``un`` is given (the unfold shares; None: no unfold is drawn). All
     canvases' sub-samples are placed, weighted and splatted as one array (the same values,
-    point by point, as canvas by canvas)."""
-    fa = _fast(face)
-    sc = _seg_constants(fa)
+    point by point, as canvas by canvas). ``fa``: the face's :class:`_Fast` when known;
+    ``su``: ``s`` followed by ``un`` as one array when known (of which both are views)."""
+    if fa is None:
+        fa = _fast(face)
+    sc = fa.segc
+    if sc is None:
+        sc = fa.segc = _seg_constants(fa)
     H, W = shape
     A, D, L = segs
     m = len(fa.seg_a)
@@ -1583,8 +1612,9 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
         sv, sa_i, sb_i, thr = s, fa.seg_a, fa.seg_b, _MIN_STRENGTH
         starts = sc.starts
     else:
-        sv, sa_i, sb_i, thr = np.concatenate((s, un)), sc.sa2, sc.sb2, sc.thr2
-        starts = sc.starts + [g0 + m for g0 in sc.starts]
+        sv = np.concatenate((s, un)) if su is None else su
+        sa_i, sb_i, thr = sc.sa2, sc.sb2, sc.thr2
+        starts = sc.starts2
     sa, sb = sv.take(sa_i), sv.take(sb_i)
     if not sc.nonempty:
         return [], [], []
@@ -1606,7 +1636,12 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
     bands = []
     for g, g0, g1 in valleys:
         sb_ = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
-        got = None if maps is None else _photo_gain(face, g)
+        if maps is None:
+            got = None
+        else:
+            got = fa.gains.get(g, fa)
+            if got is fa:
+                got = fa.gains[g] = _photo_gain(face, g)
         # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
         f = 1 if got is None else max(1, int(sb_ / 1.5))
         K = int(min(max(math.ceil(lv[g] / (0.5 * f)), 1), 64))
@@ -2033,7 +2068,8 @@ def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: 
 def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
                  bbox: tuple[int, int, int, int] | None,
                  maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None,
-                 interpolation: int = cv2.INTER_LINEAR) -> tuple[int, int, int, int] | None:
+                 interpolation: int = cv2.INTER_LINEAR, fa: _Fast | None = None,
+                 q: int | None = None) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -2048,11 +2084,14 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
     (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_gain`)
     and carried to the frame by the warp's own map (one ``cv2.remap`` of the band's box, so
     the gain lies on the valley exactly where the warp puts it); per frame only the band is
-    drawn. Without ``maps`` they are computed on ``out``.
+    drawn. Without ``maps`` they are computed on ``out``. ``fa``: the face's :class:`_Fast`,
+    ``q`` its :func:`_frame_blocks`, when known.
     """
-    fa = _fast(face)
+    if fa is None:
+        fa = _fast(face)
     H, W = out.shape[:2]
-    q = _frame_blocks(face)
+    if q is None:
+        q = _frame_blocks(face)
     for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)

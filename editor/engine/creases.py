@@ -505,16 +505,6 @@ def _on_mesh(V: np.ndarray, tri: tuple[np.ndarray, ...], bary: tuple[np.ndarray,
     return V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
 
 
-def _segments(pos: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Every segment ``seg_a`` -> ``seg_b`` of the samples ``pos`` at once: its start (M, 2),
-    direction (M, 2) and length (M,)."""
-    a = pos.take(seg_a, 0)
-    d = pos.take(seg_b, 0) - a
-    dx, dy = d[:, 0], d[:, 1]
-    return a, d, np.sqrt(dx * dx + dy * dy)  # (an axis-1 sum of (n, 2) costs more)
-
-
 def _lines_normals(lines: list[np.ndarray]) -> list[np.ndarray]:
     """Unit normals (n, 2) of each polyline (n >= 2): its tangent turned by +90 degrees, all
     in one pass over their concatenated points (the same values line by line: a point's
@@ -1470,12 +1460,11 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     if any_unfold:
         if fa.both is None:
             fa.both = _both_samples(face)
-        tri, bary, seg_a, seg_b = fa.both
-        segs = _segments(_on_mesh(V, tri, bary), seg_a, seg_b)
+        samples = fa.both
     else:
-        segs = _segments(_on_mesh(V, fa.sample_tri, fa.bary), fa.seg_a, fa.seg_b)
-    unfolds, folds, drawn = _layout(face, segs, s, un if any_unfold else None, out.shape[:2],
-                                    res.maps, fa, su)
+        samples = (fa.sample_tri, fa.bary, fa.seg_a, fa.seg_b)
+    unfolds, folds, drawn = _layout(face, V, samples, s, un if any_unfold else None,
+                                    out.shape[:2], res.maps, fa, su)
     if not drawn:
         return res
     q = _frame_blocks(face)
@@ -1539,16 +1528,15 @@ def _seg_constants(fa: _Fast) -> _SegConstants:
 class _Subsamples:
     """The sub-samples of a frame's canvases (:func:`_subsamples`), canvas after canvas, each
     segment's ``K`` ones in order: per sub-sample its segment ``si``, its place along it
-    ``uu`` (``(k + 0.5) / K``, also as a column ``uu2``), ``K`` itself as a float ``kk``, the
-    ridge's offset from the line ``rm2`` (a column; 0 off a ridge) and its weight factor ``wm``
+    ``uu`` (``(k + 0.5) / K``), ``K`` itself as a float ``kk``, the
+    ridge's offset from the line ``rm`` (0 off a ridge) and its weight factor ``wm``
     (1 off a ridge); per canvas its first sub-sample ``cut`` and its count ``count``, and per
     sub-sample its canvas ``cpt``."""
 
     si: np.ndarray
     uu: np.ndarray
-    uu2: np.ndarray
     kk: np.ndarray
-    rm2: np.ndarray
+    rm: np.ndarray
     wm: np.ndarray
     cut: list[int]
     count: list[int]
@@ -1570,7 +1558,7 @@ def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsam
         count.append(n)
     cat = np.concatenate
     u = cat(uu)
-    got = _Subsamples(cat(si), u, u[:, None], cat(kk), cat(rm)[:, None], cat(wm),
+    got = _Subsamples(cat(si), u, cat(kk), cat(rm), cat(wm),
                       list(itertools.accumulate([0, *count[:-1]])), count,
                       np.arange(len(spec)).repeat(count))
     for a in vars(got).values():
@@ -1579,7 +1567,7 @@ def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsam
     return got
 
 
-def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.ndarray,
+def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
             un: np.ndarray | None, shape: tuple[int, int],
             maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
             fa: _Fast | None = None, su: np.ndarray | None = None
@@ -1594,18 +1582,24 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
     canvases at 1/f resolution, :func:`_fold_scale`); and the canvases splatted
     (:func:`_splat_many`'s values).
 
-    ``segs``: :func:`_segments` of the fold samples on the deformed mesh, followed by those
-    of the valley's when ``un`` is given (the unfold shares; None: no unfold is drawn). All
-    canvases' sub-samples are placed, weighted and splatted as one array (the same values,
-    point by point, as canvas by canvas). ``fa``: the face's :class:`_Fast` when known;
-    ``su``: ``s`` followed by ``un`` as one array when known (of which both are views)."""
+    ``samples``: ``(tri, bary, seg_a, seg_b)`` of the fold samples (:func:`_on_mesh`'s
+    arguments and the segments between them, ``seg_a`` -> ``seg_b``), followed by those of the
+    valley's when ``un`` is given (the unfold shares; None: no unfold is drawn), placed on the
+    deformed mesh ``V`` (float64). All canvases' sub-samples are placed, weighted and
+    splatted as one array (the same values, point by point, as canvas by canvas): the samples
+    and the segments' data as rows (x, y along one contiguous axis; :func:`_on_mesh`'s values
+    and each segment's start, direction and length ``sqrt(dx dx + dy dy)``), every
+    segment's start, direction, normal, end strengths and length gathered per sub-sample in
+    one ``take``. ``fa``: the face's :class:`_Fast` when known; ``su``: ``s`` followed by
+    ``un`` as one array when known (of which both are views)."""
     if fa is None:
         fa = _fast(face)
     sc = fa.segc
     if sc is None:
         sc = fa.segc = _seg_constants(fa)
+    if not sc.nonempty:
+        return [], [], []
     H, W = shape
-    A, D, L = segs
     m = len(fa.seg_a)
     thr: float | np.ndarray
     if un is None:  # (the fold segments only)
@@ -1615,24 +1609,39 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
         sv = np.concatenate((s, un)) if su is None else su
         sa_i, sb_i, thr = sc.sa2, sc.sb2, sc.thr2
         starts = sc.starts2
-    sa, sb = sv.take(sa_i), sv.take(sb_i)
-    if not sc.nonempty:
-        return [], [], []
+    (t0, t1, t2), (b0, b1, b2), seg_a, seg_b = samples
+    # the segments' rows: start x y (0, 1), direction (2, 3), unit normal (-dy, dx) (4, 5),
+    # the strengths at their ends (6, 7: start, end - start) and length (8)
+    VT = V.T
+    pos = VT.take(t0, 1) * b0.T + VT.take(t1, 1) * b1.T + VT.take(t2, 1) * b2.T
+    Z = np.empty((9, len(seg_a)))
+    pos.take(seg_a, 1, out=Z[0:2])
+    np.subtract(pos.take(seg_b, 1), Z[0:2], out=Z[2:4])
+    dx, dy = Z[2], Z[3]
+    L = Z[8]
+    np.sqrt(np.add(dx * dx, dy * dy, out=L), out=L)
+    np.multiply(Z[3:1:-1], _TURN_COL, out=Z[4:6])
+    Z[4:6] /= np.maximum(L, 1e-9)
+    sv.take(sa_i, out=Z[6])
+    sb = sv.take(sb_i)
     end = sc.nonempty[-1][2] + (m if un is not None else 0)
-    hit = np.logical_or.reduceat((np.maximum(sa, sb) > thr)[:end], starts).tolist()
+    hit = np.logical_or.reduceat((np.maximum(Z[6], sb) > thr)[:end], starts).tolist()
     ng = len(sc.nonempty)
     # (hit and the longest segments: the fold groups', then the valley's when unfolds are drawn)
     folds = [grp for grp, h in zip(sc.nonempty, hit[:ng], strict=True) if h]
     valleys = [grp for grp, h in zip(sc.nonempty, hit[ng:], strict=False) if h]
     if not folds and not valleys:
         return [], [], []
+    np.subtract(sb, Z[6], out=Z[7])
     # each group's longest segment (the same reductions: one per group in both halves)
     longest = np.maximum.reduceat(L[:end], starts).tolist()
-    names = [g for g, _, _ in sc.nonempty]
-    lf = dict(zip(names, longest[:ng], strict=True))
-    lv = dict(zip(names, longest[ng:], strict=False))
-    # per canvas: (first segment, end, K, ridge offset, ridge weight); its job's data
+    lf = {g: x for (g, _, _), x in zip(sc.nonempty, longest[:ng], strict=True)}
+    lv = {g: x for (g, _, _), x in zip(sc.nonempty, longest[ng:], strict=False)}
+    # per canvas: (first segment, end, K, ridge offset, ridge weight); its job's data, and
+    # the pad of its box around its points and its scale (1/f resolution)
     spec: list[tuple[int, int, int, float, float]] = []
+    pads: list[float] = []
+    fs: list[int] = []
     bands = []
     for g, g0, g1 in valleys:
         sb_ = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
@@ -1646,7 +1655,9 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
         f = 1 if got is None else max(1, int(sb_ / 1.5))
         K = int(min(max(math.ceil(lv[g] / (0.5 * f)), 1), 64))
         spec.append((m + g0, m + g1, K, 0.0, 1.0))
-        bands.append((g, sb_, got, f, K))
+        bands.append((g, got, f, K))
+        pads.append(3.0 * sb_)
+        fs.append(f)
     lines = []
     for g, g0, g1 in folds:
         sig = float(fa.sig[g])
@@ -1654,46 +1665,57 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
         K = int(min(max(math.ceil(lf[g] / (min(0.5, 0.5 * sig) * f)), 1), 64))
         spec += [(g0, g1, K, 0.0, 1.0), (g0, g1, K, float(fa.off[g]), float(fa.ridge[g]))]
         lines.append((g, f))
+        pads.append(3.0 * (1.6 * float(fa.dsig[g])) + 2.0)
+        fs += [f, f]
     ss = _subsamples(tuple(spec))
-    si = ss.si
-    # every sub-sample at once: a + d u (+ the ridge's offset along the normal (-dy, dx) / L)
-    nrm = D[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]
-    xy = A.take(si, 0) + D.take(si, 0) * ss.uu2 + nrm.take(si, 0) * ss.rm2
-    dsv = sb - sa
-    w = (sa.take(si) + dsv.take(si) * ss.uu) * (L.take(si) / ss.kk) * ss.wm
+    # every sub-sample at once: a + d u (+ the ridge's offset along the normal), its weight
+    # (sa + (sb - sa) u) L / K (times the ridge's)
+    Zs = Z.take(ss.si, 1)
+    uu = ss.uu
+    xy = Zs[2:4] * uu
+    xy += Zs[0:2]
+    xy += Zs[4:6] * ss.rm
+    w = Zs[7] * uu
+    w += Zs[6]
+    w *= Zs[8] / ss.kk
+    w *= ss.wm
     # the extent of each canvas's points in one pass
-    lo = np.minimum.reduceat(xy, ss.cut).tolist()
-    hi = np.maximum.reduceat(xy, ss.cut).tolist()
-    boxes: list[tuple[int, int, int, int] | None] = []
-    for c, band in enumerate(bands):
-        sb_ = band[1]
-        (lx, ly), (hx, hy) = lo[c], hi[c]
-        x0, y0 = max(int(lx - 3.0 * sb_), 0), max(int(ly - 3.0 * sb_), 0)
-        x1, y1 = min(int(hx + 3.0 * sb_) + 1, W), min(int(hy + 3.0 * sb_) + 1, H)
-        boxes.append(None if x1 - x0 < 4 or y1 - y0 < 4 else (x0, y0, x1, y1))
+    (lx_, ly_), (hx_, hy_) = (np.minimum.reduceat(xy, ss.cut, 1).tolist(),
+                              np.maximum.reduceat(xy, ss.cut, 1).tolist())
     nb = len(bands)
-    for j, (g, _) in enumerate(lines):
-        (lx, ly), (rx, ry) = lo[nb + 2 * j], lo[nb + 2 * j + 1]
-        (hx, hy), (sx, sy) = hi[nb + 2 * j], hi[nb + 2 * j + 1]
-        pad = 3.0 * (1.6 * float(fa.dsig[g])) + 2.0
-        x0, y0 = max(int(min(lx, rx) - pad), 0), max(int(min(ly, ry) - pad), 0)
-        x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
+    boxes: list[tuple[int, int, int, int] | None] = []
+    for c in range(nb):
+        pad = pads[c]
+        x0, y0 = max(int(lx_[c] - pad), 0), max(int(ly_[c] - pad), 0)
+        x1, y1 = min(int(hx_[c] + pad) + 1, W), min(int(hy_[c] + pad) + 1, H)
+        boxes.append(None if x1 - x0 < 4 or y1 - y0 < 4 else (x0, y0, x1, y1))
+    for j in range(len(lines)):
+        c = nb + 2 * j
+        pad = pads[nb + j]
+        x0 = max(int(min(lx_[c], lx_[c + 1]) - pad), 0)
+        y0 = max(int(min(ly_[c], ly_[c + 1]) - pad), 0)
+        x1 = min(int(max(hx_[c], hx_[c + 1]) + pad) + 1, W)
+        y1 = min(int(max(hy_[c], hy_[c + 1]) + pad) + 1, H)
         box = None if x1 - x0 < 2 or y1 - y0 < 2 else (x0, y0, x1, y1)
         boxes += [box, box]
     if None in boxes:  # (a box off the image: its canvases left out; rare)
         keep = np.array([b is not None for b in boxes]).repeat(ss.count)
         ci = np.cumsum([b is not None for b in boxes]) - 1
-        xy, w = xy[keep], w[keep]
+        xy, w = xy[:, keep], w[keep]
         cpt = ci[ss.cpt[keep]]
         count = [n for n, b in zip(ss.count, boxes, strict=True) if b is not None]
         cut = list(itertools.accumulate([0, *count[:-1]]))
     else:
         cpt, count, cut = ss.cpt, ss.count, ss.cut
-    # each canvas's shape and its points' shift into its pixels (see _on_canvas)
+    # each canvas's shape and its points' shift into its pixels (see _on_canvas): at the
+    # photo's resolution by the box's corner, whole pixels, which the splat takes as an
+    # offset into its canvas (the same pixels and fractions as the shifted points')
     shapes: list[tuple[int, int]] = []
     sub: list[tuple[float, float]] = []
-    div, post, safe = [], [], True
-    fs = [b[3] for b in bands] + [f for _, f in lines for _ in (0, 1)]
+    div: list[float] = []
+    post: list[float] = []
+    safe = True
+    coarse = max(fs) > 1
     for box, f in zip(boxes, fs, strict=True):
         if box is None:
             continue
@@ -1708,19 +1730,15 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
             sub.append((x0 - 0.5, y0 - 0.5))
             post.append(0.5)
         div.append(float(f))
-    q = xy - np.array(sub).take(cpt, 0)
-    if max(fs) > 1:
-        q /= np.array(div).take(cpt)[:, None]
-        q -= np.array(post).take(cpt)[:, None]
     # the jobs, their canvases' indices counted over the canvases kept
     unfolds, jobs, k = [], [], 0
-    for c, (g, _, got, f, K) in enumerate(bands):
+    for c, (g, got, f, K) in enumerate(bands):
         if boxes[c] is None:
             continue
         s0, s1 = spec[c][:2]
         a, b = cut[k], cut[k] + count[k]
-        unfolds.append((g, f, got, xy[a:b], w[a:b], D[s0:s1], L[s0:s1], K, s1 - s0, boxes[c],
-                        k))
+        unfolds.append((g, f, got, xy[:, a:b].T, w[a:b], Z[2:4, s0:s1].T, L[s0:s1], K,
+                        s1 - s0, boxes[c], k))
         k += 1
     for j, (g, f) in enumerate(lines):
         box = boxes[nb + 2 * j]
@@ -1728,12 +1746,59 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
             continue
         jobs.append((g, box, k, f))
         k += 2
-    if not safe:  # a box clipped by the image's edge: canvas by canvas
-        drawn = _splat_many([(sh, q[a:a + n], w[a:a + n], False)
-                             for sh, a, n in zip(shapes, cut, count, strict=True)])
+    if coarse or not safe:
+        q = xy - np.array(sub).T.take(cpt, 1)
+        if coarse:
+            q /= np.array(div).take(cpt)
+            q -= np.array(post).take(cpt)
+        if not safe:  # a box clipped by the image's edge: canvas by canvas
+            return unfolds, jobs, _splat_many(
+                [(sh, q[:, a:a + n].T, w[a:a + n], False)
+                 for sh, a, n in zip(shapes, cut, count, strict=True)])
+        return unfolds, jobs, _splat_rows(shapes, q, w, cpt)
+    return unfolds, jobs, _splat_rows(shapes, xy, w, cpt, sub)
+
+
+#: the turn of a direction's rows (x, y) reversed, (dy, dx), to its normal (-dy, dx)
+_TURN_COL = np.array([[-1.0], [1.0]])
+
+
+def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
+                cpt: np.ndarray, sub: list[tuple[float, float]] | None = None
+                ) -> list[np.ndarray]:
+    """:func:`_splat_stacked` of points given as rows ``xy`` (2, n) (x, y); ``sub``: each
+    canvas's origin, whole pixels, to be subtracted from its points (an offset of their
+    pixels: their fractions are the same, a float's less a whole number below it being
+    exact), else the points are the canvases' own. The same values."""
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    n = len(w)
+    fx, fy = F[0], F[1]
+    wx = np.empty((2, n))
+    np.multiply(w, 1 - fx, out=wx[0])
+    np.multiply(w, fx, out=wx[1])
+    ws = np.empty((2, 2, n))
+    np.multiply(1 - fy, wx, out=ws[0])
+    np.multiply(fy, wx, out=ws[1])
+    wide = max(wd for _, wd in shapes)
+    top = list(itertools.accumulate([0, *[h for h, _ in shapes[:-1]]]))
+    total = (top[-1] + shapes[-1][0]) * wide
+    if sub is None:
+        off = [t * wide for t in top]
     else:
-        drawn = _splat_stacked(shapes, q, w, cpt)
-    return unfolds, jobs, drawn
+        off = [(t - int(y0)) * wide - int(x0) for t, (x0, y0) in zip(top, sub, strict=True)]
+    base = ip[1] * wide
+    base += ip[0]
+    base += np.array(off).take(cpt)
+    idx = np.empty((4, n), np.int64)
+    idx[0] = base
+    np.add(base, 1, out=idx[1])
+    np.add(base, wide, out=idx[2])
+    np.add(base, wide + 1, out=idx[3])
+    acc = np.bincount(idx.ravel(), ws.ravel(), minlength=total)[:total].astype(np.float32)
+    acc = acc.reshape(-1, wide)
+    return [acc[t:t + h, :wd] for t, (h, wd) in zip(top, shapes, strict=True)]
 
 
 def _splat_stacked(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,

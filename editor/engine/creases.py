@@ -1357,6 +1357,8 @@ def _both_strengths(fa: _Fast, vertices: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """:func:`_strengths` of the face of ``fa``, and both as one array (``s`` then ``un``,
     of which the two are views; None when the photo has no own fold)."""
+    # (float64 once: every measure below converts the vertices to it, or reads them as such)
+    vertices = np.asarray(vertices, np.float64)
     sp = _spacing(None, vertices, fa)
     starts, fold = fa.starts, fa.fold
     # fold_strength
@@ -1432,6 +1434,9 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
 
 
 _TURN = np.array([-1.0, 1.0])
+#: a scalar of ones for OpenCV's per-element operations (``cv2.max(a, _ONES4)``: ``np.maximum(a,
+#: 1)``)
+_ONES4 = (1.0, 1.0, 1.0, 1.0)
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 
@@ -1446,12 +1451,12 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     drawn in the same order as one at a time (the unfold bands, then the folds).
     """
     fa = _fast(face)
-    s, un, su = _both_strengths(fa, vertices)
+    V = np.asarray(vertices, np.float64)
+    s, un, su = _both_strengths(fa, V)
     any_fold = bool(np.count_nonzero(s > _MIN_STRENGTH))
     any_unfold = bool(np.count_nonzero(un > _MIN_UNFOLD))
     if not any_fold and not any_unfold:
         return res
-    V = np.asarray(vertices, np.float64)
     out = res.image
     bbox = res.bbox
     # the segments of the fold samples, followed by the valley's on the deformed mesh when
@@ -2210,7 +2215,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
         # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
         cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
-                         np.maximum(view, 1), None, 1.0, cv2.CV_32F)
+                         cv2.max(view, _ONES4), None, 1.0, cv2.CV_32F)
         np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)  # (>= 1: never darkened)
         gain -= 1.0
         gain *= spread3(band)

@@ -892,6 +892,8 @@ class _Fast:
     segc: _SegConstants | None = None
     both: tuple | None = None
     gains: dict = field(default_factory=dict)
+    # per set of drawn groups (valleys', folds'): its :class:`_DrawnSegments`
+    hits: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1434,9 +1436,6 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
 
 
 _TURN = np.array([-1.0, 1.0])
-#: a scalar of ones for OpenCV's per-element operations (``cv2.max(a, _ONES4)``: ``np.maximum(a,
-#: 1)``)
-_ONES4 = (1.0, 1.0, 1.0, 1.0)
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 
@@ -1614,41 +1613,47 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
         sv = np.concatenate((s, un)) if su is None else su
         sa_i, sb_i, thr = sc.sa2, sc.sb2, sc.thr2
         starts = sc.starts2
-    (t0, t1, t2), (b0, b1, b2), seg_a, seg_b = samples
-    # the segments' rows: start x y (0, 1), direction (2, 3), unit normal (-dy, dx) (4, 5),
-    # the strengths at their ends (6, 7: start, end - start) and length (8)
+    end = sc.nonempty[-1][2] + (m if un is not None else 0)
+    hit = np.logical_or.reduceat(
+        (np.maximum(sv.take(sa_i), sv.take(sb_i)) > thr)[:end], starts).tolist()
+    ng = len(sc.nonempty)
+    # (hit: the fold groups', then the valley's when unfolds are drawn)
+    folds = [grp for grp, h in zip(sc.nonempty, hit[:ng], strict=True) if h]
+    valleys = [grp for grp, h in zip(sc.nonempty, hit[ng:], strict=False) if h]
+    if not folds and not valleys:
+        return [], [], []
+    # the segments of the groups drawn (the valleys', then the folds'), as one array
+    key = (tuple(g for g, _, _ in valleys), tuple(g for g, _, _ in folds))
+    hl = fa.hits.get(key)
+    if hl is None:
+        hl = fa.hits[key] = _drawn_segments(
+            samples,
+            [(m + g0, m + g1) for _, g0, g1 in valleys] + [(g0, g1) for _, g0, g1 in folds])
+    # their rows: start x y (0, 1), direction (2, 3), unit normal (-dy, dx) (4, 5), the
+    # strengths at their ends (6, 7: start, end - start) and length (8)
     VT = V.T
-    pos = VT.take(t0, 1) * b0.T + VT.take(t1, 1) * b1.T + VT.take(t2, 1) * b2.T
-    Z = np.empty((9, len(seg_a)))
-    pos.take(seg_a, 1, out=Z[0:2])
-    np.subtract(pos.take(seg_b, 1), Z[0:2], out=Z[2:4])
+    (t0, t1, t2), (b0, b1, b2) = hl.tri, hl.bary
+    pos = VT.take(t0, 1) * b0 + VT.take(t1, 1) * b1 + VT.take(t2, 1) * b2
+    Z = np.empty((9, len(hl.a)))
+    pos.take(hl.a, 1, out=Z[0:2])
+    np.subtract(pos.take(hl.b, 1), Z[0:2], out=Z[2:4])
     dx, dy = Z[2], Z[3]
     L = Z[8]
     np.sqrt(np.add(dx * dx, dy * dy, out=L), out=L)
     np.multiply(Z[3:1:-1], _TURN_COL, out=Z[4:6])
     Z[4:6] /= np.maximum(L, 1e-9)
-    sv.take(sa_i, out=Z[6])
-    sb = sv.take(sb_i)
-    end = sc.nonempty[-1][2] + (m if un is not None else 0)
-    hit = np.logical_or.reduceat((np.maximum(Z[6], sb) > thr)[:end], starts).tolist()
-    ng = len(sc.nonempty)
-    # (hit and the longest segments: the fold groups', then the valley's when unfolds are drawn)
-    folds = [grp for grp, h in zip(sc.nonempty, hit[:ng], strict=True) if h]
-    valleys = [grp for grp, h in zip(sc.nonempty, hit[ng:], strict=False) if h]
-    if not folds and not valleys:
-        return [], [], []
-    np.subtract(sb, Z[6], out=Z[7])
-    # each group's longest segment (the same reductions: one per group in both halves)
-    longest = np.maximum.reduceat(L[:end], starts).tolist()
-    lf = {g: x for (g, _, _), x in zip(sc.nonempty, longest[:ng], strict=True)}
-    lv = {g: x for (g, _, _), x in zip(sc.nonempty, longest[ng:], strict=False)}
+    sv.take(hl.sa, out=Z[6])
+    np.subtract(sv.take(hl.sb), Z[6], out=Z[7])
+    # each drawn group's longest segment
+    longest = np.maximum.reduceat(L, hl.starts).tolist()
+    nv = len(valleys)
     # per canvas: (first segment, end, K, ridge offset, ridge weight); its job's data, and
     # the pad of its box around its points and its scale (1/f resolution)
     spec: list[tuple[int, int, int, float, float]] = []
     pads: list[float] = []
     fs: list[int] = []
     bands = []
-    for g, g0, g1 in valleys:
+    for i, (g, _, _) in enumerate(valleys):
         sb_ = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
         if maps is None:
             got = None
@@ -1658,16 +1663,17 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
                 got = fa.gains[g] = _photo_gain(face, g)
         # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
         f = 1 if got is None else max(1, int(sb_ / 1.5))
-        K = int(min(max(math.ceil(lv[g] / (0.5 * f)), 1), 64))
-        spec.append((m + g0, m + g1, K, 0.0, 1.0))
+        K = int(min(max(math.ceil(longest[i] / (0.5 * f)), 1), 64))
+        spec.append((*hl.ranges[i], K, 0.0, 1.0))
         bands.append((g, got, f, K))
         pads.append(3.0 * sb_)
         fs.append(f)
     lines = []
-    for g, g0, g1 in folds:
+    for j, (g, _, _) in enumerate(folds):
         sig = float(fa.sig[g])
         f = _fold_scale(float(fa.dsig[g]))
-        K = int(min(max(math.ceil(lf[g] / (min(0.5, 0.5 * sig) * f)), 1), 64))
+        K = int(min(max(math.ceil(longest[nv + j] / (min(0.5, 0.5 * sig) * f)), 1), 64))
+        g0, g1 = hl.ranges[nv + j]
         spec += [(g0, g1, K, 0.0, 1.0), (g0, g1, K, float(fa.off[g]), float(fa.ridge[g]))]
         lines.append((g, f))
         pads.append(3.0 * (1.6 * float(fa.dsig[g])) + 2.0)
@@ -1764,6 +1770,41 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
     return unfolds, jobs, _splat_rows(shapes, xy, w, cpt, sub)
 
 
+@dataclass(frozen=True, eq=False)
+class _DrawnSegments:
+    """The segments a frame's canvases read (:func:`_drawn_segments`), in order: per segment
+    its start and end in the samples placed (``a``, ``b``) and in the strengths (``sa``,
+    ``sb``); the samples placed, 3 x (n,) vertex indices ``tri`` and 3 x (1, n) barycentric
+    weights ``bary``; per drawn group its first segment ``starts`` and range ``ranges``."""
+
+    a: np.ndarray
+    b: np.ndarray
+    sa: np.ndarray
+    sb: np.ndarray
+    tri: tuple[np.ndarray, ...]
+    bary: tuple[np.ndarray, ...]
+    starts: list[int]
+    ranges: list[tuple[int, int]]
+
+
+def _drawn_segments(samples: tuple, ranges: list[tuple[int, int]]) -> _DrawnSegments:
+    """:class:`_DrawnSegments` of the segments ``ranges`` (first, end) of ``samples``
+    (:func:`_layout`'s; a segment's samples are also its strengths' indices), each sample
+    they end at placed once (kept per fast plan and set of drawn groups: a frame draws the
+    groups of the frames before it)."""
+    tri, bary, seg_a, seg_b = samples
+    segs = np.concatenate([np.arange(g0, g1) for g0, g1 in ranges])
+    sa, sb = seg_a[segs], seg_b[segs]
+    used, inv = np.unique(np.concatenate([sa, sb]), return_inverse=True)
+    n = [g1 - g0 for g0, g1 in ranges]
+    first = list(itertools.accumulate([0, *n[:-1]]))
+    return _DrawnSegments(
+        inv[:len(segs)], inv[len(segs):], sa, sb,
+        tuple(np.ascontiguousarray(t[used]) for t in tri),
+        tuple(np.ascontiguousarray(b[used, 0][None]) for b in bary), first,
+        [(f, f + k) for f, k in zip(first, n, strict=True)])
+
+
 #: the turn of a direction's rows (x, y) reversed, (dy, dx), to its normal (-dy, dx)
 _TURN_COL = np.array([[-1.0], [1.0]])
 
@@ -1774,7 +1815,9 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     """:func:`_splat_stacked` of points given as rows ``xy`` (2, n) (x, y); ``sub``: each
     canvas's origin, whole pixels, to be subtracted from its points (an offset of their
     pixels: their fractions are the same, a float's less a whole number below it being
-    exact), else the points are the canvases' own. The same values."""
+    exact), else the points are the canvases' own. The same values: every canvas a block of
+    its own in one array, ``h w`` long (its rows as long as its own, not the widest canvas's:
+    its pixels take the same weights in the same order, and the canvas is contiguous)."""
     P0 = np.floor(xy)
     F = xy - P0
     ip = P0.astype(np.int64)
@@ -1786,24 +1829,26 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     ws = np.empty((2, 2, n))
     np.multiply(1 - fy, wx, out=ws[0])
     np.multiply(fy, wx, out=ws[1])
-    wide = max(wd for _, wd in shapes)
-    top = list(itertools.accumulate([0, *[h for h, _ in shapes[:-1]]]))
-    total = (top[-1] + shapes[-1][0]) * wide
+    # per canvas its first element, row length and the offset of its points' pixels
+    size = [h * wd for h, wd in shapes]
+    first = list(itertools.accumulate([0, *size[:-1]]))
+    total = first[-1] + size[-1]
     if sub is None:
-        off = [t * wide for t in top]
+        off = first
     else:
-        off = [(t - int(y0)) * wide - int(x0) for t, (x0, y0) in zip(top, sub, strict=True)]
-    base = ip[1] * wide
+        off = [o - int(y0) * wd - int(x0)
+               for o, (_, wd), (x0, y0) in zip(first, shapes, sub, strict=True)]
+    wide = np.array([wd for _, wd in shapes]).take(cpt)
+    idx = np.empty((4, n), np.int64)
+    base = idx[0]
+    np.multiply(ip[1], wide, out=base)
     base += ip[0]
     base += np.array(off).take(cpt)
-    idx = np.empty((4, n), np.int64)
-    idx[0] = base
     np.add(base, 1, out=idx[1])
     np.add(base, wide, out=idx[2])
-    np.add(base, wide + 1, out=idx[3])
+    np.add(idx[2], 1, out=idx[3])
     acc = np.bincount(idx.ravel(), ws.ravel(), minlength=total)[:total].astype(np.float32)
-    acc = acc.reshape(-1, wide)
-    return [acc[t:t + h, :wd] for t, (h, wd) in zip(top, shapes, strict=True)]
+    return [acc[o:o + h * wd].reshape(h, wd) for o, (h, wd) in zip(first, shapes, strict=True)]
 
 
 def _splat_stacked(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
@@ -2215,7 +2260,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
         # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
         cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
-                         cv2.max(view, _ONES4), None, 1.0, cv2.CV_32F)
+                         np.maximum(view, 1), None, 1.0, cv2.CV_32F)
         np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)  # (>= 1: never darkened)
         gain -= 1.0
         gain *= spread3(band)

@@ -1285,7 +1285,11 @@ def _spacing(face: Face | None, vertices: np.ndarray, fa: _Fast | None = None) -
     n = at[0]
     n += at[1]
     r = np.divide(det, np.maximum(np.sqrt(n, out=n), 1e-6, out=n), out=det)
-    return (r[0] + r[1] + r[2] + r[3]) * 0.25  # the mean over the 4 probes
+    # the mean over the 4 probes: ((r0 + r1) + r2) + r3, a reduction over the outer axis
+    # adding the rows in order
+    got = np.add.reduce(r, 0)
+    got *= 0.25
+    return got
 
 
 def _smooth_taper(face: Face, s: np.ndarray, own: bool = False) -> np.ndarray:
@@ -1373,8 +1377,17 @@ def _both_strengths(fa: _Fast, vertices: np.ndarray
         _add_effort(fa, c, vertices)
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(fold)
-    c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
-    s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
+    c = fa.keep * c
+    c += fa.spread * cmax
+    c -= fa.dead
+    np.maximum(c, 0.0, out=c)
+    # depth (1 - exp(-(c / c0)^2)), in place
+    c /= fa.c0
+    c *= c
+    np.negative(c, out=c)
+    np.exp(c, out=c)
+    np.subtract(1.0, c, out=c)
+    s = np.multiply(fa.depth, c, out=c)
     if (fa.own_w is None or fa.own_div is None or fa.own_fade is None or fa.edge2 is None
             or fa.taper2 is None):
         s = _twins(fa, np.where(fa.edge, s, _correlate(s, _SMOOTH_REV, "same")) * fa.taper)

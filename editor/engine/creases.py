@@ -1448,7 +1448,6 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
 
-_TURN = np.array([-1.0, 1.0])
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 

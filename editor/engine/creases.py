@@ -505,16 +505,6 @@ def _on_mesh(V: np.ndarray, tri: tuple[np.ndarray, ...], bary: tuple[np.ndarray,
     return V.take(t0, 0) * b0 + V.take(t1, 0) * b1 + V.take(t2, 0) * b2
 
 
-def _segments(pos: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Every segment ``seg_a`` -> ``seg_b`` of the samples ``pos`` at once: its start (M, 2),
-    direction (M, 2) and length (M,)."""
-    a = pos.take(seg_a, 0)
-    d = pos.take(seg_b, 0) - a
-    dx, dy = d[:, 0], d[:, 1]
-    return a, d, np.sqrt(dx * dx + dy * dy)  # (an axis-1 sum of (n, 2) costs more)
-
-
 def _lines_normals(lines: list[np.ndarray]) -> list[np.ndarray]:
     """Unit normals (n, 2) of each polyline (n >= 2): its tangent turned by +90 degrees, all
     in one pass over their concatenated points (the same values line by line: a point's
@@ -892,6 +882,18 @@ class _Fast:
     skin_shift: list[np.ndarray] = field(init=False)  # per group (3, 4) ``cv2.transform``: - skin
     # per group (3, 3) ``cv2.transform`` of (light, dark, 1) to the per-channel gain
     gain_mat: list[np.ndarray] = field(init=False)
+    # what the per-frame path reads of the plan (its own arrays): each fold's first sample,
+    # each sample's fold and its fade
+    starts: np.ndarray = field(init=False)
+    fold: np.ndarray = field(init=False)
+    taper: np.ndarray = field(init=False)
+    # looked up once per face on the first frame that needs them (the same objects as the
+    # per-face caches' of :func:`_seg_constants`, :func:`_both_samples` and :func:`_photo_gain`)
+    segc: _SegConstants | None = None
+    both: tuple | None = None
+    gains: dict = field(default_factory=dict)
+    # per set of drawn groups (valleys', folds'): its :class:`_DrawnSegments`
+    hits: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1082,6 +1084,7 @@ def _fast(face: Face) -> _Fast:
     mats[:, :, 1] = -k1s[:, None] * tint
     mats[:, :, 2] = 1.0
     f.gain_mat = list(mats)
+    f.starts, f.fold, f.taper = p.start[:-1], p.fold, p.taper
     if face.has_expression:  # the photo's own folds: how much its neutral spreads them
         g = np.log(np.maximum(_spacing(face, rest, f), 1e-6))
         f.own_gap = np.maximum.reduceat(g, p.start[:-1])
@@ -1250,11 +1253,13 @@ def _spread(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     return r.mean(1)
 
 
-def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.ndarray:
+def _spacing(face: Face | None, vertices: np.ndarray, fa: _Fast | None = None) -> np.ndarray:
     """(N,) spacing of skin lines parallel to each fold on ``vertices``, relative to the photo's
     mesh (1 = as in the photo, < 1 compressed, > 1 stretched), mean over its probes (``fa``:
-    the face's :class:`_Fast` while it is being built)."""
+    the face's :class:`_Fast`, when known or while it is being built; then ``face`` is not
+    read)."""
     if fa is None:
+        assert face is not None
         fa = _fast(face)
     V = np.asarray(vertices, np.float64)
     # (laid out as (x / y, ..., triangle or sample): every operation below runs along one
@@ -1280,7 +1285,11 @@ def _spacing(face: Face, vertices: np.ndarray, fa: _Fast | None = None) -> np.nd
     n = at[0]
     n += at[1]
     r = np.divide(det, np.maximum(np.sqrt(n, out=n), 1e-6, out=n), out=det)
-    return (r[0] + r[1] + r[2] + r[3]) * 0.25  # the mean over the 4 probes
+    # the mean over the 4 probes: ((r0 + r1) + r2) + r3, a reduction over the outer axis
+    # adding the rows in order
+    got = np.add.reduce(r, 0)
+    got *= 0.25
+    return got
 
 
 def _smooth_taper(face: Face, s: np.ndarray, own: bool = False) -> np.ndarray:
@@ -1346,11 +1355,18 @@ def unfold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None
 def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`fold_strength` and :func:`unfold_strength` of ``vertices`` together (one
     :func:`_spacing`, the per-face constants looked up once): the same values."""
-    p = crease_plan(face)
-    fa = _fast(face)
-    sp = _spacing(face, vertices)
-    starts = p.start[:-1]
-    edge = fa.edge
+    s, un, _ = _both_strengths(_fast(face), vertices)
+    return s, un
+
+
+def _both_strengths(fa: _Fast, vertices: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`_strengths` of the face of ``fa``, and both as one array (``s`` then ``un``,
+    of which the two are views; None when the photo has no own fold)."""
+    # (float64 once: every measure below converts the vertices to it, or reads them as such)
+    vertices = np.asarray(vertices, np.float64)
+    sp = _spacing(None, vertices, fa)
+    starts, fold = fa.starts, fa.fold
     # fold_strength
     c = 1.0 - sp
     if len(fa.neg):
@@ -1360,19 +1376,28 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     if len(fa.effort_idx):
         _add_effort(fa, c, vertices)
     c[c < _C_TOL] = 0.0
-    cmax = np.maximum.reduceat(c, starts).take(p.fold)
-    c = np.maximum(fa.keep * c + fa.spread * cmax - fa.dead, 0.0)
-    s = fa.depth * (1.0 - np.exp(-((c / fa.c0) ** 2)))
+    cmax = np.maximum.reduceat(c, starts).take(fold)
+    c = fa.keep * c
+    c += fa.spread * cmax
+    c -= fa.dead
+    np.maximum(c, 0.0, out=c)
+    # depth (1 - exp(-(c / c0)^2)), in place
+    c /= fa.c0
+    c *= c
+    np.negative(c, out=c)
+    np.exp(c, out=c)
+    np.subtract(1.0, c, out=c)
+    s = np.multiply(fa.depth, c, out=c)
     if (fa.own_w is None or fa.own_div is None or fa.own_fade is None or fa.edge2 is None
             or fa.taper2 is None):
-        s = _twins(fa, np.where(edge, s, _correlate(s, _SMOOTH_REV, "same")) * p.taper)
-        return s, np.zeros(len(fa.depth))
+        s = _twins(fa, np.where(fa.edge, s, _correlate(s, _SMOOTH_REV, "same")) * fa.taper)
+        return s, np.zeros(len(fa.depth)), None
     # unfold_strength (its per-fold constants taken once per face)
     e = np.log(np.maximum(sp, 1e-6))
     e[e < _C_TOL] = 0.0
     esum = np.add.reduceat(e * fa.own_w, starts)
     esum /= fa.own_div
-    u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(p.fold)
+    u = (np.minimum(np.maximum(esum, 0), 1, out=esum) * fa.own_fade).take(fold)
     # both smoothed along their lines and tapered as one array (s then u): each sample's
     # 5-tap sum is the one of its own array, but for the last two samples of s and the first
     # two of u, which are line ends (``edge``: not smoothed)
@@ -1380,7 +1405,8 @@ def _strengths(face: Face, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray
     su = np.where(fa.edge2, su, _correlate(su, _SMOOTH_REV, "same"))
     su *= fa.taper2
     n = len(s)
-    return _twins(fa, su[:n]), su[n:]
+    _twins(fa, su[:n])  # (in place)
+    return su[:n], su[n:], su
 
 
 #: the photo's own compression (log spacing of its neutral mesh) below which there is no fold
@@ -1422,7 +1448,6 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
     return acc[: h * wd].reshape(h, wd), acc[h * wd:].reshape(h, wd)
 
 
-_TURN = np.array([-1.0, 1.0])
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
 
 
@@ -1436,30 +1461,32 @@ def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResu
     the mesh only: they are laid out and splatted together first (:func:`_layout`), then
     drawn in the same order as one at a time (the unfold bands, then the folds).
     """
-    s, un = _strengths(face, vertices)
+    fa = _fast(face)
+    V = np.asarray(vertices, np.float64)
+    s, un, su = _both_strengths(fa, V)
     any_fold = bool(np.count_nonzero(s > _MIN_STRENGTH))
     any_unfold = bool(np.count_nonzero(un > _MIN_UNFOLD))
     if not any_fold and not any_unfold:
         return res
-    fa = _fast(face)
-    V = np.asarray(vertices, np.float64)
     out = res.image
     bbox = res.bbox
     # the segments of the fold samples, followed by the valley's on the deformed mesh when
     # unfolds are drawn (both sets in one gather and one measurement: the same values row
     # by row)
     if any_unfold:
-        tri, bary, seg_a, seg_b = _both_samples(face)
-        segs = _segments(_on_mesh(V, tri, bary), seg_a, seg_b)
+        if fa.both is None:
+            fa.both = _both_samples(face)
+        samples = fa.both
     else:
-        segs = _segments(_on_mesh(V, fa.sample_tri, fa.bary), fa.seg_a, fa.seg_b)
-    unfolds, folds, drawn = _layout(face, segs, s, un if any_unfold else None, out.shape[:2],
-                                    res.maps)
+        samples = (fa.sample_tri, fa.bary, fa.seg_a, fa.seg_b)
+    unfolds, folds, drawn = _layout(face, V, samples, s, un if any_unfold else None,
+                                    out.shape[:2], res.maps, fa, su)
     if not drawn:
         return res
     q = _frame_blocks(face)
     if unfolds:
-        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation)
+        bbox = _unfold_draw(face, out, unfolds, drawn, bbox, res.maps, res.interpolation, fa,
+                            q)
     for g, box, k, f in folds:
         bbox = _fold_draw(fa, out, g, box, drawn[k], drawn[k + 1], bbox, f, q)
     if bbox is None or bbox == res.bbox:  # None: res.bbox is None and nothing was drawn
@@ -1489,6 +1516,7 @@ class _SegConstants:
 
     nonempty: list[tuple[int, int, int]]
     starts: list[int]
+    starts2: list[int]  # ``starts`` followed by the same shifted to the valley's segments
     sa2: np.ndarray
     sb2: np.ndarray
     thr2: np.ndarray
@@ -1503,8 +1531,9 @@ def _seg_constants(fa: _Fast) -> _SegConstants:
     if got is None:
         nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
         n, m = len(fa.depth), len(fa.seg_a)
+        starts = [g0 for _, g0, _ in nonempty]
         got = _SegConstants(
-            nonempty, [g0 for _, g0, _ in nonempty],
+            nonempty, starts, starts + [g0 + m for g0 in starts],
             np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]),
             np.concatenate([np.full(m, _MIN_STRENGTH), np.full(m, _MIN_UNFOLD)]))
         _SEGS[fa] = got
@@ -1515,16 +1544,15 @@ def _seg_constants(fa: _Fast) -> _SegConstants:
 class _Subsamples:
     """The sub-samples of a frame's canvases (:func:`_subsamples`), canvas after canvas, each
     segment's ``K`` ones in order: per sub-sample its segment ``si``, its place along it
-    ``uu`` (``(k + 0.5) / K``, also as a column ``uu2``), ``K`` itself as a float ``kk``, the
-    ridge's offset from the line ``rm2`` (a column; 0 off a ridge) and its weight factor ``wm``
+    ``uu`` (``(k + 0.5) / K``), ``K`` itself as a float ``kk``, the
+    ridge's offset from the line ``rm`` (0 off a ridge) and its weight factor ``wm``
     (1 off a ridge); per canvas its first sub-sample ``cut`` and its count ``count``, and per
     sub-sample its canvas ``cpt``."""
 
     si: np.ndarray
     uu: np.ndarray
-    uu2: np.ndarray
     kk: np.ndarray
-    rm2: np.ndarray
+    rm: np.ndarray
     wm: np.ndarray
     cut: list[int]
     count: list[int]
@@ -1546,7 +1574,7 @@ def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsam
         count.append(n)
     cat = np.concatenate
     u = cat(uu)
-    got = _Subsamples(cat(si), u, u[:, None], cat(kk), cat(rm)[:, None], cat(wm),
+    got = _Subsamples(cat(si), u, cat(kk), cat(rm), cat(wm),
                       list(itertools.accumulate([0, *count[:-1]])), count,
                       np.arange(len(spec)).repeat(count))
     for a in vars(got).values():
@@ -1555,9 +1583,10 @@ def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsam
     return got
 
 
-def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.ndarray,
+def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
             un: np.ndarray | None, shape: tuple[int, int],
-            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None
+            maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
+            fa: _Fast | None = None, su: np.ndarray | None = None
             ) -> tuple[list[tuple], list[tuple[int, tuple[int, int, int, int], int, int]],
                        list[np.ndarray]]:
     """Every canvas of the frame, laid out and splatted: the bands of :func:`_unfold_draw`
@@ -1569,96 +1598,147 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
     canvases at 1/f resolution, :func:`_fold_scale`); and the canvases splatted
     (:func:`_splat_many`'s values).
 
-    ``segs``: :func:`_segments` of the fold samples on the deformed mesh, followed by those
-    of the valley's when ``un`` is given (the unfold shares; None: no unfold is drawn). All
-    canvases' sub-samples are placed, weighted and splatted as one array (the same values,
-    point by point, as canvas by canvas)."""
-    fa = _fast(face)
-    sc = _seg_constants(fa)
+    ``samples``: ``(tri, bary, seg_a, seg_b)`` of the fold samples (:func:`_on_mesh`'s
+    arguments and the segments between them, ``seg_a`` -> ``seg_b``), followed by those of the
+    valley's when ``un`` is given (the unfold shares; None: no unfold is drawn), placed on the
+    deformed mesh ``V`` (float64). All canvases' sub-samples are placed, weighted and
+    splatted as one array (the same values, point by point, as canvas by canvas): the samples
+    and the segments' data as rows (x, y along one contiguous axis; :func:`_on_mesh`'s values
+    and each segment's start, direction and length ``sqrt(dx dx + dy dy)``), every
+    segment's start, direction, normal, end strengths and length gathered per sub-sample in
+    one ``take``. ``fa``: the face's :class:`_Fast` when known; ``su``: ``s`` followed by
+    ``un`` as one array when known (of which both are views)."""
+    if fa is None:
+        fa = _fast(face)
+    sc = fa.segc
+    if sc is None:
+        sc = fa.segc = _seg_constants(fa)
+    if not sc.nonempty:
+        return [], [], []
     H, W = shape
-    A, D, L = segs
     m = len(fa.seg_a)
     thr: float | np.ndarray
     if un is None:  # (the fold segments only)
         sv, sa_i, sb_i, thr = s, fa.seg_a, fa.seg_b, _MIN_STRENGTH
         starts = sc.starts
     else:
-        sv, sa_i, sb_i, thr = np.concatenate((s, un)), sc.sa2, sc.sb2, sc.thr2
-        starts = sc.starts + [g0 + m for g0 in sc.starts]
-    sa, sb = sv.take(sa_i), sv.take(sb_i)
-    if not sc.nonempty:
-        return [], [], []
+        sv = np.concatenate((s, un)) if su is None else su
+        sa_i, sb_i, thr = sc.sa2, sc.sb2, sc.thr2
+        starts = sc.starts2
     end = sc.nonempty[-1][2] + (m if un is not None else 0)
-    hit = np.logical_or.reduceat((np.maximum(sa, sb) > thr)[:end], starts).tolist()
+    hit = np.logical_or.reduceat(
+        (np.maximum(sv.take(sa_i), sv.take(sb_i)) > thr)[:end], starts).tolist()
     ng = len(sc.nonempty)
-    # (hit and the longest segments: the fold groups', then the valley's when unfolds are drawn)
+    # (hit: the fold groups', then the valley's when unfolds are drawn)
     folds = [grp for grp, h in zip(sc.nonempty, hit[:ng], strict=True) if h]
     valleys = [grp for grp, h in zip(sc.nonempty, hit[ng:], strict=False) if h]
     if not folds and not valleys:
         return [], [], []
-    # each group's longest segment (the same reductions: one per group in both halves)
-    longest = np.maximum.reduceat(L[:end], starts).tolist()
-    names = [g for g, _, _ in sc.nonempty]
-    lf = dict(zip(names, longest[:ng], strict=True))
-    lv = dict(zip(names, longest[ng:], strict=False))
-    # per canvas: (first segment, end, K, ridge offset, ridge weight); its job's data
+    # the segments of the groups drawn (the valleys', then the folds'), as one array
+    key = (tuple(g for g, _, _ in valleys), tuple(g for g, _, _ in folds))
+    hl = fa.hits.get(key)
+    if hl is None:
+        hl = fa.hits[key] = _drawn_segments(
+            samples,
+            [(m + g0, m + g1) for _, g0, g1 in valleys] + [(g0, g1) for _, g0, g1 in folds])
+    # their rows: start x y (0, 1), direction (2, 3), unit normal (-dy, dx) (4, 5), the
+    # strengths at their ends (6, 7: start, end - start) and length (8)
+    VT = V.T
+    (t0, t1, t2), (b0, b1, b2) = hl.tri, hl.bary
+    pos = VT.take(t0, 1) * b0 + VT.take(t1, 1) * b1 + VT.take(t2, 1) * b2
+    Z = np.empty((9, len(hl.a)))
+    pos.take(hl.a, 1, out=Z[0:2])
+    np.subtract(pos.take(hl.b, 1), Z[0:2], out=Z[2:4])
+    dx, dy = Z[2], Z[3]
+    L = Z[8]
+    np.sqrt(np.add(dx * dx, dy * dy, out=L), out=L)
+    np.multiply(Z[3:1:-1], _TURN_COL, out=Z[4:6])
+    Z[4:6] /= np.maximum(L, 1e-9)
+    sv.take(hl.sa, out=Z[6])
+    np.subtract(sv.take(hl.sb), Z[6], out=Z[7])
+    # each drawn group's longest segment
+    longest = np.maximum.reduceat(L, hl.starts).tolist()
+    nv = len(valleys)
+    # per canvas: (first segment, end, K, ridge offset, ridge weight); its job's data, and
+    # the pad of its box around its points and its scale (1/f resolution)
     spec: list[tuple[int, int, int, float, float]] = []
+    pads: list[float] = []
+    fs: list[int] = []
     bands = []
-    for g, g0, g1 in valleys:
+    for i, (g, _, _) in enumerate(valleys):
         sb_ = max(2.5 * float(fa.sig[g]), 1.0)  # half-width of the band that is lifted
-        got = None if maps is None else _photo_gain(face, g)
+        if maps is None:
+            got = None
+        else:
+            got = fa.gains.get(g, fa)
+            if got is fa:
+                got = fa.gains[g] = _photo_gain(face, g)
         # the band is smooth (a line blurred by sb): drawn at 1/f resolution on large faces
         f = 1 if got is None else max(1, int(sb_ / 1.5))
-        K = int(min(max(math.ceil(lv[g] / (0.5 * f)), 1), 64))
-        spec.append((m + g0, m + g1, K, 0.0, 1.0))
-        bands.append((g, sb_, got, f, K))
+        K = int(min(max(math.ceil(longest[i] / (0.5 * f)), 1), 64))
+        spec.append((*hl.ranges[i], K, 0.0, 1.0))
+        bands.append((g, got, f, K))
+        pads.append(3.0 * sb_)
+        fs.append(f)
     lines = []
-    for g, g0, g1 in folds:
+    for j, (g, _, _) in enumerate(folds):
         sig = float(fa.sig[g])
         f = _fold_scale(float(fa.dsig[g]))
-        K = int(min(max(math.ceil(lf[g] / (min(0.5, 0.5 * sig) * f)), 1), 64))
+        K = int(min(max(math.ceil(longest[nv + j] / (min(0.5, 0.5 * sig) * f)), 1), 64))
+        g0, g1 = hl.ranges[nv + j]
         spec += [(g0, g1, K, 0.0, 1.0), (g0, g1, K, float(fa.off[g]), float(fa.ridge[g]))]
         lines.append((g, f))
+        pads.append(3.0 * (1.6 * float(fa.dsig[g])) + 2.0)
+        fs += [f, f]
     ss = _subsamples(tuple(spec))
-    si = ss.si
-    # every sub-sample at once: a + d u (+ the ridge's offset along the normal (-dy, dx) / L)
-    nrm = D[:, ::-1] * _TURN / np.maximum(L, 1e-9)[:, None]
-    xy = A.take(si, 0) + D.take(si, 0) * ss.uu2 + nrm.take(si, 0) * ss.rm2
-    dsv = sb - sa
-    w = (sa.take(si) + dsv.take(si) * ss.uu) * (L.take(si) / ss.kk) * ss.wm
+    # every sub-sample at once: a + d u (+ the ridge's offset along the normal), its weight
+    # (sa + (sb - sa) u) L / K (times the ridge's)
+    Zs = Z.take(ss.si, 1)
+    uu = ss.uu
+    xy = Zs[2:4] * uu
+    xy += Zs[0:2]
+    xy += Zs[4:6] * ss.rm
+    w = Zs[7] * uu
+    w += Zs[6]
+    w *= Zs[8] / ss.kk
+    w *= ss.wm
     # the extent of each canvas's points in one pass
-    lo = np.minimum.reduceat(xy, ss.cut).tolist()
-    hi = np.maximum.reduceat(xy, ss.cut).tolist()
-    boxes: list[tuple[int, int, int, int] | None] = []
-    for c, band in enumerate(bands):
-        sb_ = band[1]
-        (lx, ly), (hx, hy) = lo[c], hi[c]
-        x0, y0 = max(int(lx - 3.0 * sb_), 0), max(int(ly - 3.0 * sb_), 0)
-        x1, y1 = min(int(hx + 3.0 * sb_) + 1, W), min(int(hy + 3.0 * sb_) + 1, H)
-        boxes.append(None if x1 - x0 < 4 or y1 - y0 < 4 else (x0, y0, x1, y1))
+    (lx_, ly_), (hx_, hy_) = (np.minimum.reduceat(xy, ss.cut, 1).tolist(),
+                              np.maximum.reduceat(xy, ss.cut, 1).tolist())
     nb = len(bands)
-    for j, (g, _) in enumerate(lines):
-        (lx, ly), (rx, ry) = lo[nb + 2 * j], lo[nb + 2 * j + 1]
-        (hx, hy), (sx, sy) = hi[nb + 2 * j], hi[nb + 2 * j + 1]
-        pad = 3.0 * (1.6 * float(fa.dsig[g])) + 2.0
-        x0, y0 = max(int(min(lx, rx) - pad), 0), max(int(min(ly, ry) - pad), 0)
-        x1, y1 = min(int(max(hx, sx) + pad) + 1, W), min(int(max(hy, sy) + pad) + 1, H)
+    boxes: list[tuple[int, int, int, int] | None] = []
+    for c in range(nb):
+        pad = pads[c]
+        x0, y0 = max(int(lx_[c] - pad), 0), max(int(ly_[c] - pad), 0)
+        x1, y1 = min(int(hx_[c] + pad) + 1, W), min(int(hy_[c] + pad) + 1, H)
+        boxes.append(None if x1 - x0 < 4 or y1 - y0 < 4 else (x0, y0, x1, y1))
+    for j in range(len(lines)):
+        c = nb + 2 * j
+        pad = pads[nb + j]
+        x0 = max(int(min(lx_[c], lx_[c + 1]) - pad), 0)
+        y0 = max(int(min(ly_[c], ly_[c + 1]) - pad), 0)
+        x1 = min(int(max(hx_[c], hx_[c + 1]) + pad) + 1, W)
+        y1 = min(int(max(hy_[c], hy_[c + 1]) + pad) + 1, H)
         box = None if x1 - x0 < 2 or y1 - y0 < 2 else (x0, y0, x1, y1)
         boxes += [box, box]
     if None in boxes:  # (a box off the image: its canvases left out; rare)
         keep = np.array([b is not None for b in boxes]).repeat(ss.count)
         ci = np.cumsum([b is not None for b in boxes]) - 1
-        xy, w = xy[keep], w[keep]
+        xy, w = xy[:, keep], w[keep]
         cpt = ci[ss.cpt[keep]]
         count = [n for n, b in zip(ss.count, boxes, strict=True) if b is not None]
         cut = list(itertools.accumulate([0, *count[:-1]]))
     else:
         cpt, count, cut = ss.cpt, ss.count, ss.cut
-    # each canvas's shape and its points' shift into its pixels (see _on_canvas)
+    # each canvas's shape and its points' shift into its pixels (see _on_canvas): at the
+    # photo's resolution by the box's corner, whole pixels, which the splat takes as an
+    # offset into its canvas (the same pixels and fractions as the shifted points')
     shapes: list[tuple[int, int]] = []
     sub: list[tuple[float, float]] = []
-    div, post, safe = [], [], True
-    fs = [b[3] for b in bands] + [f for _, f in lines for _ in (0, 1)]
+    div: list[float] = []
+    post: list[float] = []
+    safe = True
+    coarse = max(fs) > 1
     for box, f in zip(boxes, fs, strict=True):
         if box is None:
             continue
@@ -1673,19 +1753,15 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
             sub.append((x0 - 0.5, y0 - 0.5))
             post.append(0.5)
         div.append(float(f))
-    q = xy - np.array(sub).take(cpt, 0)
-    if max(fs) > 1:
-        q /= np.array(div).take(cpt)[:, None]
-        q -= np.array(post).take(cpt)[:, None]
     # the jobs, their canvases' indices counted over the canvases kept
     unfolds, jobs, k = [], [], 0
-    for c, (g, _, got, f, K) in enumerate(bands):
+    for c, (g, got, f, K) in enumerate(bands):
         if boxes[c] is None:
             continue
         s0, s1 = spec[c][:2]
         a, b = cut[k], cut[k] + count[k]
-        unfolds.append((g, f, got, xy[a:b], w[a:b], D[s0:s1], L[s0:s1], K, s1 - s0, boxes[c],
-                        k))
+        unfolds.append((g, f, got, xy[:, a:b].T, w[a:b], Z[2:4, s0:s1].T, L[s0:s1], K,
+                        s1 - s0, boxes[c], k))
         k += 1
     for j, (g, f) in enumerate(lines):
         box = boxes[nb + 2 * j]
@@ -1693,12 +1769,98 @@ def _layout(face: Face, segs: tuple[np.ndarray, np.ndarray, np.ndarray], s: np.n
             continue
         jobs.append((g, box, k, f))
         k += 2
-    if not safe:  # a box clipped by the image's edge: canvas by canvas
-        drawn = _splat_many([(sh, q[a:a + n], w[a:a + n], False)
-                             for sh, a, n in zip(shapes, cut, count, strict=True)])
+    if coarse or not safe:
+        q = xy - np.array(sub).T.take(cpt, 1)
+        if coarse:
+            q /= np.array(div).take(cpt)
+            q -= np.array(post).take(cpt)
+        if not safe:  # a box clipped by the image's edge: canvas by canvas
+            return unfolds, jobs, _splat_many(
+                [(sh, q[:, a:a + n].T, w[a:a + n], False)
+                 for sh, a, n in zip(shapes, cut, count, strict=True)])
+        return unfolds, jobs, _splat_rows(shapes, q, w, cpt)
+    return unfolds, jobs, _splat_rows(shapes, xy, w, cpt, sub)
+
+
+@dataclass(frozen=True, eq=False)
+class _DrawnSegments:
+    """The segments a frame's canvases read (:func:`_drawn_segments`), in order: per segment
+    its start and end in the samples placed (``a``, ``b``) and in the strengths (``sa``,
+    ``sb``); the samples placed, 3 x (n,) vertex indices ``tri`` and 3 x (1, n) barycentric
+    weights ``bary``; per drawn group its first segment ``starts`` and range ``ranges``."""
+
+    a: np.ndarray
+    b: np.ndarray
+    sa: np.ndarray
+    sb: np.ndarray
+    tri: tuple[np.ndarray, ...]
+    bary: tuple[np.ndarray, ...]
+    starts: list[int]
+    ranges: list[tuple[int, int]]
+
+
+def _drawn_segments(samples: tuple, ranges: list[tuple[int, int]]) -> _DrawnSegments:
+    """:class:`_DrawnSegments` of the segments ``ranges`` (first, end) of ``samples``
+    (:func:`_layout`'s; a segment's samples are also its strengths' indices), each sample
+    they end at placed once (kept per fast plan and set of drawn groups: a frame draws the
+    groups of the frames before it)."""
+    tri, bary, seg_a, seg_b = samples
+    segs = np.concatenate([np.arange(g0, g1) for g0, g1 in ranges])
+    sa, sb = seg_a[segs], seg_b[segs]
+    used, inv = np.unique(np.concatenate([sa, sb]), return_inverse=True)
+    n = [g1 - g0 for g0, g1 in ranges]
+    first = list(itertools.accumulate([0, *n[:-1]]))
+    return _DrawnSegments(
+        inv[:len(segs)], inv[len(segs):], sa, sb,
+        tuple(np.ascontiguousarray(t[used]) for t in tri),
+        tuple(np.ascontiguousarray(b[used, 0][None]) for b in bary), first,
+        [(f, f + k) for f, k in zip(first, n, strict=True)])
+
+
+#: the turn of a direction's rows (x, y) reversed, (dy, dx), to its normal (-dy, dx)
+_TURN_COL = np.array([[-1.0], [1.0]])
+
+
+def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
+                cpt: np.ndarray, sub: list[tuple[float, float]] | None = None
+                ) -> list[np.ndarray]:
+    """:func:`_splat_stacked` of points given as rows ``xy`` (2, n) (x, y); ``sub``: each
+    canvas's origin, whole pixels, to be subtracted from its points (an offset of their
+    pixels: their fractions are the same, a float's less a whole number below it being
+    exact), else the points are the canvases' own. The same values: every canvas a block of
+    its own in one array, ``h w`` long (its rows as long as its own, not the widest canvas's:
+    its pixels take the same weights in the same order, and the canvas is contiguous)."""
+    P0 = np.floor(xy)
+    F = xy - P0
+    ip = P0.astype(np.int64)
+    n = len(w)
+    fx, fy = F[0], F[1]
+    wx = np.empty((2, n))
+    np.multiply(w, 1 - fx, out=wx[0])
+    np.multiply(w, fx, out=wx[1])
+    ws = np.empty((2, 2, n))
+    np.multiply(1 - fy, wx, out=ws[0])
+    np.multiply(fy, wx, out=ws[1])
+    # per canvas its first element, row length and the offset of its points' pixels
+    size = [h * wd for h, wd in shapes]
+    first = list(itertools.accumulate([0, *size[:-1]]))
+    total = first[-1] + size[-1]
+    if sub is None:
+        off = first
     else:
-        drawn = _splat_stacked(shapes, q, w, cpt)
-    return unfolds, jobs, drawn
+        off = [o - int(y0) * wd - int(x0)
+               for o, (_, wd), (x0, y0) in zip(first, shapes, sub, strict=True)]
+    wide = np.array([wd for _, wd in shapes]).take(cpt)
+    idx = np.empty((4, n), np.int64)
+    base = idx[0]
+    np.multiply(ip[1], wide, out=base)
+    base += ip[0]
+    base += np.array(off).take(cpt)
+    np.add(base, 1, out=idx[1])
+    np.add(base, wide, out=idx[2])
+    np.add(idx[2], 1, out=idx[3])
+    acc = np.bincount(idx.ravel(), ws.ravel(), minlength=total)[:total].astype(np.float32)
+    return [acc[o:o + h * wd].reshape(h, wd) for o, (h, wd) in zip(first, shapes, strict=True)]
 
 
 def _splat_stacked(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
@@ -2033,7 +2195,8 @@ def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: 
 def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
                  bbox: tuple[int, int, int, int] | None,
                  maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None,
-                 interpolation: int = cv2.INTER_LINEAR) -> tuple[int, int, int, int] | None:
+                 interpolation: int = cv2.INTER_LINEAR, fa: _Fast | None = None,
+                 q: int | None = None) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -2048,11 +2211,14 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
     (:class:`WarpResult`) they are computed once per face on the photo (:func:`_photo_gain`)
     and carried to the frame by the warp's own map (one ``cv2.remap`` of the band's box, so
     the gain lies on the valley exactly where the warp puts it); per frame only the band is
-    drawn. Without ``maps`` they are computed on ``out``.
+    drawn. Without ``maps`` they are computed on ``out``. ``fa``: the face's :class:`_Fast`,
+    ``q`` its :func:`_frame_blocks`, when known.
     """
-    fa = _fast(face)
+    if fa is None:
+        fa = _fast(face)
     H, W = out.shape[:2]
-    q = _frame_blocks(face)
+    if q is None:
+        q = _frame_blocks(face)
     for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)

@@ -53,7 +53,7 @@ from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
 from .liprims import apply_lip_rims
-from .lipseal import apply_contact_line, apply_lip_seal
+from .lipseal import apply_contact_line, apply_lip_seal, closing_share, seal_plan
 from .liptone import apply_lip_tone
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .transform import similarity_pairs, similarity_to, source_fit
@@ -549,8 +549,12 @@ class Face:
         w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v),
                  interpolation=cv2.INTER_CUBIC if sharp else cv2.INTER_LINEAR)
         w = apply_lid_skin(self, apply_grain(self, w), v)
-        w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v), v), v)
-        res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
+        # (the share of the photo's opening the mesh closes: the lip seal's and the contact
+        # line's, computed once)
+        sp = seal_plan(self)
+        shut = None if sp is None else closing_share(sp, v)
+        w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v, shut), v), v)
+        res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v, shut)
         if not creases:
             return res
         return apply_cheeks(self, apply_chin_boss(self, apply_creases(self, res, v), v), v)

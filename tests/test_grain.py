@@ -158,3 +158,25 @@ def test_a_large_faces_grain_is_measured_on_patches_as_on_all_its_pixels():
     whole = float(h[np.abs(h) < 3 * mad].std())
     plan = grain.grain_plan(f)
     assert plan is not None and abs(plan.level - whole) < 0.1 * whole, (plan.level, whole)
+
+
+
+def test_the_grain_added_through_bytes_is_the_float_adds(grainy_sample, monkeypatch):
+    """apply_grain's biased uint8 addition (grain._add_grey) gives the pixels of cv2.add's
+    float addend (rounded half to even, saturated): on a grainy face, and on a synthetic
+    grain with exact halves over a whole range of pixels."""
+    from editor.engine import grain
+
+    v = apply_preset("joy", 1.5)
+    fast = grainy_sample.render(v)
+    monkeypatch.setattr(grain, "_BIASED_MAX", 0.0)
+    assert np.array_equal(grainy_sample.render(v), fast)
+    rng = np.random.default_rng(3)
+    out = rng.integers(0, 256, (64, 80, 3), dtype=np.uint8)
+    a = np.clip(rng.standard_normal((64, 80)) * 40, -125.9, 125.9).astype(np.float32)
+    a[:16] = np.round(a[:16] * 2) / 2  # exact halves
+    want = np.clip(out + np.rint(a)[..., None], 0, 255)
+    for small in (False, True):
+        got = out.copy()
+        grain._add_grey(got, a.copy(), small)
+        assert np.array_equal(got, want)

@@ -338,3 +338,22 @@ def test_jaffe_neutralised_smiles_keep_the_lower_lips_light():
     d = np.median([a / b for a, b in drawn])
     assert r > 1.4, r  # (the measure sees the real lower lip's light)
     assert d > 1.2, (r, d)
+
+
+def test_the_contact_line_leaves_the_pixels_it_cannot_darken(sample_face):
+    """apply_contact_line works only where line x tint reaches 0.49 / 255: below, every pixel
+    value comes back itself from v (1 - line tint) + 0.5 rounded down (float32, as the stage
+    computes it); and the closed mouth still gets its line."""
+    for tint in (np.full(3, 1.5, np.float32), np.array([0.8, 1.0, 1.12], np.float32)):
+        thr = np.float32(0.49 / 255.0 / float(tint.max()))
+        line = np.linspace(0.0, float(thr), 4001, dtype=np.float32)
+        line = line[line < thr]
+        f = 1.0 - line[:, None] * tint[None, :]
+        for v in range(256):
+            acc = np.float32(v) * f
+            assert ((acc + np.float32(0.5)).astype(np.uint8) == v).all()
+    from editor.engine.warp import WarpResult
+
+    f = sample_face
+    res = lipseal.apply_contact_line(f, WarpResult(f.image.copy(), None), f.neutral_vertices)
+    assert (res.image != f.image).any()

@@ -17,6 +17,7 @@ smile back. FAPU are measured on the neutral mesh.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import InitVar, dataclass, field
@@ -53,7 +54,7 @@ from .landmarks import LandmarkDetector, Landmarks, detect_landmarks
 from .layers import render_layers
 from .lidskin import apply_lid_skin
 from .liprims import apply_lip_rims
-from .lipseal import apply_contact_line, apply_lip_seal
+from .lipseal import apply_contact_line, apply_lip_seal, closing_share, seal_plan
 from .liptone import apply_lip_tone
 from .mesh import StandardMesh, signed_areas, standard_mesh
 from .transform import similarity_pairs, similarity_to, source_fit
@@ -549,8 +550,12 @@ class Face:
         w = warp(self.warp_plan, v, tf, cavity=False, hook=jaw_map(self, v),
                  interpolation=cv2.INTER_CUBIC if sharp else cv2.INTER_LINEAR)
         w = apply_lid_skin(self, apply_grain(self, w), v)
-        w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v), v), v)
-        res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v)
+        # (the share of the photo's opening the mesh closes: the lip seal's and the contact
+        # line's, computed once)
+        sp = seal_plan(self)
+        shut = None if sp is None else closing_share(sp, v)
+        w = apply_lip_rims(self, apply_lip_tone(self, apply_lip_seal(self, w, v, shut), v), v)
+        res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v, shut)
         if not creases:
             return res
         return apply_cheeks(self, apply_chin_boss(self, apply_creases(self, res, v), v), v)
@@ -651,9 +656,16 @@ def _fap_gap(G: np.ndarray, Gc: np.ndarray, vec: np.ndarray) -> np.ndarray:
     ``deform._linear`` renders it; without it a vector setting both, such as joy or a
     smiling photo's f0, was credited with up to a quarter more opening than it makes)."""
     f = np.asarray(vec, np.float64)
-    va, vb = f[LIP_PAIRS[:, 0]], f[LIP_PAIRS[:, 1]]
-    common = np.where(va * vb > 0, np.sign(va) * np.minimum(np.abs(va), np.abs(vb)), 0.0)
-    return G @ f - Gc @ common
+    # (the ten pairs' shared part on Python floats: numpy's values, sign(a) min(|a|, |b|)
+    # where a b > 0, else 0, without eight array calls on ten values)
+    v = f.tolist()
+    common = [math.copysign(min(abs(v[i]), abs(v[j])), v[i]) if v[i] * v[j] > 0 else 0.0
+              for i, j in _LIP_PAIR_LIST]
+    return G @ f - Gc @ np.array(common)
+
+
+#: :data:`~editor.engine.deform.LIP_PAIRS` as Python pairs of indices
+_LIP_PAIR_LIST = [(int(a), int(b)) for a, b in LIP_PAIRS]
 
 
 def _unfold_lips(mesh: StandardMesh, verts: np.ndarray, sigma0: np.ndarray,

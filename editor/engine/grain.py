@@ -250,15 +250,41 @@ def apply_grain(face: Face, res: WarpResult) -> WarpResult:
     # only the pixels the warp resampled (off their own place by OpenCV's map step or more:
     # nearer, the fixed-point remap copies the pixel): the nodes' interpolation must not
     # carry grain onto the still hair or background beside the moving skin
+    # (|u| >= t or |w| >= t as max(|u|, |w|) >= t: in place, one comparison)
     u = map_x[y0 - by0:y1 - by0, x0 - bx0:x1 - bx0] - np.arange(x0, x1, dtype=np.float32)
     w = map_y[y0 - by0:y1 - by0, x0 - bx0:x1 - bx0] - np.arange(y0, y1, dtype=np.float32
                                                                  )[:, None]
-    a *= (np.abs(u) >= _TAB) | (np.abs(w) >= _TAB)
+    np.maximum(np.abs(u, out=u), np.abs(w, out=w), out=u)
+    a *= u >= _TAB
     a *= _tiled(plan.sigma, x0, y0, x1 - x0, y1 - y0)
-    out = res.image[y0:y1, x0:x1]
-    # (cvtColor's grey-to-RGB copy: cv2.merge's values at about half its cost)
-    cv2.add(out, cv2.cvtColor(a, cv2.COLOR_GRAY2RGB), out, None, cv2.CV_8U)
+    _add_grey(res.image[y0:y1, x0:x1], a, plan.level * _tile_peak(plan.sigma) < _BIASED_MAX)
     return res
+
+
+def _add_grey(out: np.ndarray, a: np.ndarray, small: bool) -> None:
+    """Add the float32 (h, w) ``a`` to the three channels of the uint8 (h, w, 3) ``out`` in
+    place as ``cv2.add(out, a3, out, None, cv2.CV_8U)`` adds it (the addend rounded to an
+    integer first, half to even, the sum saturated). ``small``: ``|a| < 126`` is known; then
+    ``a`` (overwritten) is rounded, biased by 128 into uint8 (convertScaleAbs: exact on those
+    integers), spread over the channels as bytes and added with the bias taken off
+    (addWeighted: exact on integers): the same pixels at about half the cost."""
+    if small:
+        b = cv2.convertScaleAbs(np.rint(a, out=a), None, 1.0, 128.0)
+        cv2.addWeighted(out, 1.0, cv2.cvtColor(b, cv2.COLOR_GRAY2RGB), 1.0, -128.0, out)
+    else:
+        # (cvtColor's grey-to-RGB copy: cv2.merge's values at about half its cost)
+        cv2.add(out, cv2.cvtColor(a, cv2.COLOR_GRAY2RGB), out, None, cv2.CV_8U)
+
+
+#: :func:`apply_grain` adds its grain through a uint8 biased by 128 when the level times the
+#: tile's largest magnitude is below this (room for the rounding)
+_BIASED_MAX = 126.0
+
+
+@functools.cache
+def _tile_peak(sigma: float) -> float:
+    """The largest magnitude of the tile of fineness ``sigma`` (once per process)."""
+    return float(np.abs(_tiles(sigma)[1]).max())
 
 
 def grain_over(face: Face, box: tuple[int, int, int, int]) -> np.ndarray | None:

@@ -25,7 +25,7 @@ import math
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache, partial
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import cv2
@@ -156,29 +156,43 @@ def jaw_map(face: Face, vertices: np.ndarray
     # the pixels the hook may read and write: the extent grown by the rasterizer's reach
     reach = (math.floor(ext[0]) - 1, math.floor(ext[1]) - 1, math.ceil(ext[2]) + 2,
              math.ceil(ext[3]) + 2)
-    args = (fr, b, reach, new, drop, ring, ramp)
-    return _JawHook(partial(_hook, *args), reach, b.lut, partial(_points, *args),
-                    partial(_nodes, *args))
+    return _JawHook((fr, b, reach, new, drop, ring, ramp), reach, b.lut)
 
 
-@dataclass(frozen=True, eq=False)
+#: :class:`_JawHook`'s ``args``
+_HookArgs = tuple["FaceFrame", _Band, tuple[int, int, int, int], np.ndarray, np.ndarray,
+                  np.ndarray, float]
+
+
 class _JawHook:
     """:func:`jaw_map`'s hook (:func:`_hook`) and ``box``, the pixels (x0, y0, x1, y1) whose
     triangle ids it reads and whose map it may change (the warp needs its ids nowhere else);
     ``lut`` (T + 4,) bool: the warp's ids whose map it replaces (the band's triangles), and
     ``points(xs, ys)``: that map at any points (float32 arrays; of the band, inside ``box``)
     and ``nodes(x0, y0, s, nx, ny)`` on a grid of nodes, for a warp that evaluates its map on
-    a grid of nodes (:func:`_points`, :func:`_nodes`)."""
+    a grid of nodes (:func:`_points`, :func:`_nodes`). ``args``: the frame's band (the face
+    frame, the band, ``box``, the jaw line, its drop, the ring below it, the fade's length),
+    the functions' first arguments. (A plain class: made every frame, a frozen dataclass's
+    initialisation and three partials cost more.)"""
 
-    call: Callable[..., tuple[int, int, int, int] | None]
-    box: tuple[int, int, int, int]
-    lut: np.ndarray
-    points: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
-    nodes: Callable[[float, float, int, int, int], tuple[np.ndarray, np.ndarray]]
+    __slots__ = ("args", "box", "lut")
+
+    def __init__(self, args: _HookArgs, box: tuple[int, int, int, int], lut: np.ndarray
+                 ) -> None:
+        self.args = args
+        self.box = box
+        self.lut = lut
 
     def __call__(self, ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
                  box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
-        return self.call(ids, map_x, map_y, box)
+        return _hook(*self.args, ids, map_x, map_y, box)
+
+    def points(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _points(*self.args, xs, ys)
+
+    def nodes(self, x0: float, y0: float, s: int, nx: int, ny: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+        return _nodes(*self.args, x0, y0, s, nx, ny)
 
 
 def _nodes(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.ndarray,

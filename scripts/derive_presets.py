@@ -146,11 +146,12 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         17: (-80, "as 16"),
         18: (120, "AU17 chin raiser: JAFFE's chin point rises in anger (FAP 3 median -291 MNS, "
                   "which open_jaw (>= 0) cannot express); FACS reasoning for the amount"),
-        "lid_t": (110, "the glare: the lowered brows push the upper lids down over the iris "
+        "lid_t": (140, "the glare: the lowered brows push the upper lids down over the iris "
                        "(as in most JAFFE anger photos; median about 0, p90 211/146 IRISD). The "
                        "FACS prototype's AU5 (-40 before) left the eyes wide: a blind rater "
                        "named the 100 % render neutral on 7 of 7 faces; at 80 still 9 of 14 "
-                       "(two raters)"),
+                       "(two raters); at 110 blind raters named 100 % anger on 3 and 4 of 7 "
+                       "faces ('relaxed brows and eyes', 'mild'): towards the right eye's p90"),
         "c_raise": (40, "AU23/24 do not lift the corners; JAFFE's median +140 MNS comes with the "
                         "whole mouth moving up (AU17 chin raiser, partly head pitch the "
                         "similarity alignment keeps): set at the band's low end so anger never "
@@ -170,7 +171,8 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
         56: (-60, "as 55"),
         52: (135, "the pout of AU17 + AU24: the lower lip's outer contour rises more than its "
                   "inner one (JAFFE outer 67/88/80 against inner 58/51/61 MNS): the lower lip "
-                  "bulges over the raised chin"),
+                  "bulges over the raised chin (at 170/135/135 the chin groove under it, "
+                  "creases.py, grew to 1.6-1.8 x the real anger photos' median)"),
         57: (115, "as 52"),
         58: (115, "as 52"),
         "c_stretch": (-25, "AU23/24 narrow the pressed mouth (JAFFE median -9/-23, outer -13/-17 "
@@ -184,8 +186,8 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                          "real min (-195/-179)"),
         "brow_m": (-105, "as brow_i (median -95/-75, p10 -154/-143, min -164/-163)"),
         "squeeze": (40, "AU4 draws the brows together (median 30/21 ES, p90 57/65, max 82/87)"),
-        "lid_b": (130, "AU7 lid tightener: the lower lids tense up, the glare (median 95/102, "
-                       "p90 181/192, max 261/231)"),
+        "lid_b": (150, "AU7 lid tightener: the lower lids tense up, the glare (median 95/102, "
+                       "p90 181/192, max 261/231: 150 % stays inside)"),
     },
     "fear": {
         "lid_t": (-100, "AU5 upper lid raiser (FACS fear prototype; the wide eyes tell fear from "

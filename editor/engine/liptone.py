@@ -56,7 +56,7 @@ import cv2
 import numpy as np
 
 from .creases import SHADOW_TINT
-from .fitting import channel_median, clamp, interp, is_grey, smooth01
+from .fitting import channel_median, clamp, clip, interp, is_grey, smooth01
 from .gaze import spread3
 from .layers import _rebox, _union
 from .lipseal import _reached, _support, reach_step
@@ -131,11 +131,13 @@ class TonePlan:
     nose0: float = 1.0  # its distance to the chin on the photo's mesh (px)
 
     @cached_property
-    def tint32(self) -> np.ndarray:
-        """:attr:`tint` as float32 (the cast shadow's channel weights, :func:`_cast_shadow`)."""
-        t = self.tint.astype(np.float32)
-        t.setflags(write=False)
-        return t
+    def cast_mat(self) -> np.ndarray:
+        """(3, 2) float32: ``cv2.transform``'s map of a shadow's darkening ``g`` to the
+        channels' factors ``1 - g tint`` (:func:`_cast_shadow`)."""
+        m = np.ones((3, 2), np.float32)
+        m[:, 0] = -self.tint
+        m.setflags(write=False)
+        return m
 
     @cached_property
     def shadow_support(self) -> tuple[int, int, int, int] | None:
@@ -310,16 +312,31 @@ def _cast_shadow(plan: TonePlan, out: np.ndarray, vertices: np.ndarray, depth: f
     xs = np.arange(x0, x1, dtype=np.float64)
     by_x = lower.take(np.argsort(lower[:, 0]), 0)
     yl = interp(xs, np.ascontiguousarray(by_x[:, 0]), np.ascontiguousarray(by_x[:, 1]))
-    dy = (np.arange(y0, y1, dtype=np.float64)[:, None] - yl[None, :]) / plan.iod
     # a soft bump: rising over the lip's own edge (CAST_RISE), gone by CAST_REACH below it
-    # (nothing above the lip)
-    g = (1.0 - smooth01((dy - CAST_RISE) / (CAST_REACH - CAST_RISE))) * smooth01(dy / CAST_RISE)
+    # (nothing above the lip): the smoothstep of min(dy / CAST_RISE, (CAST_REACH - dy) /
+    # (CAST_REACH - CAST_RISE)) clipped to [0, 1], dy the height below the lip (IOD), the
+    # product of the rise's smoothstep and one less the fall's (one of them is 1 wherever the
+    # other is not: smoothstep(1 - t) = 1 - smoothstep(t)), each term a row's part plus a
+    # column's (float32, ~1e-7 of the float64 product's values; 0.1 ms -> 0.05 ms a frame
+    # on the 1080p bench face, its frame unchanged)
+    a_r, a_f = 1.0 / (CAST_RISE * plan.iod), 1.0 / ((CAST_REACH - CAST_RISE) * plan.iod)
+    ys = np.arange(y1 - y0, dtype=np.float64)  # (rows and the lip from row y0: small numbers)
+    yl -= y0
+    t = np.subtract((ys * a_r).astype(np.float32)[:, None], (yl * a_r).astype(np.float32)[None, :])
+    fall = np.add(((CAST_REACH * plan.iod - ys) * a_f).astype(np.float32)[:, None],
+                  (yl * a_f).astype(np.float32)[None, :])
+    np.minimum(t, fall, out=t)
+    clip(t, 0.0, 1.0, out=t)
+    g = np.multiply(t, t)
+    t *= np.float32(-2.0)
+    t += np.float32(3.0)
+    g *= t
     cx, half = 0.5 * (lx[0] + lx[-1]), max(0.5 * abs(lx[-1] - lx[0]), 1.0)
-    g *= smooth01((1.0 - np.abs(xs - cx) / half) / (1.0 - SHADOW_SPAN))[None, :]
-    g = (depth * g).astype(np.float32)
+    g *= (depth * smooth01((1.0 - np.abs(xs - cx) / half) / (1.0 - SHADOW_SPAN))).astype(
+        np.float32)[None, :]
     # (on a colour photo darker towards red, as shadows on skin look; creases' tint) (the
-    # three channels' float32 products in one broadcast: cv2.merge's values)
-    f = 1.0 - g[..., None] * plan.tint32
+    # three channels' factors 1 - g tint in one transform)
+    f = cv2.transform(g[..., None], plan.cast_mat)
     view = out[y0:y1, x0:x1]
     cv2.multiply(view, f, dst=view, dtype=cv2.CV_8U)
     return x0, y0, x1, y1

@@ -1834,13 +1834,7 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     F = xy - P0
     ip = P0.astype(np.int64)
     n = len(w)
-    fx, fy = F[0], F[1]
-    wx = np.empty((2, n))
-    np.multiply(w, 1 - fx, out=wx[0])
-    np.multiply(w, fx, out=wx[1])
-    ws = np.empty((2, 2, n))
-    np.multiply(1 - fy, wx, out=ws[0])
-    np.multiply(fy, wx, out=ws[1])
+    ws = _bilinear_weights(F.T, w)
     # per canvas its first element, row length and the offset of its points' pixels
     size = [h * wd for h, wd in shapes]
     first = list(itertools.accumulate([0, *size[:-1]]))
@@ -1859,7 +1853,7 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     np.add(base, 1, out=idx[1])
     np.add(base, wide, out=idx[2])
     np.add(idx[2], 1, out=idx[3])
-    acc = np.bincount(idx.ravel(), ws.ravel(), minlength=total)[:total].astype(np.float32)
+    acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
     return [acc[o:o + h * wd].reshape(h, wd) for o, (h, wd) in zip(first, shapes, strict=True)]
 
 

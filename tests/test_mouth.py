@@ -592,3 +592,25 @@ def test_fear_shows_the_upper_teeth_under_the_upper_lip_as_real_open_fear():
     r, d = jaffe_real_and_drawn(_opening_top, "FE", "fear")
     assert r > 0.85, r
     assert d > r - 0.12, (r, d)
+
+
+def test_a_soft_photos_open_mouth_has_no_step_sharper_than_the_photos(sample_face):
+    """The smiling sample upscaled 6x (its edges ramp over ~8 px) under surprise, fear and
+    viseme aa at 150 %: no step between two neighbouring pixels in or around the opening is
+    steeper than the photo's steepest (42 grey levels). The photo's own upper teeth (moved with
+    the skull) and the drawn lower teeth were blurred up to their images' edges and stopped
+    there at half their coverage: a one-pixel cut across the opening, 51-57 grey levels (the
+    4K bench face: 98 -> 35 in a pixel); padded before the blur, 31-35."""
+    from editor.engine.fitting import luminance
+
+    f = Face.from_image(cv2.resize(sample_face.image, None, fx=6, fy=6,
+                                   interpolation=cv2.INTER_CUBIC))
+    photo = luminance(f.image).astype(np.float32)
+    steepest = max(np.abs(np.diff(photo, axis=0)).max(), np.abs(np.diff(photo, axis=1)).max())
+    for name in ("surprise", "fear", "viseme_aa"):
+        res = f.render_full(apply_preset(name, 1.5))
+        L = luminance(res.image).astype(np.float32)
+        near = cv2.dilate(res.mouth_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+        dy = np.abs(np.diff(L, axis=0))[near[1:] & near[:-1]].max()
+        dx = np.abs(np.diff(L, axis=1))[near[:, 1:] & near[:, :-1]].max()
+        assert max(dy, dx) <= steepest, (name, dy, dx, steepest)

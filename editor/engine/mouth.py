@@ -321,6 +321,7 @@ class MouthPlan:
     photo_upper: bool = False  # the photo shows its own upper teeth: they replace the texture
     photo_lower: bool = False  # likewise for the lower teeth
     sliver: np.ndarray | None = None  # (w,) columns where the opening is a closed lip line
+    tex_pad: int = 0  # blank pixels around each texture in :attr:`tex` (:meth:`soften`)
     ext: np.ndarray | None = None  # (h, w) where the photo's upper teeth were continued
 
     def attach_own(self, off, own, own_rgb, has_up, has_low, sliver, ext) -> None:
@@ -362,12 +363,32 @@ class MouthPlan:
         if soft <= 1.0:
             return
         sigma = 0.31 * soft  # (a Gaussian's 10-90 % width, 2.56 sigma, as 0.8 soft)
-        self.tex = {k: cv2.GaussianBlur(t, (0, 0), sigma, borderType=cv2.BORDER_CONSTANT)
+        # each image padded by the blur's reach first (coverage zero, colours repeated): the
+        # drawn teeth's crowns and the photo's opening reach their images' edges, and blurred
+        # up to an edge they stopped there at ~0.5, a one-pixel step to the cavity (the 4K
+        # bench face under surprise: the photo's upper teeth 98 -> 35 grey levels in a pixel,
+        # the drawn lower teeth's tips 52 -> 96 in two, on a face whose edges ramp over 15 px)
+        p = int(math.ceil(3.0 * sigma))
+        zero = cv2.BORDER_CONSTANT
+
+        def pad(a: np.ndarray, border: int = zero) -> np.ndarray:
+            return cv2.copyMakeBorder(np.ascontiguousarray(a), p, p, p, p, border)
+
+        self.tex = {k: cv2.GaussianBlur(pad(t), (0, 0), sigma, borderType=zero)
                     for k, t in self.tex.items()}
-        if self.own is None:
+        self.tex_pad = p
+        if self.own is None or self.own_off is None:
             return
-        self._own_a = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_a]
-        self._own_keep = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_keep]
+
+        self.own_off = self.own_off - p
+        self._own_c = [pad(c, cv2.BORDER_REPLICATE) for c in self._own_c]
+        self._own_c3 = [pad(c, cv2.BORDER_REPLICATE) for c in self._own_c3]
+        if self.ext is not None:
+            self.ext = pad(np.asarray(self.ext, np.float32))
+        self._own_a = [cv2.GaussianBlur(pad(a), (0, 0), sigma, borderType=zero)
+                       for a in self._own_a]
+        self._own_keep = [cv2.GaussianBlur(pad(a), (0, 0), sigma, borderType=zero)
+                          for a in self._own_keep]
         self._own_parts()
 
     @classmethod
@@ -691,23 +712,24 @@ class MouthPlan:
             return []
         rows, cols = q
         # per place the texture's pixels per frame unit (x, y) and its corner
-        k = np.array([(self.tex[n].shape[1] / ww, self.tex[n].shape[0] / hh)
+        p = self.tex_pad  # (the textures' own pixels inside their blank margin)
+        k = np.array([((self.tex[n].shape[1] - 2 * p) / ww, (self.tex[n].shape[0] - 2 * p) / hh)
                       for n, _, _, ww, hh in places])
         lt = np.array([(left, top) for _, left, top, _, _ in places])
         if rows.ndim == 3:  # (affine: scaled and shifted as a row plus a column, x and y)
             k, lt = k[:, :, None, None], lt[:, :, None, None]
-            m = (((rows - lt) * k - 0.5) + cols * k).astype(np.float32)
+            m = (((rows - lt) * k + (p - 0.5)) + cols * k).astype(np.float32)
             return [(mm[0], mm[1]) for mm in m]
         (kx, ky), (left, top) = k[0].tolist(), lt[0].tolist()
-        return [(((rows - left) * kx - 0.5).astype(np.float32),
-                 ((cols - top) * ky - 0.5).astype(np.float32))]
+        return [(((rows - left) * kx + (p - 0.5)).astype(np.float32),
+                 ((cols - top) * ky + (p - 0.5)).astype(np.float32))]
 
     def _over(self, out, name, maps, shade, gum=False):
         """``out`` under texture ``name`` sampled at ``maps`` (:meth:`_layer_maps`)."""
         t = self.tex[name]
         mx, my = maps
-        if gum:
-            my = np.maximum(my, np.float32(0.0))
+        if gum:  # (the texture's top row, inside its blank margin)
+            my = np.maximum(my, np.float32(self.tex_pad))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR)  # (zeros outside: OpenCV's default border)
         # (the colour channels as one contiguous array: numpy is several times slower on a
         # channel view)

@@ -614,3 +614,20 @@ def test_a_soft_photos_open_mouth_has_no_step_sharper_than_the_photos(sample_fac
         dy = np.abs(np.diff(L, axis=0))[near[1:] & near[:-1]].max()
         dx = np.abs(np.diff(L, axis=1))[near[:, 1:] & near[:, :-1]].max()
         assert max(dy, dx) <= steepest, (name, dy, dx, steepest)
+
+
+def test_a_soft_photos_lips_lose_their_photos_lip_line_as_wide_as_its_ramp():
+    """A JAFFE face upscaled 4x carries its photo's lip line (teeth between parted lips, 1-2
+    px there) as a light band 5-8 px wide along the opened lips; left on them it drew a light
+    outline around the opening. At the 4x sample's ramp (5.3 px) a 6 px strip goes (an
+    opening of soft / 2 + 2 px kept it: LIP_LINE_SOFT 0.5 before)."""
+    from editor.engine.layers import _clean_lip_line
+
+    out = np.full((60, 120, 3), 150, np.uint8)  # lips
+    out[28:34, 10:110] = 235  # a 6 px strip of teeth along the outline (row 34)
+    poly = np.array([[10.0, 34.0], [110.0, 34.0], [110.0, 50.0], [10.0, 50.0]])
+    alpha = np.zeros((60, 120), np.float32)
+    alpha[35:50, 10:110] = 1.0  # the opening below
+    _clean_lip_line(out, (0, 0, 120, 60), poly, alpha, 1.0, 5.3)
+    assert out[28:34, 20:100].max() <= 160, out[26:36, 60]
+    assert (out[:18] == 150).all()  # the lips away from the outline are untouched

@@ -316,6 +316,13 @@ def _nearest_outside(face: np.ndarray, hole: np.ndarray, labels: np.ndarray,
 GATHER4_PX = 4096
 
 
+#: the bright structures :func:`_clean_lip_line` takes off a soft photo's lips: up to this
+#: many edge ramps (plus 2 px) wide. A JAFFE face upscaled 4 x (ramp 4.1 px) carries its
+#: photo's lip line (teeth between parted lips, 1-2 px there) as a 5-8 px light band along the
+#: opened lips: at half a ramp it stayed, a light outline around the opening
+LIP_LINE_SOFT = 1.0
+
+
 def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.ndarray,
                     alpha: np.ndarray, strength: float, soft: float = 1.0) -> None:
     """Remove thin bright specks from the lips along the inner-lip outline (in place).
@@ -329,7 +336,7 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     either side of the outline.
     """
     x0, y0, x1, y1 = box
-    k = 3 if soft <= 1.0 else max(3, int(round(0.5 * soft + 2.0)) | 1)
+    k = 3 if soft <= 1.0 else max(3, int(round(LIP_LINE_SOFT * soft + 2.0)) | 1)
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
     q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(band, [q], True, 1, 3 if k == 3 else 2 * k - 1, cv2.LINE_8, _SHIFT)

@@ -616,6 +616,56 @@ def test_a_soft_photos_open_mouth_has_no_step_sharper_than_the_photos(sample_fac
         assert max(dy, dx) <= steepest, (name, dy, dx, steepest)
 
 
+def _cavity_profile(image: np.ndarray) -> tuple[float, float, float, float] | None:
+    """An open mouth's interior by its detected inner lips (68 landmarks), relative to the
+    skin's median in a ring 0.08-0.16 IOD outside the outer lips: the median luminance of its
+    first 0.02 IOD inside the lips and of its pixels 0.08-0.12 IOD deep, the spread (std over
+    mean) of the pixels deeper than 0.02 IOD, and the light line under the upper lip (middle
+    columns, +-0.08 IOD: the brightest of the first 0.03 IOD under the inner upper lip less the
+    brightest of the lip 0.01-0.04 IOD above it, median). None when the lips part by less
+    than 0.12 IOD."""
+    got = _open_mouth(image)
+    if got is None:
+        return None
+    L, p, iod, skin = got
+    if p[66, 1] - p[62, 1] < 0.12 * iod:
+        return None
+    inner = np.zeros(L.shape, np.uint8)
+    cv2.fillPoly(inner, [np.round(p[60:68]).astype(np.int32)], 1)
+    d = cv2.distanceTransform(inner, cv2.DIST_L2, 3) / iod
+    near = float(np.median(L[(inner > 0) & (d < 0.02)])) / skin
+    deep = float(np.median(L[(d >= 0.08) & (d < 0.12)])) / skin
+    core = L[d > 0.02]
+    yu = p[62, 1]
+    bumps = [(L[int(yu):int(yu + 0.03 * iod) + 1, x].max()
+              - L[int(yu - 0.04 * iod):int(yu - 0.01 * iod), x].max()) / skin
+             for x in range(int(p[62, 0] - 0.08 * iod), int(p[62, 0] + 0.08 * iod) + 1)]
+    return near, deep, float(core.std() / core.mean()), float(np.median(bumps))
+
+
+def test_a_large_faces_open_mouth_darkens_into_its_back_as_real_ones():
+    """JAFFE women upscaled 4x (edges ramping over ~4 px), surprise at 150 %, measured as on
+    their real wide-open surprise photos upscaled alike (median of 21: 0.16 of the skin in the
+    first 0.02 IOD inside the lips, 0.04 at 0.08-0.12 IOD deep, spread 1.02, light line under
+    the upper lip -0.12). Drawn as one flat dark fill (0.26-0.28 / 0.12-0.14, spread
+    0.77-0.87) with a sliver of lit upper teeth along the lip (0.40-0.74: a drawn outline);
+    now the back darkens with depth, the tongue is lit at its front only, the sliver stays in
+    the lip's shadow: 0.16-0.18 / 0.09, spread 0.85-1.08, line 0.11-0.67."""
+    got = []
+    for ne in jaffe_images("*.NE1.*.tiff")[:3]:
+        img = cv2.resize(load_image(ne), None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+        m = _cavity_profile(Face.from_image(img, own_expression=False)
+                            .render(apply_preset("surprise", 1.5), sharp=True))
+        if m is not None:
+            got.append(m)
+    if len(got) < 3:
+        pytest.skip("../shared/data/jaffe is not available")
+    near, deep, spread, line = (float(np.median(c)) for c in zip(*got, strict=True))
+    assert near < 0.22 and deep < 0.105, got
+    assert spread > 0.9, got
+    assert line < 0.35, got
+
+
 def test_a_soft_photos_lips_lose_their_photos_lip_line_as_wide_as_its_ramp():
     """A JAFFE face upscaled 4x carries its photo's lip line (teeth between parted lips, 1-2
     px there) as a light band 5-8 px wide along the opened lips; left on them it drew a light

@@ -88,6 +88,17 @@ TEETH_L, TEETH_CAST = 0.95, 0.35
 #: units of D; the drawn teeth are D/2 tall with their gum band) before they turn into gum,
 #: over a fade of GUM_FADE D; and the upper lip's shadow on them at contact
 CROWN, GUM_FADE, EXT_LIP_SHADOW = 0.42, 0.12, 0.12
+#: on a large face (the photo's edge ramp ``soft`` over 1 px; in full from 1 + SOFT_FULL):
+#: the back of the cavity darkens with the depth behind the lips (exp(-depth / (BACK_LEN
+#: D))) down to 1 - BACK_DEEP of its light, and the lips' inner surface turns into it over
+#: RIM_SOFT * soft px more.
+SOFT_FULL, BACK_LEN, BACK_DEEP, RIM_SOFT = 3.0, 0.15, 0.6, 0.5
+#: on a large face, the upper teeth show lit only where their edge lies this many edge ramps
+#: below the upper lip (a thinner sliver stays in the lip's shadow)
+SLIVER_SOFT = 2.0
+#: on a large face, the tongue's back (the top TONGUE_BACK of the layer) in shadow, by up to
+#: TONGUE_BACK_DARK
+TONGUE_BACK, TONGUE_BACK_DARK = 0.4, 0.6
 #: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
 CAVITY_RGB = np.array([70, 26, 30], np.float32)
 _LUM = np.array([0.299, 0.587, 0.114], np.float32)
@@ -322,6 +333,7 @@ class MouthPlan:
     photo_lower: bool = False  # likewise for the lower teeth
     sliver: np.ndarray | None = None  # (w,) columns where the opening is a closed lip line
     tex_pad: int = 0  # blank pixels around each texture in :attr:`tex` (:meth:`soften`)
+    soft: float = 1.0  # the photo's edge ramp, px (:meth:`soften`)
     ext: np.ndarray | None = None  # (h, w) where the photo's upper teeth were continued
 
     def attach_own(self, off, own, own_rgb, has_up, has_low, sliver, ext) -> None:
@@ -362,6 +374,7 @@ class MouthPlan:
         on a face whose own edges ramp over 10 px."""
         if soft <= 1.0:
             return
+        self.soft = float(soft)
         sigma = 0.31 * soft  # (a Gaussian's 10-90 % width, 2.56 sigma, as 0.8 soft)
         # each image padded by the blur's reach first (coverage zero, colours repeated): the
         # drawn teeth's crowns and the photo's opening reach their images' edges, and blurred
@@ -553,9 +566,21 @@ class MouthPlan:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
             # (with the drawn layers' falloff below: both at once, the same values as each)
-            g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
-                [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
+            t_soft = min(max((self.soft - 1.0) / SOFT_FULL, 0.0), 1.0)
+            if t_soft > 0.0:
+                # a large face: the back of the mouth darkens further with depth (the
+                # cavity's light falls from the lips' inner surface into the throat)
+                g, g1, g2 = np.exp(-np.asarray(depth, np.float32) / np.array(
+                    [0.08 * D + 0.5 + RIM_SOFT * self.soft, 0.05 * D + 0.5, BACK_LEN * D],
+                    np.float32)[:, None, None])
+                k = BACK_DEEP * t_soft
+                g2 *= np.float32(k)
+                g2 += np.float32(1.0 - k)
+                back *= g2
+            else:
+                g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
+                    [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             # (spread, then times the cavity's colour as a per-channel scalar: the same float32
             # products as cv2.transform's 3 x 1 matrix, at a fraction of its cost)
             deep = np.asarray(cv2.multiply(spread3(back), self._cavity_scalar), np.float32)
@@ -568,8 +593,17 @@ class MouthPlan:
         shade_g = (a_g * shade) * corner.astype(np.float32)
         shade_g = spread3(shade_g)
         shade *= a_t
-        shade_up = None if self.photo_upper else spread3(
-            shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP))
+        shade_up = None
+        if not self.photo_upper:
+            s_up = shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP)
+            if self.soft > 1.0:
+                # a large face: where the lip leaves only a sliver of the upper teeth (their
+                # edge less than SLIVER_SOFT ramps below it) the sliver stays in the lip's
+                # shadow: lit, its light line under the lip read as a drawn outline
+                u = (self.tip_up * sc - y_up) * (1.0 / (SLIVER_SOFT * self.soft))
+                u = np.clip(u, 0.0, 1.0)
+                s_up *= (u * u * (3.0 - 2.0 * u)).astype(np.float32)
+            shade_up = spread3(s_up)
         shade *= arch
         shade = spread3(shade)
         cav = out
@@ -583,6 +617,12 @@ class MouthPlan:
         top_l = y_lb + self.low_off * sc
         # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
         top_t = top_l - TONGUE_RISE * D
+        if self.soft > 1.0:
+            # a large face: the tongue lit at its front only, its back (the top of the layer)
+            # fading into the cavity's dark (lit evenly, its top edge read as a cut-out)
+            u = np.clip((Qy - top_t) * (1.0 / (TONGUE_BACK * ht)), 0.0, 1.0)
+            u = (1.0 - TONGUE_BACK_DARK) + TONGUE_BACK_DARK * (u * u * (3.0 - 2.0 * u))
+            shade_g *= spread3(u.astype(np.float32))
         dlt = self._tongue_shift(faps, ex, ey)
         tongue = ("tongue", q21[0] - 0.5 * wt, top_t, wt, ht)
         # the layers placed in the (affine) frame: their sampling maps all at once

@@ -96,9 +96,11 @@ SOFT_FULL, BACK_LEN, BACK_DEEP, RIM_SOFT = 3.0, 0.15, 0.6, 0.5
 #: on a large face, the upper teeth show lit only where their edge lies this many edge ramps
 #: below the upper lip (a thinner sliver stays in the lip's shadow)
 SLIVER_SOFT = 2.0
-#: on a large face, the tongue's back (the top TONGUE_BACK of the layer) in shadow, by up to
-#: TONGUE_BACK_DARK
-TONGUE_BACK, TONGUE_BACK_DARK = 0.4, 0.6
+#: on a large face, the tongue lit at its front: darker by up to TONGUE_BACK_DARK from the
+#: lower lip up over TONGUE_BACK D (its layer's top 0.4 darkened instead, the tongue behind
+#: a surprised mouth's lower lip was its dark back: 0.13 of the skin on the 4K bench face,
+#: real wide-open JAFFE mouths' lower part 0.34-0.48)
+TONGUE_BACK, TONGUE_BACK_DARK = 0.3, 0.4
 #: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
 CAVITY_RGB = np.array([70, 26, 30], np.float32)
 _LUM = np.array([0.299, 0.587, 0.114], np.float32)
@@ -532,7 +534,8 @@ class MouthPlan:
         low = low.take(low[:, 0].argsort(), 0)
         # light on the teeth through the opening: the local gap between the lips (per column)
         # against how deep behind them the teeth lie
-        gap = np.maximum(interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
+        y_lo = interp(Qx, low[:, 0], low[:, 1])
+        gap = np.maximum(y_lo - y_up, 0.0)
         g2 = gap * gap
         zt = (APERTURE_TEETH * D) ** 2
         a_t = (gap / np.sqrt(g2 + zt + 1e-9)).astype(np.float32)
@@ -618,10 +621,11 @@ class MouthPlan:
         # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
         top_t = top_l - TONGUE_RISE * D
         if self.soft > 1.0:
-            # a large face: the tongue lit at its front only, its back (the top of the layer)
-            # fading into the cavity's dark (lit evenly, its top edge read as a cut-out)
-            u = np.clip((Qy - top_t) * (1.0 / (TONGUE_BACK * ht)), 0.0, 1.0)
-            u = (1.0 - TONGUE_BACK_DARK) + TONGUE_BACK_DARK * (u * u * (3.0 - 2.0 * u))
+            # a large face: the tongue lit at its front only (just behind the lower lip), its
+            # back further up the opening fading into the cavity's dark (lit evenly, its top
+            # edge read as a cut-out)
+            u = np.clip((y_lo - Qy) * (1.0 / (TONGUE_BACK * D)), 0.0, 1.0)
+            u = 1.0 - TONGUE_BACK_DARK * (u * u * (3.0 - 2.0 * u))
             shade_g *= spread3(u.astype(np.float32))
         dlt = self._tongue_shift(faps, ex, ey)
         tongue = ("tongue", q21[0] - 0.5 * wt, top_t, wt, ht)

@@ -592,3 +592,93 @@ def test_fear_shows_the_upper_teeth_under_the_upper_lip_as_real_open_fear():
     r, d = jaffe_real_and_drawn(_opening_top, "FE", "fear")
     assert r > 0.85, r
     assert d > r - 0.12, (r, d)
+
+
+def test_a_soft_photos_open_mouth_has_no_step_sharper_than_the_photos(sample_face):
+    """The smiling sample upscaled 6x (its edges ramp over ~8 px) under surprise, fear and
+    viseme aa at 150 %: no step between two neighbouring pixels in or around the opening is
+    steeper than the photo's steepest (42 grey levels). The photo's own upper teeth (moved with
+    the skull) and the drawn lower teeth were blurred up to their images' edges and stopped
+    there at half their coverage: a one-pixel cut across the opening, 51-57 grey levels (the
+    4K bench face: 98 -> 35 in a pixel); padded before the blur, 31-35."""
+    from editor.engine.fitting import luminance
+
+    f = Face.from_image(cv2.resize(sample_face.image, None, fx=6, fy=6,
+                                   interpolation=cv2.INTER_CUBIC))
+    photo = luminance(f.image).astype(np.float32)
+    steepest = max(np.abs(np.diff(photo, axis=0)).max(), np.abs(np.diff(photo, axis=1)).max())
+    for name in ("surprise", "fear", "viseme_aa"):
+        res = f.render_full(apply_preset(name, 1.5))
+        L = luminance(res.image).astype(np.float32)
+        near = cv2.dilate(res.mouth_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+        dy = np.abs(np.diff(L, axis=0))[near[1:] & near[:-1]].max()
+        dx = np.abs(np.diff(L, axis=1))[near[:, 1:] & near[:, :-1]].max()
+        assert max(dy, dx) <= steepest, (name, dy, dx, steepest)
+
+
+def _cavity_profile(image: np.ndarray) -> tuple[float, float, float, float] | None:
+    """An open mouth's interior by its detected inner lips (68 landmarks), relative to the
+    skin's median in a ring 0.08-0.16 IOD outside the outer lips: the median luminance of its
+    first 0.02 IOD inside the lips and of its pixels 0.08-0.12 IOD deep, the spread (std over
+    mean) of the pixels deeper than 0.02 IOD, and the light line under the upper lip (middle
+    columns, +-0.08 IOD: the brightest of the first 0.03 IOD under the inner upper lip less the
+    brightest of the lip 0.01-0.04 IOD above it, median). None when the lips part by less
+    than 0.12 IOD."""
+    got = _open_mouth(image)
+    if got is None:
+        return None
+    L, p, iod, skin = got
+    if p[66, 1] - p[62, 1] < 0.12 * iod:
+        return None
+    inner = np.zeros(L.shape, np.uint8)
+    cv2.fillPoly(inner, [np.round(p[60:68]).astype(np.int32)], 1)
+    d = cv2.distanceTransform(inner, cv2.DIST_L2, 3) / iod
+    near = float(np.median(L[(inner > 0) & (d < 0.02)])) / skin
+    deep = float(np.median(L[(d >= 0.08) & (d < 0.12)])) / skin
+    core = L[d > 0.02]
+    yu = p[62, 1]
+    bumps = [(L[int(yu):int(yu + 0.03 * iod) + 1, x].max()
+              - L[int(yu - 0.04 * iod):int(yu - 0.01 * iod), x].max()) / skin
+             for x in range(int(p[62, 0] - 0.08 * iod), int(p[62, 0] + 0.08 * iod) + 1)]
+    return near, deep, float(core.std() / core.mean()), float(np.median(bumps))
+
+
+def test_a_large_faces_open_mouth_darkens_into_its_back_as_real_ones():
+    """JAFFE women upscaled 4x (edges ramping over ~4 px), surprise at 150 %, measured as on
+    their real wide-open surprise photos upscaled alike (median of 21: 0.16 of the skin in the
+    first 0.02 IOD inside the lips, 0.04 at 0.08-0.12 IOD deep, spread 1.02, light line under
+    the upper lip -0.12). On KA, KL, KM drawn as one flat dark fill (0.12-0.14 deep, spread
+    0.77-0.87) with a sliver of lit upper teeth along the lip (0.40-0.74: a drawn outline);
+    now the back darkens with depth, the tongue is lit at its front only, the sliver stays in
+    the lip's shadow: 0.09-0.10 deep, spread 0.82-1.01, line 0.13-0.69. (The first 0.02 IOD
+    stays at 0.24-0.29, 0.27-0.30 before: the tongue's lit front and the lower teeth.)"""
+    got = []
+    for ne in jaffe_images("*.NE1.*.tiff")[:3]:
+        img = cv2.resize(load_image(ne), None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+        m = _cavity_profile(Face.from_image(img, own_expression=False)
+                            .render(apply_preset("surprise", 1.5), sharp=True))
+        if m is not None:
+            got.append(m)
+    if len(got) < 3:
+        pytest.skip("../shared/data/jaffe is not available")
+    near, deep, spread, line = (float(np.median(c)) for c in zip(*got, strict=True))
+    assert deep < 0.105, got
+    assert spread > 0.86, got
+    assert line < 0.35, got
+
+
+def test_a_soft_photos_lips_lose_their_photos_lip_line_as_wide_as_its_ramp():
+    """A JAFFE face upscaled 4x carries its photo's lip line (teeth between parted lips, 1-2
+    px there) as a light band 5-8 px wide along the opened lips; left on them it drew a light
+    outline around the opening. At the 4x sample's ramp (5.3 px) a 6 px strip goes (an
+    opening of soft / 2 + 2 px kept it: LIP_LINE_SOFT 0.5 before)."""
+    from editor.engine.layers import _clean_lip_line
+
+    out = np.full((60, 120, 3), 150, np.uint8)  # lips
+    out[28:34, 10:110] = 235  # a 6 px strip of teeth along the outline (row 34)
+    poly = np.array([[10.0, 34.0], [110.0, 34.0], [110.0, 50.0], [10.0, 50.0]])
+    alpha = np.zeros((60, 120), np.float32)
+    alpha[35:50, 10:110] = 1.0  # the opening below
+    _clean_lip_line(out, (0, 0, 120, 60), poly, alpha, 1.0, 5.3)
+    assert out[28:34, 20:100].max() <= 160, out[26:36, 60]
+    assert (out[:18] == 150).all()  # the lips away from the outline are untouched

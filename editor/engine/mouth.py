@@ -88,6 +88,19 @@ TEETH_L, TEETH_CAST = 0.95, 0.35
 #: units of D; the drawn teeth are D/2 tall with their gum band) before they turn into gum,
 #: over a fade of GUM_FADE D; and the upper lip's shadow on them at contact
 CROWN, GUM_FADE, EXT_LIP_SHADOW = 0.42, 0.12, 0.12
+#: on a large face (the photo's edge ramp ``soft`` over 1 px; in full from 1 + SOFT_FULL):
+#: the back of the cavity darkens with the depth behind the lips (exp(-depth / (BACK_LEN
+#: D))) down to 1 - BACK_DEEP of its light, and the lips' inner surface turns into it over
+#: RIM_SOFT * soft px more.
+SOFT_FULL, BACK_LEN, BACK_DEEP, RIM_SOFT = 3.0, 0.15, 0.6, 0.5
+#: on a large face, the upper teeth show lit only where their edge lies this many edge ramps
+#: below the upper lip (a thinner sliver stays in the lip's shadow)
+SLIVER_SOFT = 2.0
+#: on a large face, the tongue lit at its front: darker by up to TONGUE_BACK_DARK from the
+#: lower lip up over TONGUE_BACK D (its layer's top 0.4 darkened instead, the tongue behind
+#: a surprised mouth's lower lip was its dark back: 0.13 of the skin on the 4K bench face,
+#: real wide-open JAFFE mouths' lower part 0.34-0.48)
+TONGUE_BACK, TONGUE_BACK_DARK = 0.3, 0.4
 #: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
 CAVITY_RGB = np.array([70, 26, 30], np.float32)
 _LUM = np.array([0.299, 0.587, 0.114], np.float32)
@@ -321,6 +334,8 @@ class MouthPlan:
     photo_upper: bool = False  # the photo shows its own upper teeth: they replace the texture
     photo_lower: bool = False  # likewise for the lower teeth
     sliver: np.ndarray | None = None  # (w,) columns where the opening is a closed lip line
+    tex_pad: int = 0  # blank pixels around each texture in :attr:`tex` (:meth:`soften`)
+    soft: float = 1.0  # the photo's edge ramp, px (:meth:`soften`)
     ext: np.ndarray | None = None  # (h, w) where the photo's upper teeth were continued
 
     def attach_own(self, off, own, own_rgb, has_up, has_low, sliver, ext) -> None:
@@ -361,13 +376,34 @@ class MouthPlan:
         on a face whose own edges ramp over 10 px."""
         if soft <= 1.0:
             return
+        self.soft = float(soft)
         sigma = 0.31 * soft  # (a Gaussian's 10-90 % width, 2.56 sigma, as 0.8 soft)
-        self.tex = {k: cv2.GaussianBlur(t, (0, 0), sigma, borderType=cv2.BORDER_CONSTANT)
+        # each image padded by the blur's reach first (coverage zero, colours repeated): the
+        # drawn teeth's crowns and the photo's opening reach their images' edges, and blurred
+        # up to an edge they stopped there at ~0.5, a one-pixel step to the cavity (the 4K
+        # bench face under surprise: the photo's upper teeth 98 -> 35 grey levels in a pixel,
+        # the drawn lower teeth's tips 52 -> 96 in two, on a face whose edges ramp over 15 px)
+        p = int(math.ceil(3.0 * sigma))
+        zero = cv2.BORDER_CONSTANT
+
+        def pad(a: np.ndarray, border: int = zero) -> np.ndarray:
+            return cv2.copyMakeBorder(np.ascontiguousarray(a), p, p, p, p, border)
+
+        self.tex = {k: cv2.GaussianBlur(pad(t), (0, 0), sigma, borderType=zero)
                     for k, t in self.tex.items()}
-        if self.own is None:
+        self.tex_pad = p
+        if self.own is None or self.own_off is None:
             return
-        self._own_a = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_a]
-        self._own_keep = [cv2.GaussianBlur(a, (0, 0), sigma) for a in self._own_keep]
+
+        self.own_off = self.own_off - p
+        self._own_c = [pad(c, cv2.BORDER_REPLICATE) for c in self._own_c]
+        self._own_c3 = [pad(c, cv2.BORDER_REPLICATE) for c in self._own_c3]
+        if self.ext is not None:
+            self.ext = pad(np.asarray(self.ext, np.float32))
+        self._own_a = [cv2.GaussianBlur(pad(a), (0, 0), sigma, borderType=zero)
+                       for a in self._own_a]
+        self._own_keep = [cv2.GaussianBlur(pad(a), (0, 0), sigma, borderType=zero)
+                          for a in self._own_keep]
         self._own_parts()
 
     @classmethod
@@ -498,7 +534,8 @@ class MouthPlan:
         low = low.take(low[:, 0].argsort(), 0)
         # light on the teeth through the opening: the local gap between the lips (per column)
         # against how deep behind them the teeth lie
-        gap = np.maximum(interp(Qx, low[:, 0], low[:, 1]) - y_up, 0.0)
+        y_lo = interp(Qx, low[:, 0], low[:, 1])
+        gap = np.maximum(y_lo - y_up, 0.0)
         g2 = gap * gap
         zt = (APERTURE_TEETH * D) ** 2
         a_t = (gap / np.sqrt(g2 + zt + 1e-9)).astype(np.float32)
@@ -532,9 +569,21 @@ class MouthPlan:
             # the lips' inner surface turns away from the light (their colour, darkened), the
             # cavity behind darkens with depth and towards the corners (cheeks' shadow)
             # (with the drawn layers' falloff below: both at once, the same values as each)
-            g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
-                [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             back = (0.5 * (1.0 - 0.4 * side2)).astype(np.float32)
+            t_soft = min(max((self.soft - 1.0) / SOFT_FULL, 0.0), 1.0)
+            if t_soft > 0.0:
+                # a large face: the back of the mouth darkens further with depth (the
+                # cavity's light falls from the lips' inner surface into the throat)
+                g, g1, g2 = np.exp(-np.asarray(depth, np.float32) / np.array(
+                    [0.08 * D + 0.5 + RIM_SOFT * self.soft, 0.05 * D + 0.5, BACK_LEN * D],
+                    np.float32)[:, None, None])
+                k = BACK_DEEP * t_soft
+                g2 *= np.float32(k)
+                g2 += np.float32(1.0 - k)
+                back *= g2
+            else:
+                g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
+                    [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
             # (spread, then times the cavity's colour as a per-channel scalar: the same float32
             # products as cv2.transform's 3 x 1 matrix, at a fraction of its cost)
             deep = np.asarray(cv2.multiply(spread3(back), self._cavity_scalar), np.float32)
@@ -547,8 +596,17 @@ class MouthPlan:
         shade_g = (a_g * shade) * corner.astype(np.float32)
         shade_g = spread3(shade_g)
         shade *= a_t
-        shade_up = None if self.photo_upper else spread3(
-            shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP))
+        shade_up = None
+        if not self.photo_upper:
+            s_up = shade * _arch_light(Qx, ARCH_W_UP * self.mw * sc, ARCH_AMBIENT_UP)
+            if self.soft > 1.0:
+                # a large face: where the lip leaves only a sliver of the upper teeth (their
+                # edge less than SLIVER_SOFT ramps below it) the sliver stays in the lip's
+                # shadow: lit, its light line under the lip read as a drawn outline
+                u = (self.tip_up * sc - y_up) * (1.0 / (SLIVER_SOFT * self.soft))
+                u = np.clip(u, 0.0, 1.0)
+                s_up *= (u * u * (3.0 - 2.0 * u)).astype(np.float32)
+            shade_up = spread3(s_up)
         shade *= arch
         shade = spread3(shade)
         cav = out
@@ -562,6 +620,13 @@ class MouthPlan:
         top_l = y_lb + self.low_off * sc
         # the tongue's dorsum rises behind the lower teeth: seen over them in an open mouth
         top_t = top_l - TONGUE_RISE * D
+        if self.soft > 1.0:
+            # a large face: the tongue lit at its front only (just behind the lower lip), its
+            # back further up the opening fading into the cavity's dark (lit evenly, its top
+            # edge read as a cut-out)
+            u = np.clip((y_lo - Qy) * (1.0 / (TONGUE_BACK * D)), 0.0, 1.0)
+            u = 1.0 - TONGUE_BACK_DARK * (u * u * (3.0 - 2.0 * u))
+            shade_g *= spread3(u.astype(np.float32))
         dlt = self._tongue_shift(faps, ex, ey)
         tongue = ("tongue", q21[0] - 0.5 * wt, top_t, wt, ht)
         # the layers placed in the (affine) frame: their sampling maps all at once
@@ -691,23 +756,24 @@ class MouthPlan:
             return []
         rows, cols = q
         # per place the texture's pixels per frame unit (x, y) and its corner
-        k = np.array([(self.tex[n].shape[1] / ww, self.tex[n].shape[0] / hh)
+        p = self.tex_pad  # (the textures' own pixels inside their blank margin)
+        k = np.array([((self.tex[n].shape[1] - 2 * p) / ww, (self.tex[n].shape[0] - 2 * p) / hh)
                       for n, _, _, ww, hh in places])
         lt = np.array([(left, top) for _, left, top, _, _ in places])
         if rows.ndim == 3:  # (affine: scaled and shifted as a row plus a column, x and y)
             k, lt = k[:, :, None, None], lt[:, :, None, None]
-            m = (((rows - lt) * k - 0.5) + cols * k).astype(np.float32)
+            m = (((rows - lt) * k + (p - 0.5)) + cols * k).astype(np.float32)
             return [(mm[0], mm[1]) for mm in m]
         (kx, ky), (left, top) = k[0].tolist(), lt[0].tolist()
-        return [(((rows - left) * kx - 0.5).astype(np.float32),
-                 ((cols - top) * ky - 0.5).astype(np.float32))]
+        return [(((rows - left) * kx + (p - 0.5)).astype(np.float32),
+                 ((cols - top) * ky + (p - 0.5)).astype(np.float32))]
 
     def _over(self, out, name, maps, shade, gum=False):
         """``out`` under texture ``name`` sampled at ``maps`` (:meth:`_layer_maps`)."""
         t = self.tex[name]
         mx, my = maps
-        if gum:
-            my = np.maximum(my, np.float32(0.0))
+        if gum:  # (the texture's top row, inside its blank margin)
+            my = np.maximum(my, np.float32(self.tex_pad))
         s = cv2.remap(t, mx, my, cv2.INTER_LINEAR)  # (zeros outside: OpenCV's default border)
         # (the colour channels as one contiguous array: numpy is several times slower on a
         # channel view)

@@ -390,3 +390,34 @@ def test_own_teeth_stay_one_row_on_a_large_soft_photo():
                     for x, y in zip(xs, yu, strict=True)], np.float32)
     smooth = cv2.GaussianBlur(col[None], (0, 0), 2.0)[0]
     assert float(np.abs(np.diff(smooth)).mean() / col.mean()) < 0.009
+
+
+def test_the_mouth_layer_fades_out_inside_its_box_on_a_soft_photo():
+    """On a soft photo (the sample upscaled 4 x: edge ramp 5.3 px) the mouth's coverage is
+    blurred across its outline and its lip line cleaned either side of it, each over about the
+    ramp; the box the layer draws in holds both. With a 4 px margin its edge cut them off:
+    under joy at 150 % the layer's change stepped from 45 grey levels to 0 between two
+    neighbouring pixels, a straight line across the lips (73 on the 4K bench face's fear);
+    now at most ~25, the layer's own edges."""
+    from conftest import SAMPLE
+
+    import editor.engine.face as fm
+    from editor.core import apply_preset, load_image
+
+    img = cv2.resize(load_image(SAMPLE), None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+    f = Face.from_image(img)
+    vec = apply_preset("joy", 1.5)
+    with_layers = f.render(vec).astype(np.int16)
+    keep = fm.render_layers
+    try:
+        fm.render_layers = lambda face, res, *a, **k: res
+        without = f.render(vec).astype(np.int16)
+    finally:
+        fm.render_layers = keep
+    d = np.abs(with_layers - without).max(2).astype(np.int32)
+    p = f.deform(vec)[f.mesh.holes["mouth"]]
+    (x0, y0), (x1, y1) = (p.min(0) - 100).astype(int), (p.max(0) + 100).astype(int)
+    d = d[y0:y1, x0:x1]
+    steps = [np.where((a == 0) | (b == 0), np.abs(a - b), 0).max()
+             for a, b in ((d[1:], d[:-1]), (d[:, 1:], d[:, :-1]))]
+    assert max(steps) < 35, steps

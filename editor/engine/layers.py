@@ -623,8 +623,6 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     # the three openings' extents at once (as :func:`_box` of each loop)
     lo_all = np.minimum.reduceat(polys, cuts).tolist()
     hi_all = np.maximum.reduceat(polys, cuts).tolist()
-    if len(poly) > len(polys) - ends[2]:  # (the mouth's arcs reach past its vertices)
-        lo_all[2], hi_all[2] = poly.min(0).tolist(), poly.max(0).tolist()
     slot = {"eye_l": 0, "eye_r": 1, "mouth": 2}
     # each eye's closure (1 - its area over the neutral one): the lash line is drawn from 0.6
     # on, and an open eye's upper lid margin continues its lash band (_composite's margin)
@@ -643,16 +641,15 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     # (the mouth's coverage on a soft photo is blurred across its outline and its lip line
     # cleaned either side of it, each over about the photo's edge ramp: its box holds that
     # ramp, or the box's edge cut them off in a straight line across the lips: the 4K bench
-    # face's fear at 150 % changed by up to 60 levels on the box's last row, 0 on the next)
+    # face's fear at 150 % changed by up to 73 levels on the box's last row, 0 on the next)
     mouth_pad = 4 if lp.soft <= 1.0 else 4 + math.ceil(2.0 * lp.soft)
     for job in jobs:
         k_open = slot[job[1]]
         loop = job[2] if job[0] == "mouth" else smooth_loop(job[2], _EYE_CORNERS, split[k_open])
-        lo, hi = lo_all[k_open], hi_all[k_open]
-        if len(loop) != len(job[2]):
-            lo, hi = loop.min(0).tolist(), loop.max(0).tolist()
-            lo_all[k_open], hi_all[k_open] = lo, hi
-        box = _box_of(lo, hi, out.shape, mouth_pad if job[0] == "mouth" else 2)
+        if split[k_open] > 1:  # (the arcs reach past the loop's vertices)
+            lo_all[k_open], hi_all[k_open] = loop.min(0).tolist(), loop.max(0).tolist()
+        box = _box_of(lo_all[k_open], hi_all[k_open], out.shape,
+                      mouth_pad if job[0] == "mouth" else 2)
         if box[2] > box[0] and box[3] > box[1]:
             todo.append((job, box))
             outlines.append(loop)

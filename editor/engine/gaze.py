@@ -75,14 +75,14 @@ def _rgb(rgba: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:
     return np.asarray(cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB, dst), np.float32)
 
 
-#: Maps of fewer pixels than this resample a 3-channel texture (:func:`_sample`): the eye
+#: Maps of fewer pixels than this resample a 3-channel texture (:func:`sample_rgb`): the eye
 #: boxes of a face ~40 px between the eyes (~150-300 px) in one 3-channel remap, where the
 #: 4-channel remap and its copy back to 3 channels cost ~0.5 us more; larger ones (the 1080p
 #: bench face's eyes, ~1100 px) through the 4 channels, vectorised
 REMAP3_PX = 768
 
 
-def _sample(tex3: np.ndarray, tex4: np.ndarray, mx: np.ndarray, my: np.ndarray,
+def sample_rgb(tex3: np.ndarray, tex4: np.ndarray, mx: np.ndarray, my: np.ndarray,
             dst: np.ndarray | None = None) -> np.ndarray:
     """``cv2.remap`` (bilinear) of a float32 texture given as 3 channels ``tex3`` and as 4
     (:func:`zero_alpha`, ``tex4``) at float32 maps: (h, w, 3) float32 (into ``dst`` when
@@ -643,7 +643,7 @@ class EyePlan:
         # read; :func:`_rgb` drops it): OpenCV's 4-channel float remap plus the copy back to
         # 3 channels costs about half its 3-channel remap (the same values per channel;
         # ~12 vs 23 us on the 4K bench face's eye blocks)
-        # (and as 3 channels: on small boxes one 3-channel remap costs less, :func:`_sample`)
+        # (and as 3 channels: on small boxes one 3-channel remap costs less, :func:`sample_rgb`)
         self._plate3, self._photo3, self._ball3, self._iris3 = (
             np.ascontiguousarray(a, np.float32)
             for a in (self.plate, self.photo, self.ball, self.iris))
@@ -889,15 +889,11 @@ class EyePlan:
         t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
         if t < 1e-18:
             t = 0.0
-        white: np.ndarray
-        if mx.size < REMAP3_PX:
-            plate = self._plate3 if t >= 1.0 else self._photo3 if t <= 0.0 else \
-                self._photo3 + t * (self._plate3 - self._photo3)
-            white = cv2.remap(plate, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-        else:
-            plate = self._plate4 if t >= 1.0 else self._photo4 if t <= 0.0 else \
-                self._photo4 + t * (self._plate4 - self._photo4)
-            white = _rgb(cv2.remap(plate, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE))
+        # (the plate and the photo's white mixed in the channel count :func:`sample_rgb` reads)
+        plate, photo = ((self._plate3, self._photo3) if mx.size < REMAP3_PX
+                        else (self._plate4, self._photo4))
+        mixed = plate if t >= 1.0 else photo if t <= 0.0 else photo + t * (plate - photo)
+        white = sample_rgb(mixed, mixed, mx, my)
         # opened lids: per pixel, how far its column's lid moved away and the weight of the
         # photo / plate there (0 in the shadow band of a moved lid and beyond the old lid)
         keep = None
@@ -944,7 +940,7 @@ class EyePlan:
                 np.subtract(1.0, kk, out=kk)
                 keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
                 keep = keep.astype(np.float32)
-                ball = _sample(self._ball3, self._ball4, mx, my)
+                ball = sample_rgb(self._ball3, self._ball4, mx, my)
                 # (weights spread over the channels with cv2.merge: numpy's broadcasting of
                 # (h, w, 1) over 3 channels is several times slower on these small boxes)
                 white -= ball
@@ -969,7 +965,7 @@ class EyePlan:
                 n, (h, w) = len(lids_moved), U.shape
                 got = np.empty((n, h, w, 3), np.float32)
                 for i, j in enumerate(lids_moved):
-                    _sample(self._bands3[j], self._bands4[j], bx[j], by[j], got[i])
+                    sample_rgb(self._bands3[j], self._bands4[j], bx[j], by[j], got[i])
                 np.subtract(1.0, got, out=got)
                 s_rows = (ss if n == 2 else ss[lids_moved[0]]).reshape(n * h, w)
                 s3 = spread3(s_rows)
@@ -1001,7 +997,7 @@ class EyePlan:
             k = rs / np.maximum(rho, 1e-6)
             ix = (ox + k * (Di * ex[0] + Dw * ey[0])).astype(np.float32)
             iy = (oy + k * (Di * ex[1] + Dw * ey[1])).astype(np.float32)
-        iris = _sample(self._iris3, self._iris4, ix, iy)
+        iris = sample_rgb(self._iris3, self._iris4, ix, iy)
         p_rest = self.p0 * r_new / self.r0
         if p_new > p_rest:
             # a dilated pupil: the photo's pupil, radially stretched, may be faint (brown

@@ -40,7 +40,7 @@ from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
 from .fitting import clamp, clip, interp
-from .gaze import REMAP3_PX, spread3
+from .gaze import sample_rgb, spread3
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -798,13 +798,7 @@ class MouthPlan:
         a = cv2.remap(src, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default border)
         if not np.count_nonzero(a):
             return None, None
-        if mx.size < REMAP3_PX:
-            px = cv2.remap(self._own_c3[k], mx, my, cv2.INTER_LINEAR, None,
-                           cv2.BORDER_REPLICATE)
-        else:
-            px = cv2.cvtColor(cv2.remap(self._own_c[k], mx, my, cv2.INTER_LINEAR, None,
-                                        cv2.BORDER_REPLICATE), cv2.COLOR_RGBA2RGB)
-        return a, px
+        return a, sample_rgb(self._own_c3[k], self._own_c[k], mx, my)
 
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""

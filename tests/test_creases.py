@@ -708,7 +708,7 @@ def test_splat_of_many_canvases_equals_one_canvas_at_a_time():
     canvas when a box was clipped by the image's edge): per canvas, the bilinear splat of its
     own points, bit for bit, whatever else is splatted with it; weight off a canvas is dropped
     on the fallback path."""
-    from editor.engine.creases import _splat_many
+    from editor.engine.creases import _splat_many, _splat_rows
 
     rng = np.random.default_rng(5)
 
@@ -730,20 +730,22 @@ def test_splat_of_many_canvases_equals_one_canvas_at_a_time():
     for h, wd in shapes:
         n = int(rng.integers(20, 200))
         xy = np.stack([rng.uniform(1, wd - 2.01, n), rng.uniform(1, h - 2.01, n)], 1)
-        cans.append(((h, wd), xy, rng.uniform(0, 1, n), True))
-    stacked = _splat_many(cans)
-    fallback = _splat_many([c[:3] + (False,) for c in cans])
-    for (shape, xy, w, _), a, b in zip(cans, stacked, fallback, strict=True):
+        cans.append(((h, wd), xy, rng.uniform(0, 1, n)))
+    stacked = _splat_rows([c[0] for c in cans], np.concatenate([c[1] for c in cans]).T,
+                          np.concatenate([c[2] for c in cans]),
+                          np.arange(len(cans)).repeat([len(c[2]) for c in cans]))
+    fallback = _splat_many(cans)
+    for (shape, xy, w), a, b in zip(cans, stacked, fallback, strict=True):
         ref = alone(shape, xy, w)
         assert a.shape == b.shape == shape
         assert np.array_equal(a, ref) and np.array_equal(b, ref)
         assert ref.sum() > 0
     # a point beyond its canvas's last row: its weight is dropped, the others' stay
-    (h, wd), xy, w, _ = cans[0]
+    (h, wd), xy, w = cans[0]
     out = np.vstack([xy, [[3.5, h + 4.0]]])
-    got = _splat_many([((h, wd), out, np.append(w, 1.0), False), cans[1][:3] + (False,)])
+    got = _splat_many([((h, wd), out, np.append(w, 1.0)), cans[1]])
     assert np.array_equal(got[0], alone((h, wd), xy, w))
-    assert np.array_equal(got[1], alone(*cans[1][:3]))
+    assert np.array_equal(got[1], alone(*cans[1]))
 
 
 def test_per_face_constants_are_published_only_when_complete(monkeypatch):

@@ -1586,7 +1586,7 @@ def _subsamples(spec: tuple[tuple[int, int, int, float, float], ...]) -> _Subsam
 def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
             un: np.ndarray | None, shape: tuple[int, int],
             maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
-            fa: _Fast | None = None, su: np.ndarray | None = None
+            fa: _Fast, su: np.ndarray | None
             ) -> tuple[list[tuple], list[tuple[int, tuple[int, int, int, int], int, int]],
                        list[np.ndarray]]:
     """Every canvas of the frame, laid out and splatted: the bands of :func:`_unfold_draw`
@@ -1606,10 +1606,8 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
     and the segments' data as rows (x, y along one contiguous axis; :func:`_on_mesh`'s values
     and each segment's start, direction and length ``sqrt(dx dx + dy dy)``), every
     segment's start, direction, normal, end strengths and length gathered per sub-sample in
-    one ``take``. ``fa``: the face's :class:`_Fast` when known; ``su``: ``s`` followed by
-    ``un`` as one array when known (of which both are views)."""
-    if fa is None:
-        fa = _fast(face)
+    one ``take``. ``fa``: the face's :class:`_Fast`; ``su``: ``s`` followed by ``un`` as one
+    array (of which both are views; None with ``un``)."""
     sc = fa.segc
     if sc is None:
         sc = fa.segc = _seg_constants(fa)
@@ -1622,7 +1620,8 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
         sv, sa_i, sb_i, thr = s, fa.seg_a, fa.seg_b, _MIN_STRENGTH
         starts = sc.starts
     else:
-        sv = np.concatenate((s, un)) if su is None else su
+        assert su is not None  # (given with un)
+        sv = su
         sa_i, sb_i, thr = sc.sa2, sc.sb2, sc.thr2
         starts = sc.starts2
     end = sc.nonempty[-1][2] + (m if un is not None else 0)
@@ -1776,7 +1775,7 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
             q -= np.array(post).take(cpt)
         if not safe:  # a box clipped by the image's edge: canvas by canvas
             return unfolds, jobs, _splat_many(
-                [(sh, q[:, a:a + n].T, w[a:a + n], False)
+                [(sh, q[:, a:a + n].T, w[a:a + n])
                  for sh, a, n in zip(shapes, cut, count, strict=True)])
         return unfolds, jobs, _splat_rows(shapes, q, w, cpt)
     return unfolds, jobs, _splat_rows(shapes, xy, w, cpt, sub)
@@ -1824,12 +1823,14 @@ _TURN_COL = np.array([[-1.0], [1.0]])
 def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
                 cpt: np.ndarray, sub: list[tuple[float, float]] | None = None
                 ) -> list[np.ndarray]:
-    """:func:`_splat_stacked` of points given as rows ``xy`` (2, n) (x, y); ``sub``: each
-    canvas's origin, whole pixels, to be subtracted from its points (an offset of their
-    pixels: their fractions are the same, a float's less a whole number below it being
-    exact), else the points are the canvases' own. The same values: every canvas a block of
-    its own in one array, ``h w`` long (its rows as long as its own, not the widest canvas's:
-    its pixels take the same weights in the same order, and the canvas is contiguous)."""
+    """float32 canvases of ``shapes`` with weights ``w`` (n,) added at sub-pixel positions
+    given as rows ``xy`` (2, n) (x, y), canvas ``cpt`` (n,) each, all in one ``bincount``
+    (bilinear, corner-major: per pixel the same sums in the same order as one bincount per
+    canvas); every point lies at least a pixel inside its canvas. ``sub``: each canvas's
+    origin, whole pixels, to be subtracted from its points (an offset of their pixels: their
+    fractions are the same, a float's less a whole number below it being exact), else the
+    points are the canvases' own. Every canvas is a contiguous block of its own in one array,
+    ``h w`` long. (:func:`_splat_many` when a box was clipped by the image's edge.)"""
     P0 = np.floor(xy)
     F = xy - P0
     ip = P0.astype(np.int64)
@@ -1855,26 +1856,6 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     np.add(idx[2], 1, out=idx[3])
     acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
     return [acc[o:o + h * wd].reshape(h, wd) for o, (h, wd) in zip(first, shapes, strict=True)]
-
-
-def _splat_stacked(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
-                   cpt: np.ndarray) -> list[np.ndarray]:
-    """:func:`_splat_many`'s stacked path for canvases of ``shapes`` whose points ``xy``
-    (weights ``w``, canvas ``cpt``) lie at least a pixel inside them, already concatenated:
-    the same values."""
-    P0 = np.floor(xy)
-    F = xy - P0
-    ip = P0.astype(np.int64)
-    ws = _bilinear_weights(F, w)
-    wide = max(wd for _, wd in shapes)
-    rows = [h for h, _ in shapes]
-    top = list(itertools.accumulate([0, *rows[:-1]]))
-    base = ip[:, 1] * wide + ip[:, 0] + (np.array(top) * wide).take(cpt)
-    idx = base[None, :] + np.array([[0], [1], [wide], [wide + 1]], np.int64)
-    total = int(sum(rows)) * wide
-    acc = np.bincount(idx.ravel(), ws, minlength=total)[:total].astype(np.float32)
-    acc = acc.reshape(-1, wide)
-    return [acc[t:t + h, :wd] for t, (h, wd) in zip(top, shapes, strict=True)]
 
 
 def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int,
@@ -2001,32 +1982,22 @@ def _fold_blocks(fa: _Fast, out: np.ndarray, g: int, box: tuple[int, int, int, i
     cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
 
 
-def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray, bool]]
+def _splat_many(canvases: list[tuple[tuple[int, int], np.ndarray, np.ndarray]]
                 ) -> list[np.ndarray]:
     """float32 canvases ``(h, w)`` with weights ``w`` (n,) added at sub-pixel positions
-    ``xy`` (n, 2) (bilinear), all in one ``bincount``: the same sums, in the same order per
-    pixel, as one bincount per canvas of its points' four corners (corner-major). The 4th
-    item of each canvas says that every point lies at least a pixel inside it (its box was
-    not clipped by the image's edge).
-
-    The canvases are stacked vertically in one array as wide as the widest (each a view of
-    it). When a point's corners would leave its canvas (only possible where a box was clipped
-    by the image's edge), canvas by canvas instead (what leaves one is dropped; a corner past
-    a row's end wraps into the next row, as on a canvas of its own).
+    ``xy`` (n, 2) (bilinear), canvas by canvas, for points that may leave their canvas (a box
+    clipped by the image's edge): what leaves one is dropped (a corner past a row's end wraps
+    into the next row, as on a canvas of its own). The same sums per pixel as
+    :func:`_splat_rows`, which serves canvases every point lies inside.
     """
-    n = [len(w) for _, _, w, _ in canvases]
-    # every point's corners inside its canvas: its box was not clipped by the image's edge
-    if all(c[3] for c in canvases):
-        return _splat_stacked([c[0] for c in canvases], np.concatenate([c[1] for c in canvases]),
-                              np.concatenate([c[2] for c in canvases]),
-                              np.arange(len(canvases)).repeat(n))
+    n = [len(w) for _, _, w in canvases]
     xy = np.concatenate([c[1] for c in canvases])
     P0 = np.floor(xy)
     ip = P0.astype(np.int64)
     ws = _bilinear_weights(xy - P0, np.concatenate([c[2] for c in canvases]))
     got = []
     k = 0
-    for ((h, wd), _, _, _), m in zip(canvases, n, strict=True):
+    for ((h, wd), _, _), m in zip(canvases, n, strict=True):
         base = ip[k:k + m, 1] * wd + ip[k:k + m, 0]
         idx = (base[None, :] + np.array([0, 1, wd, wd + 1])[:, None]).ravel()
         w4 = ws.reshape(4, -1)[:, k:k + m].ravel()
@@ -2188,9 +2159,9 @@ def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: 
 
 def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.ndarray],
                  bbox: tuple[int, int, int, int] | None,
-                 maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None = None,
-                 interpolation: int = cv2.INTER_LINEAR, fa: _Fast | None = None,
-                 q: int | None = None) -> tuple[int, int, int, int] | None:
+                 maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None,
+                 interpolation: int, fa: _Fast, q: int
+                 ) -> tuple[int, int, int, int] | None:
     """Smooth the photo's own folds away where the target spreads their skin (in place).
 
     Along each fold's valley (:func:`_own_valleys`, carried by the deformed mesh; a band a few
@@ -2206,13 +2177,9 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
     and carried to the frame by the warp's own map (one ``cv2.remap`` of the band's box, so
     the gain lies on the valley exactly where the warp puts it); per frame only the band is
     drawn. Without ``maps`` they are computed on ``out``. ``fa``: the face's :class:`_Fast`,
-    ``q`` its :func:`_frame_blocks`, when known.
+    ``q`` its :func:`_frame_blocks`.
     """
-    if fa is None:
-        fa = _fast(face)
     H, W = out.shape[:2]
-    if q is None:
-        q = _frame_blocks(face)
     for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)

@@ -48,6 +48,7 @@ from .fitting import (
     percentile,
     smooth01,
 )
+from .warp import bilinear_reach
 
 #: FAP indices (0-based) per eye: yaw, pitch, thrust, dilate; eye_l = FDP 3.5, eye_r = 3.6
 EYE_FAPS = {"eye_l": (22, 24, 26, 28), "eye_r": (23, 25, 27, 29)}
@@ -1116,11 +1117,9 @@ def remap_rgb(img: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarray:
     and the maps' moves ~0.05 ms)."""
     if mx.size < RESAMPLE4_PX:
         return cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-    H, W = img.shape[:2]
     lo_x, hi_x = cv2.minMaxLoc(mx)[:2]
     lo_y, hi_y = cv2.minMaxLoc(my)[:2]
-    x0, y0 = min(max(math.floor(lo_x) - 2, 0), W - 1), min(max(math.floor(lo_y) - 2, 0), H - 1)
-    x1, y1 = max(min(math.ceil(hi_x) + 3, W), x0 + 1), max(min(math.ceil(hi_y) + 3, H), y0 + 1)
+    x0, y0, x1, y1 = bilinear_reach(img.shape, (lo_x, lo_y), (hi_x, hi_y))
     src = cv2.cvtColor(img[y0:y1, x0:x1], cv2.COLOR_RGB2RGBA)
     got = cv2.remap(src, mx - np.float32(x0) if x0 else mx, my - np.float32(y0) if y0 else my,
                     cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)

@@ -260,9 +260,7 @@ def warp(plan: WarpPlan, dst: np.ndarray, layers: dict[str, np.ndarray] | None =
         node_hook = (cast(NodeHook, hook) if hasattr(hook, "nodes") and hasattr(hook, "lut")
                      and hasattr(hook, "points") and hasattr(hook, "box") else None)
         if node_hook is not None:
-            reads = []
-        if node_hook is not None:
-            hook = None
+            reads, hook = [], None
         # (without a hook to call on the whole map, the map is interpolated strip by strip as
         # the photo is resampled: see :func:`_resample_strips`)
         ids, map_x, map_y, moving, pending = _maps_coarse(
@@ -496,15 +494,25 @@ def _rgba_buffer(plan: WarpPlan) -> np.ndarray:
         return plan._rgba
 
 
-def _to_rgba(plan: WarpPlan, buf: np.ndarray, lo: tuple[float, float],
-             hi: tuple[float, float]) -> None:
-    """``buf`` (:func:`_rgba_buffer`) made the photo as RGBA (alpha 255) over every pixel a
-    bilinear sample (border replicated) at a position in ``[lo, hi]`` (x, y each) reads."""
-    h, w = plan.image.shape[:2]
+def bilinear_reach(shape: tuple[int, ...], lo: tuple[float, float], hi: tuple[float, float]
+                   ) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)``: the pixels of an image of ``shape`` that a bilinear sample at any
+    position in ``[lo, hi]`` (x, y each) reads, a pixel more each side, inside the image and
+    never empty (a region resampled on its own gives the whole image's values there, its
+    replicated border included)."""
+    h, w = shape[:2]
     x0 = min(max(math.floor(lo[0]) - 2, 0), w - 1)
     y0 = min(max(math.floor(lo[1]) - 2, 0), h - 1)
     x1 = max(min(math.floor(hi[0]) + 3, w), x0 + 1)
     y1 = max(min(math.floor(hi[1]) + 3, h), y0 + 1)
+    return x0, y0, x1, y1
+
+
+def _to_rgba(plan: WarpPlan, buf: np.ndarray, lo: tuple[float, float],
+             hi: tuple[float, float]) -> None:
+    """``buf`` (:func:`_rgba_buffer`) made the photo as RGBA (alpha 255) over every pixel a
+    bilinear sample (border replicated) at a position in ``[lo, hi]`` (x, y each) reads."""
+    x0, y0, x1, y1 = bilinear_reach(plan.image.shape, lo, hi)
     cv2.cvtColor(plan.image[y0:y1, x0:x1], cv2.COLOR_RGB2RGBA, dst=buf[y0:y1, x0:x1])
 
 

@@ -31,8 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .chinboss import carried
-from .fitting import is_grey
+from .chinboss import carried, ellipse_bump, shade_tint
 from .layers import _rebox, _union
 from .perface import per_face
 from .warp import WarpResult
@@ -55,8 +54,6 @@ DARK_HALF = (0.20, 0.10)
 #: the upper flank's (round)
 LIGHT_AT = (-0.1, 0.0, -0.15, 1.25)
 LIGHT_HALF = 0.14
-#: the shade's share on red, green and blue (skin in shadow is warmer than the same skin lit)
-TINT = (0.8, 1.0, 1.1)
 #: below this strength nothing is drawn
 _TOL = 2e-3
 
@@ -79,15 +76,6 @@ class CheekPlan:
     sides: tuple[CheekSide, ...]
     iod: float
     tint: np.ndarray  # (3,) float32
-
-
-def _ellipse(xs: np.ndarray, ys: np.ndarray, c: np.ndarray, along: np.ndarray,
-             half: tuple[float, float]) -> np.ndarray:
-    dx, dy = xs - c[0], ys - c[1]
-    u = (dx * along[0] + dy * along[1]) / half[0]
-    w = (dx * -along[1] + dy * along[0]) / half[1]
-    r2 = u * u + w * w
-    return np.where(r2 < 1.0, (1.0 - r2) ** 2, 0.0)
 
 
 @per_face
@@ -119,10 +107,13 @@ def cheek_plan(face: Face) -> CheekPlan | None:
         x1, y1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
         if x1 - x0 < 3 or y1 - y0 < 3:
             continue
-        ys, xs = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+        box = (x0, y0, x1, y1)
+        across = np.array([-along[1], along[0]])
         field = np.dstack([
-            DARKEST * _ellipse(xs, ys, dark_c, along, (DARK_HALF[0] * iod, DARK_HALF[1] * iod)),
-            LIGHTEST * _ellipse(xs, ys, light_c, along, (LIGHT_HALF * iod, LIGHT_HALF * iod))])
+            DARKEST * ellipse_bump(box, dark_c, along, across, DARK_HALF[0] * iod,
+                                   DARK_HALF[1] * iod),
+            LIGHTEST * ellipse_bump(box, light_c, along, across, LIGHT_HALF * iod,
+                                    LIGHT_HALF * iod)])
         P = np.hstack([rest[idx], np.ones((4, 1))])
         # the drive's zero: the neutral mesh's corner or the photo's own, whichever is
         # further along the muscle's line
@@ -133,8 +124,7 @@ def cheek_plan(face: Face) -> CheekPlan | None:
                                field=field.astype(np.float32), box=(x0, y0, x1, y1)))
     if not sides:
         return None
-    tint = np.array((1.0, 1.0, 1.0) if is_grey(face.image) else TINT, np.float32)
-    return CheekPlan(sides=tuple(sides), iod=iod, tint=tint)
+    return CheekPlan(sides=tuple(sides), iod=iod, tint=shade_tint(face.image))
 
 
 def lift(plan: CheekPlan, side: CheekSide, vertices: np.ndarray) -> float:

@@ -108,13 +108,7 @@ def chin_plan(face: Face) -> ChinPlan | None:
     x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return None
-    # (np.mgrid's values, broadcast: each pixel's arithmetic is the same)
-    dx = np.arange(x0, x1, dtype=np.float64)[None, :] - centre[0]
-    dy = np.arange(y0, y1, dtype=np.float64)[:, None] - centre[1]
-    u = (dx * across[0] + dy * across[1]) / ax
-    w = (dx * down[0] + dy * down[1]) / ay
-    r2 = u * u + w * w
-    field = np.where(r2 < 1.0, (1.0 - r2) ** 2, 0.0)
+    field = ellipse_bump((x0, y0, x1, y1), centre, across, down, ax, ay)
     P = np.hstack([rest[anchors], np.ones((4, 1))])
     # the drive's zero: the neutral mesh (the photo's own expression removed), or the photo's
     # own mesh where its chin boss is higher (a photo's own bunching is in its pixels already;
@@ -124,7 +118,7 @@ def chin_plan(face: Face) -> ChinPlan | None:
                     boss_gap0=max(_gap(rest, boss), _gap(neutral, boss)) / iod,
                     lips_gap0=_gap(neutral, lips) / iod,
                     solve=np.linalg.pinv(P), field=field.astype(np.float32),
-                    tint=np.array((1.0, 1.0, 1.0) if is_grey(face.image) else TINT, np.float32),
+                    tint=shade_tint(face.image),
                     box=(x0, y0, x1, y1))
 
 
@@ -137,6 +131,26 @@ def bunching(plan: ChinPlan, vertices: np.ndarray) -> float:
         return 0.0
     closed = 1.0 - smooth01_float((_gap(v, plan.lips) / plan.iod - plan.lips_gap0) / OPEN)
     return DARKEST * (1.0 - math.exp(-rise / RISE)) * closed
+
+
+def ellipse_bump(box: tuple[int, int, int, int], centre: np.ndarray, e1: np.ndarray,
+                 e2: np.ndarray, h1: float, h2: float) -> np.ndarray:
+    """(y1 - y0, x1 - x0) float64 over ``box`` (x0, y0, x1, y1): the smooth bump
+    ``(1 - r^2)^2`` of the ellipse about ``centre`` with half-axes ``h1`` along the unit
+    ``e1`` and ``h2`` along ``e2`` (0 outside it)."""
+    x0, y0, x1, y1 = box
+    dx = np.arange(x0, x1, dtype=np.float64)[None, :] - centre[0]
+    dy = np.arange(y0, y1, dtype=np.float64)[:, None] - centre[1]
+    u = (dx * e1[0] + dy * e1[1]) / h1
+    w = (dx * e2[0] + dy * e2[1]) / h2
+    r2 = u * u + w * w
+    return np.where(r2 < 1.0, (1.0 - r2) ** 2, 0.0)
+
+
+def shade_tint(image: np.ndarray) -> np.ndarray:
+    """(3,) float32: a shade's share on red, green and blue (:data:`TINT`; even on a grey
+    photo)."""
+    return np.array((1.0, 1.0, 1.0) if is_grey(image) else TINT, np.float32)
 
 
 def carried(field: np.ndarray, box: tuple[int, int, int, int], A: np.ndarray,

@@ -1522,22 +1522,16 @@ class _SegConstants:
     thr2: np.ndarray
 
 
-#: per fast plan: its :class:`_SegConstants`
-_SEGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
 
 def _seg_constants(fa: _Fast) -> _SegConstants:
-    got = _SEGS.get(fa)
-    if got is None:
-        nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
-        n, m = len(fa.depth), len(fa.seg_a)
-        starts = [g0 for _, g0, _ in nonempty]
-        got = _SegConstants(
-            nonempty, starts, starts + [g0 + m for g0 in starts],
-            np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]),
-            np.concatenate([np.full(m, _MIN_STRENGTH), np.full(m, _MIN_UNFOLD)]))
-        _SEGS[fa] = got
-    return got
+    """The segments' constants of a fast plan (kept on it: ``fa.segc``)."""
+    nonempty = [(g, g0, g1) for g, (g0, g1) in enumerate(fa.seg_rng) if g1 > g0]
+    n, m = len(fa.depth), len(fa.seg_a)
+    starts = [g0 for _, g0, _ in nonempty]
+    return _SegConstants(
+        nonempty, starts, starts + [g0 + m for g0 in starts],
+        np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]),
+        np.concatenate([np.full(m, _MIN_STRENGTH), np.full(m, _MIN_UNFOLD)]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -2528,25 +2522,19 @@ def _bilinear_weights(F: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 _VALLEY_SAMPLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_BOTH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _both_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...],
                                        np.ndarray, np.ndarray]:
     """The fold samples followed by the valley's (:func:`_valley_samples`) as one set for
     :func:`_on_mesh` (3 x (2N,) vertex indices, 3 x (2N, 1) weights) and the segments of both
     halves (``seg_a``, ``seg_b`` and the same shifted by N): a frame that draws folds and
-    unfolds places and measures both in one pass (once per face)."""
-    got = _BOTH.get(face)
-    if got is None:
-        fa = _fast(face)
-        tri, bary = _valley_samples(face)
-        n = len(fa.sample_tri[0])
-        got = (tuple(np.concatenate([a, b]) for a, b in zip(fa.sample_tri, tri, strict=True)),
-               tuple(np.concatenate([a, b]) for a, b in zip(fa.bary, bary, strict=True)),
-               np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]))
-        _BOTH[face] = got
-    return got
+    unfolds places and measures both in one pass (once per face: kept on its fast plan,
+    ``fa.both``)."""
+    fa = _fast(face)
+    tri, bary = _valley_samples(face)
+    n = len(fa.sample_tri[0])
+    return (tuple(np.concatenate([a, b]) for a, b in zip(fa.sample_tri, tri, strict=True)),
+            tuple(np.concatenate([a, b]) for a, b in zip(fa.bary, bary, strict=True)),
+            np.concatenate([fa.seg_a, fa.seg_a + n]), np.concatenate([fa.seg_b, fa.seg_b + n]))
 
 
 def _valley_samples(face: Face) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:

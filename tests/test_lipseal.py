@@ -357,3 +357,47 @@ def test_the_contact_line_leaves_the_pixels_it_cannot_darken(sample_face):
     f = sample_face
     res = lipseal.apply_contact_line(f, WarpResult(f.image.copy(), None), f.neutral_vertices)
     assert (res.image != f.image).any()
+
+
+def _fill_grain(face: Face) -> tuple[float, float]:
+    """High-pass level (std of luminance - its Gaussian blur, sigma 1 px) of the opening's fill
+    on the sealed photo (the pixels the fill changed, outside the inner-lip polygon: inside
+    it the mesh closes) and of the photo's lips the opening leaves (the same high-pass, on
+    the photo; their outline's edge included)."""
+    patch = lipseal.seal_plan(face).opening
+    (x0, y0), (h, w) = patch.org, patch.diff.shape[:2]
+    hp = [(g - cv2.GaussianBlur(g, (0, 0), 1.0))
+          for g in (luminance(im[y0:y0 + h, x0:x0 + w]).astype(np.float32)
+                    for im in (lipseal.sealed_photo(face), face.image))]
+    m = face.mesh
+    v = face.vertices - np.float32([x0, y0])
+    inside = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(inside, [np.round(v[np.asarray(m.holes["mouth"])]).astype(np.int32)], 1)
+    lips = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(lips, [np.round(v[[m.index(n) for n in OUTER]]).astype(np.int32)], 1)
+    fill = (np.abs(patch.diff[..., :3]).sum(2) > 0.5) & (inside == 0)
+    left = (lips > 0) & (inside == 0) & ~fill
+    return float(hp[0][fill].std()), float(hp[1][left].std())
+
+
+def test_the_fill_takes_the_lips_grain(sample_face):
+    """The opening's fill mirrors the grain of the lips the opening leaves, not the flat tone
+    set inside the inner-lip polygon (nearer to half of the fill: a smooth band along the
+    closed lips, "smoothed/retouched"). The sample: the fill's high-pass 0.70 of its lips'
+    before, 0.80 now; within the lips' own (their outline's edge included in theirs)."""
+    fill, lips = _fill_grain(sample_face)
+    assert 0.76 * lips <= fill <= lips, (fill, lips)
+
+
+@pytest.mark.skipif(not JAFFE.exists(), reason="needs ../shared/data/jaffe")
+def test_jaffe_toothy_smiles_fill_with_their_lips_grain():
+    """JAFFE KA, KM and NA smiling with their teeth: the fill's high-pass 6.6, 7.6 and 7.5
+    grey levels before (0.78, 1.01, 1.03 of the photo's lips left), 7.6, 9.0, 7.9 now (0.85,
+    1.20, 1.08); their own neutral photos' closed lips show 15-20 by this high-pass."""
+    got = []
+    for who in ("KA", "KM", "NA"):
+        photo = sorted((JAFFE / "images").glob(f"{who}.HA*.tiff"))[0]
+        fill, lips = _fill_grain(Face.from_image(photo))
+        assert fill <= 1.3 * lips, (who, fill, lips)
+        got.append(fill)
+    assert sum(got) >= 23.5, got

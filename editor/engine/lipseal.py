@@ -22,7 +22,8 @@ which no pixel of an open photo provides.
   1 on a closed mouth. The difference is carried to the frame by the warp's own backward map
   and added times ``s``; along the lips where they meet (their gap under :data:`SHUT` of the
   inter-ocular distance) a soft contact line darkens the lips by up to :data:`LINE_DEPTH`
-  (:func:`apply_contact_line`, after the mouth layer).
+  (on a colour photo deeper, towards :data:`LINE_FLOOR` of the lips' light;
+  :func:`apply_contact_line`, after the mouth layer).
 * **The corners.** A smile also leaves a dark notch beside each mouth corner (the commissure
   fold; a grin's cavity corner beyond the lips' corner point), which stays where the photo
   has it when the corner goes back (a detached dark tick beside a neutral mouth). Where the
@@ -78,6 +79,18 @@ SHUT = 0.012
 #: smiles neutralised 0.45 at a depth of 0.35 (a soft grey seam: blind raters called the
 #: sample's closed mouth "smeared"), 0.27 at 0.5 (0.17-0.52)
 LINE_DEPTH, LINE_SIGMA = 0.5, 0.018
+#: on a colour photo the line darkens the lips by LINE_DEPTH x the tint (0.48 of their
+#: luminance) or, where that leaves a pixel lighter than LINE_FLOOR of the lips' median
+#: luminance on the photo, towards that floor (the line's middle: JAFFE's neutral photos'
+#: median), by at most LINE_MAX of the pixel. By the measure above (the darkest row over the
+#: lips 0.08 IOD above and below, columns within 0.1 IOD of the middle) the sample's
+#: neutralised pale lips kept their line at 0.62 (sadness 0.60, anger 0.55), lighter than
+#: any of JAFFE's ten neutral photos (0.21-0.47): a soft seam, "smeared"; now 0.43 (0.42,
+#: 0.37). The line is under 2 px wide there: its darkest row stays lighter than the floor.
+#: A grey photo's line (the tint's 1.5: 0.75) keeps its fixed depth
+LINE_FLOOR, LINE_MAX = 0.27, 0.75
+#: the floor's deepening fades in from this far from each inner-lip corner (IOD) over half as much
+FLOOR_CORNER = 0.15
 #: a mouth corner the photo's expression moved by more than this (IOD) from its neutral place
 #: has its notch looked for: within CORNER_R of it, on its lateral side, outside the lips,
 #: darker than NOTCH_DARK of the skin around it
@@ -110,6 +123,8 @@ class _Patch:
 
     diff: np.ndarray
     org: tuple[int, int]
+    #: the lips' median luminance around the opening on the photo (0: not measured)
+    light: float = 0.0
 
     @cached_property
     def support(self) -> tuple[int, int, int, int] | None:
@@ -146,6 +161,9 @@ class SealPlan:
     #: per corner, (x, y) from there to the neutral mesh's (0, 0: closer than CORNER_MOVE,
     #: nothing to go back); Python floats (:func:`back_share` reads two of them a frame)
     corner_way: list[list[float]]
+    #: the grey level the contact line darkens the lips towards (0: the line's fixed depth
+    #: alone; see :data:`LINE_FLOOR`)
+    line_floor: float = 0.0
     #: the sealed photo over the box of every fill, ``(box, pixels)`` (:func:`sealed_box`;
     #: made on its first call)
     region: tuple[tuple[int, int, int, int], np.ndarray] | None = field(
@@ -382,8 +400,9 @@ def _build(face: Face) -> SealPlan | None:
     p0 = V[corner_idx]
     way = face.neutral_vertices[corner_idx].astype(np.float64) - p0
     way[np.hypot(way[:, 0], way[:, 1]) < CORNER_MOVE * iod] = 0.0
+    floor = 0.0 if opening is None or is_grey(img) else LINE_FLOOR * opening.light
     return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole, corner_idx,
-                    p0, way.tolist())
+                    p0, way.tolist(), floor)
 
 
 def _box(img: np.ndarray, lo: np.ndarray, hi: np.ndarray
@@ -469,7 +488,7 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
         skin = (cv2.dilate(lips, np.ones((3, 3), np.uint8)) == 0)
         if skin.any():
             _highlight(filled, opening, lower_lip, (x0, y0), float(median(L[skin])), iod)
-    return _Patch(_difference(filled, patch, soft), (x0, y0))
+    return _Patch(_difference(filled, patch, soft), (x0, y0), ref)
 
 
 def _highlight(filled: np.ndarray, opening: np.ndarray, lower_lip: tuple[np.ndarray, np.ndarray],
@@ -785,15 +804,31 @@ def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray,
     # under 0.49 / 255, v (1 - line tint) + 0.5 rounds down to v itself for every v <= 255
     # (float32 rounding included), so the box is cut to those (on the 1080p bench face's
     # open mouth 23 pixels change, by 1: the box's 3-channel passes shrink to their box)
-    hot = line >= np.float32(0.49 / 255.0 / float(plan.tint.max()))
+    gain = _floor_gain(plan)
+    hot = line >= np.float32(0.49 / 255.0 / (float(plan.tint.max()) * gain))
     cj, ci, cw, ch = cv2.boundingRect(hot.view(np.uint8))
     if cw:
         view = out[y0 + ci:y0 + ci + ch, x0 + cj:x0 + cj + cw]
+        cut = line[ci:ci + ch, cj:cj + cw]
+        if gain > 1.0:
+            # deeper where the pixel is lighter than the floor allows (LINE_FLOOR)
+            tl = float(plan.tint @ _LUMA)
+            k = 1.0 - np.float32(plan.line_floor) / np.maximum(luminance(view), 1.0)
+            np.clip(k / np.float32(LINE_DEPTH * tl), 1.0, gain, out=k)
+            # (not within FLOOR_CORNER of a corner: the line fades into the commissures at
+            # its fixed depth, no dark tick there)
+            xs = np.arange(x0 + cj, x0 + cj + cw, dtype=np.float32)[None, :]
+            ys = np.arange(y0 + ci, y0 + ci + ch, dtype=np.float32)[:, None]
+            d = np.minimum(np.hypot(xs - np.float32(up[0, 0]), ys - np.float32(up[0, 1])),
+                           np.hypot(xs - np.float32(up[-1, 0]), ys - np.float32(up[-1, 1])))
+            fade = np.clip((d - np.float32(FLOOR_CORNER * plan.iod))
+                           / np.float32(0.5 * FLOOR_CORNER * plan.iod), 0.0, 1.0)
+            cut = cut * (1.0 + (k - 1.0) * fade)
         # (line (h, w) spread over the channels first: numpy's broadcasting of (h, w, 1) over
         # 3 channels is several times slower; the same float32 products, in place; OpenCV's
         # product of the uint8 pixels and the float32 factors is numpy's on the pixels as
         # float32, and the sum cast into the pixels astype's truncation)
-        f3 = spread3(line[ci:ci + ch, cj:cj + cw])
+        f3 = spread3(cut)
         f3 *= plan.tint
         np.subtract(1.0, f3, out=f3)
         acc: np.ndarray = np.asarray(cv2.multiply(view, f3, dtype=cv2.CV_32F), np.float32)
@@ -801,6 +836,17 @@ def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray,
         np.copyto(view, acc, casting="unsafe")
     bbox = _union(res.bbox, (x0, y0, x1, y1))
     return res if bbox == res.bbox else _rebox(res, bbox, {})
+
+
+_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def _floor_gain(plan: SealPlan) -> float:
+    """The most the contact line's floor (:data:`LINE_FLOOR`) multiplies its darkening by:
+    up to a luminance depth of :data:`LINE_MAX`; 1 without a floor (a grey photo)."""
+    if plan.line_floor <= 0.0:
+        return 1.0
+    return max(LINE_MAX / (LINE_DEPTH * float(plan.tint @ _LUMA)), 1.0)
 
 
 def _ramp(share: float) -> float:

@@ -429,3 +429,16 @@ def test_a_colour_photos_closed_lips_meet_in_a_real_lines_darkness(sample_face, 
     darker than their median."""
     vec = None if preset is None else apply_preset(preset, 1.0)
     assert 0.27 <= _line_depth(sample_face, vec) <= 0.47
+
+
+def test_a_grey_photos_line_keeps_its_fixed_depth(sample_face):
+    """The floor is a colour photo's (its lips' light kept 0.48 of it by the tint): on a grey
+    photo the line's fixed depth (0.75, calibrated on JAFFE) already reaches the real lines'
+    darkness, and it has no floor; the colour sample's floor is 0.27 of its lips' light."""
+    grey = cv2.cvtColor(cv2.cvtColor(sample_face.image, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+    plan = lipseal.seal_plan(Face.from_image(grey))
+    assert plan is not None and plan.line_floor == 0.0
+    assert lipseal._floor_gain(plan) == 1.0
+    colour = lipseal.seal_plan(sample_face)
+    assert colour.line_floor == pytest.approx(lipseal.LINE_FLOOR * colour.opening.light)
+    assert lipseal._floor_gain(colour) > 1.0

@@ -546,7 +546,9 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     and their shadow take from the eyeball, to move with the lid when it opens. (Real sclera
     under the upper lid, JAFFE and the sample: 0.5 of its brightest over the first fifth of an
     iris radius, 0.87 over the next; the photo's mesh puts the lid line inside the lash band,
-    so its lower half lies in the opening.)"""
+    so its lower half lies in the opening.) The lower lid's band ends at the upper lid's line,
+    and across the iris it is completed from beside it, at the same height above the lid (see
+    the comments below)."""
     ph, pw = rho.shape
     cover = clamp((r + 0.5 - rho) / soft + 0.5, 0.0, 1.0) if soft > 1.0 else \
         clamp(r + 1.0 - rho, 0.0, 1.0)
@@ -575,9 +577,29 @@ def _lid_bands(src: np.ndarray, plate: np.ndarray, iris: np.ndarray, rho: np.nda
     # (one map per lid: each is sampled with its own lid's shift, which would carry the
     # other lid's band too)
     w_up = clamp((widths[0] + ramp - d_up) / ramp, 0.0, 1.0)
-    w_lo = clamp((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0)
+    # (the lower band ends at the upper lid's line: towards a corner the opening is narrower
+    # than the band, which reached over the upper lid's lashes there, and a lowered lower lid
+    # carried them down, a second shadow along a diagonal from the outer corner: the 4K bench
+    # face's surprise)
+    w_lo = clamp((widths[1] + ramp - d_lo) / ramp, 0.0, 1.0) \
+        * clamp(d_up / ramp + 0.5, 0.0, 1.0)
     dark = 1.0 - ratio  # (float32, shared by both maps)
-    return _band_map(w_up, dark), _band_map(w_lo, dark)
+    dark_lo = dark
+    b = r + ramp
+    if low[0, 0] < -b and b < low[-1, 0]:
+        # the lower lid's shading across the iris as beside it, at the same height above the
+        # lid: the completed iris's edge is not exactly the photo's, and what the lid carries
+        # down from there (the limbus read as shade) drew a dark streak or a yellow speck in
+        # the white it uncovers under the iris (JAFFE YM at 4 x, the 4K bench face)
+        near = (np.abs(U) < b) & (d_lo > -ramp) & (w_lo > 0.0)
+        if near.any():
+            rr, cc = np.flatnonzero(near.any(1)), np.flatnonzero(near.any(0))
+            bx = (slice(int(rr[0]), int(rr[-1]) + 1), slice(int(cc[0]), int(cc[-1]) + 1))
+            across = _beside_iris(np.ascontiguousarray(dark), low, org, axes, b, U[bx],
+                                  -d_lo[bx])
+            dark_lo = dark.copy()
+            dark_lo[bx] = np.where(near[bx][..., None], across, dark[bx])
+    return _band_map(w_up, dark), _band_map(w_lo, dark_lo)
 
 
 def _band_map(wt: np.ndarray, dark: np.ndarray) -> np.ndarray:
@@ -592,6 +614,82 @@ def _band_map(wt: np.ndarray, dark: np.ndarray) -> np.ndarray:
         b = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
         out[b] = 1.0 - spread3(wt[b]) * dark[b]
     return out
+
+
+#: How far below the photo's lower lid (in edge ramps, at least :data:`MARGIN_MIN_PX`) the
+#: iris's blur reaches into the lid's margin: :func:`_margin_diff` replaces it out to this
+#: depth, fading out over as much again
+MARGIN_DEPTH = 1.0
+MARGIN_MIN_PX = 1.5
+
+
+def _beside_iris(img: np.ndarray, low: np.ndarray, org: tuple[float, float],
+                 axes: tuple[np.ndarray, np.ndarray], b: float, U: np.ndarray, e: np.ndarray
+                 ) -> np.ndarray:
+    """``img`` (h, w, 3) float32 over an eye's patch as it is beside the iris, at the points of
+    frame coordinates ``U`` and depth ``e`` below the lower lid ``low`` (arrays of one shape;
+    ``org``, ``axes`` as :func:`_lid_bands`'): per point, ``img`` at the same depth below the
+    lid at ``u = -b`` and ``u = +b``, interpolated linearly in ``U`` between them."""
+    ex, ey = axes
+    side = []
+    for u in (-b, b):
+        w = float(interp(np.array([u]), low[:, 0], low[:, 1])[0]) + e
+        mx = (u * ex[0] + w * ey[0] - org[0]).astype(np.float32)
+        my = (u * ex[1] + w * ey[1] - org[1]).astype(np.float32)
+        side.append(cv2.remap(img, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE))
+    t = spread3(((U + b) / (2.0 * b)).astype(np.float32))
+    return side[0] + t * (side[1] - side[0])
+
+
+def _margin_diff(src: np.ndarray, low: np.ndarray, org: tuple[float, float],
+                 axes: tuple[np.ndarray, np.ndarray], r: float, soft: float
+                 ) -> tuple[np.ndarray, tuple[int, int]] | None:
+    """What the photo's lower lid margin under the iris lacks of a margin under the white:
+    (h, w, 3) float32 over the box of the eye's patch ``src`` (h', w', 3) float32 where it is
+    not zero, and that box's top-left corner on the patch; or None (the
+    iris too near a corner to see the margin on both sides of it).
+
+    Where the iris reaches down to the lower lid, the photo's blur mixes its dark brown into
+    the lid's margin below it (over about the edge ramp ``soft``); the warp carries that
+    margin down with a lowered lid, and under the white it then uncovers the margin reads as
+    a grey-brown seam (the 4K bench face's surprise at 150 %: a dip of 16 % of the white
+    where the photo's own lower lid beside the iris shows 8-10 %; 7 % with this and the lower
+    band's completion across the iris in :func:`_lid_bands`). The margin the white would
+    meet is the one either side of the iris: per depth ``e`` below the lid (frame
+    coordinates, ``low`` the lower lid's (7, 2) points about the iris centre, ``org`` the
+    patch's top-left corner in them, ``axes`` the frame's (ex, ey)), the photo at
+    ``u = -b`` and ``u = +b`` (``b = r + soft``, clear of the iris's blur), interpolated
+    linearly along ``u`` in between, both smoothed along the image rows by 0.3 ``r`` (the
+    stain is as wide as the iris; the margin's own finer texture, its lower lashes, stays:
+    the frame's u is the rows' direction up to the head's roll). The difference to the photo
+    is kept down to :data:`MARGIN_DEPTH` ramps below the lid, fading out over as much again,
+    and over one pixel above it (inside the opening, the iris itself: the eyeball covers
+    it). :func:`layers._lower_margin` carries it through the warp once the lid is lowered."""
+    b = r + max(soft, 1.0)
+    lu = low[:, 0]
+    if not (lu[0] < -b and b < lu[-1]):
+        return None
+    ph, pw = src.shape[:2]
+    ex, ey = axes
+    xs = np.arange(pw, dtype=np.float64) + org[0]
+    ys = np.arange(ph, dtype=np.float64) + org[1]
+    U = xs[None, :] * ex[0] + ys[:, None] * ex[1]
+    W = xs[None, :] * ey[0] + ys[:, None] * ey[1]
+    e = W - interp(U, lu, low[:, 1])  # depth below the photo's lower lid
+    reach = max(MARGIN_DEPTH * soft, MARGIN_MIN_PX)
+    wt = clamp(np.minimum(2.0 - e / reach, 1.0 + e), 0.0, 1.0) * (np.abs(U) < b)
+    rows, cols = np.flatnonzero(wt.any(1)), np.flatnonzero(wt.any(0))
+    if not len(rows):
+        return None
+    bx = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    Ub, eb = U[bx], e[bx]
+    # (along the lid only the iris's stain is replaced, which is as wide as the iris: the
+    # margin's finer texture, lower lashes and pores, stays; across it the margin's profile)
+    sig = max(1.0, 0.3 * r)
+    lp = cv2.GaussianBlur(src, (2 * int(math.ceil(3.0 * sig)) + 1, 1), sig)
+    clean = _beside_iris(lp, low, org, axes, b, Ub, eb)
+    out = (clean - lp[bx]) * spread3(wt[bx].astype(np.float32))  # (the support's box only)
+    return np.ascontiguousarray(out, np.float32), (int(cols[0]), int(rows[0]))
 
 
 @dataclass(eq=False)
@@ -631,6 +729,11 @@ class EyePlan:
     #: (the lashes and margin hanging over the eyeball, their shadow) as a share of the bare
     #: eyeball (<= 1), 1 elsewhere (see :func:`_lid_bands`): the shadow an opened lid casts
     bands: tuple[np.ndarray, ...] = ()
+    #: (h, w, 3) float32 or None: :func:`_margin_diff`, the lower lid margin under the iris
+    #: as it would be under the white (a difference to the photo), over the box of the image
+    #: whose top-left corner is :attr:`margin_at`
+    margin: np.ndarray | None = None
+    margin_at: tuple[int, int] = (0, 0)
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
@@ -640,6 +743,10 @@ class EyePlan:
         self._band_off = np.array([self.band_up, self.band_low])[:, None, None]
         # the neutral lids' heights between the corners (:meth:`lid_opening`)
         self._lid_w = (self.lid_up[1:-1, 1].tolist(), self.lid_low[1:-1, 1].tolist())
+        # the neutral lower lid's segment under the iris centre (u = 0): its first vertex
+        # (:meth:`lowered`)
+        self._mid_seg = int(np.clip(np.searchsorted(self.lid_low[:, 0], 0.0) - 1, 0,
+                                    len(self.lid_low) - 2))
         # the patches :meth:`_render` resamples, as 4 channels (zero_alpha: the 4th never
         # read; :func:`_rgb` drops it): OpenCV's 4-channel float remap plus the copy back to
         # 3 channels costs about half its 3-channel remap (the same values per channel;
@@ -746,8 +853,12 @@ class EyePlan:
         area0 = 0.5 * abs(float(np.dot(x, yn) - np.dot(y, xn)))
         bands = _lid_bands(src, plate, out, rho, r, soft, (upf, lof),
                            (x0 - cx, y0 - cy), (ex, ey), (band_up, band_low))
-        return cls(bands=bands, ball=ball, lash=lash.astype(np.float32), area0=area0,
-                   band_up=band_up, band_low=band_low, lid_up=upf, lid_low=lof,
+        got = _margin_diff(src, lof, (x0 - cx, y0 - cy), (ex, ey), r, soft)
+        margin, margin_at = (None, (0, 0)) if got is None else \
+            (got[0], (got[1][0] + x0, got[1][1] + y0))
+        return cls(bands=bands, margin=margin, margin_at=margin_at, ball=ball,
+                   lash=lash.astype(np.float32), area0=area0, band_up=band_up,
+                   band_low=band_low, lid_up=upf, lid_low=lof,
                    pupil=pupil.astype(np.float32), iris_lum=iris_l, name=name,
                    hole=np.asarray(hole), detected=detected, r_det=r_det, centre=c,
                    r0=r, p0=p0, ex=ex, ey=ey, off=np.array([x0, y0], np.float64), plate=plate,
@@ -799,6 +910,17 @@ class EyePlan:
         return max(max(a - b, c - d) for a, b, c, d in zip(
             self._lid_w[0], up[1:-1, 1].tolist(), low[1:-1, 1].tolist(), self._lid_w[1],
             strict=True))
+
+    def lowered(self, low: np.ndarray) -> float:
+        """How far (px, neutral frame) the deformed lower lid ``low`` (:meth:`lid_frame`'s)
+        lies below the neutral one under the iris centre: each lid's height at u = 0 on the
+        neutral lid's segment there (Python floats: ``np.interp``'s calls cost more)."""
+        j = self._mid_seg
+        (u0, w0), (u1, w1) = low[j:j + 2].tolist()
+        (r0, s0), (r1, s1) = self.lid_low[j:j + 2].tolist()
+        now = w0 + (w1 - w0) * (0.0 - u0) / (u1 - u0) if u1 != u0 else w0
+        rest = s0 + (s1 - s0) * (0.0 - r0) / (r1 - r0) if r1 != r0 else s0
+        return now - rest
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,

@@ -48,6 +48,7 @@ from .fitting import (
     median,
     pad_edge,
     smooth01,
+    smooth01_float,
 )
 from .gaze import (
     EXTRA_INDEX,
@@ -70,7 +71,7 @@ from .mouth import (
 )
 from .outline import CHORD_PX, smooth_loop, splits
 from .threads import Pending
-from .warp import WarpResult
+from .warp import WarpResult, box_maps
 
 if TYPE_CHECKING:
     from .face import Face
@@ -574,6 +575,48 @@ def _composite(out: np.ndarray, box: tuple[int, int, int, int], alpha: np.ndarra
     _to_uint8(res, view)
 
 
+def _lower_margin(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray,
+                                                tuple[int, int, int, int]] | None,
+                  ep: EyePlan, lids: tuple[np.ndarray, np.ndarray], sim: np.ndarray
+                  ) -> tuple[int, int, int, int] | None:
+    """A lowered lower lid's margin under the iris as the photo's margin under the white
+    (:attr:`gaze.EyePlan.margin`, carried by the warp's backward ``maps``), added to ``out``
+    in place; fading in over the lid's first pixel of motion under the iris centre. Returns
+    the box written (the margin's box moved by the eye's similarity ``sim`` and grown by the
+    lid's motion), or None.
+
+    The warp carries the photo's lid margin down with the lid, and under the iris that margin
+    holds the iris's blur: once the lid uncovers white there, it read as a grey-brown seam
+    along the lid's new edge (the 4K bench face's surprise at 150 %). Runs before the
+    eyeball's composite, whose soft edge continues the (cleaned) margin into the opening."""
+    if maps is None or ep.margin is None:
+        return None
+    moved = ep.lowered(lids[1])
+    if moved <= 0.0:
+        return None
+    share = smooth01_float(moved)
+    # (the margin's box through the similarity, in Python floats: numpy's calls on a 4 x 2
+    # array cost several times more)
+    mh, mw = ep.margin.shape[:2]
+    ax, ay = ep.margin_at
+    (a, b, tx), (c, d, ty) = np.asarray(sim, np.float64).tolist()
+    xs = [a * x + b * y + tx for x, y in ((ax, ay), (ax + mw, ay), (ax, ay + mh),
+                                          (ax + mw, ay + mh))]
+    ys = [c * x + d * y + ty for x, y in ((ax, ay), (ax + mw, ay), (ax, ay + mh),
+                                          (ax + mw, ay + mh))]
+    g = math.ceil(moved) + 2
+    h, w = out.shape[:2]
+    x0, y0 = max(math.floor(min(xs)) - g, 0), max(math.floor(min(ys)) - g, 0)
+    x1, y1 = min(math.ceil(max(xs)) + g, w), min(math.ceil(max(ys)) + g, h)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    mx, my = box_maps(maps, (x0, y0, x1, y1), (ax, ay))
+    carried = cv2.remap(ep.margin, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
+    view = out[y0:y1, x0:x1]
+    cv2.addWeighted(view, 1.0, carried, share, 0.0, view, cv2.CV_8U)  # rounded, saturated
+    return (x0, y0, x1, y1)
+
+
 def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                   faps: np.ndarray, transforms: dict[str, np.ndarray]) -> WarpResult:
     """Composite the mouth interior and the eyeballs into a warp result (in place).
@@ -700,6 +743,9 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                 r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
             inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
             lids = ep.lid_frame(poly, tf, inv)
+            fixed = _lower_margin(out, res.maps, ep, lids, tf)
+            if fixed is not None:
+                bbox = _union(bbox, fixed)
             if active or ep.lid_opening(poly, tf, lids) > _TOL:
                 # the eyeball layer; it also continues the eye under a raised lid
                 q = max(1, int(lp.soft // EYE_BLOCK_SOFT))

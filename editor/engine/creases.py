@@ -141,19 +141,25 @@ STYLES: dict[str, FoldStyle] = {
     # (tests/test_creases.py's measure, ours over real): 0.90 (1.07 before)
     "nasolabial": FoldStyle(sigma=0.026, depth=0.17, c0=0.22, ridge=-0.5, ridge_off=-1.5,
                             probe=0.07, spread=0.75),
-    # the upper nasolabial furrow beside the nose wing, deepened by the upper lip raiser
-    # (AU10, disgust) pushing the skin below the nose wing up. It lies on the nasolabial
-    # line's upper part and is the same furrow: the darker of the two is drawn (_twins), not
-    # their sum, with the nasolabial group's style (sigma and ridge here are that one's).
+    # the upper nasolabial furrow beside the nose wing. It lies on the nasolabial line's upper
+    # part and is the same furrow: the darker of the two is drawn (_twins), not their sum,
+    # with the nasolabial group's style (sigma and ridge here are that one's).
     # JAFFE (valley across the line's middle, 0.06 IOD window): disgust 0.172 (median of 40
-    # photos; 0.086 on the neutral ones), joy 0.247, anger 0.108. JAFFE anger's mouth rises too
-    # (the chin pushes it up) and compresses this skin almost as much as disgust's lip raise
-    # (0.10 against 0.13; a smile 0.20-0.30), so a soft onset drew anger too deep and disgust
-    # too shallow (dead 0.04, c0 0.08, depth 0.25: 1.24 and 0.90 x the real depth, anger's
-    # furrow as deep as disgust's, the two confused); a later, steeper one tells them apart:
-    # anger 0.98, disgust 1.01, joy 1.18 x real
-    "upper_lip": FoldStyle(sigma=0.026, depth=0.21, c0=0.05, ridge=-0.5, ridge_off=-1.5,
-                           probe=0.07, dead=0.08),
+    # photos; 0.086 on the neutral ones), joy 0.247, anger 0.108. Real disgust deepens it with
+    # the upper lip barely raised (its red's top edge -0.005 IOD, median of 29) and real anger,
+    # whose mouth rises with the chin and squeezes this skin almost as much, hardly at all: the
+    # furrow follows the nose wrinkler / cheek raiser (AU9, AU6) bunching the cheek against the
+    # nose wing, not the lip's landmarks. Driven by the cheek beside the nose wing pushed up
+    # towards the eye (FoldStyle.lift; probes 0.10-0.16 IOD out from the wing): anger 0.001,
+    # disgust 0.017, joy 0.028 IOD (median of the ten JAFFE meshes). Driven before by the skin
+    # between the wing and the lip squeezed vertically (dead 0.08, c0 0.05: anger 0.10,
+    # disgust 0.14), disgust reached its depth only with the upper lip's sides curled up 0.035
+    # IOD, a heart-shaped pout no real photo shows (and 0.23 x the real depth once the lip was
+    # raised as in the photos; anger 0.98 x, disgust 1.01 x with the curl). Now (c0 0.0095 on
+    # the push) disgust 1.07 x real (150 %: 0.21, real p90 0.54), anger 0.73 x (0.079: its
+    # photos' own valley; real anger adds 0.02 to the neutral's), joy 1.14 x as before
+    "upper_lip": FoldStyle(sigma=0.026, depth=0.21, c0=0.0095, ridge=-0.5, ridge_off=-1.5,
+                           probe=0.07, lift=True),
     "crow": FoldStyle(sigma=0.010, depth=0.12, c0=0.15, ridge=0.25, ridge_off=2.2,
                       probe=0.05),
     # the lower lid's furrow under a felt smile's raised cheek (AU6): the skin below the lid
@@ -410,16 +416,12 @@ def _fold_lines(face: Face) -> list[_Line]:
         # a smiling photo's own fold reaches from the nose wing down past the corner
         lines.append(_Line("nasolabial", f"nasolabial_{s}", pts, nl_taper, (sg, -0.5),
                            utaper=nl_utaper))
-        # its upper part, driven by the skin between the nose wing and the upper lip's
-        # mid-point squeezed vertically (AU10 lifts the lip towards the nose)
+        # its upper part, driven by how far the cheek beside the nose wing is pushed up
+        # towards the eye (FoldStyle.lift; the nose wrinkler AU9 and the cheek raiser AU6
+        # lift it; see STYLES["upper_lip"])
         up = pts[: int(0.6 * len(pts))]
-        lip = q(f"lipo_u{2 if s == 'r' else 6}")
-        # (probes 0.55 and 0.8 of the way to the lip: they straddle the philtrum row, where
-        # the lip's lift compresses the skin; at 0.4 / 0.65 they sat above it on some fits, so
-        # the furrow came and went with a 2 % IOD shift of that row between detectors)
-        probes = np.array([0.45 * ala + 0.55 * lip, 0.2 * ala + 0.8 * lip,
-                           0.45 * (ala + (sg * 0.06, 0.0)) + 0.55 * lip,
-                           0.2 * (ala + (sg * 0.06, 0.0)) + 0.8 * lip])
+        probes = ala + np.array([(sg * 0.10, 0.02), (sg * 0.14, 0.04), (sg * 0.12, 0.08),
+                                 (sg * 0.16, 0.08)])
         lines.append(_Line("upper_lip", f"nasolabial_{s}", up, up_taper, (sg, -0.5), probes,
                            (0.0, 1.0), utaper=up_utaper))
     # ---- crow's feet: a fan of short lines beyond each outer eye corner, driven by the
@@ -1066,7 +1068,7 @@ def _fast(face: Face) -> _Fast:
     f.lift = lift
     lift_v = face.mesh.triangles[p.probe_tri[lift]].reshape(len(lift), -1)
     ix = face.mesh.index
-    # (each lift fold's group is named after its eye: "lower_lid_r", "lower_lid_l")
+    # (each lift fold's group is named after its side's eye: "lower_lid_r", "nasolabial_l")
     side = [p.group_names[g][-1] for g in p.group[p.fold[lift]].tolist()]
     corners = {sd: [ix(f"eye_{sd}_c0"), ix(f"eye_{sd}_c1")] for sd in set(side)}
     lift_a = np.array([corners[sd] for sd in side], np.intp).reshape(len(lift), 2)

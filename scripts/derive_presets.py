@@ -271,15 +271,17 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                           "median): JAFFE median -13/-14 MNS, p10 -187/-159, min -322/-269; at "
                           "-90 the corners stayed level under the raised upper lip and the "
                           "sample's disgust read as a grin; 150 % stays above the min"),
-        "t_mid": (0, "the inner upper lip's middle stays at rest (JAFFE median -82, p10 -296; "
-                     "the inner-lip landmarks' mean motion is +0.6 % IOD, down; the outer "
-                     "middle, 51, below): at -190 (FACS AU10 towards p10) the raised inner lip "
+        "t_mid": (20, "the inner upper lip's middle stays at rest (JAFFE median -82, p10 -296; "
+                      "the inner-lip landmarks' mean motion is +0.6 % IOD, down; the outer "
+                      "middle, 51, below): 20 holds it against the outer middle's pull (51 at "
+                      "-60 alone raised it 0.43 px on the sample's mesh, now 0.18). At -190 "
+                      "(FACS AU10 towards p10) the raised inner lip "
                      "moved the landmarks as JAFFE's anger raises the whole mouth, and a "
                      "classifier of real JAFFE expressions (editor/synthesis/recognise.py) "
                      "named the render anger on 10 of 10 women at 100 % (8 at 150 %)"),
         "t_mids": (-60, "the inner lip's mid-points a little (JAFFE median -82/-98, p10 "
                         "-328/-281): the mouth stays closed"),
-        51: (-30, "AU10 raises the upper lip's outer contour with its middle, not only its "
+        51: (-60, "AU10 raises the upper lip's outer contour with its middle, not only its "
                   "sides (median -41, p10 -267). How much higher the top edge of the red lies "
                   "at its sides (0.12 IOD out) than at its middle, change from each woman's "
                   "neutral photo (the strongest darkening going down between the nose and the "
@@ -287,16 +289,14 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                   "p10..p90 -0.058..0.021). With the middle at 0 and 55/56 at -200 the renders "
                   "drew +0.025 (0.029 at 150 %), beyond the real p90: a heart-shaped upper "
                   "lip with two raised humps, read by blind raters as lips pushed out in a "
-                  "pout (disgust named anger or sadness). Now +0.016 (0.016 at 150 %): the "
-                  "sides still rise 0.34 px above the middle on the sample's mesh "
-                  "(tests/test_preset_motion.py asks 0.3; 51 at -60 with 55/56 at -150 would "
-                  "draw +0.006, nearer the real photos). The classifier names disgust on 7 of "
-                  "10 at 100 %, 9 at 150 %, as before"),
-        55: (-170, "AU9/AU10 lift the upper lip's outer contour beside the philtrum a little "
-                   "more than its middle (51; median -41, p10 -343, min -447), no longer "
-                   "curled into humps (see 51); the furrow beside the nose wing is drawn from "
-                   "the cheek's lift (the upper_lip fold), not from this curl"),
-        56: (-170, "as 55 (median -55, p10 -365, min -459)"),
+                  "pout (disgust named anger or sadness); at -30 with 55/56 at -170 still "
+                  "+0.016 (mild humps); now +0.006 (0.005 at 150 %), near the real median. The "
+                  "classifier names disgust on 7 of 10 at 100 %, 9 at 150 %, as before"),
+        55: (-150, "AU9/AU10 lift the upper lip's outer contour beside the philtrum with its "
+                   "middle (51; median -41, p10 -343, min -447), not curled into humps (see "
+                   "51); the furrow beside the nose wing is drawn from the cheek's lift (the "
+                   "upper_lip fold), not from this curl"),
+        56: (-150, "as 55 (median -55, p10 -365, min -459)"),
         "c_stretch": (25, "the mouth widens in JAFFE disgust (the corners' landmarks move out "
                           "~2 % IOD; median -14/27 MW, p90 85/119): a pout rather than pursed "
                           "lips; set so that the rendered mouth widens as the real photos' "

@@ -81,6 +81,12 @@ LID_FURROW = 0.10
 #: per-channel weights of a darkening on a colour photo (R, G, B): folds and shadows on skin
 #: turn darker towards red (grey photos: 1, 1, 1)
 SHADOW_TINT = (0.8, 1.0, 1.12)
+#: the mentolabial groove (kind "chin"): its half-length over the mouth's width, and how far
+#: (IOD) its ends curve up, following the chin boss's round top (JAFFE's angry grooves run
+#: across the lower lip's width: 0.34 and 0.05 drew a short dash under the lip's middle, 0.68 x
+#: the real groove's depth 0.16-0.24 IOD either side; tests/test_creases.py)
+CHIN_HALF_W = 0.5
+CHIN_CURVE = 0.08
 #: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
 _MIN_STRENGTH = 0.008
 #: compression below this is float rounding (float32 vertices), not a fold
@@ -186,8 +192,12 @@ STYLES: dict[str, FoldStyle] = {
     # IOD; now 2.41: the detector reads the groove a little as the lower lip's edge). No light
     # ridge beside it (0.35 before, on the chin side): JAFFE's angry chins have none (the
     # bunched boss below the groove is shaded, chinboss.py), and the ridge lit a pale band
-    # under the lower lip; 0.183 / 0.264 at 100 / 150 % with the boss's shade
-    "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.0, ridge_off=2.4,
+    # under the lower lip; 0.183 / 0.264 at 100 / 150 % with the boss's shade. Drawn over
+    # 0.34 of the mouth's width either side (sigma 0.018, depth 0.45) it was a short dash under
+    # the lip's middle (raters: "a dark smudge"), its sides 0.084 deep for the real 0.124
+    # (0.16-0.24 IOD out); across the lip's width (CHIN_HALF_W), softer and shallower: sides
+    # 0.137, middle 0.167 / 0.208 at 100 / 150 % (real 0.178)
+    "chin": FoldStyle(sigma=0.022, depth=0.34, c0=0.07, ridge=0.0, ridge_off=2.4,
                       probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the
     # image's median luminance; 0.009 on the neutral ones: their grain). Depth 0.13 drew 0.073
@@ -471,11 +481,11 @@ def _fold_lines(face: Face) -> list[_Line]:
     # chin (2.1), 0.04 IOD wide (half depth), following the chin's round top
     lip_m, chin = q("lipo_d4"), q("contour_16")
     mouth_w = abs(q("lipo_c1")[0] - q("lipo_c0")[0])
-    half_w = 0.34 * mouth_w
+    half_w = CHIN_HALF_W * mouth_w
     c = lip_m + 0.45 * (chin - lip_m)
     shape_c, wave_c, taper_c, utaper_c = fixed["chin"]
     xs_c = shape_c * half_w
-    y_c = c[1] - 0.05 * (xs_c / half_w) ** 2 + wave_c
+    y_c = c[1] - CHIN_CURVE * (xs_c / half_w) ** 2 + wave_c
     lines.append(_Line("chin", "chin", _pairs(c[0] + xs_c, y_c), taper_c, (0.0, 1.0),
                        utaper=utaper_c))
     # ---- the lower lids' furrows: under each lower lid, LID_FURROW below it and following

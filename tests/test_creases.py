@@ -834,7 +834,7 @@ def test_jaffe_anger_chin_groove_as_deep_as_real_ones():
     pushed-up lower lip as deep as her own anger photos (two each) do (:func:`_chin_groove`):
     real median 0.18 (0.04 on the neutral photos); at 100 % the median over the women within
     0.7-1.5 x, at 150 % no deeper than the deeper real ones (p90). Before the groove was
-    drawn: 0.02 (measured now: 0.167, 0.208 at 150 %, the groove across the lip's width and
+    drawn: 0.02 (measured now: 0.187, 0.217 at 150 %, the groove across the lip's width and
     the chin boss's shade broad; 0.183, 0.264 with the short groove and the narrow shade and no
     light ridge; 0.213 and 0.292 before that, 0.154 and 0.243 before the pressed lips
     pouted, 52/57/58 above 5/10/11)."""
@@ -848,8 +848,8 @@ def test_jaffe_anger_chin_groove_spans_the_mouth_as_real_ones():
     neutral photos). The groove drawn over 0.34 of the mouth's width either side, ends 0.05
     IOD up, measured 0.084 there at 100 % (0.68 x real; 0.079 at 150 %): a short dash under
     the lip's middle that raters read as a smudge. Over 0.5 of the width, its ends 0.08 IOD up
-    and softer (sigma 0.022, depth 0.34): 0.137 (1.10 x; 0.146 at 150 %, real p90 0.214), the
-    middle (:func:`test_jaffe_anger_chin_groove_as_deep_as_real_ones`) 0.167 for the real
+    and softer (sigma 0.022, depth 0.34): 0.148 (1.19 x; 0.176 at 150 %, real p90 0.214), the
+    middle (:func:`test_jaffe_anger_chin_groove_as_deep_as_real_ones`) 0.187 for the real
     0.178. Within 0.8-1.3 x the real median at 100 %, no deeper than the real p90 at 150 %."""
     import cv2
 

@@ -11,10 +11,11 @@ lower lip's middle to the chin, 0.2 IOD wide, over the cheeks' light under the e
 re-detected landmarks; tests/test_chinboss.py): the neutral photos 0.74 (median), the anger
 photos 0.56, sadness 0.67, disgust 0.73. The renders kept the neutral light (0.74, 0.76,
 0.75), and anger's lower lip, pushed up over the still chin, stretched a pale band under it;
-with this layer 0.58, 0.65 and 0.72. The real shade covers the whole boss: 0.16-0.28 IOD
+with this layer 0.59, 0.65 and 0.72. The real shade covers the whole boss: 0.16-0.28 IOD
 either side of the middle the anger photos fall to 0.57 (neutral 0.70); a narrow, peaked
 ellipse (1.05 x half the mouth, ``(1 - r^2)^2``) drew 0.65 there, a dark spot under the
-lip's middle; this broad, flat one 0.58.
+lip's middle; this broader, flatter one 0.62 (flat ``1 - r^2`` at 1.35 x: 0.58, but its
+tails shaded pixels outside the face's outline, sadness's 0.10 IOD out: tests/test_tears.py).
 
 This layer darkens an ellipse over the chin boss (wider than the mouth, from the lower lip
 to the chin, strongest a little above the middle), carried by the chin's own motion (an
@@ -43,7 +44,7 @@ if TYPE_CHECKING:
     from .face import Face
 
 #: darkening of the bulge's core at full bunching
-DARKEST = 0.36
+DARKEST = 0.40
 #: boss rise (IOD beyond the photo's) at which the darkening reaches 63 % of DARKEST;
 #: anger at 100 % raises the boss 0.042-0.054 IOD on the JAFFE neutrals, sadness 0.027-0.034,
 #: disgust 0.027-0.036
@@ -52,10 +53,10 @@ RISE = 0.06
 OPEN = 0.04
 #: the ellipse: half-width over half the mouth's width, half-height over the lip-to-chin
 #: distance, and its centre's place from the lower lip (0) to the chin (1)
-HALF_W, HALF_H, CENTRE = 1.35, 0.7, 0.38
-#: the bump's profile, ``(1 - r^2)^(2 * SHAPE)``: 0.5 is the flat ``1 - r^2`` (the real
-#: shade is even over the boss; see the module's notes)
-SHAPE = 0.5
+HALF_W, HALF_H, CENTRE = 1.1, 0.58, 0.38
+#: the bump's profile, ``(1 - r^2)^(2 * SHAPE)``: flatter than ``(1 - r^2)^2`` (the real
+#: shade is even over the boss; see the module's notes), its tails still inside the outline
+SHAPE = 0.75
 #: the shade's share on red, green and blue: skin in shadow is warmer than the same skin lit
 #: (less red is lost than green and blue); a grey photo gets an even shade
 TINT = (0.8, 1.0, 1.1)

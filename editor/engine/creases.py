@@ -215,7 +215,7 @@ STYLES: dict[str, FoldStyle] = {
     # 0.34 of the mouth's width either side (sigma 0.018, depth 0.45) it was a short dash under
     # the lip's middle (raters: "a dark smudge"), its sides 0.084 deep for the real 0.124
     # (0.16-0.24 IOD out); across the lip's width (CHIN_HALF_W), softer and shallower: sides
-    # 0.137, middle 0.167 / 0.208 at 100 / 150 % (real 0.178)
+    # 0.148, middle 0.187 / 0.217 at 100 / 150 % (real 0.178)
     "chin": FoldStyle(sigma=0.022, depth=0.34, c0=0.07, ridge=0.0, ridge_off=2.4,
                       probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the

@@ -11,9 +11,13 @@ lower lip's middle to the chin, 0.2 IOD wide, over the cheeks' light under the e
 re-detected landmarks; tests/test_chinboss.py): the neutral photos 0.74 (median), the anger
 photos 0.56, sadness 0.67, disgust 0.73. The renders kept the neutral light (0.74, 0.76,
 0.75), and anger's lower lip, pushed up over the still chin, stretched a pale band under it;
-with this layer 0.59, 0.65 and 0.72.
+with this layer 0.59, 0.65 and 0.72. The real shade covers the whole boss: 0.16-0.28 IOD
+either side of the middle the anger photos fall to 0.57 (neutral 0.70); a narrow, peaked
+ellipse (1.05 x half the mouth, ``(1 - r^2)^2``) drew 0.65 there, a dark spot under the
+lip's middle; this broader, flatter one 0.62 (flat ``1 - r^2`` at 1.35 x: 0.58, but its
+tails shaded pixels outside the face's outline, sadness's 0.10 IOD out: tests/test_tears.py).
 
-This layer darkens an ellipse over the chin boss (as wide as the mouth, from the lower lip
+This layer darkens an ellipse over the chin boss (wider than the mouth, from the lower lip
 to the chin, strongest a little above the middle), carried by the chin's own motion (an
 affine fit of the lower lip, the chin and the mouth corners). The real chins' pits are not
 drawn: a band-pass pattern of them read as stubble on colour photos and on soft ones.
@@ -40,7 +44,7 @@ if TYPE_CHECKING:
     from .face import Face
 
 #: darkening of the bulge's core at full bunching
-DARKEST = 0.42
+DARKEST = 0.40
 #: boss rise (IOD beyond the photo's) at which the darkening reaches 63 % of DARKEST;
 #: anger at 100 % raises the boss 0.042-0.054 IOD on the JAFFE neutrals, sadness 0.027-0.034,
 #: disgust 0.027-0.036
@@ -49,7 +53,10 @@ RISE = 0.06
 OPEN = 0.04
 #: the ellipse: half-width over half the mouth's width, half-height over the lip-to-chin
 #: distance, and its centre's place from the lower lip (0) to the chin (1)
-HALF_W, HALF_H, CENTRE = 1.05, 0.62, 0.45
+HALF_W, HALF_H, CENTRE = 1.1, 0.58, 0.38
+#: the bump's profile, ``(1 - r^2)^(2 * SHAPE)``: flatter than ``(1 - r^2)^2`` (the real
+#: shade is even over the boss; see the module's notes), its tails still inside the outline
+SHAPE = 0.75
 #: the shade's share on red, green and blue: skin in shadow is warmer than the same skin lit
 #: (less red is lost than green and blue); a grey photo gets an even shade
 TINT = (0.8, 1.0, 1.1)
@@ -108,7 +115,7 @@ def chin_plan(face: Face) -> ChinPlan | None:
     x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return None
-    field = ellipse_bump((x0, y0, x1, y1), centre, across, down, ax, ay)
+    field = ellipse_bump((x0, y0, x1, y1), centre, across, down, ax, ay) ** SHAPE
     P = np.hstack([rest[anchors], np.ones((4, 1))])
     # the drive's zero: the neutral mesh (the photo's own expression removed), or the photo's
     # own mesh where its chin boss is higher (a photo's own bunching is in its pixels already;

@@ -81,6 +81,20 @@ LID_FURROW = 0.10
 #: per-channel weights of a darkening on a colour photo (R, G, B): folds and shadows on skin
 #: turn darker towards red (grey photos: 1, 1, 1)
 SHADOW_TINT = (0.8, 1.0, 1.12)
+#: the mentolabial groove (kind "chin"): its half-length over the mouth's width, and how far
+#: (IOD) its ends curve up, following the chin boss's round top (JAFFE's angry grooves run
+#: across the lower lip's width: 0.34 and 0.05 drew a short dash under the lip's middle, 0.68 x
+#: the real groove's depth 0.16-0.24 IOD either side; tests/test_creases.py)
+CHIN_HALF_W = 0.5
+CHIN_CURVE = 0.08
+#: the knitted brows' shade (kind "knit", see STYLES): how far (IOD) it reaches above the
+#: inner brow ends and below them (on the neutral mesh; the lowered brows carry it down)
+KNIT_SPAN = (0.18, 0.08)
+#: and how far either side of the middle its outermost lines lie, and their number
+KNIT_X, KNIT_N = 0.19, 9
+#: where its drive, the skin's vertical compression, is read (IOD from the glabella's middle
+#: and the inner brow ends' height: below and beside them, towards the nasal root)
+KNIT_PROBES = ((-0.2, 0.1), (0.2, 0.1), (-0.15, 0.12), (0.15, 0.12))
 #: below this darkening (fraction) a fold is not drawn (2 grey levels on white)
 _MIN_STRENGTH = 0.008
 #: compression below this is float rounding (float32 vertices), not a fold
@@ -200,9 +214,20 @@ STYLES: dict[str, FoldStyle] = {
     # and 5.8 (anger unchanged: 5.2). Real furrows there are broad, soft bunching beside the
     # brow heads; at sigma 0.013 they were drawn as thin parallel scratches, plain on a face
     # 250 px between the eyes (JAFFE upscaled 4 x); at 0.024 softer, the same measure 4.4,
-    # 6.8, 5.3 (disgust 6.6 both; at 150 % fear 7.4, sadness 9.3)
-    "glabella": FoldStyle(sigma=0.024, depth=0.14, c0=0.28, ridge=0.20, ridge_off=2.4,
-                          probe=0.05, effort=0.6),
+    # 6.8, 5.3 (disgust 6.6 both; at 150 % fear 7.4, sadness 9.3). With the knitted brows'
+    # shade below (drawn in this group's canvas), depth 0.14 -> 0.12 and effort 0.6 -> 0.75:
+    # anger 4.96 (150 %: 8.01, real p90 9.34; 9.5 with the old depth), fear 4.42, sadness 6.56
+    "glabella": FoldStyle(sigma=0.024, depth=0.12, c0=0.28, ridge=0.20, ridge_off=2.4,
+                          probe=0.05, effort=0.75),
+    # the knitted brows' shade (AU4 lowering and drawing the brows together): JAFFE's angry
+    # glabellas, between and beside the brow heads (x +-0.16 IOD, 0.15-0.3 IOD above the
+    # eyes), fall 0.086 of the median light below their neutral photos' (disgust 0.11); the
+    # warp brightened it (+0.020: the lighter forehead slides down) and the furrows are too
+    # thin to shade it. Nine parallel lines (KNIT_N) in the glabella group's canvas, driven by
+    # the vertical compression below the inner brow ends (KNIT_PROBES: lowered brows only):
+    # anger -0.063 (150 %: -0.078, real p10 -0.18), disgust -0.098; fear and sadness none
+    # (tests/test_creases.py)
+    "knit": FoldStyle(sigma=0.024, depth=0.075, c0=0.05, ridge=0.0, ridge_off=2.4, probe=0.12),
     # the mentolabial sulcus under an angry pout (AU17 + AU24 push the lower lip up over the
     # chin). JAFFE: the deepest dip down the lip-to-chin band 0.178 of the median light in the
     # anger photos (median of 20; 0.043 on the neutral ones, 0.049 disgust, 0.077 sadness);
@@ -212,8 +237,12 @@ STYLES: dict[str, FoldStyle] = {
     # IOD; now 2.41: the detector reads the groove a little as the lower lip's edge). No light
     # ridge beside it (0.35 before, on the chin side): JAFFE's angry chins have none (the
     # bunched boss below the groove is shaded, chinboss.py), and the ridge lit a pale band
-    # under the lower lip; 0.183 / 0.264 at 100 / 150 % with the boss's shade
-    "chin": FoldStyle(sigma=0.018, depth=0.45, c0=0.07, ridge=0.0, ridge_off=2.4,
+    # under the lower lip; 0.183 / 0.264 at 100 / 150 % with the boss's shade. Drawn over
+    # 0.34 of the mouth's width either side (sigma 0.018, depth 0.45) it was a short dash under
+    # the lip's middle (raters: "a dark smudge"), its sides 0.084 deep for the real 0.124
+    # (0.16-0.24 IOD out); across the lip's width (CHIN_HALF_W), softer and shallower: sides
+    # 0.148, middle 0.187 / 0.217 at 100 / 150 % (real 0.178)
+    "chin": FoldStyle(sigma=0.022, depth=0.34, c0=0.07, ridge=0.0, ridge_off=2.4,
                       probe=0.05, dead=0.02, sign=-1.0),
     # JAFFE's disgust: the nasal-root lines 0.02 deep (median of 40 photos' lines, over the
     # image's median luminance; 0.009 on the neutral ones: their grain). Depth 0.13 drew 0.073
@@ -468,6 +497,24 @@ def _fold_lines(face: Face) -> list[_Line]:
         even = 1.0 + 0.15 * np.sin(2 * np.pi * 1.2 * u + d_even)
         lines.append(_Line("glabella", "glabella", pts, _fade(u, d_fade, 0.3) * even,
                            (sg, 0.0)))
+    # ---- the knitted brows' shade (kind "knit"): the skin between the brow heads, bunched by
+    # the corrugator and the procerus (AU4), bulges and shades the whole glabella down to the
+    # nasal root, beyond its furrows: a broad, soft shade from above the inner brow ends down,
+    # driven by the skin below them pushed down towards the nasal root (the brows lowered:
+    # anger, disgust; raised inner brows (fear, sadness) stretch it instead). Drawn as
+    # parallel vertical lines two of the furrows' sigmas apart in the furrows' own canvas
+    # (group "glabella"): their sum is an even shade, and one canvas keeps the coarse drawing
+    # of a large face within a grey level of the fine one (a second, broader canvas over the
+    # furrows added the two drawings' rounding: 2 levels). Their ridges fall on the lines
+    # themselves (side: up), a faint lighter top.
+    y_brow = 0.5 * (ri[1] + li[1])
+    ys = linspace(y_brow - KNIT_SPAN[0], y_brow + KNIT_SPAN[1], 12)
+    u = (ys - ys[0]) / (ys[-1] - ys[0])
+    probes = np.array([(g[0] + dx, y_brow + dy) for dx, dy in KNIT_PROBES])
+    knit_taper = _fade(u, 0.3, 0.3)
+    for dx in linspace(-KNIT_X, KNIT_X, KNIT_N):
+        lines.append(_Line("knit", "glabella", _pairs(g[0] + dx + 0.0 * ys, ys), knit_taper,
+                           (0.0, -1.0), probes, (0.0, 1.0)))
     # ---- nose bridge: short wrinkles across the nasal root (procerus / nose wrinkler, AU4 and
     # AU9), driven by the skin between the inner brow ends and the inner eye corners pushed
     # down (the mesh does not bunch the bridge itself; a smile does not lower the brows)
@@ -493,11 +540,11 @@ def _fold_lines(face: Face) -> list[_Line]:
     # chin (2.1), 0.04 IOD wide (half depth), following the chin's round top
     lip_m, chin = q("lipo_d4"), q("contour_16")
     mouth_w = abs(q("lipo_c1")[0] - q("lipo_c0")[0])
-    half_w = 0.34 * mouth_w
+    half_w = CHIN_HALF_W * mouth_w
     c = lip_m + 0.45 * (chin - lip_m)
     shape_c, wave_c, taper_c, utaper_c = fixed["chin"]
     xs_c = shape_c * half_w
-    y_c = c[1] - 0.05 * (xs_c / half_w) ** 2 + wave_c
+    y_c = c[1] - CHIN_CURVE * (xs_c / half_w) ** 2 + wave_c
     lines.append(_Line("chin", "chin", _pairs(c[0] + xs_c, y_c), taper_c, (0.0, 1.0),
                        utaper=utaper_c))
     # ---- the lower lids' furrows: under each lower lid, LID_FURROW below it and following

@@ -123,3 +123,25 @@ def test_jaffe_open_mouth_lower_inner_lip_on_the_cavitys_edge():
     assert abs(raw[14, 1] - lower) > 2.0, (raw[14], lower)
     assert abs(new[14, 1] - lower) < 1.0, (new[14], lower)
     assert abs(new[13, 1] - upper) < 1.5, (new[13], upper)
+
+
+def test_an_upscaled_photos_opening_moves_as_its_small_ones():
+    """The search is laid out in inter-ocular distances; its step threshold follows the
+    smoothing's width. A smile's teeth (60 grey levels over the lips) seen on the synthetic
+    mouth and on the same picture upscaled 7 x (cubic, as the 4K bench face is made from the
+    sample): the contour moves onto the same edge at both sizes. Before, the upscaled one's
+    edge (under 4 grey levels per pixel after the 8.4 px smoothing) was not taken: its contour
+    stayed 4 px (small-scale) outside the opening, where the 4K bench face's upper lip was
+    0.064 IOD thick against 0.10 at 512 and 1080 px."""
+    img = _mouth(0)  # (lips 110, teeth 170)
+    cv2.ellipse(img, ((CX, CY), (2 * (MOUTH_A - 6), 2 * OPEN_B), 0), (170, 170, 170), -1)
+    mesh = _mesh(OPEN_B + 4)
+    small = refine_inner_lips(img, mesh)
+    K = 7
+    big_img = cv2.resize(img, None, fx=K, fy=K, interpolation=cv2.INTER_CUBIC)
+    big = refine_inner_lips(big_img,
+                            ((mesh.astype(np.float64) + 0.5) * K - 0.5).astype(np.float32))
+    back = (big.astype(np.float64) + 0.5) / K - 0.5
+    assert _off_edge(small).mean() < 0.7, _off_edge(small)
+    assert _off_edge(back).mean() < 0.7, _off_edge(back)
+    assert np.abs(back - small).max() < 0.5

@@ -682,3 +682,36 @@ def test_a_soft_photos_lips_lose_their_photos_lip_line_as_wide_as_its_ramp():
     _clean_lip_line(out, (0, 0, 120, 60), poly, alpha, 1.0, 5.3)
     assert out[28:34, 20:100].max() <= 160, out[26:36, 60]
     assert (out[:18] == 150).all()  # the lips away from the outline are untouched
+
+
+def _darkest_hue(img: np.ndarray, m: np.ndarray, q: float = 0.05) -> np.ndarray:
+    """Colour over luminance (3,) of the darkest ``q`` of the pixels under mask ``m``."""
+    px = img[m].astype(np.float64)
+    lum = px @ LUM.astype(np.float64)
+    c = px[np.argsort(lum)[:max(3, int(q * len(px)))]].mean(0)
+    return c / float(c @ LUM.astype(np.float64))
+
+
+@pytest.mark.parametrize("preset", ["surprise", "viseme_aa"])
+def test_an_open_mouths_dark_interior_takes_the_photos_own_hue(sample_face, preset):
+    # light at the back of an open mouth has bounced off its reddish walls: the sample's own
+    # dark interior (its smile's buccal corridor: the darkest 5 % of its opening) is a deep
+    # red-brown, colour over luminance 1.83 0.72 0.29. The drawn cavity took CAVITY_RGB
+    # desaturated by the skin's saturation and the lips' own pink darkened: a purple-black,
+    # 1.44 0.82 0.79 (aa 1.45 0.81 0.79); with the skin's hue raised to the bounces (mouth.
+    # CAVITY_BOUNCES, INNER_BOUNCES) 1.65 0.77 0.47 (aa 1.67 0.77 0.44)
+    f = sample_face
+    own = _darkest_hue(f.image, _opening(f, f.vertices, f.image.shape))
+    faps = apply_preset(preset, 1.0)
+    img = f.render(faps)
+    drawn = _darkest_hue(img, _opening(f, f.deform(faps), img.shape))
+    assert drawn[0] - own[0] > -0.3, (drawn, own)
+    assert drawn[2] - own[2] < 0.3, (drawn, own)
+
+
+def test_a_grey_photos_cavity_stays_grey():
+    from editor.engine.mouth import _LUM, CAVITY_RGB, cavity_hue
+    assert np.allclose(cavity_hue(np.array([120.0, 120.0, 120.0])), 1.0)
+    warm = cavity_hue(np.array([213.0, 177.0, 152.0]))
+    assert abs(float(warm @ _LUM) - 1.0) < 1e-6 and warm[0] > 1.8 and warm[2] < 0.3
+    assert float(_LUM @ CAVITY_RGB) > 0

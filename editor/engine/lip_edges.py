@@ -15,7 +15,7 @@ smooth correction per curve, ``s (1 - s) (a + b (s - 1/2))`` along the contour (
 corners: a bulge and a tilt), fitted by Huber-reweighted least squares, so the contour never
 turns jagged and a stray edge does not bend it. A closed mouth (the mesh's own opening under
 :data:`CLOSED_PX` pixels) or a curve with fewer than :data:`MIN_POINTS` steps of at least
-:data:`MIN_STEP` grey levels per pixel is left alone.
+:data:`MIN_STEP` grey levels per pixel (fewer on a large face, see there) is left alone.
 
 Measured on JAFFE against its Stasm points (``scripts/landmark_accuracy.py``, % IOD): inner
 lips 2.03 -> 1.70, closed mouths 1.48 -> 1.29, open mouths 3.31 -> 2.64 (dlib 2.01 / 1.76 /
@@ -54,9 +54,16 @@ LIP_FRACTION = 0.4
 #: curves never cross).
 GAP_FRACTION = 0.5
 #: A curve moves when at least this many of its 9 points find an edge of at least this many
-#: grey levels per pixel (after the light smoothing).
+#: grey levels per pixel (after the light smoothing) at the smoothing's floor of SIGMA_MIN px;
+#: where the smoothing is wider (a large face: 1.2 % of its inter-ocular distance) the step
+#: asked for is as much lower, as the same edge spreads over as many more pixels (the search
+#: is laid out in inter-ocular distances; its threshold was per pixel: the 4K bench face, IOD
+#: 468 px, sigma 5.6 px, found no step of 4 grey levels per pixel, kept MediaPipe's contour and
+#: its opening 0.17 IOD tall against 0.11 at 512 and 1080 px, its upper lip 0.064 IOD thick
+#: against 0.10; faces up to 67 px between the eyes, JAFFE's, unchanged)
 MIN_POINTS = 4
 MIN_STEP = 4.0
+SIGMA_MIN = 0.8
 
 
 def _eye_distance(mesh: np.ndarray) -> float:
@@ -111,8 +118,9 @@ def refine_inner_lips(rgb: np.ndarray, mesh: np.ndarray) -> np.ndarray:
     x0, y0 = np.clip(np.floor(lips.min(0) - r - 4).astype(int), 0, (w - 1, h - 1))
     x1, y1 = np.clip(np.ceil(lips.max(0) + r + 4).astype(int) + 1, 1, (w, h))
     box = np.ascontiguousarray(rgb[y0:y1, x0:x1, :3])
+    sigma = max(SIGMA_MIN, 0.012 * iod)
     lum = cv2.GaussianBlur(cv2.cvtColor(box, cv2.COLOR_RGB2GRAY).astype(np.float32), (0, 0),
-                           max(0.8, 0.012 * iod))
+                           sigma)
     # normals of points 1..9 of both curves, pointing into the opening
     tang = inner[:, 2:] - inner[:, :-2]
     nrm = np.stack([-tang[..., 1], tang[..., 0]], -1)
@@ -135,7 +143,7 @@ def refine_inner_lips(rgb: np.ndarray, mesh: np.ndarray) -> np.ndarray:
     den = a - 2 * b + c
     sub = np.where(den < 0, 0.5 * (a - c) / np.where(den < 0, den, -1.0), 0.0)
     d = (ts[k] + np.clip(sub, -0.5, 0.5) * step).reshape(2, 9)
-    weight = np.where(b >= MIN_STEP, b, 0.0).reshape(2, 9)
+    weight = np.where(b >= MIN_STEP * (SIGMA_MIN / sigma), b, 0.0).reshape(2, 9)
     seg = np.linalg.norm(np.diff(inner, axis=1), axis=-1)  # (2, 10)
     s = np.cumsum(seg, 1)[:, :-1] / seg.sum(1, keepdims=True)
     off = np.clip(_smooth_offsets(s, d, weight), -r, r)

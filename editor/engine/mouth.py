@@ -101,8 +101,28 @@ SLIVER_SOFT = 2.0
 #: a surprised mouth's lower lip was its dark back: 0.13 of the skin on the 4K bench face,
 #: real wide-open JAFFE mouths' lower part 0.34-0.48)
 TONGUE_BACK, TONGUE_BACK_DARK = 0.3, 0.4
-#: cavity colour (RGB) for a neutral skin of luminance 200; scaled and desaturated per photo
+#: cavity colour (RGB) for a neutral skin of luminance 200; its luminance scaled per photo,
+#: its hue :func:`cavity_hue` (this one's, desaturated by the skin's saturation, only where
+#: the skin's colour is unknown)
 CAVITY_RGB = np.array([70, 26, 30], np.float32)
+#: the light that reaches the back of an open mouth has bounced off its walls, tissue of the
+#: skin's hue, several times: the cavity's hue is the skin's (colour over luminance) to this
+#: power. The sample photo's own dark interior (its smile's buccal corridor, the darkest 5 %
+#: of its opening), colour over luminance: 1.92 0.68 0.22 (landmarks' inner-lip polygon; 1.85
+#: 0.71 0.24 upscaled 4 x; 1.83 0.72 0.29 inside the mesh's opening); its skin's hue 1.15
+#: 0.96 0.81 to the 6th: 1.95 0.66 0.25. CAVITY_RGB desaturated by the skin's saturation gave
+#: the rendered opening's darkest 5 % 1.44 0.82 0.79 (surprise 100 %): a purple-black; now
+#: 1.65 0.77 0.47 (the lips' inner surface mixed in, :data:`INNER_BOUNCES`). A grey photo's
+#: cavity stays grey (JAFFE renders unchanged).
+CAVITY_BOUNCES = 6.0
+#: the lips' inner surface turned into the mouth (its light RIM_LIGHT of the lips' colour
+#: beside the opening) and the tongue are lit by light that bounced off the mouth's walls
+#: fewer times: the skin's hue to INNER_BOUNCES. Chosen by eye on the 4K bench face between
+#: 0 (the lips' own pink darkened: a purple-black interior) and 3-4 (the darkest 5 % of the
+#: opening then match the photo's own hue, 1.8-2.0 0.64-0.74 0.21-0.48, but the lips' inner
+#: surface turns an orange-red band, as if painted; at 1.5 dark red-brown)
+RIM_LIGHT = 0.45
+INNER_BOUNCES = 1.5
 _LUM = np.array([0.299, 0.587, 0.114], np.float32)
 
 
@@ -294,6 +314,21 @@ def teeth_colour(skin_l: float, skin: np.ndarray | None, teeth: np.ndarray | Non
     return clamp(lt + TEETH_CAST * chroma * (lt / max(float(_lum(skin)), 1.0)), 0.0, 255.0)
 
 
+def cavity_hue(skin: np.ndarray) -> np.ndarray:
+    """(3,) float64 of unit luminance: the hue of an open mouth's dark interior for a skin of
+    colour ``skin`` (RGB): the skin's hue raised to :data:`CAVITY_BOUNCES` (light bounced
+    off the mouth's walls that many times), normalised."""
+    s = np.maximum(np.asarray(skin, np.float64), 1.0)
+    return _hue_power(s / float(s @ _LUM.astype(np.float64)), CAVITY_BOUNCES)
+
+
+def _hue_power(hue: np.ndarray, n: float) -> np.ndarray:
+    """(3,) float64: ``hue`` (colour over luminance) to the power ``n``, normalised to unit
+    luminance (all ones for a grey hue)."""
+    h = np.power(np.maximum(np.asarray(hue, np.float64), 1e-3), n)
+    return h / float(h @ _LUM.astype(np.float64))
+
+
 def _poly_mask(shape: tuple[int, int], poly: np.ndarray, off: np.ndarray) -> np.ndarray:
     m = np.zeros(shape, np.uint8)
     cv2.fillPoly(m, [np.round((poly - off) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
@@ -445,7 +480,13 @@ class MouthPlan:
         target = teeth_colour(skin_l, skin, teeth)
         gain_t = (target / np.maximum(ivory, 1.0)).astype(np.float32)
         tongue_mean = _opaque_mean("tongue", sat)
-        gain_g = np.full(3, TONGUE_L * skin_l / max(float(_lum(tongue_mean)), 1.0), np.float32)
+        # (in the hue of the light bounced inside the mouth, INNER_BOUNCES; its mean luminance
+        # kept at TONGUE_L of the skin's)
+        hue_g = np.ones(3, np.float32) if skin is None else _hue_power(
+            np.asarray(skin, np.float64) / max(float(_lum(skin)), 1.0), INNER_BOUNCES
+        ).astype(np.float32)
+        gain_g = np.full(3, TONGUE_L * skin_l / max(float(_lum(tongue_mean * hue_g)), 1.0),
+                         np.float32) * hue_g
         tex = {}
         for name, gain, shade in (("upper_teeth", gain_t, 1.0),
                                   ("lower_teeth", gain_t, LOWER_SHADE), ("tongue", gain_g, 1.0)):
@@ -466,7 +507,10 @@ class MouthPlan:
         else:
             gum_rgb = 0.6 * target
         cav_l = float(_lum(CAVITY_RGB))
-        cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)
+        if skin is None:
+            cavity = (cav_l + sat * (CAVITY_RGB - cav_l)) * (skin_l / 200.0)
+        else:
+            cavity = cav_l * (skin_l / 200.0) * cavity_hue(skin)
         anchor0 = _jaw_anchor(v, i21, i23, ex, ey)
         V = plan.n_vertices
         tongue_basis = plan.basis[42:46, V + 2:V + 6].astype(np.float64)  # FAPs 43-46
@@ -587,7 +631,7 @@ class MouthPlan:
             # (spread, then times the cavity's colour as a per-channel scalar: the same float32
             # products as cv2.transform's 3 x 1 matrix, at a fraction of its cost)
             deep = np.asarray(cv2.multiply(spread3(back), self._cavity_scalar), np.float32)
-            out = 0.45 * np.asarray(rim, np.float32) - deep
+            out = np.asarray(rim, np.float32) * self._rim_gain - deep
             out *= spread3(g)
             out += deep
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
@@ -722,6 +766,14 @@ class MouthPlan:
         """(width, height) of the lower teeth, upper teeth and tongue at the neutral scale."""
         return tuple((float(w), float(h)) for w, h in
                      (self.size[k] for k in ("lower_teeth", "upper_teeth", "tongue")))
+
+    @cached_property
+    def _rim_gain(self) -> np.ndarray:
+        """(3,) float32: the lips' inner surface, turned into the mouth, against their colour
+        beside the opening: RIM_LIGHT of it, in the hue of light bounced off the mouth's
+        walls :data:`INNER_BOUNCES` times (1 on a grey photo)."""
+        b = np.ones(3) if self.bounce is None else np.asarray(self.bounce, np.float64)
+        return (RIM_LIGHT * _hue_power(b, INNER_BOUNCES)).astype(np.float32)
 
     @cached_property
     def _cavity_scalar(self) -> np.ndarray:

@@ -57,6 +57,7 @@ from .liprims import apply_lip_rims
 from .lipseal import apply_contact_line, apply_lip_seal, closing_share, seal_plan
 from .liptone import apply_lip_tone
 from .mesh import StandardMesh, signed_areas, standard_mesh
+from .ownshade import apply_own_cheeks
 from .transform import similarity_pairs, similarity_to, source_fit
 from .warp import WarpPlan, WarpResult, map_step, warp
 
@@ -558,7 +559,9 @@ class Face:
         res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v, shut)
         if not creases:
             return res
-        return apply_cheeks(self, apply_chin_boss(self, apply_creases(self, res, v), v), v)
+        # (a smiling photo's own cheek shade is taken back before a smile's is drawn)
+        res = apply_own_cheeks(self, apply_chin_boss(self, apply_creases(self, res, v), v), v)
+        return apply_cheeks(self, res, v)
 
     def layer_transforms(self, v: np.ndarray) -> dict[str, np.ndarray]:
         """2x3 source->destination maps of what lies behind the openings (see ``warp``).

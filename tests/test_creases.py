@@ -9,7 +9,7 @@ from conftest import SAMPLE, jaffe_changes, jaffe_images
 
 from editor.core import Face, load_image
 from editor.engine import face as face_module
-from editor.engine.creases import _MIN_STRENGTH, fold_lines, fold_strength
+from editor.engine.creases import _MIN_STRENGTH, STYLES, fold_lines, fold_strength
 from editor.engine.layers import render_layers
 from editor.engine.warp import warp
 
@@ -149,6 +149,52 @@ def test_disgust_wrinkles_the_nose_joy_does_not(sample_neutral):
     assert bridge("anger") > 0.01  # the procerus (AU4) wrinkles the nasal root too
 
 
+def _nose_side(f, vec) -> float:
+    """The strongest darkening of the nose's side wrinkles (STYLES["nose_side"]) for ``vec``."""
+    return max(float(s.max()) for k, _p, s in fold_lines(f, f.deform(vec)) if k == "nose_side")
+
+
+def test_nose_wrinkler_lines_the_nose_sides_only_under_lowered_brows(sample_face, sample_neutral):
+    """The oblique wrinkles on the sides of the nose (AU9: JAFFE's disgust, KA, KL; anger MK)
+    follow the cheek beside the nose wing pushed up while the inner brows come down. Disgust
+    draws them, deeper with intensity (the neutralised sample too, whose own smile lifts the
+    cheek: pushed from its neutral mesh). Joy lifts the cheek as much (41/42 100) under brows
+    that stay, anger lowers the brows over a cheek that stays, sadness, fear and surprise raise
+    the inner brows, a turned head moves neither: none is drawn (below the 2-grey-level
+    threshold). Before: no fold on the nose's sides at all ("the nose is too plain")."""
+    from editor.bench import EXPRESSION
+    from editor.bench_render import HEAD_ROTATION
+    from editor.engine.faps import FAPS
+    from editor.formats.presets import apply_preset as shipped
+
+    for f in (sample_neutral, sample_face):
+        d = [_nose_side(f, shipped("disgust", k)) for k in (0.5, 1.0, 1.5)]
+        assert 0.0 <= d[0] < d[1] < d[2] <= 1.2 * STYLES["nose_side"].depth, d  # (uneven)
+        assert d[1] > 0.035, d
+        for name in ("joy", "anger", "sadness", "fear", "surprise"):
+            # (at 150 % the neutralised sample's anger reaches 0.011: its raised mouth lifts
+            # the cheek probes a little above the neutral mesh; real anger wrinkles the nose
+            # too, JAFFE KA and MK)
+            k = 1.5 if f is sample_neutral else 1.0
+            assert _nose_side(f, shipped(name, k)) < _MIN_STRENGTH, name
+    for vec in ({**EXPRESSION, **HEAD_ROTATION}, HEAD_ROTATION):
+        assert _nose_side(sample_neutral, FAPS.clamp(FAPS.vector(vec))) == 0.0
+
+
+@pytest.mark.skipif(not jaffe_images("*.NE1.*"), reason="needs ../shared/data/jaffe")
+def test_jaffe_nose_side_wrinkles_only_for_disgust():
+    """On the ten JAFFE neutral meshes the nose's side wrinkles are drawn for disgust
+    (darkening 0.042-0.059 at 100 %) and not for joy, anger, sadness, fear or surprise at
+    150 % (at most 0.005: anger's brows come down over a cheek that barely moves)."""
+    from editor.formats.presets import apply_preset as shipped
+
+    for ne in jaffe_images("*.NE1.*.tiff"):
+        f = Face.from_image(ne, own_expression=False)
+        assert _nose_side(f, shipped("disgust")) > 0.03, ne.name
+        for name in ("joy", "anger", "sadness", "fear", "surprise"):
+            assert _nose_side(f, shipped(name, 1.5)) < _MIN_STRENGTH, (ne.name, name)
+
+
 def test_strength_grows_monotonically_with_intensity(sample_neutral):
     f = sample_neutral
     for emotion, kind in (("joy", "nasolabial"), ("surprise", "forehead"),
@@ -254,12 +300,13 @@ def test_jaffe_surprise_forehead_lines_as_dark_as_real_ones():
 #: per fold kind, the valley's search window across its line (IOD): how far from the line its
 #: bottom is looked for, the half-length of the profile and the bottom's own half-width
 _WINDOWS = {"nasolabial": (0.1, 0.18, 0.035), "bridge": (0.03, 0.06, 0.015),
-            "upper_lip": (0.06, 0.12, 0.03)}
+            "upper_lip": (0.06, 0.12, 0.03), "nose_side": (0.04, 0.08, 0.015)}
 
 
 @pytest.mark.parametrize(("kind", "emotion", "code", "real_median"), [
     ("nasolabial", "joy", "HA", 0.17), ("bridge", "disgust", "DI", 0.02),
-    ("upper_lip", "disgust", "DI", 0.17), ("upper_lip", "joy", "HA", 0.25)])
+    ("upper_lip", "disgust", "DI", 0.17), ("upper_lip", "joy", "HA", 0.25),
+    ("nose_side", "disgust", "DI", 0.064)])
 def test_jaffe_folds_as_deep_as_real_ones(kind, emotion, code, real_median):
     """JAFFE's ten women: the folds an emotion draws on each one's neutral face are as deep as
     her own photos of it show. Depth: the valley below its shoulders across the middle of the
@@ -267,8 +314,10 @@ def test_jaffe_folds_as_deep_as_real_ones(kind, emotion, code, real_median):
     100 % the median over the women within 0.7-1.5 x the real photos' (two each), at 150 % no
     deeper than the deeper real ones (their p90). Real medians: joy's nasolabial folds 0.17,
     disgust's nasal-root lines 0.02, the furrow beside the nose wing 0.17 under disgust and
-    0.25 in a smile. Before they were calibrated so: 0.043, 0.073 and 0.034 (a smile without
-    its folds; scratches across the nose; a lip raiser without its furrow)."""
+    0.25 in a smile, the oblique wrinkles on the nose's sides 0.064 under disgust (0.054 on
+    the neutral photos, anger 0.054, sadness 0.059, joy 0.062). Before they were calibrated
+    so: 0.043, 0.073 and 0.034 (a smile without its folds; scratches across the nose; a lip
+    raiser without its furrow); the nose's sides had no fold (nothing to measure)."""
 
     _assert_as_deep_as_real(emotion, code, lambda f, img, v: _fold_depths(f, img, v, kind),
                             real_median)

@@ -2,7 +2,7 @@
 
 A geometry-only warp moves the skin but never folds it. This module adds the folds an
 expression makes, procedurally (no example images): nasolabial folds, crow's feet, horizontal
-forehead lines, vertical glabellar furrows and nose-bridge wrinkles.
+forehead lines, vertical glabellar furrows, nose-bridge wrinkles and the nose's side wrinkles.
 
 * **Where.** Each fold is a polyline laid out once per face on the photo's mesh, from its
   feature points and vertices (face frame, units of the inter-ocular distance). Every sample
@@ -137,6 +137,14 @@ class FoldStyle:
     # :func:`_add_lid_effort`), along the whole line: fear's wide eyes come with the whole
     # frontalis working against the brow lowerer, where sadness's lowered lids do not
     effort_lid: float = 0.0
+    # > 0: the fold's push (FoldStyle.lift) counts only as far as the inner brows are lowered
+    # below rest (:func:`_frown_gate`, this the lowering, in inner eye corners' distances,
+    # beyond :data:`_FROWN_DEAD`, over which the gate opens): the nose wrinkler (AU9) lifts the
+    # cheek beside the nose wing and pulls the brow heads down with the skin of the nose, where
+    # a smile's cheek raiser (AU6) lifts the cheek under brows that stay and anger's brow
+    # lowerer (AU4) lowers the brows over a cheek that stays (the mesh moves the nose itself
+    # rigidly in all three)
+    frown: float = 0.0
 
 
 STYLES: dict[str, FoldStyle] = {
@@ -250,6 +258,20 @@ STYLES: dict[str, FoldStyle] = {
     # smoothed skin and 0.037 with the photo's grain put back (grain.py); now 0.024
     "bridge": FoldStyle(sigma=0.011, depth=0.03, c0=0.07, ridge=0.25, ridge_off=2.2,
                         probe=0.04, dead=0.04),
+    # the nose wrinkler's (AU9) oblique lines on the sides of the nose, from beside the dorsum
+    # out and down towards the cheek (JAFFE disgust: KA, KL; anger: KA, MK). JAFFE's ten women
+    # (tests/test_creases.py: the valley across the middle of the laid-out lines, 0.04 IOD
+    # window, over the image's median light, two photos each): disgust 0.064 (p90 0.093), the
+    # neutral photos 0.054 (their grain), anger 0.054, sadness 0.059, joy 0.062. Without them
+    # disgust drew 0.047 at 100 % (the warp's smoothed grain: "the nose is too plain"), 0.041
+    # at 150 %; now 0.063 and 0.071. Driven by the cheek beside the nose wing pushed up (the
+    # upper_lip furrow's probes: disgust 0.018, joy 0.024, anger 0.0005 IOD, median of the ten
+    # meshes) while the inner brows are lowered (FoldStyle.frown; lowering over the inner eye
+    # corners' distance: disgust 0.116, anger 0.135, joy 0.022): joy, anger (0.001-0.005 on
+    # the ten at 150 %), sadness, fear and surprise draw none; their renders' valley stays
+    # under their real photos' (anger 0.044, sadness 0.048, joy 0.050 at 100 %)
+    "nose_side": FoldStyle(sigma=0.015, depth=0.06, c0=0.012, ridge=0.25, ridge_off=2.2,
+                           probe=0.04, lift=True, frown=0.06),
 }
 
 
@@ -344,8 +366,8 @@ def _line_constants() -> dict[str, list]:
     """The parts of :func:`_fold_lines` that do not depend on the face, made once per
     process (read-only): the nasolabial folds', the lower lids' and the crow's feet's
     tapers, the crow's feet's offsets from their eye corner, and the irregular lines'
-    (forehead, glabella, bridge, chin) fixed random draws, in the order the lines drew them
-    per face before, with what of those lines depends on the draws alone (each line's
+    (forehead, glabella, bridge, chin, nose sides) fixed random draws, in the order the lines
+    drew them per face before, with what of those lines depends on the draws alone (each line's
     arithmetic stays in its own order: the same values; ~0.25 ms a face before)."""
     out: dict[str, list] = {"crow": []}
     # ---- nasolabial folds (28 samples, their upper part 16) and the lower lids' (16)
@@ -408,6 +430,19 @@ def _line_constants() -> dict[str, list]:
     out["chin"] = [2.0 * t_c - 1.0,
                    0.003 * np.sin(2 * np.pi * 0.9 * t_c + rng.uniform(0, 6.3)),
                    _fade(t_c, 0.35, 0.35), np.zeros(len(t_c))]
+    # ---- the nose's side wrinkles (drawn after the chin's: the draws above stay the same):
+    # per side two oblique lines, each its start below the nasal sidewall's top, its slope,
+    # bow, wave and taper (not mirror images, not evenly spaced)
+    t_n = linspace(0.0, 1.0, 10)
+    for _side in range(2):
+        for off, slope, bow in ((-0.06, 0.75, 0.012), (0.05, 0.6, 0.008)):
+            off += rng.uniform(-0.02, 0.02)
+            wave = 0.003 * np.sin(2 * np.pi * 1.2 * t_n + rng.uniform(0, 6.3))
+            even = 1.0 + 0.2 * np.sin(2 * np.pi * 1.1 * t_n + rng.uniform(0, 6.3))
+            out.setdefault("nose_side", []).append(
+                (off, t_n, slope + rng.uniform(-0.08, 0.08), -bow * np.sin(np.pi * t_n) + wave,
+                 _fade(t_n, 0.3, 0.4) * even))
+    out["nose_side_u"] = [np.zeros(len(t_n))]
     for v in out.values():  # (shared by every face's lines: read-only)
         for a in v:
             for x in (a if isinstance(a, tuple) else (a,)):
@@ -563,6 +598,26 @@ def _fold_lines(face: Face) -> list[_Line]:
         probes = mid + np.array([(-0.06, 0.05), (0.06, 0.05), (-0.06, 0.18), (0.06, 0.18)])
         lines.append(_Line("lower_lid", f"lower_lid_{s}", _pairs(xs_l, y_l), lid_taper,
                            (0.0, -1.0), probes, (0.0, 1.0), utaper=lid_utaper))
+    # ---- the nose's sides: short wrinkles across the nasal sidewall, from beside the dorsum
+    # out and a little down towards the cheek (the nose wrinkler AU9 pulls the skin of the
+    # nose up against the lowered brow heads: JAFFE KA, KL, MK), driven by the cheek beside
+    # the nose wing pushed up towards the eye (the upper_lip furrow's probes) while the brows
+    # are lowered (FoldStyle.frown); never taken for the photo's own fold (no unfold)
+    n28 = q("nose_28")
+    sides = iter(fixed["nose_side"])
+    (no_unfold,) = fixed["nose_side_u"]
+    for s, sg in (("r", -1.0), ("l", 1.0)):
+        ns, ala = q(f"nose_side_{s}"), q(f"ala_{s}")
+        x0 = n28[0] + sg * 0.04
+        x1 = ns[0] + sg * 0.08
+        probes = ala + np.array([(sg * 0.10, 0.02), (sg * 0.14, 0.04), (sg * 0.12, 0.08),
+                                 (sg * 0.16, 0.08)])
+        for _ in range(2):
+            off, t_n, slope, bend, taper = next(sides)
+            xs_n = x0 + (x1 - x0) * t_n
+            lines.append(_Line("nose_side", f"nose_side_{s}",
+                               _pairs(xs_n, ns[1] + off + slope * np.abs(xs_n - x0) + bend),
+                               taper, (0.0, -1.0), probes, (0.0, 1.0), utaper=no_unfold))
     return lines
 
 
@@ -926,6 +981,9 @@ class _Fast:
     lid_w: np.ndarray = field(init=False)
     lid_v: np.ndarray = field(init=False)
     lid_open0: float = 0.0
+    # the frown gate (_frown_gate): the samples of folds with FoldStyle.frown and their scale
+    frown_idx: np.ndarray = field(init=False)
+    frown_w: np.ndarray = field(init=False)
     # samples of folds that lie on the first samples of another fold of their group (the
     # upper_lip furrow on the nasolabial line) and those samples: one furrow, see _twins
     twin_a: np.ndarray = field(init=False)
@@ -1143,6 +1201,15 @@ def _fast(face: Face) -> _Fast:
                                         "eye_l_c0", "eye_l_c1")])
     # (the wider of the photo's and the neutral mesh's: a photo's own wide eyes are in it)
     f.lid_open0 = max(_lid_open(f, face.vertices), _lid_open(f, rest))
+    fw = np.array([STYLES[k].frown for k in p.kinds])[p.fold]
+    f.frown_idx = np.flatnonzero(fw > 0)
+    f.frown_w = fw[f.frown_idx]
+    if len(f.frown_idx) and face.has_expression:
+        # (their push from the neutral mesh: a smiling photo's raised cheek brings no nose
+        # wrinkles to carry, and a target that lifts the cheek less than the photo's smile
+        # still lifts it above the neutral)
+        on = np.isin(lift, f.frown_idx)
+        f.lift_base[on] = (_lift_push(f, rest) + f.lift_base)[on]
     f.used_tri = np.ascontiguousarray(face.mesh.triangles[used].T)
     inv = p.tri_inv[used]
     f.used_inv = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
@@ -1335,6 +1402,23 @@ def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
         c[fa.lid_idx] += fa.lid_w * (e * (1.0 - math.exp(-r / _LID_RAISE)))
 
 
+#: inner brow lowering below rest (in inner eye corners' distances, about 0.5 IOD) that opens
+#: no frown gate yet: the ten JAFFE meshes' median at 100 % (presets): joy 0.022, disgust
+#: 0.116, anger 0.135 (sadness, fear, surprise raise the inner brows)
+_FROWN_DEAD = 0.04
+
+
+def _frown_gate(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+    """Multiply the samples of folds with FoldStyle.frown (in place) by how far the inner brows
+    are lowered: ``smooth01((lowering - _FROWN_DEAD) / frown)``, the lowering below the inner
+    brow heads' rest height over the inner eye corners (:func:`_brow_pose`)."""
+    low = fa.brow_rise0 - _brow_pose(fa, vertices)[0] - _FROWN_DEAD
+    if low <= 0.0:
+        c[fa.frown_idx] = 0.0
+        return
+    c[fa.frown_idx] *= smooth01(low / fa.frown_w)
+
+
 def _lift_push(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     """(K,) for the samples ``fa.lift``: how far up (IOD) the skin at their probes lies
     relative to their eye's corners, beyond where it lies on the photo's mesh."""
@@ -1431,6 +1515,8 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
         c[fa.neg] = _neg_compression(fa, vertices)
     if len(fa.lift):
         c[fa.lift] = _lift_push(fa, vertices)
+    if len(fa.frown_idx):
+        _frown_gate(fa, c, vertices)
     if len(fa.effort_idx):
         _add_effort(fa, c, vertices)
     if len(fa.lid_idx):
@@ -1493,6 +1579,8 @@ def _both_strengths(fa: _Fast, vertices: np.ndarray
         c[fa.neg] = _neg_compression(fa, vertices)
     if len(fa.lift):
         c[fa.lift] = _lift_push(fa, vertices)
+    if len(fa.frown_idx):
+        _frown_gate(fa, c, vertices)
     if len(fa.effort_idx):
         _add_effort(fa, c, vertices)
     if len(fa.lid_idx):

@@ -124,11 +124,26 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                           "sad on 3 of 7 faces"),
         "c_stretch": (20, "AU15 pulls the corners down and a little outwards (median -7/0, "
                           "outer -5/6 MW; p90 60/43)"),
-        "lid_t": (180, "AU41 lid droop (EMFACS sadness 1+4+15+41): the real sad photos' upper "
+        "lid_t": (160, "AU41 lid droop (EMFACS sadness 1+4+15+41): the real sad photos' upper "
                        "lids come down over the iris (median 125/93 IRISD, p90 252/247, max "
                        "399/414); at the fit's 110 the eyes stayed as in the neutral photo and "
                        "blind raters named 3-4 of 7 faces at 100 % neutral ('relaxed face'); "
-                       "set between the median and p90, 150 % inside the max"),
+                       "set between the median and p90, 150 % inside the max. With the lowered "
+                       "gaze (25/26) the lid follows the iris down ~82 IRISD: 160 + 82 = 242 "
+                       "(180 before, without the gaze)"),
+        25: (8000, "the sad gaze drops (AU64 eyes down, with AU41; the raters read our sad eyes "
+                   "as 'relaxed, heavy lids'): the iris centre against the eye-corner line, "
+                   "re-detected (dlib + iris circle) in the 31 JAFFE sad photos, each woman "
+                   "against her neutrals, head motion removed: median +0.051 iris diameters "
+                   "down, p10..p90 +0.007..+0.088, min..max -0.056..+0.130 (neutral noise "
+                   "p10..p90 -0.030..+0.034; the other emotions' medians -0.011..+0.052). "
+                   "8000 AU turns the iris R sin(0.08) = 0.080 iris diameters down (150 % 0.120, "
+                   "inside the max); the same instrument on our 100 % renders of the ten women "
+                   "reads +0.055 (+0.015 without), the upper lid over the iris +0.11 iris radii "
+                   "(real median +0.09, +0.10 before; the lids follow the gaze, "
+                   "editor/engine/deform.py _gaze_lids) and the lower lid -0.16 (real -0.21, "
+                   "-0.10 before; the fit's lid_b keeps its feature point where it was)"),
+        26: (8000, "as 25"),
     },
     "surprise": {
         "brow_i": (95, "AU1 inner brow raiser, surprise's key cue: JAFFE's median 54/51 ENS "

@@ -157,11 +157,17 @@ def test_fap_arkit_fap_and_fap_au_fap_round_trips_on_the_presets(name):
     nz = np.flatnonzero(f)
     w, rot = faps_to_arkit(f)
     assert ((w >= 0) & (w <= 1)).all()
-    for back in (arkit_to_faps(w, rot)[0], aus_to_faps(faps_to_aus(f))[0]):
-        rms = float(np.sqrt(np.mean((back - f)[nz] ** 2)))
+    # eye position (FAPs 23-26, sadness's lowered gaze) has no AU (au_faps.json cannot_express:
+    # FACS 61-66): the AU route loses it by design and is measured on the rest; ARKit's eye
+    # rotations carry it exactly
+    gaze = np.arange(22, 26)
+    back_k = arkit_to_faps(w, rot)[0]
+    assert np.allclose(back_k[gaze], f[gaze], atol=1.0)
+    for back, idx in ((back_k, nz), (aus_to_faps(faps_to_aus(f))[0], np.setdiff1d(nz, gaze))):
+        rms = float(np.sqrt(np.mean((back - f)[idx] ** 2)))
         assert rms <= PRESET_RMS[name], f"{name}: RMS {rms:.1f} FAPU"
         # the round trip must keep the preset's character: RMS well below the preset's own
-        assert rms < 0.5 * float(np.sqrt(np.mean(f[nz] ** 2)))
+        assert rms < 0.5 * float(np.sqrt(np.mean(f[idx] ** 2)))
 
 
 def test_au_fap_au_recovers_the_prototypes():

@@ -63,6 +63,35 @@ def cheek_light(g, points) -> tuple[float, float]:
     return float(np.median(np.concatenate(skin))), iod
 
 
+def eye_frame(img):
+    """The face frame of ``img``'s re-detected landmarks: ``(c, ex, ey, iod)``, the eyes'
+    middle, the unit vectors along and across the eyes (y down) and the inter-ocular distance
+    (the frame the JAFFE shading measures sample in)."""
+    import numpy as np
+
+    from editor.engine.landmarks import detect_landmarks
+
+    p = detect_landmarks(img).points.astype(np.float64)
+    a, b = p[36:42].mean(0), p[42:48].mean(0)
+    c, ex = 0.5 * (a + b), b - a
+    iod = float(np.linalg.norm(ex))
+    ex /= iod
+    return c, ex, np.array([-ex[1], ex[0]]), iod
+
+
+def frame_sample(a, frame, xs, ys):
+    """``a`` (h, w) float32 sampled bilinearly on the grid ``xs`` x ``ys`` (IOD, in the
+    :func:`eye_frame` ``frame``): a (len(ys), len(xs)) array."""
+    import cv2
+    import numpy as np
+
+    c, ex, ey, iod = frame
+    X, Y = np.meshgrid(xs, ys)
+    mx = (c[0] + (X * ex[0] + Y * ey[0]) * iod).astype(np.float32)
+    my = (c[1] + (X * ex[1] + Y * ey[1]) * iod).astype(np.float32)
+    return cv2.remap(a, mx, my, cv2.INTER_LINEAR)
+
+
 def jaffe_real_and_drawn(measure, code: str, preset: str) -> tuple[float, float]:
     """Medians of ``measure(image)`` (None: not measurable) over JAFFE's real ``code`` photos
     (e.g. "HA") and over ``preset`` at 100 % rendered on each woman's first neutral photo;

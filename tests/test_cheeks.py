@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from conftest import jaffe_changes
+from conftest import eye_frame, frame_sample, jaffe_changes
 
 from editor.engine import face as face_module
 from editor.engine.cheeks import cheek_plan, lift
 from editor.engine.fitting import luminance
-from editor.engine.landmarks import detect_landmarks
 from editor.formats.presets import apply_preset
 
 
@@ -73,19 +72,10 @@ def _flank(img: np.ndarray) -> float:
     """The lower cheek flanks' light: the mean log luminance over |x| 0.5-0.62 IOD from the
     eyes' midpoint, 0.62-0.88 IOD below the eye line (the eyes' frame of the re-detected
     landmarks), both sides."""
-    g = luminance(img).astype(np.float32)
-    p = detect_landmarks(img).points.astype(np.float64)
-    a, b = p[36:42].mean(0), p[42:48].mean(0)
-    c, ex = 0.5 * (a + b), b - a
-    iod = float(np.hypot(*ex))
-    ex /= iod
-    ey = np.array([-ex[1], ex[0]])
-    X, Y = np.meshgrid(np.r_[np.linspace(-0.62, -0.5, 7), np.linspace(0.5, 0.62, 7)],
-                       np.linspace(0.62, 0.88, 14))
-    mx = (c[0] + (X * ex[0] + Y * ey[0]) * iod).astype(np.float32)
-    my = (c[1] + (X * ex[1] + Y * ey[1]) * iod).astype(np.float32)
-    return float(np.log(cv2.remap(cv2.GaussianBlur(g, (0, 0), 2.0), mx, my,
-                                  cv2.INTER_LINEAR) + 8.0).mean())
+    g = cv2.GaussianBlur(luminance(img).astype(np.float32), (0, 0), 2.0)
+    return float(np.log(frame_sample(g, eye_frame(img),
+                                     np.r_[np.linspace(-0.62, -0.5, 7), np.linspace(0.5, 0.62, 7)],
+                                     np.linspace(0.62, 0.88, 14)) + 8.0).mean())
 
 
 def test_jaffe_smiling_cheeks_as_shaded_as_real_ones():

@@ -70,10 +70,11 @@ def test_darkens_the_chin_and_nothing_below_it(sample_neutral, monkeypatch):
     assert np.array_equal(f.render(vec, creases=False), plain)
 
 
-def _chin_light(img: np.ndarray) -> float | None:
-    """The lip-to-chin band's light over the cheeks' (re-detected landmarks): the mean of row
-    medians at 15-75 % of the way from the outer lower lip's middle (57) to the chin (8),
-    0.1 IOD either side, over the median of two squares of cheek 0.45 IOD under the eyes."""
+def _chin_band(img: np.ndarray, windows: tuple[tuple[float, float], ...]) -> float | None:
+    """The light of windows across the lip-to-chin line over the cheeks' (re-detected
+    landmarks): the mean of row medians at 15-75 % of the way from the outer lower lip's middle
+    (57) to the chin (8), each window ``(a, b)`` IOD beside that line, over the median of two
+    squares of cheek 0.45 IOD under the eyes. None when no face is found."""
     from editor.engine.landmarks import detect_landmarks
 
     g = luminance(img) if img.ndim == 3 else img.astype(np.float32)
@@ -85,9 +86,16 @@ def _chin_light(img: np.ndarray) -> float | None:
     rows = []
     for t in np.linspace(0.15, 0.75, 9):
         q = p[57] + t * (p[8] - p[57])
-        xs = np.arange(int(q[0] - 0.1 * iod), int(q[0] + 0.1 * iod) + 1)
-        rows.append(float(np.median(g[int(round(q[1])), xs])))
+        for a, b in windows:
+            lo, hi = sorted((int(q[0] + a * iod), int(q[0] + b * iod)))
+            rows.append(float(np.median(g[int(round(q[1])), lo:hi + 1])))
     return float(np.mean(rows)) / max(ref, 1.0)
+
+
+def _chin_light(img: np.ndarray) -> float | None:
+    """The lip-to-chin band's light over the cheeks' (:func:`_chin_band`): 0.1 IOD either
+    side of the line."""
+    return _chin_band(img, ((-0.1, 0.1),))
 
 
 @pytest.mark.skipif(not jaffe_images("*.NE1.*"), reason="needs ../shared/data/jaffe")
@@ -109,24 +117,10 @@ def test_jaffe_chin_as_dark_as_real_ones(emotion, code):
 
 
 def _chin_side_light(img: np.ndarray) -> float | None:
-    """The light of the chin boss's sides over the cheeks' (re-detected landmarks): like
-    :func:`_chin_light`, but the row medians of two windows 0.16-0.28 IOD either side of the
-    line from the outer lower lip's middle (57) to the chin (8)."""
-    from editor.engine.landmarks import detect_landmarks
-
-    g = luminance(img) if img.ndim == 3 else img.astype(np.float32)
-    try:
-        p = detect_landmarks(img).points.astype(np.float64)
-    except Exception:  # noqa: BLE001 - no face found: not measurable
-        return None
-    ref, iod = cheek_light(g, p)
-    rows = []
-    for t in np.linspace(0.15, 0.75, 9):
-        q = p[57] + t * (p[8] - p[57])
-        for sg in (-1.0, 1.0):
-            lo, hi = sorted((int(q[0] + sg * 0.16 * iod), int(q[0] + sg * 0.28 * iod)))
-            rows.append(float(np.median(g[int(round(q[1])), lo:hi + 1])))
-    return float(np.mean(rows)) / max(ref, 1.0)
+    """The light of the chin boss's sides over the cheeks' (:func:`_chin_band`): two windows
+    0.16-0.28 IOD either side of the line from the outer lower lip's middle (57) to the chin
+    (8)."""
+    return _chin_band(img, ((-0.16, -0.28), (0.16, 0.28)))
 
 
 @pytest.mark.skipif(not jaffe_images("*.NE1.*"), reason="needs ../shared/data/jaffe")

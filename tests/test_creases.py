@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import SAMPLE, jaffe_changes, jaffe_images
+from conftest import SAMPLE, eye_frame, frame_sample, jaffe_changes, jaffe_images
 
 from editor.core import Face, load_image
 from editor.engine import face as face_module
@@ -1064,23 +1064,15 @@ def _fine_lines(img: np.ndarray, box: tuple[float, float, float, float]) -> floa
     middle, y down), on re-detected landmarks."""
     import cv2
 
-    from editor.engine.landmarks import detect_landmarks
 
     L = cv2.GaussianBlur(_lum(img).astype(np.float32), (0, 0), 0.6)
-    p = detect_landmarks(img).points.astype(np.float64)
-    a, b = p[36:42].mean(0), p[42:48].mean(0)
-    c, ex = 0.5 * (a + b), b - a
-    iod = float(np.linalg.norm(ex))
-    ex /= iod
-    ey = np.array([-ex[1], ex[0]])
-    k = max(3, int(round(0.10 * iod)) | 1)
+    frame = eye_frame(img)
+    k = max(3, int(round(0.10 * frame[3])) | 1)
     clo = cv2.morphologyEx(L, cv2.MORPH_CLOSE,
                            cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
     th = (clo - L) / np.maximum(clo, 1)
-    X, Y = np.meshgrid(np.arange(box[0], box[1], 0.008), np.arange(box[2], box[3], 0.008))
-    mx = (c[0] + (X * ex[0] + Y * ey[0]) * iod).astype(np.float32)
-    my = (c[1] + (X * ex[1] + Y * ey[1]) * iod).astype(np.float32)
-    return float(cv2.remap(th, mx, my, cv2.INTER_LINEAR).mean())
+    return float(frame_sample(th, frame, np.arange(box[0], box[1], 0.008),
+                              np.arange(box[2], box[3], 0.008)).mean())
 
 
 @pytest.mark.skipif(not jaffe_images("*.NE1.*"), reason="needs ../shared/data/jaffe")
@@ -1106,21 +1098,13 @@ def _glabella_light(img: np.ndarray) -> float:
     image's median, on re-detected landmarks."""
     import cv2
 
-    from editor.engine.landmarks import detect_landmarks
 
-    p = detect_landmarks(img).points.astype(np.float64)
-    a, b = p[36:42].mean(0), p[42:48].mean(0)
-    c, ex = 0.5 * (a + b), b - a
-    iod = float(np.linalg.norm(ex))
-    ex /= iod
-    ey = np.array([-ex[1], ex[0]])
+    frame = eye_frame(img)
     L = _lum(img).astype(np.float32)
     med = float(np.median(L))
-    L = cv2.GaussianBlur(L, (0, 0), 0.015 * iod)
-    X, Y = np.meshgrid(np.linspace(-0.16, 0.16, 5), np.linspace(-0.3, -0.15, 4))
-    mx = (c[0] + (X * ex[0] + Y * ey[0]) * iod).astype(np.float32)
-    my = (c[1] + (X * ex[1] + Y * ey[1]) * iod).astype(np.float32)
-    return float(cv2.remap(L, mx, my, cv2.INTER_LINEAR).mean()) / max(med, 1.0)
+    L = cv2.GaussianBlur(L, (0, 0), 0.015 * frame[3])
+    return float(frame_sample(L, frame, np.linspace(-0.16, 0.16, 5),
+                              np.linspace(-0.3, -0.15, 4)).mean()) / max(med, 1.0)
 
 
 @pytest.mark.skipif(not jaffe_images("*.NE1.*"), reason="needs ../shared/data/jaffe")

@@ -6,11 +6,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from conftest import jaffe_images
+from conftest import eye_frame, frame_sample, jaffe_images
 
 from editor.engine import face as face_module
 from editor.engine.fitting import luminance
-from editor.engine.landmarks import detect_landmarks
 from editor.engine.ownshade import own_cheeks, undo_share
 from editor.formats.presets import apply_preset
 
@@ -74,19 +73,9 @@ FLANKS = {"lower": (np.r_[np.linspace(-0.62, -0.5, 7), np.linspace(0.5, 0.62, 7)
 def _flanks(img: np.ndarray) -> dict[str, float]:
     """Mean log luminance over each of :data:`FLANKS` (re-detected landmarks, eyes' frame)."""
     g = cv2.GaussianBlur(luminance(img).astype(np.float32), (0, 0), 2.0)
-    p = detect_landmarks(img).points.astype(np.float64)
-    a, b = p[36:42].mean(0), p[42:48].mean(0)
-    c, ex = 0.5 * (a + b), b - a
-    iod = float(np.hypot(*ex))
-    ex /= iod
-    ey = np.array([-ex[1], ex[0]])
-    out = {}
-    for name, (xs, ys) in FLANKS.items():
-        X, Y = np.meshgrid(xs, ys)
-        mx = (c[0] + (X * ex[0] + Y * ey[0]) * iod).astype(np.float32)
-        my = (c[1] + (X * ex[1] + Y * ey[1]) * iod).astype(np.float32)
-        out[name] = float(np.log(cv2.remap(g, mx, my, cv2.INTER_LINEAR) + 8.0).mean())
-    return out
+    frame = eye_frame(img)
+    return {name: float(np.log(frame_sample(g, frame, xs, ys) + 8.0).mean())
+            for name, (xs, ys) in FLANKS.items()}
 
 
 def test_jaffe_neutralised_smiles_have_the_womens_neutral_cheek_tops():

@@ -631,7 +631,11 @@ class MouthPlan:
             # (spread, then times the cavity's colour as a per-channel scalar: the same float32
             # products as cv2.transform's 3 x 1 matrix, at a fraction of its cost)
             deep = np.asarray(cv2.multiply(spread3(back), self._cavity_scalar), np.float32)
-            out = np.asarray(rim, np.float32) * self._rim_gain - deep
+            # (the gain as OpenCV's per-channel scalar: numpy's broadcast of a (3,) row over
+            # (h, w, 3) runs an inner loop of 3 a pixel, several times slower on larger boxes;
+            # the same float32 products)
+            out = np.asarray(cv2.multiply(np.asarray(rim, np.float32), self._rim_scalar),
+                             np.float32) - deep
             out *= spread3(g)
             out += deep
             # drawn teeth and tongue in the lips' shadow: a thin band of them along a lip
@@ -776,6 +780,12 @@ class MouthPlan:
         return (RIM_LIGHT * _hue_power(b, INNER_BOUNCES)).astype(np.float32)
 
     @cached_property
+    def _rim_scalar(self) -> np.ndarray:
+        """:attr:`_rim_gain` as OpenCV's per-channel scalar (see :attr:`_cavity_scalar`; its
+        float32 values, exact in float64)."""
+        return self._rim_gain.astype(np.float64)
+
+    @cached_property
     def _cavity_scalar(self) -> np.ndarray:
         """:attr:`cavity` as OpenCV's per-channel scalar (a (3,) float64 array: 3 x 1, one
         value a channel of a 3-channel image)."""
@@ -909,7 +919,10 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     vis = clip(h, 0.0, 1.0, out=h)  # (smooth01's values, float32: its clamp one ufunc)
     vis = vis * vis * (3.0 - 2.0 * vis)
     if gain is not None:  # in shadow: darker and warmer (not greyed towards the cavity)
-        out = out * gain
+        # (as OpenCV's per-channel scalar: the same float32 products as numpy's broadcast of
+        # the (3,) float32 gain, without its inner loop of 3 a pixel)
+        out = np.asarray(cv2.multiply(out, np.asarray(gain, np.float32).astype(np.float64)),
+                         np.float32)
     res = out - cav
     res *= spread3(vis)
     res += cav

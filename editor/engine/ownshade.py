@@ -75,7 +75,7 @@ class OwnCheeks:
     #: ``u``: exact at the neutral and at the photo)
     gains: tuple[np.ndarray, ...]
     boxes: tuple[tuple[int, int, int, int], ...]  # (x0, y0, x1, y1) of each gain on the photo
-    corners: tuple[np.ndarray, ...]  # (4, 3) each box's corners on the photo, x, y, 1
+    pulls: tuple[tuple[float, float], ...]  # each side's ``pull`` (x, y), Python floats
 
 
 def _strength(rise: float) -> float:
@@ -112,7 +112,7 @@ def own_cheeks(face: Face) -> OwnCheeks | None:
     # disc of the same reach took ~50 ms a side)
     square = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
     out: dict[str, list] = {k: [] for k in ("sides", "zero", "photo", "gains", "boxes",
-                                            "corners")}
+                                            "pulls")}
     for side in plan.sides:
         c = side.anchors[1]
         z = float(N[c] @ side.pull) / iod
@@ -141,19 +141,26 @@ def own_cheeks(face: Face) -> OwnCheeks | None:
         out["photo"].append(s)
         out["gains"].append(np.ascontiguousarray((g - 1.0) / s, np.float32))
         out["boxes"].append((x0, y0, x1, y1))
-        out["corners"].append(np.array([[x0, y0, 1.0], [x1, y0, 1.0], [x0, y1, 1.0],
-                                        [x1, y1, 1.0]]))
+        out["pulls"].append((float(side.pull[0]), float(side.pull[1])))
     if not out["sides"]:
         return None
     return OwnCheeks(plan, *(tuple(out[k]) for k in ("sides", "zero", "photo", "gains",
-                                                     "boxes", "corners")))
+                                                     "boxes", "pulls")))
 
 
 def undo_share(own: OwnCheeks, k: int, vertices: np.ndarray) -> float:
     """How much of side ``k``'s lit top the deformed mesh ``vertices`` takes back: the
     photo's strength less the mesh's (:data:`UNDO` times the saturating pull), at least 0."""
-    side = own.sides[k]
-    rise = float(np.asarray(vertices[side.anchors[1]], np.float64) @ side.pull) / own.plan.iod
+    corner = np.asarray(vertices[own.sides[k].anchors[1]], np.float64).tolist()
+    return _undo(own, k, corner)
+
+
+def _undo(own: OwnCheeks, k: int, corner: list[float]) -> float:
+    """:func:`undo_share` of side ``k`` with its mouth corner at ``corner`` (x, y): the rise
+    along the pull in Python floats (two products and a sum: numpy's calls on two values cost
+    several times more)."""
+    px, py = own.pulls[k]
+    rise = (corner[0] * px + corner[1] * py) / own.plan.iod
     return max(own.photo[k] - UNDO * _strength(rise - own.zero[k]), 0.0)
 
 
@@ -170,27 +177,31 @@ def apply_own_cheeks(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpR
     H, W = out.shape[:2]
     bbox = res.bbox
     for k, side in enumerate(own.sides):
-        u = undo_share(own, k, v)
+        pts = v.take(side.anchors, 0)  # (take: cheaper rows)
+        u = _undo(own, k, pts[1].tolist())
         if u < _TOL:
             continue
-        A = (side.solve @ v[side.anchors]).T  # (2, 3): photo -> deformed
-        dst = own.corners[k] @ A.T
-        lo, hi = dst.min(0), dst.max(0)
-        X0, Y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        X1, Y1 = min(int(hi[0]) + 2, W), min(int(hi[1]) + 2, H)
+        A = (side.solve @ pts).T  # (2, 3): photo -> deformed
+        (a, b, c), (d, e, f) = A.tolist()
+        # (the box's corners through A in Python floats: numpy's calls on a 4 x 2 array cost
+        # several times more; x a + y b + c, the matrix product's order)
+        x0, y0, x1, y1 = own.boxes[k]
+        xs = [x * a + y * b + c for x, y in ((x0, y0), (x1, y0), (x0, y1), (x1, y1))]
+        ys = [x * d + y * e + f for x, y in ((x0, y0), (x1, y0), (x0, y1), (x1, y1))]
+        X0, Y0 = max(int(min(xs)), 0), max(int(min(ys)), 0)
+        X1, Y1 = min(int(max(xs)) + 2, W), min(int(max(ys)) + 2, H)
         if X1 - X0 < 2 or Y1 - Y0 < 2:
             continue
         # gain pixel (i, j) sits at photo (x0 + j, y0 + i); the destination's at (X0, Y0)
-        x0, y0 = own.boxes[k][:2]
         A[:, 2] += A[:, :2] @ (x0, y0) - (X0, Y0)
-        g = np.asarray(cv2.warpAffine(own.gains[k], A, (X1 - X0, Y1 - Y0),
-                                      flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                                      borderValue=0.0), np.float32)
+        g: np.ndarray = np.asarray(cv2.warpAffine(own.gains[k], A, (X1 - X0, Y1 - Y0), None,
+                                                  cv2.INTER_LINEAR, cv2.BORDER_CONSTANT, 0.0),
+                                   np.float32)
         g *= np.float32(u)
         g += 1.0
         view = out[Y0:Y1, X0:X1]
-        g *= view
-        view[:] = cv2.convertScaleAbs(g)  # (>= 0: rounded, saturated at 255)
+        # (the float32 product rounded and saturated into the view: >= 0, as 1 + u gain is)
+        cv2.multiply(g, view, view, 1.0, cv2.CV_8U)
         bbox = _union(bbox, (X0, Y0, X1, Y1))
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 

@@ -334,7 +334,8 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                   "lip with two raised humps, read by blind raters as lips pushed out in a "
                   "pout (disgust named anger or sadness); at -30 with 55/56 at -170 still "
                   "+0.016 (mild humps); now +0.006 (0.005 at 150 %), near the real median. The "
-                  "classifier names disgust on 7 of 10 at 100 %, 9 at 150 %, as before"),
+                  "classifier names disgust on 6-8 of 10 at 100 % (7 before; the count moves "
+                  "with the chin groove and nose lines the crease layer draws), 10 at 150 %"),
         55: (-150, "AU9/AU10 lift the upper lip's outer contour beside the philtrum with its "
                    "middle (51; median -41, p10 -343, min -447), not curled into humps (see "
                    "51); the furrow beside the nose wing is drawn from the cheek's lift (the "
@@ -383,8 +384,11 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
 
 
 def group_vector(values: dict[object, float]) -> np.ndarray:
+    """The (68,) FAP vector of group values (:data:`GROUPS` names) and single FAPs (numbers):
+    groups first, so that a FAP fixed on its own overrides its group's value whatever the
+    dict's order."""
     v = np.zeros(68, np.float32)
-    for k, x in values.items():
+    for k, x in sorted(values.items(), key=lambda kv: not isinstance(kv[0], str)):
         for n in (GROUPS[k] if isinstance(k, str) else (k,)):
             v[n - 1] = x
     return v
@@ -444,7 +448,10 @@ def source_text(emotion: str, values: dict[object, float], st: dict[str, np.ndar
         "its p10-p90 half band, kept inside the band; [median; p10..p90] of the FAP's own "
         "feature point follow each value. FACS-fixed values (SPEC §7.4) give their reason."]
     for g, val in values.items():
-        ns = GROUPS[g] if isinstance(g, str) else (g,)
+        # (a group's FAPs fixed on their own are listed with their own value, not the group's)
+        ns = tuple(n for n in GROUPS[g] if n not in values) if isinstance(g, str) else (g,)
+        if not ns:
+            continue
         names = "/".join(str(n) for n in ns)
         meas = [f"{n}: {st['median'][idx[n]]:.0f}; {st['p10'][idx[n]]:.0f}..{st['p90'][idx[n]]:.0f}"
                 for n in ns if n in idx]

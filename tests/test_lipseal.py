@@ -438,7 +438,7 @@ def test_a_grey_photos_line_keeps_its_fixed_depth(sample_face):
     grey = cv2.cvtColor(cv2.cvtColor(sample_face.image, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
     plan = lipseal.seal_plan(Face.from_image(grey))
     assert plan is not None and plan.line_floor == 0.0
-    assert lipseal._floor_gain(plan) == 1.0
+    assert plan.floor_gain == 1.0
     colour = lipseal.seal_plan(sample_face)
     assert colour.line_floor == pytest.approx(lipseal.LINE_FLOOR * colour.opening.light)
-    assert lipseal._floor_gain(colour) > 1.0
+    assert colour.floor_gain > 1.0

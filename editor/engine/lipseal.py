@@ -164,6 +164,9 @@ class SealPlan:
     #: the grey level the contact line darkens the lips towards (0: the line's fixed depth
     #: alone; see :data:`LINE_FLOOR`)
     line_floor: float = 0.0
+    #: the most the floor multiplies the line's darkening by: up to a luminance depth of
+    #: :data:`LINE_MAX`; 1 without a floor (a grey photo)
+    floor_gain: float = 1.0
     #: the sealed photo over the box of every fill, ``(box, pixels)`` (:func:`sealed_box`;
     #: made on its first call)
     region: tuple[tuple[int, int, int, int], np.ndarray] | None = field(
@@ -394,15 +397,16 @@ def _build(face: Face) -> SealPlan | None:
     if opening is None and not corners:
         return None
     # on a colour photo the line darkens towards the lips' deep red (blue and green more)
-    tint = (np.full(3, 1.5, np.float32) if is_grey(img)
-            else np.array([0.8, 1.0, 1.12], np.float32))
+    grey = is_grey(img)
+    tint = np.full(3, 1.5, np.float32) if grey else np.array([0.8, 1.0, 1.12], np.float32)
     corner_idx = np.array([m.index("lipo_c0"), m.index("lipo_c1")])
     p0 = V[corner_idx]
     way = face.neutral_vertices[corner_idx].astype(np.float64) - p0
     way[np.hypot(way[:, 0], way[:, 1]) < CORNER_MOVE * iod] = 0.0
-    floor = 0.0 if opening is None or is_grey(img) else LINE_FLOOR * opening.light
+    floor = 0.0 if opening is None or grey else LINE_FLOOR * opening.light
+    gain = 1.0 if floor <= 0.0 else max(LINE_MAX / (LINE_DEPTH * _tint_luma(tint)), 1.0)
     return SealPlan(opening, corners, area0, upper, lower, outer, iod, tint, hole, corner_idx,
-                    p0, way.tolist(), floor)
+                    p0, way.tolist(), floor, gain)
 
 
 def _box(img: np.ndarray, lo: np.ndarray, hi: np.ndarray
@@ -482,7 +486,7 @@ def _opening_patch(img: np.ndarray, poly: np.ndarray, outer: np.ndarray, iod: fl
     # closed lips) nor from the skin beyond them. The fill's high-pass (sigma 1 px, outside
     # the polygon) over the photo's lips left: the sample 0.70 -> 0.80, JAFFE KA.HA1, KM.HA1,
     # NA.HA1 0.78, 1.01, 1.03 -> 0.85, 1.20, 1.08 (tests/test_lipseal.py)
-    src = ((lips > 0) & (inside == 0)).view(np.uint8)
+    src = ring.view(np.uint8)
     filled = _fill(base, opening.astype(np.uint8) * 255, INPAINT_R, src)
     if lower_lip is not None:
         skin = (cv2.dilate(lips, np.ones((3, 3), np.uint8)) == 0)
@@ -804,7 +808,7 @@ def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray,
     # under 0.49 / 255, v (1 - line tint) + 0.5 rounds down to v itself for every v <= 255
     # (float32 rounding included), so the box is cut to those (on the 1080p bench face's
     # open mouth 23 pixels change, by 1: the box's 3-channel passes shrink to their box)
-    gain = _floor_gain(plan)
+    gain = plan.floor_gain
     hot = line >= np.float32(0.49 / 255.0 / (float(plan.tint.max()) * gain))
     cj, ci, cw, ch = cv2.boundingRect(hot.view(np.uint8))
     if cw:
@@ -812,7 +816,7 @@ def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray,
         cut = line[ci:ci + ch, cj:cj + cw]
         if gain > 1.0:
             # deeper where the pixel is lighter than the floor allows (LINE_FLOOR)
-            tl = float(plan.tint @ _LUMA)
+            tl = _tint_luma(plan.tint)
             k = 1.0 - np.float32(plan.line_floor) / np.maximum(luminance(view), 1.0)
             np.clip(k / np.float32(LINE_DEPTH * tl), 1.0, gain, out=k)
             # (not within FLOOR_CORNER of a corner: the line fades into the commissures at
@@ -838,15 +842,10 @@ def apply_contact_line(face: Face, res: WarpResult, vertices: np.ndarray,
     return res if bbox == res.bbox else _rebox(res, bbox, {})
 
 
-_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
-
-
-def _floor_gain(plan: SealPlan) -> float:
-    """The most the contact line's floor (:data:`LINE_FLOOR`) multiplies its darkening by:
-    up to a luminance depth of :data:`LINE_MAX`; 1 without a floor (a grey photo)."""
-    if plan.line_floor <= 0.0:
-        return 1.0
-    return max(LINE_MAX / (LINE_DEPTH * float(plan.tint @ _LUMA)), 1.0)
+def _tint_luma(tint: np.ndarray) -> float:
+    """The luminance of the contact line's per-channel weights ``tint`` (how deep it darkens
+    a pixel's luminance, per unit of the line)."""
+    return float(luminance(tint.reshape(1, 1, 3).astype(np.float32))[0, 0])
 
 
 def _ramp(share: float) -> float:

@@ -658,7 +658,7 @@ def _margin_diff(src: np.ndarray, low: np.ndarray, org: tuple[float, float],
     meet is the one either side of the iris: per depth ``e`` below the lid (frame
     coordinates, ``low`` the lower lid's (7, 2) points about the iris centre, ``org`` the
     patch's top-left corner in them, ``axes`` the frame's (ex, ey)), the photo at
-    ``u = -b`` and ``u = +b`` (``b = r + soft``, clear of the iris's blur), interpolated
+    ``u = -b`` and ``u = +b`` (``b = r + max(soft, 1)``, clear of the iris's blur), interpolated
     linearly along ``u`` in between, both smoothed along the image rows by 0.3 ``r`` (the
     stain is as wide as the iris; the margin's own finer texture, its lower lashes, stays:
     the frame's u is the rows' direction up to the head's roll). The difference to the photo
@@ -745,8 +745,11 @@ class EyePlan:
         self._lid_w = (self.lid_up[1:-1, 1].tolist(), self.lid_low[1:-1, 1].tolist())
         # the neutral lower lid's segment under the iris centre (u = 0): its first vertex
         # (:meth:`lowered`)
-        self._mid_seg = int(np.clip(np.searchsorted(self.lid_low[:, 0], 0.0) - 1, 0,
-                                    len(self.lid_low) - 2))
+        self._mid_seg = j = int(np.clip(np.searchsorted(self.lid_low[:, 0], 0.0) - 1, 0,
+                                        len(self.lid_low) - 2))
+        # and its height at u = 0
+        (r0, s0), (r1, s1) = self.lid_low[j:j + 2].tolist()
+        self._low_rest = s0 + (s1 - s0) * (0.0 - r0) / (r1 - r0) if r1 != r0 else s0
         # the patches :meth:`_render` resamples, as 4 channels (zero_alpha: the 4th never
         # read; :func:`_rgb` drops it): OpenCV's 4-channel float remap plus the copy back to
         # 3 channels costs about half its 3-channel remap (the same values per channel;
@@ -917,10 +920,8 @@ class EyePlan:
         neutral lid's segment there (Python floats: ``np.interp``'s calls cost more)."""
         j = self._mid_seg
         (u0, w0), (u1, w1) = low[j:j + 2].tolist()
-        (r0, s0), (r1, s1) = self.lid_low[j:j + 2].tolist()
         now = w0 + (w1 - w0) * (0.0 - u0) / (u1 - u0) if u1 != u0 else w0
-        rest = s0 + (s1 - s0) * (0.0 - r0) / (r1 - r0) if r1 != r0 else s0
-        return now - rest
+        return now - self._low_rest
 
     def render(self, box: tuple[int, int, int, int], sim: np.ndarray, shift: np.ndarray,
                r_new: float, p_new: float, poly: np.ndarray | None = None,

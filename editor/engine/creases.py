@@ -540,8 +540,11 @@ def _fold_lines(face: Face) -> list[_Line]:
     # parallel vertical lines two of the furrows' sigmas apart in the furrows' own canvas
     # (group "glabella"): their sum is an even shade, and one canvas keeps the coarse drawing
     # of a large face within a grey level of the fine one (a second, broader canvas over the
-    # furrows added the two drawings' rounding: 2 levels). Their ridges fall on the lines
-    # themselves (side: up), a faint lighter top.
+    # furrows added the two drawings' rounding: 2 levels). The group draws them in its first
+    # style's look (the furrows': a light ridge 2.4 sigma beside each line), so each line's
+    # ridge side is set outward from the face's midline, as the furrows' are (a side along
+    # the lines left it to the float rounding of the plan's side test: 6 of the sample's 9
+    # ridges fell one way, 3 the other)
     y_brow = 0.5 * (ri[1] + li[1])
     ys = linspace(y_brow - KNIT_SPAN[0], y_brow + KNIT_SPAN[1], 12)
     u = (ys - ys[0]) / (ys[-1] - ys[0])
@@ -549,7 +552,7 @@ def _fold_lines(face: Face) -> list[_Line]:
     knit_taper = _fade(u, 0.3, 0.3)
     for dx in linspace(-KNIT_X, KNIT_X, KNIT_N):
         lines.append(_Line("knit", "glabella", _pairs(g[0] + dx + 0.0 * ys, ys), knit_taper,
-                           (0.0, -1.0), probes, (0.0, 1.0)))
+                           (1.0 if dx >= 0.0 else -1.0, 0.0), probes, (0.0, 1.0)))
     # ---- nose bridge: short wrinkles across the nasal root (procerus / nose wrinkler, AU4 and
     # AU9), driven by the skin between the inner brow ends and the inner eye corners pushed
     # down (the mesh does not bunch the bridge itself; a smile does not lower the brows)

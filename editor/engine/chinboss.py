@@ -168,12 +168,15 @@ def carried(field: np.ndarray, box: tuple[int, int, int, int], A: np.ndarray,
     to the frame), and that box; None when it is under 2 px wide or tall. (The shade layers
     that ride on a fit of a few mesh points: the chin boss here, the cheeks.)"""
     bx0, by0, bx1, by1 = box
-    corners = np.array([[bx0, by0, 1.0], [bx1, by0, 1.0], [bx0, by1, 1.0], [bx1, by1, 1.0]])
-    dst = corners @ A.T
+    # (the box's corners through A in Python floats: numpy's calls on a 4 x 3 array cost
+    # several times more every frame)
+    (a, b, c), (d, e, f) = np.asarray(A, np.float64).tolist()
+    pts = ((bx0, by0), (bx1, by0), (bx0, by1), (bx1, by1))
+    xs = [x * a + y * b + c for x, y in pts]
+    ys = [x * d + y * e + f for x, y in pts]
     H, W = shape[:2]
-    x0, y0 = max(int(math.floor(dst[:, 0].min())), 0), max(int(math.floor(dst[:, 1].min())), 0)
-    x1 = min(int(math.ceil(dst[:, 0].max())) + 1, W)
-    y1 = min(int(math.ceil(dst[:, 1].max())) + 1, H)
+    x0, y0 = max(math.floor(min(xs)), 0), max(math.floor(min(ys)), 0)
+    x1, y1 = min(math.ceil(max(xs)) + 1, W), min(math.ceil(max(ys)) + 1, H)
     if x1 - x0 < 2 or y1 - y0 < 2:
         return None
     # field pixel (i, j) sits at photo (bx0 + j, by0 + i); destination box pixel at (x0, y0)

@@ -45,6 +45,7 @@ import cv2
 import numpy as np
 
 from .cheeks import LIGHT_AT, LIGHT_HALF, RISE, CheekPlan, CheekSide, cheek_plan
+from .chinboss import carried
 from .layers import _rebox, _union
 from .perface import per_face
 from .warp import WarpResult
@@ -174,29 +175,16 @@ def apply_own_cheeks(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpR
         return res
     v = np.asarray(vertices, np.float64)
     out = res.image
-    H, W = out.shape[:2]
     bbox = res.bbox
     for k, side in enumerate(own.sides):
         pts = v.take(side.anchors, 0)  # (take: cheaper rows)
         u = _undo(own, k, pts[1].tolist())
         if u < _TOL:
             continue
-        A = (side.solve @ pts).T  # (2, 3): photo -> deformed
-        (a, b, c), (d, e, f) = A.tolist()
-        # (the box's corners through A in Python floats: numpy's calls on a 4 x 2 array cost
-        # several times more; x a + y b + c, the matrix product's order)
-        x0, y0, x1, y1 = own.boxes[k]
-        xs = [x * a + y * b + c for x, y in ((x0, y0), (x1, y0), (x0, y1), (x1, y1))]
-        ys = [x * d + y * e + f for x, y in ((x0, y0), (x1, y0), (x0, y1), (x1, y1))]
-        X0, Y0 = max(int(min(xs)), 0), max(int(min(ys)), 0)
-        X1, Y1 = min(int(max(xs)) + 2, W), min(int(max(ys)) + 2, H)
-        if X1 - X0 < 2 or Y1 - Y0 < 2:
+        got = carried(own.gains[k], own.boxes[k], (side.solve @ pts).T, out.shape)
+        if got is None:
             continue
-        # gain pixel (i, j) sits at photo (x0 + j, y0 + i); the destination's at (X0, Y0)
-        A[:, 2] += A[:, :2] @ (x0, y0) - (X0, Y0)
-        g: np.ndarray = np.asarray(cv2.warpAffine(own.gains[k], A, (X1 - X0, Y1 - Y0), None,
-                                                  cv2.INTER_LINEAR, cv2.BORDER_CONSTANT, 0.0),
-                                   np.float32)
+        g, (X0, Y0, X1, Y1) = got
         g *= np.float32(u)
         g += 1.0
         view = out[Y0:Y1, X0:X1]

@@ -559,7 +559,9 @@ class Face:
         res = apply_contact_line(self, render_layers(self, w, v, extra, vec, tf), v, shut)
         if not creases:
             return res
-        # (a smiling photo's own cheek shade is taken back before a smile's is drawn)
+        # (a smiling photo's lit cheek top is taken back where the mouth corners come down
+        # from the photo's, a smile's shade drawn where they rise beyond it: never both on
+        # one side in one frame)
         res = apply_own_cheeks(self, apply_chin_boss(self, apply_creases(self, res, v), v), v)
         return apply_cheeks(self, res, v)
 

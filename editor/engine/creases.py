@@ -1352,12 +1352,14 @@ def _brow_pose(fa: _Fast, vertices: np.ndarray) -> tuple[float, float]:
     return rise, math.hypot(blx - brx, bly - bry) / math.sqrt(d2)
 
 
-def _brow_effort(fa: _Fast, vertices: np.ndarray) -> float:
+def _brow_effort(fa: _Fast, vertices: np.ndarray,
+                 pose: tuple[float, float] | None = None) -> float:
     """How hard the inner brows are raised while drawn together (0..1): the product of the
     rise's and the closing-in's saturating shares beyond rest, less a dead zone. Fear and
     sadness (AU1 + 4) score 0.3-0.4 at 100 %, 0.5-0.6 at 150 %; surprise (no closing-in),
-    anger and disgust (lowered brows) and a turned head score 0."""
-    rise, gap = _brow_pose(fa, vertices)
+    anger and disgust (lowered brows) and a turned head score 0. ``pose``:
+    :func:`_brow_pose` of ``vertices`` when already known."""
+    rise, gap = _brow_pose(fa, vertices) if pose is None else pose
     r, q = rise - fa.brow_rise0, fa.brow_gap0 - gap
     if r <= 0.0 or q <= 0.0:
         return 0.0
@@ -1365,10 +1367,12 @@ def _brow_effort(fa: _Fast, vertices: np.ndarray) -> float:
     return max(e - _EFFORT_DEAD, 0.0) / (1.0 - _EFFORT_DEAD)
 
 
-def _add_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+def _add_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray, e: float | None = None
+                ) -> None:
     """Add the brow effort's compression to the samples it drives (in place; nothing when
-    there is no effort: the same values)."""
-    e = _brow_effort(fa, vertices)
+    there is no effort: the same values). ``e``: :func:`_brow_effort` when already known."""
+    if e is None:
+        e = _brow_effort(fa, vertices)
     if e > 0.0:
         c[fa.effort_idx] += fa.effort_w * e
 
@@ -1388,13 +1392,15 @@ def _lid_open(fa: _Fast, vertices: np.ndarray) -> float:
             + (0.5 * (ury + uly) - 0.25 * (ay + by + cy + dy)) * upy)
 
 
-def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray, e: float | None = None
+                    ) -> None:
     """Add to the samples of folds with FoldStyle.effort_lid (in place) their weight times
     the brow effort times the upper lids' raise share ``1 - exp(-raise / _LID_RAISE)`` (raise
     beyond rest, IOD): raised, knitted brows over wide-open eyes (AU1 + 4 + 5, fear), not
     over lowered lids (sadness) nor wide eyes under brows that do not close in (surprise).
-    Nothing without both: the same values."""
-    e = _brow_effort(fa, vertices)
+    Nothing without both: the same values. ``e``: :func:`_brow_effort` when already known."""
+    if e is None:
+        e = _brow_effort(fa, vertices)
     if e <= 0.0:
         return
     r = _lid_open(fa, vertices) - fa.lid_open0
@@ -1408,15 +1414,36 @@ def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
 _FROWN_DEAD = 0.04
 
 
-def _frown_gate(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+def _frown_gate(fa: _Fast, c: np.ndarray, vertices: np.ndarray,
+                pose: tuple[float, float] | None = None) -> None:
     """Multiply the samples of folds with FoldStyle.frown (in place) by how far the inner brows
     are lowered: ``smooth01((lowering - _FROWN_DEAD) / frown)``, the lowering below the inner
-    brow heads' rest height over the inner eye corners (:func:`_brow_pose`)."""
-    low = fa.brow_rise0 - _brow_pose(fa, vertices)[0] - _FROWN_DEAD
+    brow heads' rest height over the inner eye corners (:func:`_brow_pose`; ``pose``: its
+    value when already known)."""
+    low = fa.brow_rise0 - (_brow_pose(fa, vertices) if pose is None else pose)[0] - _FROWN_DEAD
     if low <= 0.0:
         c[fa.frown_idx] = 0.0
         return
     c[fa.frown_idx] *= smooth01(low / fa.frown_w)
+
+
+def _brow_terms(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+    """The brow-driven terms of the compression ``c`` (in place, in this order): the frown
+    gate (:func:`_frown_gate`), the brow effort (:func:`_add_effort`) and the lid effort
+    (:func:`_add_lid_effort`), with the brow pose and the effort measured once for all three
+    (the same values as the three calls each measuring them)."""
+    if not (len(fa.frown_idx) or len(fa.effort_idx) or len(fa.lid_idx)):
+        return
+    pose = _brow_pose(fa, vertices)
+    if len(fa.frown_idx):
+        _frown_gate(fa, c, vertices, pose)
+    if len(fa.effort_idx) or len(fa.lid_idx):
+        e = _brow_effort(fa, vertices, pose)
+        if e > 0.0:
+            if len(fa.effort_idx):
+                _add_effort(fa, c, vertices, e)
+            if len(fa.lid_idx):
+                _add_lid_effort(fa, c, vertices, e)
 
 
 def _lift_push(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
@@ -1515,12 +1542,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
         c[fa.neg] = _neg_compression(fa, vertices)
     if len(fa.lift):
         c[fa.lift] = _lift_push(fa, vertices)
-    if len(fa.frown_idx):
-        _frown_gate(fa, c, vertices)
-    if len(fa.effort_idx):
-        _add_effort(fa, c, vertices)
-    if len(fa.lid_idx):
-        _add_lid_effort(fa, c, vertices)
+    _brow_terms(fa, c, vertices)
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -1579,12 +1601,7 @@ def _both_strengths(fa: _Fast, vertices: np.ndarray
         c[fa.neg] = _neg_compression(fa, vertices)
     if len(fa.lift):
         c[fa.lift] = _lift_push(fa, vertices)
-    if len(fa.frown_idx):
-        _frown_gate(fa, c, vertices)
-    if len(fa.effort_idx):
-        _add_effort(fa, c, vertices)
-    if len(fa.lid_idx):
-        _add_lid_effort(fa, c, vertices)
+    _brow_terms(fa, c, vertices)
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(fold)
     c = fa.keep * c
@@ -2357,7 +2374,8 @@ def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: 
         lim *= 1.0 + np.float32(_GRAIN) / np.maximum(Cw, 1.0)
         lim[..., 3] = np.inf
         np.minimum(S, lim, out=S)
-    np.maximum(S, 1.0, out=S)
+    s1 = S.reshape(S.shape[0], -1)  # (OpenCV's maximum on the rows as one channel: faster)
+    cv2.max(s1, 1.0, dst=s1)
     return np.divide(Cw, S, out=S)
 
 
@@ -2429,17 +2447,27 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
             g4 = _lift_gain(S, Cw, view, interpolation)
             band *= g4[..., 3]
-            clip(g4, 1.0, _MAX_GAIN, out=g4)
+            # (clipped to [1, _MAX_GAIN] below, with the cap)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         # never above the frame's own skin either side of the valley (its closing): the lift
         # level ramps between shoulders of different light (see _lift_fields), and a sharp
         # core pulls S down on its shoulders; over the lower shoulder the lifted band read
         # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
         # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
+        hb, wb = view.shape[:2]
+        # (max(view, 1) by OpenCV on the box's rows as one channel: a scalar bound is then
+        # every channel's; numpy's on the strided 3-channel view costs 2-3 times as much)
         cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
-                         np.maximum(view, 1), None, 1.0, cv2.CV_32F)
-        np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)  # (>= 1: never darkened)
+                         cv2.max(view.reshape(hb, -1), 1).reshape(view.shape), None, 1.0,
+                         cv2.CV_32F)
+        # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1 as max(min(gain, cap, _MAX_GAIN) - 1,
+        # 0): min and max distribute over each other, and x - 1 is exact for x >= 1 (the same
+        # float32 values, two passes fewer; >= 1 before the - 1: never darkened)
+        np.minimum(gain, cap, out=gain)
+        g1 = gain.reshape(hb, -1)
+        cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
         gain -= 1.0
+        cv2.max(g1, 0.0, dst=g1)
         gain *= spread3(band)
         gain += 1.0
         cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated

@@ -43,7 +43,7 @@ import time
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal, overload
+from typing import TYPE_CHECKING, Literal, cast, overload
 
 import cv2
 import numpy as np
@@ -1676,6 +1676,9 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
 
 
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
+#: ``cv2.max`` with a scalar bound (OpenCV's stubs type its second argument as an array only;
+#: on one channel a number is a bound for every element)
+_cv_max = cast("Callable[..., np.ndarray]", cv2.max)
 
 
 def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
@@ -2375,7 +2378,7 @@ def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: 
         lim[..., 3] = np.inf
         np.minimum(S, lim, out=S)
     s1 = S.reshape(S.shape[0], -1)  # (OpenCV's maximum on the rows as one channel: faster)
-    cv2.max(s1, 1.0, dst=s1)
+    _cv_max(s1, 1.0, dst=s1)
     return np.divide(Cw, S, out=S)
 
 
@@ -2458,7 +2461,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         # (max(view, 1) by OpenCV on the box's rows as one channel: a scalar bound is then
         # every channel's; numpy's on the strided 3-channel view costs 2-3 times as much)
         cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
-                         cv2.max(view.reshape(hb, -1), 1).reshape(view.shape), None, 1.0,
+                         _cv_max(view.reshape(hb, -1), 1).reshape(view.shape), None, 1.0,
                          cv2.CV_32F)
         # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1 as max(min(gain, cap, _MAX_GAIN) - 1,
         # 0): min and max distribute over each other, and x - 1 is exact for x >= 1 (the same
@@ -2467,7 +2470,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         g1 = gain.reshape(hb, -1)
         cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
         gain -= 1.0
-        cv2.max(g1, 0.0, dst=g1)
+        _cv_max(g1, 0.0, dst=g1)
         gain *= spread3(band)
         gain += 1.0
         cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated

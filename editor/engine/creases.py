@@ -1993,10 +1993,12 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
         jobs.append((g, box, k, f))
         k += 2
     if coarse or not safe:
-        q = xy - np.array(sub).T.take(cpt, 1)
+        # (each canvas's origin x, y, scale and shift, gathered per point in one take)
+        at = np.array([[x for x, _ in sub], [y for _, y in sub], div, post]).take(cpt, 1)
+        q = xy - at[0:2]
         if coarse:
-            q /= np.array(div).take(cpt)
-            q -= np.array(post).take(cpt)
+            q /= at[2]
+            q -= at[3]
         if not safe:  # a box clipped by the image's edge: canvas by canvas
             return unfolds, jobs, _splat_many(
                 [(sh, q[:, a:a + n].T, w[a:a + n])
@@ -2069,12 +2071,13 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     else:
         off = [o - int(y0) * wd - int(x0)
                for o, (_, wd), (x0, y0) in zip(first, shapes, sub, strict=True)]
-    wide = np.array([wd for _, wd in shapes]).take(cpt)
+    # (each canvas's row length and offset, gathered per point in one take)
+    wide, offp = np.array([[wd for _, wd in shapes], off]).take(cpt, 1)
     idx = np.empty((4, n), np.int64)
     base = idx[0]
     np.multiply(ip[1], wide, out=base)
     base += ip[0]
-    base += np.array(off).take(cpt)
+    base += offp
     np.add(base, 1, out=idx[1])
     np.add(base, wide, out=idx[2])
     np.add(idx[2], 1, out=idx[3])

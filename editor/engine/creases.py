@@ -2509,8 +2509,8 @@ def _blur_blocks(canvas: np.ndarray, sigma: float, f: int, q: int, h: int, w: in
     if at.shape[0] < hq or at.shape[1] < wq:  # (never: the canvas covers the box)
         return _block_means(_blur_back(canvas, sigma, f, h, w, scale, cap), q)
     bq = np.array(at[:hq, :wq]) if scale is None else np.multiply(at[:hq, :wq], scale)
-    if cap is not None:
-        np.minimum(bq, np.float32(cap), out=bq)
+    if cap is not None:  # (as _blur_back's)
+        cv2.threshold(bq, cap, 0.0, cv2.THRESH_TRUNC, dst=bq)
     return bq
 
 
@@ -2564,13 +2564,17 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, bq: 
     vq = _area_u8(out[y0:y0 + hq * q, x0:x0 + wq * q], q)
     g4 = _lift_gain(S, Cw, vq, interpolation)
     bq *= g4[..., 3]
-    clip(g4, 1.0, _MAX_GAIN, out=g4)
     gain = np.asarray(cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB), np.float32)
     # the frame's closing over the blocks (its radius in blocks)
     r = max(int(math.ceil(_VALLEY_WIDTH * sig * 1.25 / q)), 1)
-    cap = cv2.divide(_frame_closing(vq, r), np.maximum(vq, 1), None, 1.0, cv2.CV_32F)
-    np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)
+    cap = cv2.divide(_frame_closing(vq, r), _cv_max(vq.reshape(hq, -1), 1).reshape(vq.shape),
+                     None, 1.0, cv2.CV_32F)
+    # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1, as in _unfold_draw
+    np.minimum(gain, cap, out=gain)
+    g1 = gain.reshape(hq, -1)
+    cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
     gain -= 1.0
+    _cv_max(g1, 0.0, dst=g1)
     gain *= spread3(bq)
     # (+ 1 over the whole resized blocks, then cropped: on the crop's strided rows numpy's
     # add costs 4 times as much)

@@ -43,7 +43,7 @@ import time
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal, overload
+from typing import TYPE_CHECKING, Literal, cast, overload
 
 import cv2
 import numpy as np
@@ -1355,12 +1355,14 @@ def _brow_pose(fa: _Fast, vertices: np.ndarray) -> tuple[float, float]:
     return rise, math.hypot(blx - brx, bly - bry) / math.sqrt(d2)
 
 
-def _brow_effort(fa: _Fast, vertices: np.ndarray) -> float:
+def _brow_effort(fa: _Fast, vertices: np.ndarray,
+                 pose: tuple[float, float] | None = None) -> float:
     """How hard the inner brows are raised while drawn together (0..1): the product of the
     rise's and the closing-in's saturating shares beyond rest, less a dead zone. Fear and
     sadness (AU1 + 4) score 0.3-0.4 at 100 %, 0.5-0.6 at 150 %; surprise (no closing-in),
-    anger and disgust (lowered brows) and a turned head score 0."""
-    rise, gap = _brow_pose(fa, vertices)
+    anger and disgust (lowered brows) and a turned head score 0. ``pose``:
+    :func:`_brow_pose` of ``vertices`` when already known."""
+    rise, gap = _brow_pose(fa, vertices) if pose is None else pose
     r, q = rise - fa.brow_rise0, fa.brow_gap0 - gap
     if r <= 0.0 or q <= 0.0:
         return 0.0
@@ -1368,10 +1370,12 @@ def _brow_effort(fa: _Fast, vertices: np.ndarray) -> float:
     return max(e - _EFFORT_DEAD, 0.0) / (1.0 - _EFFORT_DEAD)
 
 
-def _add_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+def _add_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray, e: float | None = None
+                ) -> None:
     """Add the brow effort's compression to the samples it drives (in place; nothing when
-    there is no effort: the same values)."""
-    e = _brow_effort(fa, vertices)
+    there is no effort: the same values). ``e``: :func:`_brow_effort` when already known."""
+    if e is None:
+        e = _brow_effort(fa, vertices)
     if e > 0.0:
         c[fa.effort_idx] += fa.effort_w * e
 
@@ -1391,13 +1395,15 @@ def _lid_open(fa: _Fast, vertices: np.ndarray) -> float:
             + (0.5 * (ury + uly) - 0.25 * (ay + by + cy + dy)) * upy)
 
 
-def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray, e: float | None = None
+                    ) -> None:
     """Add to the samples of folds with FoldStyle.effort_lid (in place) their weight times
     the brow effort times the upper lids' raise share ``1 - exp(-raise / _LID_RAISE)`` (raise
     beyond rest, IOD): raised, knitted brows over wide-open eyes (AU1 + 4 + 5, fear), not
     over lowered lids (sadness) nor wide eyes under brows that do not close in (surprise).
-    Nothing without both: the same values."""
-    e = _brow_effort(fa, vertices)
+    Nothing without both: the same values. ``e``: :func:`_brow_effort` when already known."""
+    if e is None:
+        e = _brow_effort(fa, vertices)
     if e <= 0.0:
         return
     r = _lid_open(fa, vertices) - fa.lid_open0
@@ -1411,15 +1417,36 @@ def _add_lid_effort(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
 _FROWN_DEAD = 0.04
 
 
-def _frown_gate(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+def _frown_gate(fa: _Fast, c: np.ndarray, vertices: np.ndarray,
+                pose: tuple[float, float] | None = None) -> None:
     """Multiply the samples of folds with FoldStyle.frown (in place) by how far the inner brows
     are lowered: ``smooth01((lowering - _FROWN_DEAD) / frown)``, the lowering below the inner
-    brow heads' rest height over the inner eye corners (:func:`_brow_pose`)."""
-    low = fa.brow_rise0 - _brow_pose(fa, vertices)[0] - _FROWN_DEAD
+    brow heads' rest height over the inner eye corners (:func:`_brow_pose`; ``pose``: its
+    value when already known)."""
+    low = fa.brow_rise0 - (_brow_pose(fa, vertices) if pose is None else pose)[0] - _FROWN_DEAD
     if low <= 0.0:
         c[fa.frown_idx] = 0.0
         return
     c[fa.frown_idx] *= smooth01(low / fa.frown_w)
+
+
+def _brow_terms(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
+    """The brow-driven terms of the compression ``c`` (in place, in this order): the frown
+    gate (:func:`_frown_gate`), the brow effort (:func:`_add_effort`) and the lid effort
+    (:func:`_add_lid_effort`), with the brow pose and the effort measured once for all three
+    (the same values as the three calls each measuring them)."""
+    if not (len(fa.frown_idx) or len(fa.effort_idx) or len(fa.lid_idx)):
+        return
+    pose = _brow_pose(fa, vertices)
+    if len(fa.frown_idx):
+        _frown_gate(fa, c, vertices, pose)
+    if len(fa.effort_idx) or len(fa.lid_idx):
+        e = _brow_effort(fa, vertices, pose)
+        if e > 0.0:
+            if len(fa.effort_idx):
+                _add_effort(fa, c, vertices, e)
+            if len(fa.lid_idx):
+                _add_lid_effort(fa, c, vertices, e)
 
 
 def _lift_push(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
@@ -1518,12 +1545,7 @@ def fold_strength(face: Face, vertices: np.ndarray, spacing: np.ndarray | None =
         c[fa.neg] = _neg_compression(fa, vertices)
     if len(fa.lift):
         c[fa.lift] = _lift_push(fa, vertices)
-    if len(fa.frown_idx):
-        _frown_gate(fa, c, vertices)
-    if len(fa.effort_idx):
-        _add_effort(fa, c, vertices)
-    if len(fa.lid_idx):
-        _add_lid_effort(fa, c, vertices)
+    _brow_terms(fa, c, vertices)
     c[c < _C_TOL] = 0.0  # rounding of a rigid motion is no compression
     # a fold forms along its whole length once the skin is pushed together somewhere on it
     cmax = np.maximum.reduceat(c, p.start[:-1])[p.fold]
@@ -1582,12 +1604,7 @@ def _both_strengths(fa: _Fast, vertices: np.ndarray
         c[fa.neg] = _neg_compression(fa, vertices)
     if len(fa.lift):
         c[fa.lift] = _lift_push(fa, vertices)
-    if len(fa.frown_idx):
-        _frown_gate(fa, c, vertices)
-    if len(fa.effort_idx):
-        _add_effort(fa, c, vertices)
-    if len(fa.lid_idx):
-        _add_lid_effort(fa, c, vertices)
+    _brow_terms(fa, c, vertices)
     c[c < _C_TOL] = 0.0
     cmax = np.maximum.reduceat(c, starts).take(fold)
     c = fa.keep * c
@@ -1662,6 +1679,9 @@ def _splat2(shape: tuple[int, int], xy: np.ndarray, w: np.ndarray, xy2: np.ndarr
 
 
 _MEAN3 = np.full((1, 3), 1.0 / 3.0, np.float32)
+#: ``cv2.max`` with a scalar bound (OpenCV's stubs type its second argument as an array only;
+#: on one channel a number is a bound for every element)
+_cv_max = cast("Callable[..., np.ndarray]", cv2.max)
 
 
 def apply_creases(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:
@@ -1976,10 +1996,12 @@ def _layout(face: Face, V: np.ndarray, samples: tuple, s: np.ndarray,
         jobs.append((g, box, k, f))
         k += 2
     if coarse or not safe:
-        q = xy - np.array(sub).T.take(cpt, 1)
+        # (each canvas's origin x, y, scale and shift, gathered per point in one take)
+        at = np.array([[x for x, _ in sub], [y for _, y in sub], div, post]).take(cpt, 1)
+        q = xy - at[0:2]
         if coarse:
-            q /= np.array(div).take(cpt)
-            q -= np.array(post).take(cpt)
+            q /= at[2]
+            q -= at[3]
         if not safe:  # a box clipped by the image's edge: canvas by canvas
             return unfolds, jobs, _splat_many(
                 [(sh, q[:, a:a + n].T, w[a:a + n])
@@ -2052,12 +2074,13 @@ def _splat_rows(shapes: list[tuple[int, int]], xy: np.ndarray, w: np.ndarray,
     else:
         off = [o - int(y0) * wd - int(x0)
                for o, (_, wd), (x0, y0) in zip(first, shapes, sub, strict=True)]
-    wide = np.array([wd for _, wd in shapes]).take(cpt)
+    # (each canvas's row length and offset, gathered per point in one take)
+    wide, offp = np.array([[wd for _, wd in shapes], off]).take(cpt, 1)
     idx = np.empty((4, n), np.int64)
     base = idx[0]
     np.multiply(ip[1], wide, out=base)
     base += ip[0]
-    base += np.array(off).take(cpt)
+    base += offp
     np.add(base, 1, out=idx[1])
     np.add(base, wide, out=idx[2])
     np.add(idx[2], 1, out=idx[3])
@@ -2084,8 +2107,8 @@ def _blur_back(canvas: np.ndarray, sigma: float, f: int, h: int, w: int,
     # passes over the crop's strided rows cost several times as much; the same values)
     if scale is not None:
         full *= scale
-    if cap is not None:
-        np.minimum(full, np.float32(cap), out=full)
+    if cap is not None:  # (min(full, cap) by OpenCV's truncation: the same values, faster)
+        cv2.threshold(full, cap, 0.0, cv2.THRESH_TRUNC, dst=full)
     return out
 
 
@@ -2360,7 +2383,8 @@ def _lift_gain(S: np.ndarray, Cw: np.ndarray, frame: np.ndarray, interpolation: 
         lim *= 1.0 + np.float32(_GRAIN) / np.maximum(Cw, 1.0)
         lim[..., 3] = np.inf
         np.minimum(S, lim, out=S)
-    np.maximum(S, 1.0, out=S)
+    s1 = S.reshape(S.shape[0], -1)  # (OpenCV's maximum on the rows as one channel: faster)
+    _cv_max(s1, 1.0, dst=s1)
     return np.divide(Cw, S, out=S)
 
 
@@ -2432,17 +2456,27 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
             g4 = _lift_gain(S, Cw, view, interpolation)
             band *= g4[..., 3]
-            clip(g4, 1.0, _MAX_GAIN, out=g4)
+            # (clipped to [1, _MAX_GAIN] below, with the cap)
             gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
         # never above the frame's own skin either side of the valley (its closing): the lift
         # level ramps between shoulders of different light (see _lift_fields), and a sharp
         # core pulls S down on its shoulders; over the lower shoulder the lifted band read
         # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
         # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
+        hb, wb = view.shape[:2]
+        # (max(view, 1) by OpenCV on the box's rows as one channel: a scalar bound is then
+        # every channel's; numpy's on the strided 3-channel view costs 2-3 times as much)
         cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
-                         np.maximum(view, 1), None, 1.0, cv2.CV_32F)
-        np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)  # (>= 1: never darkened)
+                         _cv_max(view.reshape(hb, -1), 1).reshape(view.shape), None, 1.0,
+                         cv2.CV_32F)
+        # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1 as max(min(gain, cap, _MAX_GAIN) - 1,
+        # 0): min and max distribute over each other, and x - 1 is exact for x >= 1 (the same
+        # float32 values, two passes fewer; >= 1 before the - 1: never darkened)
+        np.minimum(gain, cap, out=gain)
+        g1 = gain.reshape(hb, -1)
+        cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
         gain -= 1.0
+        _cv_max(g1, 0.0, dst=g1)
         gain *= spread3(band)
         gain += 1.0
         cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
@@ -2478,8 +2512,8 @@ def _blur_blocks(canvas: np.ndarray, sigma: float, f: int, q: int, h: int, w: in
     if at.shape[0] < hq or at.shape[1] < wq:  # (never: the canvas covers the box)
         return _block_means(_blur_back(canvas, sigma, f, h, w, scale, cap), q)
     bq = np.array(at[:hq, :wq]) if scale is None else np.multiply(at[:hq, :wq], scale)
-    if cap is not None:
-        np.minimum(bq, np.float32(cap), out=bq)
+    if cap is not None:  # (as _blur_back's)
+        cv2.threshold(bq, cap, 0.0, cv2.THRESH_TRUNC, dst=bq)
     return bq
 
 
@@ -2533,13 +2567,17 @@ def _unfold_blocks(out: np.ndarray, box: tuple[int, int, int, int], q: int, bq: 
     vq = _area_u8(out[y0:y0 + hq * q, x0:x0 + wq * q], q)
     g4 = _lift_gain(S, Cw, vq, interpolation)
     bq *= g4[..., 3]
-    clip(g4, 1.0, _MAX_GAIN, out=g4)
     gain = np.asarray(cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB), np.float32)
     # the frame's closing over the blocks (its radius in blocks)
     r = max(int(math.ceil(_VALLEY_WIDTH * sig * 1.25 / q)), 1)
-    cap = cv2.divide(_frame_closing(vq, r), np.maximum(vq, 1), None, 1.0, cv2.CV_32F)
-    np.minimum(gain, np.maximum(cap, 1.0, out=cap), out=gain)
+    cap = cv2.divide(_frame_closing(vq, r), _cv_max(vq.reshape(hq, -1), 1).reshape(vq.shape),
+                     None, 1.0, cv2.CV_32F)
+    # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1, as in _unfold_draw
+    np.minimum(gain, cap, out=gain)
+    g1 = gain.reshape(hq, -1)
+    cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
     gain -= 1.0
+    _cv_max(g1, 0.0, dst=g1)
     gain *= spread3(bq)
     # (+ 1 over the whole resized blocks, then cropped: on the crop's strided rows numpy's
     # add costs 4 times as much)

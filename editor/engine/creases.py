@@ -143,7 +143,9 @@ class FoldStyle:
     # cheek beside the nose wing and pulls the brow heads down with the skin of the nose, where
     # a smile's cheek raiser (AU6) lifts the cheek under brows that stay and anger's brow
     # lowerer (AU4) lowers the brows over a cheek that stays (the mesh moves the nose itself
-    # rigidly in all three)
+    # rigidly in all three). On a photo with its own expression such a fold's push is also
+    # measured from the neutral mesh, not the photo's (_fast: a smiling photo's raised cheek
+    # brings no nose wrinkles to carry)
     frown: float = 0.0
 
 
@@ -954,7 +956,8 @@ class _Fast:
     # the samples of folds with FoldStyle.lift and what _lift_push reads for them: (U, 12)
     # vertices of the 4 probe triangles and (U, 2) the eye's corners of each of the U distinct
     # rows (a line's samples share their probes) and (K,) each sample's row, the frame's up
-    # direction over the IOD, and (K,) the push measured on the photo's mesh
+    # direction over the IOD, and (K,) the push measured on the photo's mesh (the frown
+    # folds' on a photo with its own expression: from the neutral mesh's, see FoldStyle.frown)
     lift: np.ndarray = field(init=False)
     lift_v: np.ndarray = field(init=False)
     lift_a: np.ndarray = field(init=False)
@@ -1053,7 +1056,7 @@ class _LayoutStructure:
     twin_a: np.ndarray  # :func:`_twin_samples`
     twin_b: np.ndarray
     effort_idx: np.ndarray  # the samples of folds with FoldStyle.effort
-    effort_w: np.ndarray  # (len(effort_idx),) their FoldStyle.effort
+    effort_w: np.ndarray  # (len(effort_idx),) their FoldStyle.effort (x effort_mid's profile)
 
 
 #: the layouts' structures (one per distinct layout: in practice one per process)
@@ -1451,7 +1454,8 @@ def _brow_terms(fa: _Fast, c: np.ndarray, vertices: np.ndarray) -> None:
 
 def _lift_push(fa: _Fast, vertices: np.ndarray) -> np.ndarray:
     """(K,) for the samples ``fa.lift``: how far up (IOD) the skin at their probes lies
-    relative to their eye's corners, beyond where it lies on the photo's mesh."""
+    relative to their eye's corners, beyond ``fa.lift_base`` (where it lies on the photo's
+    mesh; the frown folds' measured from the neutral mesh on a photo with its own expression)."""
     V = np.asarray(vertices, np.float64)
     # (``mean(1)``'s values: its sum along the axis over the count, without its Python layers;
     # rows gathered with take; each distinct row once, then given to its samples)

@@ -31,8 +31,9 @@ the front of the cheek where JAFFE's lower flank is shaded), and kept off the fo
 0.006 only. The fold's own valley is creases.py's.
 
 It belongs to the skin-fold layer: ``creases=False`` leaves it out. Per side the undo is a
-per-face gain over the shade's box (computed on the photo's smoothed light, so that the
-warped skin's grain is not imprinted), warped and scaled per frame.
+per-face gain over the lit cheek top's box (within the side's shade box; computed on the
+photo's smoothed light, so that the warped skin's grain is not imprinted), carried
+(:func:`.chinboss.carried`) and scaled per frame.
 """
 
 from __future__ import annotations

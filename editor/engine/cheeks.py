@@ -130,8 +130,13 @@ def cheek_plan(face: Face) -> CheekPlan | None:
 def lift(plan: CheekPlan, side: CheekSide, vertices: np.ndarray) -> float:
     """The shade's strength (0-1) on one cheek of the deformed mesh: how far its mouth corner
     was pulled along the zygomaticus's line (towards the cheekbone) beyond its rest, saturating."""
-    rise = float(np.asarray(vertices[side.anchors[1]], np.float64) @ side.pull) / plan.iod \
-        - side.rise0
+    return saturate(float(np.asarray(vertices[side.anchors[1]], np.float64) @ side.pull)
+                    / plan.iod - side.rise0)
+
+
+def saturate(rise: float) -> float:
+    """The shade's strength (0-1) for a corner pulled ``rise`` (IOD) beyond its rest along the
+    muscle's line: ``1 - exp(-rise / RISE)``, 0 for no rise."""
     return 1.0 - math.exp(-rise / RISE) if rise > 0.0 else 0.0
 
 
@@ -164,4 +169,4 @@ def apply_cheeks(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResul
     return res if bbox == res.bbox or bbox is None else _rebox(res, bbox, {})
 
 
-__all__ = ["CheekPlan", "apply_cheeks", "cheek_plan", "lift"]
+__all__ = ["CheekPlan", "apply_cheeks", "cheek_plan", "lift", "saturate"]

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .cheeks import LIGHT_AT, LIGHT_HALF, RISE, CheekPlan, CheekSide, cheek_plan
+from .cheeks import LIGHT_AT, LIGHT_HALF, CheekPlan, CheekSide, cheek_plan, saturate
 from .chinboss import carried
 from .layers import _rebox, _union
 from .perface import per_face
@@ -78,10 +78,6 @@ class OwnCheeks:
     gains: tuple[np.ndarray, ...]
     boxes: tuple[tuple[int, int, int, int], ...]  # (x0, y0, x1, y1) of each gain on the photo
     pulls: tuple[tuple[float, float], ...]  # each side's ``pull`` (x, y), Python floats
-
-
-def _strength(rise: float) -> float:
-    return 1.0 - math.exp(-rise / RISE) if rise > 0.0 else 0.0
 
 
 def _undo_gain(px: np.ndarray, floor: np.ndarray, light: np.ndarray, s: float) -> np.ndarray:
@@ -118,7 +114,7 @@ def own_cheeks(face: Face) -> OwnCheeks | None:
     for side in plan.sides:
         c = side.anchors[1]
         z = float(N[c] @ side.pull) / iod
-        s = UNDO * _strength(float(P[c] @ side.pull) / iod - z)
+        s = UNDO * saturate(float(P[c] @ side.pull) / iod - z)
         if s < _TOL:
             continue
         # the lit top's ellipse alone (the plan's box also holds the lower flank's)
@@ -163,7 +159,7 @@ def _undo(own: OwnCheeks, k: int, corner: list[float]) -> float:
     several times more)."""
     px, py = own.pulls[k]
     rise = (corner[0] * px + corner[1] * py) / own.plan.iod
-    return max(own.photo[k] - UNDO * _strength(rise - own.zero[k]), 0.0)
+    return max(own.photo[k] - UNDO * saturate(rise - own.zero[k]), 0.0)
 
 
 def apply_own_cheeks(face: Face, res: WarpResult, vertices: np.ndarray) -> WarpResult:

@@ -12,6 +12,8 @@ All timings on one thread (``cv2.setNumThreads(1)``), peers timed in the same ru
   same loop so that machine load affects both alike; ``ratio`` = render / engine in thread CPU
   time (robust when other processes share the cores; ``ratio_wall`` in wall-clock time);
   target: at most 2 (issue 21);
+* ``render_stages``: the same render split into its steps (warp, lid skin, lip seal, mouth and
+  eye layers, creases, ...), each step's median thread CPU ms (:mod:`editor.bench_stages`);
 * ``photo_to_landmarks``: landmark detection alone (photo -> 68 points, mesh, irises) at the
   sample's 512 x 512 and at 1920 x 1080, per detector (dlib only when its extra is installed);
   target: at most 30 ms at 1080p for the default (issue 14);
@@ -364,7 +366,8 @@ ROWS = ("cli_help_s", "gui_ready_s", "gui_open_gap_ms", "imread", "open_fit_rend
         "facs_fit", "photo_to_landmarks", "fap_info", "animate_fps", "study_create",
         "face_from_image", "fap_to_image", "remap_full_frame", "ratio_fap_to_image_vs_remap",
         "deform_warp_no_layers", "ratio_deform_warp_vs_remap", "layers_cost",
-        "render_vs_engine", "creases_cost", "skimage_piecewise_affine", "speedup_vs_skimage",
+        "render_vs_engine", "render_stages", "creases_cost", "skimage_piecewise_affine",
+        "speedup_vs_skimage",
         "fap_to_image_head_rotation", "warp_plan_build", "deform_batch100")
 
 
@@ -459,6 +462,11 @@ def _run(args: argparse.Namespace) -> None:
                    "ratio_wall": round(p["a_ms"] / p["b_ms"], 2), "target_ratio": 2.0,
                    "goal": "ratio <= 2.0 (render / engine, thread CPU)",
                    "ok": p["a_cpu_ms"] / p["b_cpu_ms"] <= 2.0})
+        if want("render_stages"):
+            # the render's steps, each with its cost (issue 21's items; bench_stages.py)
+            from .bench_stages import stage_costs
+
+            _emit({"bench": "render_stages", **res, **stage_costs(face, vec, n=n)})
         if want("creases_cost"):
             # skin creases (editor/engine/creases.py): render with minus without, alternately
             from editor.engine.creases import creases_cost_ms

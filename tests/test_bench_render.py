@@ -23,3 +23,24 @@ def test_face_wide_has_the_asked_width():
 
 def test_head_rotation_row_rotates_the_head():
     assert set(HEAD_ROTATION) == {48, 49, 50} and all(HEAD_ROTATION.values())
+
+
+def test_render_stages_times_every_step_and_restores_the_renderer(sample_face):
+    import numpy as np
+    import pytest
+
+    import editor.engine.face as face_module
+    from editor.bench_stages import STAGES, stage_costs
+    from editor.engine.faps import FAPS
+
+    before = {name: getattr(face_module, name) for name in STAGES.values()}
+    vec = FAPS.clamp(FAPS.vector(EXPRESSION))
+    ref = sample_face.render(vec)
+    row = stage_costs(sample_face, vec, n=3, warm=1)
+    # every step the render takes is timed (the bench expression runs each of them), and the
+    # module's functions are the renderer's own again afterwards, the render unchanged
+    assert set(row["steps"]) == set(STAGES) | {"rest"}
+    assert all(row["steps"][s] > 0.0 for s in STAGES)
+    assert sum(row["steps"].values()) == pytest.approx(row["render_ms"], abs=0.01)
+    assert {name: getattr(face_module, name) for name in STAGES.values()} == before
+    assert np.array_equal(sample_face.render(vec), ref)

@@ -87,6 +87,11 @@ SKIN_BAND = (0.03, 0.10)
 #: joy 0.63 0.71 0.76 (the neutral lip's shadow carried along)
 SHADOW_BAND = (0.02, 0.12, 0.2)
 SHADOW_SPAN = 0.6
+#: the lift's field is blurred by this (inter-ocular distances) once per face: its inner edge
+#: follows the mesh's straight lower-lip segments and rose over a third of SHADOW_BAND[0]
+#: (3 px on a 4K face), which drew fear's lifted skin under the lower lip as a pale polygon
+#: with a hard rim (the lip above it not lifted); blurred, the lift fades into the lip
+SHADOW_SOFT = 0.015
 #: the share of that lift at the paling's most (A_MAX; in proportion below it): at 0.7 the
 #: renders of joy give 0.69 0.78 0.79 at 100 %, 0.80 0.80 0.81 at 150 %
 SHADOW_MAX = 0.7
@@ -248,6 +253,7 @@ def _shadow_lift(face: Face, lower: np.ndarray, iod: float
     u = np.abs(xs - np.float32(cx)) / np.float32(half)
     span = smooth01((1.0 - u) / (1.0 - SHADOW_SPAN))
     field = (gain * smooth01(w) * span * below).astype(np.float32)
+    field = cv2.GaussianBlur(field, (0, 0), SHADOW_SOFT * iod)
     if float(field.max()) < 0.01:
         return None, (0, 0)
     return np.ascontiguousarray(field), (x0, y0)

@@ -738,6 +738,8 @@ class EyePlan:
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
+        # (:func:`_stack_consts`: this plan's and its partners' constants, stacked)
+        self._stacked: tuple[tuple[EyePlan, ...], np.ndarray, np.ndarray] | None = None
         # (per-face constants of :meth:`render`, shaped for its stacked arrays)
         self._ex3, self._ey4 = self.ex[:, None, None], self.ey[:, None, None, None]
         self._o3 = (self.centre - self.off)[:, None, None]  # the iris centre on the patch
@@ -1303,24 +1305,20 @@ def lid_frames(eps: list[EyePlan], polys: np.ndarray, inv: np.ndarray
     return [(e[:7], e[7:]) for e in lids]
 
 
-_STACK: dict[tuple[int, ...], tuple[tuple[EyePlan, ...], np.ndarray, np.ndarray]] = {}
-
-
 def _stack_consts(eps: list[EyePlan]) -> tuple[np.ndarray, np.ndarray]:
-    """The per-face constants of :func:`_render_stacked` for the plans ``eps``: their frame
-    axes (n, 2, 2) (:attr:`EyePlan._exy`) and per plan a row of ex, ey, the iris centre on
-    the patch, the lid bands' widths, the iris centre and the patch's origin (n, 12) (kept
-    while the same plans come back: a face's two eyes)."""
-    key = tuple(id(ep) for ep in eps)
-    got = _STACK.get(key)
-    if got is None or any(a is not b for a, b in zip(got[0], eps, strict=True)):
+    """The per-face constants of :func:`_render_stacked` and :func:`lid_frames` for the plans
+    ``eps``: their frame axes (n, 2, 2) (:attr:`EyePlan._exy`) and per plan a row of ex, ey,
+    the iris centre on the patch, the lid bands' widths, the iris centre and the patch's
+    origin (n, 12); kept by the first plan while the same plans come back (a face's two
+    eyes)."""
+    got = eps[0]._stacked
+    if got is None or len(got[0]) != len(eps) or any(
+            a is not b for a, b in zip(got[0], eps, strict=True)):
         exy = np.array([ep._exy for ep in eps], np.float64)
         fixed = np.array([[*ep.ex, *ep.ey, ep.centre[0] - ep.off[0], ep.centre[1] - ep.off[1],
                            ep.band_up, ep.band_low, *ep.centre, *ep.off] for ep in eps],
                          np.float64)
-        if len(_STACK) > 8:
-            _STACK.clear()
-        got = _STACK[key] = (tuple(eps), exy, fixed)
+        got = eps[0]._stacked = (tuple(eps), exy, fixed)
     return got[1], got[2]
 
 

@@ -1297,7 +1297,8 @@ def lid_frames(eps: list[EyePlan], polys: np.ndarray, inv: np.ndarray
                ) -> list[tuple[np.ndarray, np.ndarray]]:
     """:meth:`EyePlan.lid_frame` of each plan in ``eps``, its opening's 12 vertices a row of
     ``polys`` (n, 12, 2) and its similarity's inverse a row of ``inv`` (n, 2, 3) float64:
-    numpy's batched products, the same values as eye by eye."""
+    numpy's batched products, the same values as eye by eye (numpy computes each 2 x 2
+    product of a batch as a single one; tests/test_eyes.py compares the renders)."""
     exy, fixed = _stack_consts(eps)
     f = (np.asarray(polys, np.float64) @ inv[:, :, :2].transpose(0, 2, 1) + inv[:, None, :, 2]
          - fixed[:, None, 8:10]) @ exy

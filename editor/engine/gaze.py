@@ -1331,13 +1331,15 @@ def _render_stacked(jobs: list[EyeJob]) -> list[np.ndarray] | None:
     (one texture per eye) and the lids' interpolations (one polyline per eye) stay per eye,
     on each eye's rows. Every pixel goes through the same float operations in the same
     order as in :meth:`EyePlan._render`: the same values. None (nothing computed that the
-    caller needs) when the eyes' lids did not move alike, or the soft photos' edge ramps
-    differ (then eye by eye)."""
+    caller needs) when the eyes' lids did not move alike, their edge ramps differ or a box
+    is empty (then eye by eye)."""
     soft = jobs[0][9]
     if any(j[9] != soft for j in jobs):
         return None
     hs = [b[3] - b[1] for _, b, *_ in jobs]
     ws = [b[2] - b[0] for _, b, *_ in jobs]
+    if min(hs) <= 0 or min(ws) <= 0:  # (an empty box: eye by eye, as before)
+        return None
     wm, ht = max(ws), sum(hs)
     starts = list(itertools.accumulate([0, *hs[:-1]]))
     sl = [slice(s, s + h) for s, h in zip(starts, hs, strict=True)]
@@ -1368,6 +1370,30 @@ def _render_stacked(jobs: list[EyeJob]) -> list[np.ndarray] | None:
     U, W = grid[0], grid[1]
     mxy = grid[2:].astype(np.float32)
     mx, my = mxy[0], mxy[1]
+    # the lids: per eye the four interpolations (its own polylines), then all at once
+    dd = np.empty((2, ht, wm))
+    rest = np.empty((2, ht, wm))  # the neutral lids' heights (upper, lower)
+    for s, job in zip(sl, jobs, strict=True):
+        ep, (up, low) = job[0], job[7]
+        Ue = U[s]
+        rest[0, s] = interp(Ue, ep.lid_up[:, 0], ep.lid_up[:, 1])
+        rest[1, s] = interp(Ue, ep.lid_low[:, 0], ep.lid_low[:, 1])
+        np.subtract(rest[0, s], interp(Ue, up[:, 0], up[:, 1]), out=dd[0, s])
+        np.subtract(interp(Ue, low[:, 0], low[:, 1]), rest[1, s], out=dd[1, s])
+    ss = clip(dd, 0.0, 1.0)
+    ss = ss * ss * (3.0 - 2.0 * ss)
+    flags = set()
+    for s, job in zip(sl, jobs, strict=True):
+        ep, whole = job[0], job[10]
+        up_moved, low_moved = bool(np.count_nonzero(ss[0, s])), bool(np.count_nonzero(ss[1, s]))
+        if whole is not None and not (up_moved and low_moved):
+            inv = job[8]
+            cu, c0 = ep._exy.T @ inv[:, :2], (inv[:, 2] - ep.centre) @ ep._exy
+            up_moved, low_moved = ep._moved_over(whole, cu, c0, job[7], (up_moved, low_moved))
+        flags.add((up_moved, low_moved))
+    if len(flags) > 1:
+        return None
+    ((up_moved, low_moved),) = flags
     # the white (per eye: its texture; a moving gaze's stretched maps)
     white = np.empty((ht, wm, 3), np.float32)
     for s, (ep, r_new, _p, du, dw, ox, oy) in zip(sl, eyes, strict=True):
@@ -1395,30 +1421,6 @@ def _render_stacked(jobs: list[EyeJob]) -> list[np.ndarray] | None:
                         else (ep._plate4, ep._photo4))
         mixed = plate if t >= 1.0 else photo if t <= 0.0 else photo + t * (plate - photo)
         _sample_to(mixed, mixed, mx[s], my[s], white[s])
-    # the lids: per eye the four interpolations (its own polylines), then all at once
-    dd = np.empty((2, ht, wm))
-    rest = np.empty((2, ht, wm))  # the neutral lids' heights (upper, lower)
-    for s, job in zip(sl, jobs, strict=True):
-        ep, (up, low) = job[0], job[7]
-        Ue = U[s]
-        rest[0, s] = interp(Ue, ep.lid_up[:, 0], ep.lid_up[:, 1])
-        rest[1, s] = interp(Ue, ep.lid_low[:, 0], ep.lid_low[:, 1])
-        np.subtract(rest[0, s], interp(Ue, up[:, 0], up[:, 1]), out=dd[0, s])
-        np.subtract(interp(Ue, low[:, 0], low[:, 1]), rest[1, s], out=dd[1, s])
-    ss = clip(dd, 0.0, 1.0)
-    ss = ss * ss * (3.0 - 2.0 * ss)
-    flags = set()
-    for s, job in zip(sl, jobs, strict=True):
-        ep, whole = job[0], job[10]
-        up_moved, low_moved = bool(np.count_nonzero(ss[0, s])), bool(np.count_nonzero(ss[1, s]))
-        if whole is not None and not (up_moved and low_moved):
-            inv = job[8]
-            cu, c0 = ep._exy.T @ inv[:, :2], (inv[:, 2] - ep.centre) @ ep._exy
-            up_moved, low_moved = ep._moved_over(whole, cu, c0, job[7], (up_moved, low_moved))
-        flags.add((up_moved, low_moved))
-    if len(flags) > 1:
-        return None
-    ((up_moved, low_moved),) = flags
     band3: np.ndarray | None = None
     below_fade = None
     if low_moved:

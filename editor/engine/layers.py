@@ -710,10 +710,12 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     eye_todo = [(job, box) for job, box in todo if job[0] == "eye"]
     invs = [cv2.invertAffineTransform(np.asarray(job[3], np.float64)) for job, _ in eye_todo]
     # both eyes' lids in their neutral frames at once (gaze.lid_frames: as lid by lid)
-    frames = lid_frames([lp.eyes[job[1]] for job, _ in eye_todo],
-                        np.array([job[2] for job, _ in eye_todo]), np.array(invs)) \
-        if len(eye_todo) == 2 else [lp.eyes[job[1]].lid_frame(job[2], job[3], inv)
-                                    for (job, _), inv in zip(eye_todo, invs, strict=True)]
+    if len(eye_todo) == 2 and eye_todo[0][0][2].shape == eye_todo[1][0][2].shape:
+        frames = lid_frames([lp.eyes[job[1]] for job, _ in eye_todo],
+                            np.array([job[2] for job, _ in eye_todo]), np.array(invs))
+    else:
+        frames = [lp.eyes[job[1]].lid_frame(job[2], job[3], inv)
+                  for (job, _), inv in zip(eye_todo, invs, strict=True)]
     for ((_, name, poly, tf, active, _moved), box), inv, lids in zip(eye_todo, invs, frames,
                                                                      strict=True):
         ep = lp.eyes[name]

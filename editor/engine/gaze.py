@@ -29,6 +29,7 @@ Returns colours only; the caller composites them behind the deformed lids with a
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -737,6 +738,8 @@ class EyePlan:
 
     def __post_init__(self) -> None:
         self._exy = np.stack([self.ex, self.ey], 1)  # image offset -> frame (u, w)
+        # (:func:`_stack_consts`: this plan's and its partners' constants, stacked)
+        self._stacked: tuple[tuple[EyePlan, ...], np.ndarray, np.ndarray] | None = None
         # (per-face constants of :meth:`render`, shaped for its stacked arrays)
         self._ex3, self._ey4 = self.ex[:, None, None], self.ey[:, None, None, None]
         self._o3 = (self.centre - self.off)[:, None, None]  # the iris centre on the patch
@@ -1259,3 +1262,247 @@ def photo_through(img: np.ndarray, sim: np.ndarray, box: tuple[int, int, int, in
     mx = (inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2]).astype(np.float32)
     my = (inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2]).astype(np.float32)
     return remap_rgb(img, mx, my).astype(np.float32)
+
+
+#: One eye's part of :func:`render_eyes`: its plan, then :meth:`EyePlan.render`'s arguments
+#: (``box``, ``sim``, ``shift``, ``r_new``, ``p_new``, ``poly``, ``lids``, ``inv``, ``soft``,
+#: ``whole``; per pixel, ``q`` 1)
+EyeJob = tuple[EyePlan, tuple[int, int, int, int], np.ndarray, np.ndarray, float, float,
+               np.ndarray, tuple[np.ndarray, np.ndarray], np.ndarray, float,
+               tuple[int, int, int, int] | None]
+
+
+def _sample_to(tex3: np.ndarray, tex4: np.ndarray, mx: np.ndarray, my: np.ndarray,
+               dst: np.ndarray) -> None:
+    """:func:`sample_rgb` without ``dst`` (the border replicated) written into ``dst`` (a
+    contiguous float32 (h, w, 3) array): the same values."""
+    if mx.size < REMAP3_PX:
+        cv2.remap(tex3, mx, my, cv2.INTER_LINEAR, dst, cv2.BORDER_REPLICATE)
+    else:
+        _rgb(cv2.remap(tex4, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE), dst)
+
+
+def render_eyes(jobs: list[EyeJob]) -> list[np.ndarray]:
+    """:meth:`EyePlan.render` (per pixel) of each job, the same values: two eyes whose lids
+    moved alike (:meth:`EyePlan._render`'s ``up_moved`` and ``low_moved``) in one pass
+    (:func:`_render_stacked`), else eye by eye."""
+    got = _render_stacked(jobs) if len(jobs) > 1 else None
+    if got is not None:
+        return got
+    return [ep.render(box, sim, shift, r_new, p_new, poly, lids, inv, soft, 1, whole)
+            for ep, box, sim, shift, r_new, p_new, poly, lids, inv, soft, whole in jobs]
+
+
+def lid_frames(eps: list[EyePlan], polys: np.ndarray, inv: np.ndarray
+               ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:meth:`EyePlan.lid_frame` of each plan in ``eps``, its opening's 12 vertices a row of
+    ``polys`` (n, 12, 2) and its similarity's inverse a row of ``inv`` (n, 2, 3) float64:
+    numpy's batched products, the same values as eye by eye (numpy computes each 2 x 2
+    product of a batch as a single one; tests/test_eyes.py compares the renders)."""
+    exy, fixed = _stack_consts(eps)
+    f = (np.asarray(polys, np.float64) @ inv[:, :, :2].transpose(0, 2, 1) + inv[:, None, :, 2]
+         - fixed[:, None, 8:10]) @ exy
+    lids = f.take(_UP_LOW, 1)
+    return [(e[:7], e[7:]) for e in lids]
+
+
+def _stack_consts(eps: list[EyePlan]) -> tuple[np.ndarray, np.ndarray]:
+    """The per-face constants of :func:`_render_stacked` and :func:`lid_frames` for the plans
+    ``eps``: their frame axes (n, 2, 2) (:attr:`EyePlan._exy`) and per plan a row of ex, ey,
+    the iris centre on the patch, the lid bands' widths, the iris centre and the patch's
+    origin (n, 12); kept by the first plan while the same plans come back (a face's two
+    eyes)."""
+    got = eps[0]._stacked
+    if got is None or len(got[0]) != len(eps) or any(
+            a is not b for a, b in zip(got[0], eps, strict=True)):
+        exy = np.array([ep._exy for ep in eps], np.float64)
+        fixed = np.array([[*ep.ex, *ep.ey, ep.centre[0] - ep.off[0], ep.centre[1] - ep.off[1],
+                           ep.band_up, ep.band_low, *ep.centre, *ep.off] for ep in eps],
+                         np.float64)
+        got = eps[0]._stacked = (tuple(eps), exy, fixed)
+    return got[1], got[2]
+
+
+def _render_stacked(jobs: list[EyeJob]) -> list[np.ndarray] | None:
+    """:meth:`EyePlan._render` of several eyes at once: their boxes stacked one above the
+    other (each box's rows a block of rows, as wide as the widest box; the narrower boxes'
+    extra columns are computed and dropped), the per-eye constants of the arithmetic given
+    per row, so that every numpy operation runs once for all eyes; the textures' resampling
+    (one texture per eye) and the lids' interpolations (one polyline per eye) stay per eye,
+    on each eye's rows. Every pixel goes through the same float operations in the same
+    order as in :meth:`EyePlan._render`: the same values. None (nothing computed that the
+    caller needs) when the eyes' lids did not move alike, their edge ramps differ or a box
+    is empty (then eye by eye)."""
+    soft = jobs[0][9]
+    if any(j[9] != soft for j in jobs):
+        return None
+    hs = [b[3] - b[1] for _, b, *_ in jobs]
+    ws = [b[2] - b[0] for _, b, *_ in jobs]
+    if min(hs) <= 0 or min(ws) <= 0:  # (an empty box: eye by eye, as before)
+        return None
+    wm, ht = max(ws), sum(hs)
+    starts = list(itertools.accumulate([0, *hs[:-1]]))
+    sl = [slice(s, s + h) for s, h in zip(starts, hs, strict=True)]
+    # per eye, as in _render: the radii rescaled, the shift, the grid's affine coefficients
+    # (u, w, and the patch's x, y: rows (4,) per unit of x, per unit of y, and constant;
+    # numpy's batched products, the same values as eye by eye)
+    eps = [j[0] for j in jobs]
+    inv = np.array([j[8] for j in jobs], np.float64)  # (n, 2, 3)
+    exy, fixed = _stack_consts(eps)
+    cu = exy.transpose(0, 2, 1) @ inv[:, :, :2]  # (n, 2 (u, w), 2 (per x, per y))
+    c0 = ((inv[:, :, 2] - fixed[:, 8:10])[:, None, :] @ exy)[:, 0]  # (n, 2)
+    per, eyes = [], []
+    for ep, box, _sim, shift, r_new, p_new, *_ in jobs:
+        k = ep.r0 / ep.r_det
+        r_new, p_new = r_new * k, p_new * k
+        du, dw = float(shift[0]), float(shift[1])
+        per.append((box[0], box[1], r_new + 1.0 if soft == 1.0 else r_new + 0.5, du, dw))
+        eyes.append((ep, r_new, p_new, du, dw, ep.centre[0] - ep.off[0],
+                     ep.centre[1] - ep.off[1]))
+    # the constants per eye (columns as listed below), then per row of the stack
+    C = np.concatenate((cu[:, :, 0], inv[:, :, 0], cu[:, :, 1], inv[:, :, 1], c0,
+                        inv[:, :, 2] - fixed[:, 10:12], per, fixed[:, :8]), 1) \
+        .T.repeat(hs, 1)[:, :, None]  # (constants, rows, 1)
+    rr = np.arange(ht, dtype=np.float64) - np.array(starts, np.float64).repeat(hs)
+    X = C[12] + np.arange(wm, dtype=np.float64)  # (each box's image columns, exact)
+    Y = C[13] + rr[:, None]  # (its rows)
+    grid = (C[0:4] * X + C[8:12]) + C[4:8] * Y
+    U, W = grid[0], grid[1]
+    mxy = grid[2:].astype(np.float32)
+    mx, my = mxy[0], mxy[1]
+    # the lids: per eye the four interpolations (its own polylines), then all at once
+    dd = np.empty((2, ht, wm))
+    rest = np.empty((2, ht, wm))  # the neutral lids' heights (upper, lower)
+    for s, job in zip(sl, jobs, strict=True):
+        ep, (up, low) = job[0], job[7]
+        Ue = U[s]
+        rest[0, s] = interp(Ue, ep.lid_up[:, 0], ep.lid_up[:, 1])
+        rest[1, s] = interp(Ue, ep.lid_low[:, 0], ep.lid_low[:, 1])
+        np.subtract(rest[0, s], interp(Ue, up[:, 0], up[:, 1]), out=dd[0, s])
+        np.subtract(interp(Ue, low[:, 0], low[:, 1]), rest[1, s], out=dd[1, s])
+    ss = clip(dd, 0.0, 1.0)
+    ss = ss * ss * (3.0 - 2.0 * ss)
+    flags = set()
+    for s, job in zip(sl, jobs, strict=True):
+        ep, whole = job[0], job[10]
+        up_moved, low_moved = bool(np.count_nonzero(ss[0, s])), bool(np.count_nonzero(ss[1, s]))
+        if whole is not None and not (up_moved and low_moved):
+            inv = job[8]
+            cu, c0 = ep._exy.T @ inv[:, :2], (inv[:, 2] - ep.centre) @ ep._exy
+            up_moved, low_moved = ep._moved_over(whole, cu, c0, job[7], (up_moved, low_moved))
+        flags.add((up_moved, low_moved))
+    if len(flags) > 1:
+        return None
+    ((up_moved, low_moved),) = flags
+    # the white (per eye: its texture; a moving gaze's stretched maps)
+    white = np.empty((ht, wm, 3), np.float32)
+    for s, (ep, r_new, _p, du, dw, ox, oy) in zip(sl, eyes, strict=True):
+        ex, ey = ep.ex, ep.ey
+        if abs(du) > 1e-6:
+            Ue, We = U[s], W[s]
+            p, q = ep.split_r if du > 0 else ep.split_l
+            corner = ep.corner_l if du > 0 else ep.corner_r
+            bound = _line_u(p, q, We) + du
+            moved = (Ue >= bound) if du > 0 else (Ue <= bound)
+            dst = np.array([corner, p + (du, 0.0), q + (du, 0.0)], np.float32)
+            src = np.array([corner, p, q], np.float32)
+            A = cv2.getAffineTransform(dst, src).astype(np.float64)
+            Ua = A[0, 0] * Ue + A[0, 1] * We + A[0, 2]
+            Wa = A[1, 0] * Ue + A[1, 1] * We + A[1, 2]
+            Us = np.where(moved, Ue - du, Ua)
+            Ws = np.where(moved, We, Wa)
+            mx[s] = ox + Us * ex[0] + Ws * ey[0]
+            my[s] = oy + Us * ex[1] + Ws * ey[1]
+        t = max(abs(du), abs(dw), 2.0 * abs(r_new - ep.r0))
+        t = t * t * (3.0 - 2.0 * t) if t < 1.0 else 1.0
+        if t < 1e-18:
+            t = 0.0
+        plate, photo = ((ep._plate3, ep._photo3) if mx[s].size < REMAP3_PX
+                        else (ep._plate4, ep._photo4))
+        mixed = plate if t >= 1.0 else photo if t <= 0.0 else photo + t * (plate - photo)
+        _sample_to(mixed, mixed, mx[s], my[s], white[s])
+    band3: np.ndarray | None = None
+    below_fade = None
+    if low_moved:
+        below_fade = np.where(W > rest[1], ss[1], 1.0)
+    if up_moved or low_moved:
+        kk = np.empty_like(dd)
+        np.subtract(W, rest[0], out=kk[0])
+        np.subtract(rest[1], W, out=kk[1])
+        kk -= C[23:25]  # (band_up, band_low)
+        clip(_ramp(kk, 1.0 / soft), 0.0, 1.0, out=kk)
+        np.subtract(1.0, kk, out=kk)
+        kk *= ss
+        np.subtract(1.0, kk, out=kk)
+        keep = (kk[0] * kk[1] if low_moved else kk[0]) if up_moved else kk[1]
+        keep = keep.astype(np.float32)
+        ball = np.empty((ht, wm, 3), np.float32)
+        for s, (ep, *_) in zip(sl, eyes, strict=True):
+            _sample_to(ep._ball3, ep._ball4, mx[s], my[s], ball[s])
+        white -= ball
+        white *= spread3(keep)
+        white += ball
+        bu = U * C[17:19] + C[21:23]  # (ox, oy)
+        wb = np.empty_like(dd)
+        np.add(W, dd[0], out=wb[0])
+        np.subtract(W, dd[1], out=wb[1])
+        bx, by = (bu[:, None] + wb * C[19:21, None]).astype(np.float32)
+        lids_moved = [j for j, m in enumerate((up_moved, low_moved)) if m]
+        nl = len(lids_moved)
+        got = np.empty((nl, ht, wm, 3), np.float32)
+        for i, j in enumerate(lids_moved):
+            for s, (ep, *_) in zip(sl, eyes, strict=True):
+                sample_rgb(ep._bands3[j], ep._bands4[j], bx[j, s], by[j, s], got[i, s])
+        np.subtract(1.0, got, out=got)
+        s_rows = (ss if nl == 2 else ss[lids_moved[0]]).reshape(nl * ht, wm)
+        s3 = spread3(s_rows)
+        s3 *= got.reshape(nl * ht, wm, 3)
+        got = np.subtract(1.0, s3, out=s3).astype(np.float32).reshape(nl, ht, wm, 3)
+        band3 = got[0] if nl == 1 else np.minimum(got[0], got[1])
+    # the iris
+    Di = U - C[15] if any(e[3] for e in eyes) else U
+    Dw = W - C[16] if any(e[4] for e in eyes) else W
+    rho = np.sqrt(Di * Di + Dw * Dw)
+    a = clip(C[14] - rho, 0.0, 1.0) if soft == 1.0 else \
+        clamp((C[14] - rho) / soft + 0.5, 0.0, 1.0)
+    if below_fade is not None:
+        a = a * below_fade
+    iris = np.empty((ht, wm, 3), np.float32)
+    for s, (ep, r_new, p_new, du, dw, ox, oy) in zip(sl, eyes, strict=True):
+        ex, ey = ep.ex, ep.ey
+        pn, pn0 = p_new / max(r_new, 1e-6), ep.p0 / ep.r0
+        pn = min(max(pn, 0.02), 0.95)
+        if du == 0.0 and dw == 0.0 and abs(r_new - ep.r0) <= 1e-9 * ep.r0 \
+                and abs(pn - pn0) <= 1e-12:
+            ix, iy = mx[s], my[s]
+        else:
+            Di_e, Dw_e, rho_e = Di[s], Dw[s], rho[s]
+            rn = rho_e / max(r_new, 1e-6)
+            rs = np.where(rn < pn, rn * pn0 / pn,
+                          pn0 + (rn - pn) * (1.0 - pn0) / (1.0 - pn)) * ep.r0
+            kr = rs / np.maximum(rho_e, 1e-6)
+            ix = (ox + kr * (Di_e * ex[0] + Dw_e * ey[0])).astype(np.float32)
+            iy = (oy + kr * (Di_e * ex[1] + Dw_e * ey[1])).astype(np.float32)
+        _sample_to(ep._iris3, ep._iris4, ix, iy, iris[s])
+        p_rest = ep.p0 * r_new / ep.r0
+        if p_new > p_rest:
+            Di_e, Dw_e, rho_e = Di[s], Dw[s], rho[s]
+            w = min((p_new - p_rest) / max(1.0, 0.3 * p_rest), 1.0)
+            ap: np.ndarray = clamp(p_new + 0.5 - rho_e, 0.0, 1.0).astype(np.float32) * w
+            k0 = (ep.r0 / max(r_new, 1e-6))
+            plain = _rgb(cv2.remap(ep._iris4,
+                                   (ox + k0 * (Di_e * ex[0] + Dw_e * ey[0])).astype(np.float32),
+                                   (oy + k0 * (Di_e * ex[1] + Dw_e * ey[1])).astype(np.float32),
+                                   cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE))
+            lum = plain @ np.array([0.299, 0.587, 0.114], np.float32)
+            ap *= 1.0 - np.clip((lum - 1.3 * ep.iris_lum) / (0.3 * ep.iris_lum + 1.0),
+                                0.0, 1.0)
+            ap = spread3(ap)
+            iris[s] = iris[s] * (1.0 - ap) + ep.pupil * ap
+    a = a.astype(np.float32)
+    col = iris - white
+    col *= spread3(a)
+    col += white
+    if band3 is not None:
+        col *= band3
+    return [col[s, :w] for s, w in zip(sl, ws, strict=True)]

@@ -2417,7 +2417,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
     H, W = out.shape[:2]
     # (on a small face, bands whose lift is computed on the photo's fields carried by the
     # warp's map have their arrays side by side and their tails run once, :class:`_Side`)
-    side = _Side.of(jobs, fa, maps, q)
+    side = _Side.of(jobs, fa, maps, q) if q == 1 and jobs[0][1] == 1 else None
     for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)
@@ -2432,49 +2432,65 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
             continue
         band = _blur_back(drawn[ci], sb, f, y1 - y0, x1 - x0, k, 1.0)
         view = out[y0:y1, x0:x1]
-        r = int(math.ceil(_VALLEY_WIDTH * sig * 1.25))
         if got is None or maps is None:
             S, c4 = _lift_fields(fa, g, out, pts, w, d, L, K, M, (x0, y0, x1, y1))
             band *= c4[..., 3]
             gain = np.clip(c4[..., :3] / np.maximum(S, 1.0), 1.0, _MAX_GAIN)
-            # (rounded, saturated)
-            cv2.multiply(view, _lift_tail(view, gain, band, _frame_closing(view, r)), view,
-                         1.0, cv2.CV_8U)
-            bbox = _union(bbox, (x0, y0, x1, y1))
-            continue
-        # S, C and the skin weight taken on the photo once and carried by the warp's own
-        # map: S lands on the valley exactly where the warp puts it. C and the weight are
-        # smooth (a closing blurred over ~2 line widths): on large faces they are carried
-        # at 1/f resolution (the map averaged over f x f blocks) and resized
-        (S, Cw), (px0, py0) = got
-        hb, wb = y1 - y0, x1 - x0
-        hc, wc = -(-hb // f), -(-wb // f)
-        mx, my = box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
-        if f > 1:
-            Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), None, 0, 0, cv2.INTER_AREA),
-                           cv2.resize(my, (wc, hc), None, 0, 0, cv2.INTER_AREA),
-                           cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-            Cw = cv2.resize(Cw, (wc * f, hc * f), None, 0, 0, cv2.INTER_LINEAR)
-            mx, my = mx[:hb, :wb], my[:hb, :wb]
-            Cw = Cw[:hb, :wb]
-        elif side is None:
-            Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
-        # (all four channels at once: numpy is many times slower on a channel view; the
-        # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself).
-        # S is resampled as the warp resampled the photo: a bicubic still keeps the
-        # valley's sharp core darker than a bilinear S would, and the lift left it as a
-        # thin dark scratch (the sample's neutralised smile: 41 levels below the
-        # bilinear render's lifted skin)
-        if side is not None:
-            side.put(view, band, S, Cw, mx, my, interpolation)
         else:
+            # S, C and the skin weight taken on the photo once and carried by the warp's own
+            # map: S lands on the valley exactly where the warp puts it. C and the weight are
+            # smooth (a closing blurred over ~2 line widths): on large faces they are carried
+            # at 1/f resolution (the map averaged over f x f blocks) and resized
+            (S, Cw), (px0, py0) = got
+            hb, wb = y1 - y0, x1 - x0
+            hc, wc = -(-hb // f), -(-wb // f)
+            mx, my = box_maps(maps, (x0, y0, x0 + wc * f, y0 + hc * f), (px0, py0))
+            if f > 1:
+                Cw = cv2.remap(Cw, cv2.resize(mx, (wc, hc), None, 0, 0, cv2.INTER_AREA),
+                               cv2.resize(my, (wc, hc), None, 0, 0, cv2.INTER_AREA),
+                               cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+                Cw = cv2.resize(Cw, (wc * f, hc * f), None, 0, 0, cv2.INTER_LINEAR)
+                mx, my = mx[:hb, :wb], my[:hb, :wb]
+                Cw = Cw[:hb, :wb]
+            elif side is not None:
+                side.put(view, band, S, Cw, mx, my, interpolation)
+                bbox = _union(bbox, (x0, y0, x1, y1))
+                continue
+            else:
+                Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
+            # (all four channels at once: numpy is many times slower on a channel view; the
+            # 4th channel of S is 0, so that of C / max(S, 1) is the skin weight itself).
+            # S is resampled as the warp resampled the photo: a bicubic still keeps the
+            # valley's sharp core darker than a bilinear S would, and the lift left it as a
+            # thin dark scratch (the sample's neutralised smile: 41 levels below the
+            # bilinear render's lifted skin)
             S = cv2.remap(S, mx, my, interpolation, None, cv2.BORDER_REPLICATE)
             g4 = _lift_gain(S, Cw, view, interpolation)
             band *= g4[..., 3]
-            # (clipped to [1, _MAX_GAIN] by the tail, with the cap)
-            gain = _lift_tail(view, cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB), band,
-                              _frame_closing(view, r))
-            cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
+            # (clipped to [1, _MAX_GAIN] below, with the cap)
+            gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
+        # never above the frame's own skin either side of the valley (its closing): the lift
+        # level ramps between shoulders of different light (see _lift_fields), and a sharp
+        # core pulls S down on its shoulders; over the lower shoulder the lifted band read
+        # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
+        # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
+        hb, wb = view.shape[:2]
+        # (max(view, 1) by OpenCV on the box's rows as one channel: a scalar bound is then
+        # every channel's; numpy's on the strided 3-channel view costs 2-3 times as much)
+        cap = cv2.divide(_frame_closing(view, int(math.ceil(_VALLEY_WIDTH * sig * 1.25))),
+                         _cv_max(view.reshape(hb, -1), 1).reshape(view.shape), None, 1.0,
+                         cv2.CV_32F)
+        # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1 as max(min(gain, cap, _MAX_GAIN) - 1,
+        # 0): min and max distribute over each other, and x - 1 is exact for x >= 1 (the same
+        # float32 values, two passes fewer; >= 1 before the - 1: never darkened)
+        np.minimum(gain, cap, out=gain)
+        g1 = gain.reshape(hb, -1)
+        cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
+        gain -= 1.0
+        _cv_max(g1, 0.0, dst=g1)
+        gain *= spread3(band)
+        gain += 1.0
+        cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
     if side is not None:
         side.lift(interpolation)
@@ -2486,7 +2502,8 @@ def _lift_tail(view: np.ndarray, gain: np.ndarray, band: np.ndarray, closing: np
     """The factor ``1 + band (min(gain, cap, _MAX_GAIN) - 1)+`` (in place in ``gain``) by
     which a band lifts its ``view`` (h, w, 3) uint8 of the frame: its per-channel ``gain``
     (float32) raised to ``band`` (h, w) float32, ``cap`` the frame's own ``closing`` of the
-    view over the view (at least 1)."""
+    view over the view (at least 1). The tail of :func:`_unfold_draw`'s lift of one band,
+    the same passes, for :class:`_Side`'s bands side by side."""
     # never above the frame's own skin either side of the valley (its closing): the lift
     # level ramps between shoulders of different light (see _lift_fields), and a sharp
     # core pulls S down on its shoulders; over the lower shoulder the lifted band read
@@ -2522,8 +2539,8 @@ class _Side:
     cell outside a box is set to 255, which wins no minimum, as OpenCV's border of an
     erosion does not; before it, the zeros of the padding win no maximum (a neighbourhood
     holds its centre, a pixel of the box; none reaches another box): the same closings. On
-    the 431 x 591 bench face's two nasolabial bands about 0.03 ms a frame less (thread CPU,
-    interleaved); renders identical."""
+    the 431 x 591 bench face's two nasolabial bands :func:`_unfold_draw` 169 -> 157 us a
+    frame (thread CPU, in-process, interleaved); renders identical."""
 
     __slots__ = ("views", "at", "r", "VV", "SS", "CC", "BB")
 
@@ -2546,10 +2563,11 @@ class _Side:
         not drawn together (one band, a band drawn coarse (``f`` > 1), on blocks (``q`` > 1)
         or without the photo's fields, overlapping boxes, closings of different radii or
         through :func:`_close`'s lines)."""
-        if len(jobs) < 2 or maps is None or q != 1:
+        if len(jobs) < 2 or maps is None or q != 1 or any(j[1] != 1 or j[2] is None
+                                                          for j in jobs):
             return None
         rs = {int(math.ceil(_VALLEY_WIDTH * float(fa.sig[j[0]]) * 1.25)) for j in jobs}
-        if len(rs) != 1 or any(j[1] != 1 or j[2] is None for j in jobs):
+        if len(rs) != 1:
             return None
         r = rs.pop()
         boxes = [j[9] for j in jobs]

@@ -180,8 +180,12 @@ def carried(field: np.ndarray, box: tuple[int, int, int, int], A: np.ndarray,
     if x1 - x0 < 2 or y1 - y0 < 2:
         return None
     # field pixel (i, j) sits at photo (bx0 + j, by0 + i); destination box pixel at (x0, y0)
+    # (the linear part's product by the box's corner as numpy computes it; the sums on
+    # Python floats: the same float64 values)
     M = np.array(A, np.float64)
-    M[:, 2] = M[:, :2] @ np.array([bx0, by0], np.float64) + M[:, 2] - np.array([x0, y0])
+    px, py = (M[:, :2] @ np.array([bx0, by0], np.float64)).tolist()
+    M[0, 2] = px + c - x0
+    M[1, 2] = py + f - y0
     got = cv2.warpAffine(field, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     return np.asarray(got, np.float32), (x0, y0, x1, y1)

@@ -31,6 +31,18 @@ def test_bad_preset_is_one_line_error(cli, tmp_path):
     assert r.returncode == 2 and "'nan' is not a number" in r.stderr, r.stderr
 
 
+def test_an_unwritable_image_output_is_refused_before_the_work(cli, tmp_path):
+    """``-o out.txt`` is refused while the arguments are read: with a photo that does not
+    exist, the output's error comes first (no detection, no render, no file written)."""
+    for cmd in (("render", "--preset", "joy"), ("landmarks",), ("mesh",)):
+        out = tmp_path / "out.txt"
+        r = cli(cmd[0], str(tmp_path / "missing.png"), *cmd[1:], "-o", str(out))
+        assert r.returncode == 2 and "cannot write an image as .txt" in r.stderr, (cmd, r.stderr)
+        assert r.stderr.count("\n") == 1 and not out.exists(), r.stderr
+    r = cli("render", str(SAMPLE), "--preset", "joy", "-o", str(tmp_path / "j.webp"))
+    assert r.returncode == 0 and load_image(tmp_path / "j.webp").shape == (512, 512, 3), r.stderr
+
+
 def test_fap_export_info_and_animate(cli, tmp_path):
     fap = tmp_path / "joy.fap"
     r = cli("fap", "export", "--preset", "joy", "--keyframes", "--duration", "0.4", "--fps",

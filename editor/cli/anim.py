@@ -126,14 +126,18 @@ def add_anim_parser(sub) -> None:
     f = sub.add_parser("fap", help=".fap files: export presets, show information")
     fs = f.add_subparsers(dest="fap_command", metavar="COMMAND")
     e = fs.add_parser("export", help="write a preset (or a mix) as a .fap file")
-    e.add_argument("--preset", action="append", required=True, metavar="NAME[:INTENSITY]")
+    e.add_argument("--preset", action="append", required=True, metavar="NAME[:INTENSITY]",
+                   help="an emotion or viseme preset at an intensity 0-1.5 (default 1); "
+                   "repeat to mix, the values add up")
     e.add_argument("--frames", type=int, default=1, help="frames holding the expression")
-    e.add_argument("--fps", type=float, default=25.0)
+    e.add_argument("--fps", type=float, default=25.0, help="frame rate (default: 25)")
     e.add_argument("--keyframes", action="store_true",
                    help="neutral -> expression -> neutral over --duration seconds")
-    e.add_argument("--duration", type=float, default=2.0)
-    e.add_argument("--name", default="fap-studio")
-    e.add_argument("-o", "--output", required=True)
+    e.add_argument("--duration", type=float, default=2.0,
+                   help="seconds from neutral back to neutral with --keyframes (default: 2)")
+    e.add_argument("--name", default="fap-studio",
+                   help="the sequence's name in the file's header (default: fap-studio)")
+    e.add_argument("-o", "--output", required=True, help="the .fap file to write")
     e.set_defaults(func=cmd_fap_export)
     i = fs.add_parser("info", help="version, name, fps, frames and the FAPs a file uses")
     i.add_argument("fap_file")

@@ -17,7 +17,14 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from editor.cli.util import PHOTO_HELP, detector_option, fast_option, guarded, photo_arg
+from editor.cli.util import (
+    PHOTO_HELP,
+    detector_option,
+    fast_option,
+    guarded,
+    image_out_arg,
+    photo_arg,
+)
 from editor.errors import ModelError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -125,7 +132,7 @@ def add_bilinear_parser(subparsers: Any) -> None:
                    help="keep the part of the input shape the model does not reconstruct")
     y.add_argument("--faps-json", default=None, metavar="FILE.json",
                    help="also write the FAP vector that best reproduces the shape (a preset)")
-    y.add_argument("-o", "--output", required=True, metavar="OUT.png")
+    y.add_argument("-o", "--output", type=image_out_arg, required=True, metavar="OUT.png")
     fast_option(y)
     detector_option(y)
     y.set_defaults(func=guarded(run_synth))

@@ -21,7 +21,7 @@ from pathlib import Path
 from editor.errors import FapStudioError
 from editor.resources import JAFFE_ENV, SAMPLE_FACE, jaffe_dir
 
-from .util import ProgressBar, detector_option, fast_option, guarded, photo_arg
+from .util import ProgressBar, detector_option, fast_option, guarded, image_out_arg, photo_arg
 
 SAMPLE = SAMPLE_FACE
 
@@ -145,7 +145,8 @@ def add_clone_parser(sub) -> None:
                    "motion transferred by Laplacian mesh deformation")
     s.add_argument("--mu", type=float, default=None,
                    help="Laplacian constraint weight (10; --method laplacian only)")
-    s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
+    s.add_argument("-o", "--output", type=image_out_arg, required=True,
+                   help="output image (PNG/JPEG)")
     s.add_argument("--faps-json", metavar="OUT.json",
                    help="write the estimated FAPs as a preset file")
     fast_option(s)

@@ -21,7 +21,7 @@ from .bilinear import add_bilinear_parser
 from .clone import add_clone_parser
 from .facs import add_facs_parser
 from .study import add_study_parser
-from .util import PHOTO_HELP, SAMPLE_KEYWORD, detector_option, photo_arg
+from .util import PHOTO_HELP, SAMPLE_KEYWORD, detector_option, image_out_arg, photo_arg
 
 #: ``fap-studio NAME`` opens NAME in the editor when it ends so (photos and projects).
 EDITOR_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".fapproj")
@@ -235,7 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("landmarks", help="detect landmarks, MPEG-4 feature points and irises")
     s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
-    s.add_argument("-o", "--output", help="PNG with the points drawn over the photo")
+    s.add_argument("-o", "--output", type=image_out_arg,
+                   help="PNG with the points drawn over the photo")
     s.add_argument("--json", help="points by detector index and FDP id, iris circles")
     s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
     detector_option(s)
@@ -243,7 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("mesh", help="fit the personalized MPEG-4 mesh and draw it")
     s.add_argument("photo", type=photo_arg, help=PHOTO_HELP)
-    s.add_argument("-o", "--output", help="PNG with the mesh drawn over the photo")
+    s.add_argument("-o", "--output", type=image_out_arg,
+                   help="PNG with the mesh drawn over the photo")
     s.add_argument("--json", help="vertices, triangles, fdp, fapu")
     s.add_argument("--scale", type=float, default=1.0, help="drawing scale (default 1)")
     detector_option(s)
@@ -258,7 +260,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--au", action="append", metavar="AU=INTENSITY",
                    help="FACS Action Unit, intensity 0-1 or a letter A-E: AU12=0.8, 6=B, "
                    "L12=C (one side); repeatable, adds to --preset and --fap")
-    s.add_argument("-o", "--output", required=True, help="output image (PNG/JPEG)")
+    s.add_argument("-o", "--output", type=image_out_arg, required=True,
+                   help="output image (PNG/JPEG)")
     s.add_argument("--mesh-json", help="write the neutral and deformed mesh as JSON")
     resample = s.add_mutually_exclusive_group()
     resample.add_argument("--fast", action="store_true",

@@ -43,6 +43,18 @@ def photo_arg(text: str) -> str:
     return text
 
 
+def image_out_arg(text: str) -> str:
+    """argparse ``type`` of image outputs: a suffix no image format has (``out.txt``) is
+    refused while the arguments are read, before the photo is loaded and rendered."""
+    from editor.engine.imageio import ImageError, check_image_path
+
+    try:
+        check_image_path(text)
+    except ImageError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return text
+
+
 class ProgressBar:
     """A tqdm bar on stderr driven by ``progress(done, total)`` callbacks (``total`` may grow);
     returns True (never cancels). Shown from the first callback on (an error before any

@@ -182,6 +182,17 @@ def as_rgb8(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(to_rgb8(a))
 
 
+def check_image_path(path: str | Path) -> None:
+    """Raise :class:`ImageError` (the message :func:`save_image` would give) when ``path``'s
+    suffix is not an image format OpenCV writes: for commands that check their output before
+    the work (an unwritable ``-o`` said at once, not after the detection and the render)."""
+    p = Path(path)
+    ext = p.suffix.lower() or ".png"
+    if not cv2.haveImageWriter("x" + ext):
+        raise ImageError(f"{p}: cannot write an image as {ext}: use .png, .jpg, .bmp, .tif or "
+                         ".webp")
+
+
 def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> None:
     """Write an RGB uint8 image; the format follows the file extension (PNG, JPEG, ...).
 

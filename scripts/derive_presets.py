@@ -353,9 +353,12 @@ FACS: dict[str, dict[object, tuple[float, str]]] = {
                        "the smiling sample and as a snarl on JAFFE faces whose real disgust "
                        "keeps the lips together, the lower lip pushed up (AU17; the inner-lip "
                        "landmarks read the everted lower lip as a drop)"),
-        "b_mids": (-30, "as b_mid, a little less than the middle (the lower lip a curve): the "
-                        "fit gave -70, a gap at the sides showing the lower teeth (median "
-                        "-151/-124, p90 98/28)"),
+        "b_mids": (-10, "as b_mid, less than the middle (the lower lip a curve): the fit gave "
+                        "-70, a gap at the sides showing the lower teeth (median -151/-124, p90 "
+                        "98/28); at -30 the sample's 150 % still parted the lips beside the "
+                        "raised upper lip's sides (lm/rm -60) over two slivers of its own "
+                        "teeth, read by a new user as a broken mouth; at -10 they stay "
+                        "together"),
         18: (120, "AU17 chin raiser: the pushed-up lower lip and chin of JAFFE disgust (KA, "
                   "KL, NA, YM show it beside the renders); no landmark on the chin boss, the "
                   "amount as for anger"),

@@ -29,6 +29,7 @@ photo's grain without it, 1.1-1.2 with it).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -571,7 +572,8 @@ class MouthPlan:
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
-        fp = (v.take(self._frame_idx, 0).astype(np.float64) - O) @ E  # (take: cheaper rows)
+        vf = v.take(self._frame_idx, 0)  # (take: cheaper rows)
+        fp = (vf.astype(np.float64) - O) @ E
         q21, q23 = fp[0], fp[1]
         n_lip = len(self.upper_lip)
         D = self.mouth_nose * sc
@@ -682,47 +684,58 @@ class MouthPlan:
             shade_g *= spread3(u.astype(np.float32))
         dlt = self._tongue_shift(faps, ex, ey)
         tongue = ("tongue", q21[0] - 0.5 * wt, top_t, wt, ht)
-        # the layers placed in the (affine) frame: their sampling maps all at once
-        flat = ([tongue] if dlt is None else []) \
-            + ([] if self.photo_lower else [("lower_teeth", q21[0] - 0.5 * wl, top_l, wl, hl)]) \
-            + ([] if self.photo_upper else [("upper_teeth", -0.5 * wu, self.tip_up * sc - hu,
-                                               wu, hu)])
-        maps = dict(zip([p[0] for p in flat], self._layer_maps(Q, flat), strict=True))
+        # (a texture placed in the frame is sampled at an affine function of the pixel: the
+        # box's pixel (i, j) has frame coordinates q0 + i E[0] + j E[1], q0 those of its
+        # corner; one cv2.warpAffine each, no sampling maps. A bent tongue and the gum row
+        # (clamped to the texture's top row) are not affine: sampled through maps)
+        # (in Python floats: a few numbers, numpy's calls cost more than their arithmetic)
+        (e00, e01), (e10, e11) = E.tolist()
+        ox_, oy_ = O.tolist()
+        ax = (e00, e10, (x0 - ox_) * e00 + (y0 - oy_) * e10)  # frame x: per i, per j, at (0, 0)
+        ay = (e01, e11, (x0 - ox_) * e01 + (y0 - oy_) * e11)  # frame y
+        dsize = (x1 - x0, y1 - y0)
         if dlt is not None:
-            maps["tongue"] = self._layer_maps(
-                self._tongue_field(Qx, Qy, dlt, *tongue[1:3], wt, ht), [tongue])[0]
-        out = self._over(out, "tongue", maps["tongue"], shade_g)
+            out = self._over(out, "tongue", self._layer_maps(
+                self._tongue_field(Qx, Qy, dlt, *tongue[1:3], wt, ht), [tongue])[0], shade_g)
+        else:
+            out = self._over_at(out, "tongue", self._place(tongue, ax, ay), dsize, shade_g)
         if not self.photo_lower:
-            out = self._over(out, "lower_teeth", maps["lower_teeth"], shade)
+            out = self._over_at(out, "lower_teeth", self._place(
+                ("lower_teeth", q21[0] - 0.5 * wl, top_l, wl, hl), ax, ay), dsize, shade)
         # the photo's own interior: jaw part, then upper teeth, then the skull part
         Si = cv2.invertAffineTransform(S)
         # where each pixel samples the photo's own interior (its patch's pixels): skull part
         if self.own_off is None or self.ext is None:
             raise RuntimeError("MouthPlan.render needs the photo's interior (attach_own)")
-        # (x and y stacked (2, h, w): rows plus columns plus offsets, the same values as each)
-        sxy = (Si[:, 0, None, None] * xs + Si[:, 1, None, None] * ys) \
-            + (Si[:, 2] - self.own_off)[:, None, None]
-        mx, my = sxy.astype(np.float32)
+        # (affine in the box's pixel: the skull's inverse from the box's corner, less the
+        # patch's offset)
+        (s00, s01, s02), (s10, s11, s12) = Si.tolist()
+        offx, offy = self.own_off.tolist()
+        M_own = np.array([[s00, s01, s00 * x0 + s01 * y0 + s02 - offx],
+                          [s10, s11, s10 * x0 + s11 * y0 + s12 - offy]])
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
-            out = self._over(out, "upper_teeth", maps["upper_teeth"], shade_up, gum=True)
+            gum_maps = self._layer_maps(Q, [("upper_teeth", -0.5 * wu, self.tip_up * sc - hu,
+                                              wu, hu)])[0]
+            out = self._over(out, "upper_teeth", gum_maps, shade_up, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
-        lp_u, lp_d = self._lip_idx
-        gap = (v.take(lp_d, 0) - v.take(lp_u, 0)).astype(np.float64) @ ey
+        # (the inner lips' pairs: rows of the frame's gather above, the same values)
+        lp_u, lp_d = self._lip_rows
+        gap = (vf[lp_d] - vf[lp_u]).astype(np.float64) @ ey
         fade = 1.0 - _smoothstep1(max((gap - self.gap0).tolist()) / 2.0)
-        a_up, p_up = self._own(mx, my, 0, fade)
+        a_up, p_up = self._own_at(M_own, dsize, 0, fade)
         a_lo = p_lo = None
         if self._own_has[1]:  # the jaw part, moved with the jaw anchor (eq. 8)
             anchor = O + q21[0] * ex + y_lb * ey
             tj = anchor - (L @ self.anchor0 + S[:, 2])
-            tjs = Si[:, :2] @ tj
-            lx, ly = (sxy - tjs[:, None, None]).astype(np.float32)
-            a_lo, p_lo = self._own(lx, ly, 1, fade)
+            M_jaw = M_own.copy()
+            M_jaw[:, 2] -= Si[:, :2] @ tj
+            a_lo, p_lo = self._own_at(M_jaw, dsize, 1, fade)
         if a_up is not None and self.photo_upper:
             # the continued teeth: a light shadow right under the lip (the photo's own top
             # row, which they repeat, already carries the photo's lip shadow) and the drawn
             # layers' darker corners
-            e = cv2.remap(self.ext, mx, my, cv2.INTER_LINEAR)  # (zeros outside: the default)
+            e = cv2.warpAffine(self.ext, M_own, dsize, None, _AFFINE)  # (zeros outside)
             k = (1.0 - EXT_LIP_SHADOW * lip_sh) * corner
             m = np.asarray(1.0 - e * (1.0 - k.astype(np.float32)), np.float32)  # (no copy)
             p_up *= spread3(m)  # (p_up: _own's own array)
@@ -808,6 +821,18 @@ class MouthPlan:
                 np.ascontiguousarray(self.lip_pairs[:, 1]))
 
     @cached_property
+    def _lip_rows(self) -> tuple[slice | np.ndarray, slice | np.ndarray]:
+        """:attr:`_lip_idx` as rows of :attr:`_frame_idx` (slices where they are runs of it:
+        the lips' vertices between their corners, in order)."""
+        idx = self._frame_idx.tolist()
+        rows: list[slice | np.ndarray] = []
+        for want in self._lip_idx:
+            at = [idx.index(int(i)) for i in want]
+            run = all(b == a + 1 for a, b in itertools.pairwise(at))
+            rows.append(slice(at[0], at[-1] + 1) if at and run else np.array(at, np.intp))
+        return rows[0], rows[1]
+
+    @cached_property
     def _frame_idx(self) -> np.ndarray:
         """Vertices :meth:`render` reads in the layer frame: 2.1, 2.3, upper lip, opening."""
         return np.concatenate([[self.i21, self.i23], self.upper_lip, self.lower_lip,
@@ -852,6 +877,44 @@ class MouthPlan:
         a3 *= out
         res += a3
         return res
+
+    def _place(self, place: tuple[str, float, float, float, float],
+               ax: tuple[float, float, float], ay: tuple[float, float, float]) -> np.ndarray:
+        """(2, 3) float64: from a box's pixel (i, j) to the pixel of texture ``place`` (name,
+        left, top, width, height in the layer frame) it samples (as :meth:`_layer_maps`: the
+        texture's pixels per frame unit inside its blank margin). ``ax``, ``ay``: the frame
+        x and y of the box's pixels, per i, per j and at (0, 0)."""
+        name, left, top, ww, hh = place
+        p = self.tex_pad
+        th, tw = self.tex[name].shape[:2]
+        kx, ky = (tw - 2 * p) / ww, (th - 2 * p) / hh
+        return np.array([[ax[0] * kx, ax[1] * kx, (ax[2] - left) * kx + (p - 0.5)],
+                         [ay[0] * ky, ay[1] * ky, (ay[2] - top) * ky + (p - 0.5)]])
+
+    def _over_at(self, out, name, M, dsize, shade):
+        """:meth:`_over` of texture ``name`` sampled at the affine ``M`` (:meth:`_place`)
+        over a box of ``dsize`` (w, h)."""
+        s = cv2.warpAffine(self.tex[name], M, dsize, None, _AFFINE)  # (zeros outside)
+        res = cv2.cvtColor(s, cv2.COLOR_RGBA2RGB)
+        res *= shade  # shade (h, w, 3)
+        a = np.subtract(1.0, cv2.extractChannel(s, 3), dtype=np.float32)
+        a3 = spread3(a)
+        a3 *= out
+        res += a3
+        return res
+
+    def _own_at(self, M, dsize, k, fade):
+        """:meth:`_own` at the affine ``M`` from a box's pixels to the own interior's patch,
+        over a box of ``dsize`` (w, h)."""
+        if not self._own_has[k]:
+            return None, None
+        src = self._own_a[k] if fade >= 1.0 else self._own_keep[k] if fade <= 0.0 else \
+            self._own_keep[k] + fade * self._own_span[k]
+        a = cv2.warpAffine(src, M, dsize, None, _AFFINE)  # (zeros outside)
+        if not np.count_nonzero(a):
+            return None, None
+        return a, cv2.warpAffine(self._own_c3[k], M, dsize, None, _AFFINE,
+                                 cv2.BORDER_REPLICATE)
 
     def _own(self, mx, my, k, fade):
         """Coverage (h, w) and colours of the photo's skull (k=0) or jaw (k=1) part;
@@ -901,6 +964,8 @@ class MouthPlan:
 
 
 _F32_3 = np.float32(3.0)
+#: cv2.warpAffine's flags for sampling a texture at an affine function of the box's pixels
+_AFFINE = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
 
 
 def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,

@@ -556,19 +556,25 @@ class MouthPlan:
         x0, y0, x1, y1 = box
         S = np.asarray(skull, np.float64)
         L = S[:, :2]
-        sc = math.sqrt(abs(L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])) or 1.0
-        E = L @ self._exy  # the frame axes turned with the skull (columns), normalised
-        E2 = E * E
-        E /= np.sqrt(E2[0] + E2[1])  # (the column norms: an axis-0 sum costs more)
+        # the frame axes turned with the skull (E's columns), normalised (in Python floats: a
+        # few numbers, numpy's calls cost more than their arithmetic)
+        (l00, l01, _), (l10, l11, _) = S.tolist()
+        sc = math.sqrt(abs(l00 * l11 - l01 * l10)) or 1.0
+        (n00, n01), (n10, n11) = self._exy.tolist()
+        c0x, c0y, c1x, c1y = (l00 * n00 + l01 * n10, l10 * n00 + l11 * n10,
+                              l00 * n01 + l01 * n11, l10 * n01 + l11 * n11)
+        r0, r1 = math.hypot(c0x, c0y), math.hypot(c1x, c1y)
+        (e00, e01), (e10, e11) = (c0x / r0, c1x / r1), (c0y / r0, c1y / r1)
+        E = np.array([[e00, e01], [e10, e11]])
         ex, ey = E[:, 0], E[:, 1]
-        xs = np.arange(x0, x1, dtype=np.float64)[None, :]
-        ys = np.arange(y0, y1, dtype=np.float64)[:, None]
         O = v[self.i93].astype(np.float64)
-        # (one row plus one column each: the layer frame is affine in x and y; the textures
-        # below are sampled from these parts too. Rows (2, 1, w): x ex[0], x ey[0]; columns
-        # (2, h, 1): y ex[1], y ey[1]; the frame's x and y stacked, the same values as each)
-        Q = ((xs - O[0]) * E[0, :, None, None], (ys - O[1]) * E[1, :, None, None])
-        Qx, Qy = Q[0] + Q[1]
+        # the frame coordinates of the box's pixel (i, j): affine in i and j (frame x: per i,
+        # per j, at (0, 0); frame y likewise), all pixels in one cv2.transform of the box's
+        # pixel grid; the textures below are sampled at affine functions of them too
+        ox_, oy_ = O.tolist()
+        ax = (e00, e10, (x0 - ox_) * e00 + (y0 - oy_) * e10)
+        ay = (e01, e11, (x0 - ox_) * e01 + (y0 - oy_) * e11)
+        Qx, Qy = cv2.split(cv2.transform(_pixel_grid(y1 - y0, x1 - x0), np.array([ax, ay])))
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
@@ -688,11 +694,6 @@ class MouthPlan:
         # box's pixel (i, j) has frame coordinates q0 + i E[0] + j E[1], q0 those of its
         # corner; one cv2.warpAffine each, no sampling maps. A bent tongue and the gum row
         # (clamped to the texture's top row) are not affine: sampled through maps)
-        # (in Python floats: a few numbers, numpy's calls cost more than their arithmetic)
-        (e00, e01), (e10, e11) = E.tolist()
-        ox_, oy_ = O.tolist()
-        ax = (e00, e10, (x0 - ox_) * e00 + (y0 - oy_) * e10)  # frame x: per i, per j, at (0, 0)
-        ay = (e01, e11, (x0 - ox_) * e01 + (y0 - oy_) * e11)  # frame y
         dsize = (x1 - x0, y1 - y0)
         if dlt is not None:
             out = self._over(out, "tongue", self._layer_maps(
@@ -714,8 +715,8 @@ class MouthPlan:
         M_own = np.array([[s00, s01, s00 * x0 + s01 * y0 + s02 - offx],
                           [s10, s11, s10 * x0 + s11 * y0 + s12 - offy]])
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
-            gum_maps = self._layer_maps(Q, [("upper_teeth", -0.5 * wu, self.tip_up * sc - hu,
-                                              wu, hu)])[0]
+            gum_maps = self._layer_maps((Qx, Qy), [("upper_teeth", -0.5 * wu,
+                                                     self.tip_up * sc - hu, wu, hu)])[0]
             out = self._over(out, "upper_teeth", gum_maps, shade_up, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
@@ -964,6 +965,18 @@ class MouthPlan:
 
 
 _F32_3 = np.float32(3.0)
+
+
+@lru_cache(maxsize=16)
+def _pixel_grid(h: int, w: int) -> np.ndarray:
+    """(h, w, 2) float64: each pixel's (column, row) (kept: a box's size recurs from frame
+    to frame). Read-only."""
+    g = np.empty((h, w, 2))
+    g[..., 0] = np.arange(w)[None, :]
+    g[..., 1] = np.arange(h)[:, None]
+    g.setflags(write=False)
+    return g
+
 #: cv2.warpAffine's flags for sampling a texture at an affine function of the box's pixels
 _AFFINE = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
 

@@ -639,8 +639,11 @@ class MouthPlan:
                 g2 += np.float32(1.0 - k)
                 back *= g2
             else:
-                g, g1 = np.exp(-np.asarray(depth, np.float32) / np.array(
-                    [0.08 * D + 0.5, 0.05 * D + 0.5], np.float32)[:, None, None])
+                # (-d / l as d / -l, each over its float32 length: no broadcast of stacked
+                # lengths, no negation)
+                depth32 = np.asarray(depth, np.float32)
+                g = np.exp(np.divide(depth32, np.float32(-(0.08 * D + 0.5))))
+                g1 = np.exp(np.divide(depth32, np.float32(-(0.05 * D + 0.5))))
             # (spread, then times the cavity's colour as a per-channel scalar: the same float32
             # products as cv2.transform's 3 x 1 matrix, at a fraction of its cost)
             deep = np.asarray(cv2.multiply(spread3(back), self._cavity_scalar), np.float32)
@@ -720,10 +723,13 @@ class MouthPlan:
             out = self._over(out, "upper_teeth", gum_maps, shade_up, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
-        # (the inner lips' pairs: rows of the frame's gather above, the same values)
+        # (the inner lips' pairs: rows of the frame's gather above; their gaps along ey in
+        # Python floats, seven pairs)
         lp_u, lp_d = self._lip_rows
-        gap = (vf[lp_d] - vf[lp_u]).astype(np.float64) @ ey
-        fade = 1.0 - _smoothstep1(max((gap - self.gap0).tolist()) / 2.0)
+        ey0, ey1 = ey.tolist()
+        opened = max(dx * ey0 + dy * ey1 - g0 for (dx, dy), g0 in zip(
+            (vf[lp_d] - vf[lp_u]).tolist(), self._gap0_list, strict=True))
+        fade = 1.0 - _smoothstep1(opened / 2.0)
         a_up, p_up = self._own_at(M_own, dsize, 0, fade)
         a_lo = p_lo = None
         if self._own_has[1]:  # the jaw part, moved with the jaw anchor (eq. 8)
@@ -832,6 +838,11 @@ class MouthPlan:
             run = all(b == a + 1 for a, b in itertools.pairwise(at))
             rows.append(slice(at[0], at[-1] + 1) if at and run else np.array(at, np.intp))
         return rows[0], rows[1]
+
+    @cached_property
+    def _gap0_list(self) -> list[float]:
+        """:attr:`gap0` as Python floats."""
+        return [float(g) for g in np.asarray(self.gap0, np.float64)]
 
     @cached_property
     def _frame_idx(self) -> np.ndarray:
@@ -996,9 +1007,8 @@ def _thin_gap(out: np.ndarray, cav: np.ndarray, alpha: np.ndarray, D: float,
     k = 2 * math.ceil(lo + ramp) + 3
     h: np.ndarray = cv2.boxFilter(np.asarray(alpha, np.float32), -1, (3, k), None, (-1, -1),
                                   False, cv2.BORDER_CONSTANT)  # (not normalised)
-    h /= _F32_3
-    h -= lo
-    h /= ramp
+    # ((h / 3 - lo) / ramp as one scale and offset, float32)
+    h = cv2.addWeighted(h, 1.0 / (3.0 * ramp), h, 0.0, -lo / ramp)
     vis = clip(h, 0.0, 1.0, out=h)  # (smooth01's values, float32: its clamp one ufunc)
     vis = vis * vis * (3.0 - 2.0 * vis)
     if gain is not None:  # in shadow: darker and warmer (not greyed towards the cavity)

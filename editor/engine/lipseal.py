@@ -681,8 +681,9 @@ def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, 
     carried to the frame by the warp's backward ``maps`` (zeros where they leave it).
     ``support``: :func:`_support` of ``diff`` when known; then only the part of ``box``
     whose map reaches it is resampled (elsewhere the carried difference is zero and adds
-    nothing: the same frame); ``step``: :func:`_reached`'s."""
-    if support is not None:
+    nothing: the same frame), on a box of more than :data:`REACH_MIN_PX` pixels; ``step``:
+    :func:`_reached`'s."""
+    if support is not None and (box[2] - box[0]) * (box[3] - box[1]) > REACH_MIN_PX:
         sub = _reached(maps, box, org, support, step)
         if sub is None:
             return
@@ -694,6 +695,15 @@ def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, 
     d3 *= np.float32(share)
     view = out[y0:y1, x0:x1]
     cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
+
+
+#: :func:`add_carried` finds the part of a box its difference reaches (:func:`_reached`) from
+#: this many pixels on; a smaller box is resampled whole (zeros add nothing: the same frame).
+#: The search is five OpenCV calls on the warp's maps, which cost more than resampling a
+#: small box's unreached pixels: the 431 x 591 bench face's corner boxes of ~770 px (110 px
+#: reached), its opening's box of 2124 px (648), the 1080p face's corners of ~2200 px (in a
+#: frame -6 us at 431, -10 us at 1080)
+REACH_MIN_PX = 2500
 
 
 def _support(diff: np.ndarray) -> tuple[int, int, int, int] | None:

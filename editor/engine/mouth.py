@@ -693,14 +693,14 @@ class MouthPlan:
             shade_g *= spread3(u.astype(np.float32))
         dlt = self._tongue_shift(faps, ex, ey)
         tongue = ("tongue", q21[0] - 0.5 * wt, top_t, wt, ht)
-        # (a texture placed in the frame is sampled at an affine function of the pixel: the
-        # box's pixel (i, j) has frame coordinates q0 + i E[0] + j E[1], q0 those of its
-        # corner; one cv2.warpAffine each, no sampling maps. A bent tongue and the gum row
-        # (clamped to the texture's top row) are not affine: sampled through maps)
+        # (a texture placed in the frame is sampled at an affine function of the box's pixel
+        # (its frame coordinates ``ax``, ``ay`` are): one cv2.warpAffine each, no sampling
+        # maps. A bent tongue and the gum row (clamped to the texture's top row) are not
+        # affine: sampled through maps)
         dsize = (x1 - x0, y1 - y0)
         if dlt is not None:
-            out = self._over(out, "tongue", self._layer_maps(
-                self._tongue_field(Qx, Qy, dlt, *tongue[1:3], wt, ht), [tongue])[0], shade_g)
+            tx, ty = self._tongue_field(Qx, Qy, dlt, *tongue[1:3], wt, ht)
+            out = self._over(out, "tongue", self._layer_map(tx, ty, tongue), shade_g)
         else:
             out = self._over_at(out, "tongue", self._place(tongue, ax, ay), dsize, shade_g)
         if not self.photo_lower:
@@ -718,8 +718,8 @@ class MouthPlan:
         M_own = np.array([[s00, s01, s00 * x0 + s01 * y0 + s02 - offx],
                           [s10, s11, s10 * x0 + s11 * y0 + s12 - offy]])
         if not self.photo_upper:  # gum row continued upwards (a raised lip shows gum)
-            gum_maps = self._layer_maps((Qx, Qy), [("upper_teeth", -0.5 * wu,
-                                                     self.tip_up * sc - hu, wu, hu)])[0]
+            gum_maps = self._layer_map(Qx, Qy, ("upper_teeth", -0.5 * wu,
+                                                self.tip_up * sc - hu, wu, hu))
             out = self._over(out, "upper_teeth", gum_maps, shade_up, gum=True)
         # the two photo parts share each pixel (skull part in front where they overlap); a
         # closed mouth's lip line fades out over the first two pixels the lips part
@@ -850,30 +850,22 @@ class MouthPlan:
         return np.concatenate([[self.i21, self.i23], self.upper_lip, self.lower_lip,
                                self.hole]).astype(np.intp)
 
-    def _layer_maps(self, q, places) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Where the pixels sample each texture placed at ``places`` (name, left, top, width,
-        height in the layer frame): (mx, my) (h, w) float32 per place. ``q``: the pixels'
-        frame coordinates (x, y), or their parts (rows (2, 1, w), columns (2, h, 1): x and y
-        stacked) whose sums they are; the places' maps from such parts are computed at once
-        (stacked (n, 2, h, w): the same values as place by place)."""
-        if not places:
-            return []
-        rows, cols = q
-        # per place the texture's pixels per frame unit (x, y) and its corner
+    def _layer_map(self, qx: np.ndarray, qy: np.ndarray,
+                   place: tuple[str, float, float, float, float]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Where pixels at frame coordinates ``qx``, ``qy`` (h, w) sample the texture placed at
+        ``place`` (name, left, top, width, height in the layer frame): (mx, my) (h, w)
+        float32, for a placement that is not affine in the pixels (a bent tongue, the gum row
+        clamped to the texture's top); an affine one is :meth:`_place`."""
+        name, left, top, ww, hh = place
         p = self.tex_pad  # (the textures' own pixels inside their blank margin)
-        k = np.array([((self.tex[n].shape[1] - 2 * p) / ww, (self.tex[n].shape[0] - 2 * p) / hh)
-                      for n, _, _, ww, hh in places])
-        lt = np.array([(left, top) for _, left, top, _, _ in places])
-        if rows.ndim == 3:  # (affine: scaled and shifted as a row plus a column, x and y)
-            k, lt = k[:, :, None, None], lt[:, :, None, None]
-            m = (((rows - lt) * k + (p - 0.5)) + cols * k).astype(np.float32)
-            return [(mm[0], mm[1]) for mm in m]
-        (kx, ky), (left, top) = k[0].tolist(), lt[0].tolist()
-        return [(((rows - left) * kx + (p - 0.5)).astype(np.float32),
-                 ((cols - top) * ky + (p - 0.5)).astype(np.float32))]
+        th, tw = self.tex[name].shape[:2]
+        kx, ky = (tw - 2 * p) / ww, (th - 2 * p) / hh
+        return (((qx - left) * kx + (p - 0.5)).astype(np.float32),
+                ((qy - top) * ky + (p - 0.5)).astype(np.float32))
 
     def _over(self, out, name, maps, shade, gum=False):
-        """``out`` under texture ``name`` sampled at ``maps`` (:meth:`_layer_maps`)."""
+        """``out`` under texture ``name`` sampled at ``maps`` (:meth:`_layer_map`)."""
         t = self.tex[name]
         mx, my = maps
         if gum:  # (the texture's top row, inside its blank margin)
@@ -893,7 +885,7 @@ class MouthPlan:
     def _place(self, place: tuple[str, float, float, float, float],
                ax: tuple[float, float, float], ay: tuple[float, float, float]) -> np.ndarray:
         """(2, 3) float64: from a box's pixel (i, j) to the pixel of texture ``place`` (name,
-        left, top, width, height in the layer frame) it samples (as :meth:`_layer_maps`: the
+        left, top, width, height in the layer frame) it samples (as :meth:`_layer_map`: the
         texture's pixels per frame unit inside its blank margin). ``ax``, ``ay``: the frame
         x and y of the box's pixels, per i, per j and at (0, 0)."""
         name, left, top, ww, hh = place

@@ -344,9 +344,15 @@ def _clean_lip_line(out: np.ndarray, box: tuple[int, int, int, int], poly: np.nd
     x0, y0, x1, y1 = box
     k = 3 if soft <= 1.0 else max(3, int(round(LIP_LINE_SOFT * soft + 2.0)) | 1)
     band = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    q = np.rint((np.asarray(poly, np.float64) - (x0, y0)) * (1 << _SHIFT)).astype(np.int32)
+    # (the outline in fixed point, then moved to the box by whole pixels: the same integers
+    # as rounding it less the box's corner, the scale a power of two; an int32 row, no
+    # broadcast of a float pair)
+    q = np.rint(np.multiply(poly, float(1 << _SHIFT), dtype=np.float64)).astype(np.int32)
+    q -= np.array((x0 << _SHIFT, y0 << _SHIFT), np.int32)
     cv2.polylines(band, [q], True, 1, 3 if k == 3 else 2 * k - 1, cv2.LINE_8, _SHIFT)
-    w = band.astype(np.float32) * clip(1.0 - 2.0 * alpha, 0.0, 1.0) * strength
+    # (float32 throughout: ``strength`` as a Python number, the weight spread and applied in
+    # float32; at full strength the same values as in float64)
+    w = band.astype(np.float32) * clip(1.0 - 2.0 * alpha, 0.0, 1.0) * float(strength)
     if not np.count_nonzero(w):
         return
     patch = out[y0:y1, x0:x1]

@@ -142,6 +142,12 @@ class _Corner:
     disp: np.ndarray  # (2,) from there to the neutral mesh's corner
     patch: _Patch
 
+    @cached_property
+    def p0_disp(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """:attr:`p0` and :attr:`disp` as Python floats (read every frame)."""
+        (px, py), (wx, wy) = (np.asarray(a, np.float64).tolist() for a in (self.p0, self.disp))
+        return (px, py), (wx, wy)
+
 
 @dataclass(eq=False)
 class SealPlan:
@@ -617,8 +623,11 @@ def back_share(plan: SealPlan, vertices: np.ndarray) -> float:
 def corner_share(corner: _Corner, vertices: np.ndarray) -> float:
     """How far a mouth corner of ``vertices`` went from the photo's place towards the
     neutral mesh's (its projection on that way, clipped to [0, 1])."""
-    d = np.asarray(vertices[corner.vertex], np.float64) - corner.p0
-    t = float(d @ corner.disp) / float(corner.disp @ corner.disp)
+    # (two coordinates: Python floats, the arithmetic of the 2-vectors' dot products written
+    # out, without numpy's per-call cost)
+    (px, py), (wx, wy) = corner.p0_disp
+    vx, vy = np.asarray(vertices[corner.vertex], np.float64).tolist()
+    t = ((vx - px) * wx + (vy - py) * wy) / (wx * wx + wy * wy)
     return min(max(t, 0.0), 1.0)
 
 
@@ -634,7 +643,8 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray,
         return res
     # the shares ramp in from _MIN_SHARE (continuous in the FAPs; nothing to do below it)
     s = _ramp(closing_share(plan, vertices) if share is None else share)
-    jobs: list[tuple[float, _Patch, np.ndarray]] = []  # share, fill, its offset on the frame
+    # share, fill, its offset on the frame
+    jobs: list[tuple[float, _Patch, tuple[float, float]]] = []
     if plan.opening is not None:
         # the photo's dark or bright rim of its opening also goes where its mouth corners go
         # back towards the neutral face (a smile's dark commissures and the teeth beside
@@ -642,11 +652,13 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray,
         # narrower at the corners: surprise or fear on a smiling photo)
         so = max(s, _ramp(back_share(plan, vertices)))
         if so > 0.0:
-            jobs.append((so, plan.opening, np.zeros(2)))
+            jobs.append((so, plan.opening, (0.0, 0.0)))
     for c in plan.corners:
         cs = _ramp(corner_share(c, vertices))
         if cs > 0.0:
-            jobs.append((cs, c.patch, np.asarray(vertices[c.vertex], np.float64) - c.p0))
+            (px, py), _ = c.p0_disp
+            vx, vy = np.asarray(vertices[c.vertex], np.float64).tolist()
+            jobs.append((cs, c.patch, (vx - px, vy - py)))
     if not jobs:
         return res
     out = res.image
@@ -660,7 +672,7 @@ def apply_lip_seal(face: Face, res: WarpResult, vertices: np.ndarray,
         h, w = patch.diff.shape[:2]
         ox, oy = patch.org
         # (Python floats: the same values as numpy's element-wise min / max of two pairs)
-        sx, sy = float(shift[0]), float(shift[1])
+        sx, sy = shift
         x0, y0 = max(int(min(ox, ox + sx) - m), 0), max(int(min(oy, oy + sy) - m), 0)
         x1 = min(int(max(ox + w, ox + w + sx) + m) + 1, W)
         y1 = min(int(max(oy + h, oy + h + sy) + m) + 1, H)
@@ -681,8 +693,9 @@ def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, 
     carried to the frame by the warp's backward ``maps`` (zeros where they leave it).
     ``support``: :func:`_support` of ``diff`` when known; then only the part of ``box``
     whose map reaches it is resampled (elsewhere the carried difference is zero and adds
-    nothing: the same frame); ``step``: :func:`_reached`'s."""
-    if support is not None:
+    nothing: the same frame), on a box of more than :data:`REACH_MIN_PX` pixels; ``step``:
+    :func:`_reached`'s."""
+    if support is not None and (box[2] - box[0]) * (box[3] - box[1]) > REACH_MIN_PX:
         sub = _reached(maps, box, org, support, step)
         if sub is None:
             return
@@ -694,6 +707,15 @@ def add_carried(out: np.ndarray, maps: tuple[np.ndarray, np.ndarray, tuple[int, 
     d3 *= np.float32(share)
     view = out[y0:y1, x0:x1]
     cv2.add(view, d3, view, None, cv2.CV_8U)  # rounded, saturated
+
+
+#: :func:`add_carried` finds the part of a box its difference reaches (:func:`_reached`) from
+#: this many pixels on; a smaller box is resampled whole (zeros add nothing: the same frame).
+#: The search is five OpenCV calls on the warp's maps, which cost more than resampling a
+#: small box's unreached pixels: the 431 x 591 bench face's corner boxes of ~770 px (110 px
+#: reached), its opening's box of 2124 px (648), the 1080p face's corners of ~2200 px (in a
+#: frame -6 us at 431, -10 us at 1080)
+REACH_MIN_PX = 2500
 
 
 def _support(diff: np.ndarray) -> tuple[int, int, int, int] | None:

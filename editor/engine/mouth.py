@@ -569,12 +569,16 @@ class MouthPlan:
         ex, ey = E[:, 0], E[:, 1]
         O = v[self.i93].astype(np.float64)
         # the frame coordinates of the box's pixel (i, j): affine in i and j (frame x: per i,
-        # per j, at (0, 0); frame y likewise), all pixels in one cv2.transform of the box's
-        # pixel grid; the textures below are sampled at affine functions of them too
+        # per j, at (0, 0); frame y likewise), a row's and a column's terms broadcast (no
+        # per-size pixel grid: the box's size changes as the mouth moves); the textures below
+        # are sampled at affine functions of them too
         ox_, oy_ = O.tolist()
         ax = (e00, e10, (x0 - ox_) * e00 + (y0 - oy_) * e10)
         ay = (e01, e11, (x0 - ox_) * e01 + (y0 - oy_) * e11)
-        Qx, Qy = cv2.split(cv2.transform(_pixel_grid(y1 - y0, x1 - x0), np.array([ax, ay])))
+        cols = np.arange(x1 - x0, dtype=np.float64)
+        rows = np.arange(y1 - y0, dtype=np.float64)[:, None]
+        Qx = (ax[0] * cols + ax[1] * rows) + ax[2]
+        Qy = (ay[0] * cols + ay[1] * rows) + ay[2]
 
         # the points the layers follow, in that frame (one gather): 2.1, 2.3, the inner
         # upper lip, the opening's loop
@@ -959,19 +963,6 @@ class MouthPlan:
         den = np.maximum(den, 1e-12)
         return Qx - num_x / den, Qy - num_y / den
 
-
-_F32_3 = np.float32(3.0)
-
-
-@lru_cache(maxsize=16)
-def _pixel_grid(h: int, w: int) -> np.ndarray:
-    """(h, w, 2) float64: each pixel's (column, row) (kept: a box's size recurs from frame
-    to frame). Read-only."""
-    g = np.empty((h, w, 2))
-    g[..., 0] = np.arange(w)[None, :]
-    g[..., 1] = np.arange(h)[:, None]
-    g.setflags(write=False)
-    return g
 
 #: cv2.warpAffine's flags for sampling a texture at an affine function of the box's pixels
 _AFFINE = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP

@@ -221,8 +221,8 @@ def _shadow_lift(face: Face, lower: np.ndarray, iod: float
     the outer lower lip, between SHADOW_BAND's distances and over the mouth's middle
     (SHADOW_SPAN of its half-width), each pixel's gain to the skin's lit level further down
     (per column, the brightest of the smoothed luminance within SHADOW_BAND[2] below the
-    lip: the chin's top), minus 1. ``lower`` (n, 2): the outer lower lip on the photo's mesh,
-    corner to corner."""
+    lip: the chin's top), minus 1; blurred by SHADOW_SOFT, which carries it a little into the
+    lip. ``lower`` (n, 2): the outer lower lip on the photo's mesh, corner to corner."""
     img = face.image
     H, W = img.shape[:2]
     c0, c1 = lower[0], lower[-1]
@@ -254,6 +254,9 @@ def _shadow_lift(face: Face, lower: np.ndarray, iod: float
     span = smooth01((1.0 - u) / (1.0 - SHADOW_SPAN))
     field = (gain * smooth01(w) * span * below).astype(np.float32)
     field = cv2.GaussianBlur(field, (0, 0), SHADOW_SOFT * iod)
+    # (the blur's far tails zeroed: a lift under 1/512 moves no 8-bit level, and the frame's
+    # work covers only the field's nonzero box, TonePlan.shadow_support)
+    field[field < np.float32(1.0 / 512.0)] = 0.0
     if float(field.max()) < 0.01:
         return None, (0, 0)
     return np.ascontiguousarray(field), (x0, y0)
@@ -427,7 +430,7 @@ def _lift_shadow(plan: TonePlan, res: WarpResult, vertices: np.ndarray, share: f
         return None
     box = (x0, y0, x1, y1)
     # only where the map reaches the shadow's nonzero pixels (elsewhere the lift is a gain of
-    # exactly 1: the same frame); on the 4K bench face 65 % of the box
+    # exactly 1: the same frame)
     sup = plan.shadow_support
     sub = None if sup is None else _reached(res.maps, box, (ox, oy), sup, step)
     if sub is None:

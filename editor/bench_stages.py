@@ -11,7 +11,7 @@ CPU time (median ms over ``n`` renders), each named with the item it serves:
   neutralised open mouth closes), ``lip_tone``/``lip_rims`` (mouth: the lips' shade and rims),
   ``layers`` (mouth interior and eyeballs), ``creases``, ``chin_boss``, ``own_cheeks`` (own
   expression: a smile's lit cheek undone), ``cheeks`` (creases: a smile's cheek shade);
-* ``rest``: the render minus the steps (deformation, the openings' transforms, glue).
+* ``rest``: each render less its steps (deformation, the openings' transforms, glue).
 
 The steps are timed by wrapping the functions :meth:`Face.render_mesh
 <editor.engine.face.Face.render_mesh>` calls, for the time of the row only (the wrapping's own
@@ -65,7 +65,7 @@ def _timed_steps(acc: dict[str, float]) -> Iterator[None]:
 
 def stage_costs(face: Any, vec: np.ndarray, n: int = 40, warm: int = 3) -> dict[str, Any]:
     """Median thread CPU ms of ``face.render(vec)`` (``render_ms``, unwrapped) and of each of
-    its steps (``steps``: name -> ms, ``rest`` the render's median less the steps' sum)."""
+    its steps (``steps``: name -> ms; ``rest``: each wrapped render less its steps, median)."""
     for _ in range(warm):
         face.render(vec)
     total = []
@@ -73,15 +73,16 @@ def stage_costs(face: Any, vec: np.ndarray, n: int = 40, warm: int = 3) -> dict[
         t0 = time.thread_time()
         face.render(vec)
         total.append(time.thread_time() - t0)
-    per: dict[str, list[float]] = {step: [] for step in STAGES}
+    per: dict[str, list[float]] = {step: [] for step in (*STAGES, "rest")}
     acc: dict[str, float] = {}
     with _timed_steps(acc):
         for _ in range(n):
             acc.clear()
+            t0 = time.thread_time()
             face.render(vec)
+            t = time.thread_time() - t0
             for step in STAGES:
                 per[step].append(acc.get(step, 0.0))
-    render_ms = float(np.median(total)) * 1000.0
+            per["rest"].append(t - sum(acc.values()))
     steps = {step: round(float(np.median(v)) * 1000.0, 3) for step, v in per.items()}
-    steps["rest"] = round(render_ms - sum(steps.values()), 3)
-    return {"render_ms": round(render_ms, 3), "steps": steps}
+    return {"render_ms": round(float(np.median(total)) * 1000.0, 3), "steps": steps}

@@ -603,32 +603,3 @@ def test_soft_irises_are_refined_to_their_own_edges():
     for ep in eyes.values():
         w = ep.widths
         assert len(w) == 2 and max(w) / min(w) <= 2.0, (ep.name, w)
-
-
-def test_both_eyes_in_one_pass_are_the_eye_by_eye_render(faces, monkeypatch):
-    """gaze.render_eyes (both eyeballs stacked, one pass) gives exactly the colours of
-    EyePlan.render eye by eye: at rest-like lids, raised and lowered ones, gaze, thrust and
-    a dilated pupil, and with one lid moved on one eye only (eye by eye then)."""
-    from editor.engine import gaze, layers
-    from editor.engine.faps import FAPS
-
-    seen: list[tuple[list, list[np.ndarray]]] = []
-    original = gaze.render_eyes
-
-    def spy(jobs):
-        got = original(jobs)
-        seen.append((list(jobs), got))
-        return got
-
-    monkeypatch.setattr(layers, "render_eyes", spy)
-    cases = [{19: -150, 20: -150, 21: -150, 22: -150}, {23: 20000, 24: 20000, 25: 8000, 26: 8000},
-             {27: 150, 28: 150, 29: 250, 30: 250, 19: -100, 20: -100}, {19: -200},
-             {19: 500, 20: 500}]
-    for face in faces[:2]:
-        for spec in cases:
-            face.render(FAPS.clamp(FAPS.vector(spec)))
-    assert seen and any(len(jobs) == 2 for jobs, _ in seen)
-    for jobs, got in seen:
-        want = [ep.render(box, sim, shift, r_new, p_new, poly, lids, inv, soft, 1, whole)
-                for ep, box, sim, shift, r_new, p_new, poly, lids, inv, soft, whole in jobs]
-        assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))

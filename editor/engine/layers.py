@@ -54,12 +54,9 @@ from .gaze import (
     EXTRA_INDEX,
     EYE_FAPS,
     PLATE_WORK_R,
-    EyeJob,
     EyePlan,
     edge_ramp,
-    lid_frames,
     photo_through,
-    render_eyes,
     spread3,
 )
 from .grain import grain_over
@@ -708,42 +705,8 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
     masks = _opening_masks([(loop, box, job[5] > _TOL)
                             for (job, box), loop in zip(todo, outlines, strict=True)]
                            ) if todo else []
-    # the eyes' state this frame, and their eyeballs drawn per pixel all at once
-    # (gaze.render_eyes: the same values as eye by eye; they read nothing of ``out``)
-    eye_now: dict[str, tuple] = {}
-    eye_jobs: list[EyeJob] = []
-    q_eye = max(1, int(lp.soft // EYE_BLOCK_SOFT))
-    eye_todo = [(job, box) for job, box in todo if job[0] == "eye"]
-    invs = [cv2.invertAffineTransform(np.asarray(job[3], np.float64)) for job, _ in eye_todo]
-    # both eyes' lids in their neutral frames at once (gaze.lid_frames: as lid by lid)
-    if len(eye_todo) == 2 and eye_todo[0][0][2].shape == eye_todo[1][0][2].shape:
-        frames = lid_frames([lp.eyes[job[1]] for job, _ in eye_todo],
-                            np.array([job[2] for job, _ in eye_todo]), np.array(invs))
-    else:
-        frames = [lp.eyes[job[1]].lid_frame(job[2], job[3], inv)
-                  for (job, _), inv in zip(eye_todo, invs, strict=True)]
-    for ((_, name, poly, tf, active, _moved), box), inv, lids in zip(eye_todo, invs, frames,
-                                                                     strict=True):
-        ep = lp.eyes[name]
-        k = EXTRA_INDEX[name]
-        if active:
-            assert state is not None  # computed when the first active eye job was queued
-            r_new, p_new = (float(x) for x in state[k])
-            shift = ep.gaze_shift(extra[k], tf)
-        else:
-            r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
-        # the eyeball layer; it also continues the eye under a raised lid
-        layer = active or ep.lid_opening(poly, tf, lids) > _TOL
-        shown = None
-        if layer and q_eye == 1:  # drawn only where it shows (see _shown)
-            shown = _shown(box, _box_of(lo_all[slot[name]], hi_all[slot[name]], out.shape, 0))
-            if shown[0][2] > shown[0][0]:
-                eye_jobs.append((ep, shown[0], tf, shift, r_new, p_new, poly, lids, inv,
-                                 lp.soft, box))
-        eye_now[name] = (ep, r_new, p_new, shift, inv, lids, layer, shown)
-    eyeballs = dict(zip([j[0].name for j in eye_jobs], render_eyes(eye_jobs), strict=True))
-    for ((kind, name, poly, tf, _active, moved), box), (hole, cov) in zip(todo, masks,
-                                                                           strict=True):
+    for ((kind, name, poly, tf, active, moved), box), (hole, cov) in zip(todo, masks,
+                                                                          strict=True):
         k_open = slot[name]
         # an outline that did not move keeps the photo's own edge pixels; the anti-aliased
         # coverage takes over within its first pixel of motion (no jump at small FAPs)
@@ -776,19 +739,32 @@ def render_layers(face: Face, res: WarpResult, v: np.ndarray, extra: np.ndarray,
                     sub, v, faps, tf, rim[ys, xs], depth[ys, xs],
                     np.ascontiguousarray(alpha[ys, xs]), grain_over(face, sub))
         else:
-            ep, r_new, p_new, shift, inv, lids, layer, shown = eye_now[name]
+            ep = lp.eyes[name]
+            k = EXTRA_INDEX[name]
+            if active:
+                assert state is not None  # computed when the first active eye job was queued
+                r_new, p_new = (float(x) for x in state[k])
+                shift = ep.gaze_shift(extra[k], tf)
+            else:
+                r_new, p_new, shift = ep.r_det, ep.r_det / 3.0, np.zeros(2)
+            inv = cv2.invertAffineTransform(np.asarray(tf, np.float64))
+            lids = ep.lid_frame(poly, tf, inv)
             fixed = _lower_margin(out, res.maps, ep, lids, tf)
             if fixed is not None:
                 bbox = _union(bbox, fixed)
-            if layer:
-                if q_eye > 1:  # (blocks upsampled over the box: drawn over all of it)
+            if active or ep.lid_opening(poly, tf, lids) > _TOL:
+                # the eyeball layer; it also continues the eye under a raised lid
+                q = max(1, int(lp.soft // EYE_BLOCK_SOFT))
+                if q > 1:  # (blocks upsampled over the box: drawn over all of it)
                     interior = ep.render(box, tf, shift, r_new, p_new, poly, lids, inv,
-                                         lp.soft, q_eye)
-                else:  # drawn only where it shows, embedded in the box
-                    _, (ys, xs) = shown
+                                         lp.soft, q)
+                else:  # drawn only where it shows (see _shown), embedded in the box
+                    sub, (ys, xs) = _shown(box, _box_of(lo_all[k_open], hi_all[k_open],
+                                                        out.shape, 0))
                     interior = np.zeros((box[3] - box[1], box[2] - box[0], 3), np.float32)
-                    if name in eyeballs:
-                        interior[ys, xs] = eyeballs[name]
+                    if sub[2] > sub[0]:
+                        interior[ys, xs] = ep.render(sub, tf, shift, r_new, p_new, poly, lids,
+                                                     inv, lp.soft, 1, box)
             else:  # the photo's own eye, moved with the corners (as the warp does)
                 interior = photo_through(img, tf, box)
             if lp.soft > 1.0:  # (fading in with the outline's or the eyeball's first pixel)

@@ -2415,9 +2415,6 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
     ``q`` its :func:`_frame_blocks`.
     """
     H, W = out.shape[:2]
-    # (on a small face, bands whose lift is computed on the photo's fields carried by the
-    # warp's map have their arrays side by side and their tails run once, :class:`_Side`)
-    side = _Side.of(jobs, fa, maps, q) if q == 1 and jobs[0][1] == 1 else None
     for g, f, got, pts, w, d, L, K, M, (x0, y0, x1, y1), ci in jobs:
         sig = float(fa.sig[g])
         sb = max(2.5 * sig, 1.0)
@@ -2452,10 +2449,6 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
                 Cw = cv2.resize(Cw, (wc * f, hc * f), None, 0, 0, cv2.INTER_LINEAR)
                 mx, my = mx[:hb, :wb], my[:hb, :wb]
                 Cw = Cw[:hb, :wb]
-            elif side is not None:
-                side.put(view, band, S, Cw, mx, my, interpolation)
-                bbox = _union(bbox, (x0, y0, x1, y1))
-                continue
             else:
                 Cw = cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, None, cv2.BORDER_REPLICATE)
             # (all four channels at once: numpy is many times slower on a channel view; the
@@ -2492,119 +2485,7 @@ def _unfold_draw(face: Face, out: np.ndarray, jobs: list[tuple], drawn: list[np.
         gain += 1.0
         cv2.multiply(view, gain, view, 1.0, cv2.CV_8U)  # rounded, saturated
         bbox = _union(bbox, (x0, y0, x1, y1))
-    if side is not None:
-        side.lift(interpolation)
     return bbox
-
-
-def _lift_tail(view: np.ndarray, gain: np.ndarray, band: np.ndarray, closing: np.ndarray
-               ) -> np.ndarray:
-    """The factor ``1 + band (min(gain, cap, _MAX_GAIN) - 1)+`` (in place in ``gain``) by
-    which a band lifts its ``view`` (h, w, 3) uint8 of the frame: its per-channel ``gain``
-    (float32) raised to ``band`` (h, w) float32, ``cap`` the frame's own ``closing`` of the
-    view over the view (at least 1). The tail of :func:`_unfold_draw`'s lift of one band,
-    the same passes, for :class:`_Side`'s bands side by side."""
-    # never above the frame's own skin either side of the valley (its closing): the lift
-    # level ramps between shoulders of different light (see _lift_fields), and a sharp
-    # core pulls S down on its shoulders; over the lower shoulder the lifted band read
-    # as a light outline where a neutralised smile's fold had been (up to 12 grey levels
-    # above the skin's closing on the sample, 21-23 on JAFFE NA, MK, KM)
-    hb = view.shape[0]
-    # (max(view, 1) by OpenCV on the box's rows as one channel: a scalar bound is then
-    # every channel's; numpy's on the strided 3-channel view costs 2-3 times as much)
-    cap = cv2.divide(closing, _cv_max(view.reshape(hb, -1), 1).reshape(view.shape), None, 1.0,
-                     cv2.CV_32F)
-    # min(clip(gain, 1, _MAX_GAIN), max(cap, 1)) - 1 as max(min(gain, cap, _MAX_GAIN) - 1,
-    # 0): min and max distribute over each other, and x - 1 is exact for x >= 1 (the same
-    # float32 values, two passes fewer; >= 1 before the - 1: never darkened)
-    np.minimum(gain, cap, out=gain)
-    g1 = gain.reshape(hb, -1)
-    cv2.threshold(g1, _MAX_GAIN, 0.0, cv2.THRESH_TRUNC, dst=g1)
-    gain -= 1.0
-    _cv_max(g1, 0.0, dst=g1)
-    gain *= spread3(band)
-    gain += 1.0
-    return gain
-
-
-class _Side:
-    """The arrays of a frame's unfold bands side by side (:func:`_unfold_draw`): their boxes
-    ``r + 1`` columns apart (``r`` their closing's radius), aligned at the top. When the bands
-    are drawn at the photo's resolution with the warp's map, their boxes are disjoint and their
-    closings' radius is one below :data:`_CLOSE_STEPS_MIN` (a face up to ~500 px between the
-    eyes), :meth:`lift` runs :func:`_lift_gain` and :func:`_lift_tail` once for all of them
-    (the element-wise passes once over the whole: the same values, pixel by pixel; every
-    band reads the frame as it was before any of them writes, which its disjoint box leaves
-    so), and their frame closings as one dilation and one erosion: after the dilation every
-    cell outside a box is set to 255, which wins no minimum, as OpenCV's border of an
-    erosion does not; before it, the zeros of the padding win no maximum (a neighbourhood
-    holds its centre, a pixel of the box; none reaches another box): the same closings. On
-    the 431 x 591 bench face's two nasolabial bands :func:`_unfold_draw` 169 -> 157 us a
-    frame (thread CPU, in-process, interleaved); renders identical."""
-
-    __slots__ = ("views", "at", "r", "VV", "SS", "CC", "BB")
-
-    def __init__(self, boxes: list[tuple[int, int, int, int]], r: int) -> None:
-        self.views: list[np.ndarray] = []
-        self.r = r
-        ws = [x1 - x0 for x0, _, x1, _ in boxes]
-        self.at = list(itertools.accumulate([0, *[w + r + 1 for w in ws[:-1]]]))
-        H, W = max(y1 - y0 for _, y0, _, y1 in boxes), self.at[-1] + ws[-1]
-        self.VV = np.zeros((H, W, 3), np.uint8)
-        self.SS = np.zeros((H, W, 4), np.float32)
-        self.CC = np.zeros((H, W, 4), np.float32)
-        self.BB = np.zeros((H, W), np.float32)
-
-    @classmethod
-    def of(cls, jobs: list[tuple], fa: _Fast,
-           maps: tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]] | None, q: int
-           ) -> _Side | None:
-        """The side-by-side arrays of :func:`_unfold_draw`'s ``jobs``, or None when they are
-        not drawn together (one band, a band drawn coarse (``f`` > 1), on blocks (``q`` > 1)
-        or without the photo's fields, overlapping boxes, closings of different radii or
-        through :func:`_close`'s lines)."""
-        if len(jobs) < 2 or maps is None or q != 1 or any(j[1] != 1 or j[2] is None
-                                                          for j in jobs):
-            return None
-        rs = {int(math.ceil(_VALLEY_WIDTH * float(fa.sig[j[0]]) * 1.25)) for j in jobs}
-        if len(rs) != 1:
-            return None
-        r = rs.pop()
-        boxes = [j[9] for j in jobs]
-        if r >= _CLOSE_STEPS_MIN or any(
-                a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
-                for i, a in enumerate(boxes) for b in boxes[i + 1:]):
-            return None
-        return cls(boxes, r)
-
-    def put(self, view: np.ndarray, band: np.ndarray, S: np.ndarray, Cw: np.ndarray,
-            mx: np.ndarray, my: np.ndarray, interpolation: int) -> None:
-        """The next band: its ``view`` of the frame, ``band``, and the photo's fields ``S`` and
-        ``Cw`` resampled by the warp's map ``mx``, ``my`` over the box into their places."""
-        h, w = view.shape[:2]
-        a = self.at[len(self.views)]
-        self.views.append(view)
-        self.VV[:h, a:a + w] = view
-        self.BB[:h, a:a + w] = band
-        cv2.remap(Cw, mx, my, cv2.INTER_LINEAR, self.CC[:h, a:a + w], cv2.BORDER_REPLICATE)
-        cv2.remap(S, mx, my, interpolation, self.SS[:h, a:a + w], cv2.BORDER_REPLICATE)
-
-    def lift(self, interpolation: int) -> None:
-        """Lift every band's view (in place) as :func:`_unfold_draw` lifts one."""
-        VV, r = self.VV, self.r
-        g4 = _lift_gain(self.SS, self.CC, VV, interpolation)
-        self.BB *= g4[..., 3]
-        gain = cv2.cvtColor(g4, cv2.COLOR_RGBA2RGB)
-        el = _ellipse(r)
-        closing = cv2.dilate(VV, el)
-        for view, a in zip(self.views, self.at, strict=True):
-            h, w = view.shape[:2]
-            closing[h:, a:a + w] = 255
-            closing[:, a + w:a + w + r + 1] = 255
-        _lift_tail(VV, gain, self.BB, cv2.erode(closing, el))
-        for view, a in zip(self.views, self.at, strict=True):
-            h, w = view.shape[:2]
-            cv2.multiply(view, gain[:h, a:a + w], view, 1.0, cv2.CV_8U)  # rounded, saturated
 
 
 def _blur_blocks(canvas: np.ndarray, sigma: float, f: int, q: int, h: int, w: int,

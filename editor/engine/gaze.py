@@ -99,6 +99,17 @@ def sample_rgb(tex3: np.ndarray, tex4: np.ndarray, mx: np.ndarray, my: np.ndarra
                 dst)
 
 
+def warp_rgb(tex3: np.ndarray, tex4: np.ndarray, M: np.ndarray, dsize: tuple[int, int]
+             ) -> np.ndarray:
+    """:func:`sample_rgb` (no ``dst``: the border replicated) at an affine map ``M`` (2, 3)
+    from the output's pixels to the texture's (``cv2.warpAffine``, inverse map) over
+    ``dsize`` (w, h): from REMAP3_PX pixels through the 4-channel copy, the same values."""
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    if dsize[0] * dsize[1] < REMAP3_PX:
+        return cv2.warpAffine(tex3, M, dsize, None, flags, cv2.BORDER_REPLICATE)
+    return _rgb(cv2.warpAffine(tex4, M, dsize, None, flags, cv2.BORDER_REPLICATE))
+
+
 def zero_alpha(rgb: np.ndarray) -> np.ndarray:
     """(h, w, 4) float32: a float32 (h, w, 3) array with a 4th channel of zeros (what OpenCV
     resamples faster than 3 channels), through ``cv2.cvtColor``'s RGB-to-RGBA copy: the same

@@ -41,7 +41,7 @@ from editor.resources import MOUTH_DIR
 
 from .deform import DeformPlan
 from .fitting import clamp, clip, interp
-from .gaze import REMAP3_PX, spread3
+from .gaze import spread3, warp_rgb
 from .mesh import StandardMesh
 
 TEXTURES = MOUTH_DIR
@@ -861,12 +861,20 @@ class MouthPlan:
         ``place`` (name, left, top, width, height in the layer frame): (mx, my) (h, w)
         float32, for a placement that is not affine in the pixels (a bent tongue, the gum row
         clamped to the texture's top); an affine one is :meth:`_place`."""
-        name, left, top, ww, hh = place
-        p = self.tex_pad  # (the textures' own pixels inside their blank margin)
+        _, left, top, _, _ = place
+        kx, ky, c = self._tex_scale(place)
+        return (((qx - left) * kx + c).astype(np.float32),
+                ((qy - top) * ky + c).astype(np.float32))
+
+    def _tex_scale(self, place: tuple[str, float, float, float, float]
+                   ) -> tuple[float, float, float]:
+        """Texture ``place``'s pixels per frame unit across and down, inside its blank margin
+        (the textures' own pixels), and the margin's offset: frame x maps to texture column
+        ``(x - left) kx + c``."""
+        name, _, _, ww, hh = place
+        p = self.tex_pad
         th, tw = self.tex[name].shape[:2]
-        kx, ky = (tw - 2 * p) / ww, (th - 2 * p) / hh
-        return (((qx - left) * kx + (p - 0.5)).astype(np.float32),
-                ((qy - top) * ky + (p - 0.5)).astype(np.float32))
+        return (tw - 2 * p) / ww, (th - 2 * p) / hh, p - 0.5
 
     def _over(self, out, name, maps, shade, gum=False):
         """``out`` under texture ``name`` sampled at ``maps`` (:meth:`_layer_map`)."""
@@ -874,17 +882,8 @@ class MouthPlan:
         mx, my = maps
         if gum:  # (the texture's top row, inside its blank margin)
             my = np.maximum(my, np.float32(self.tex_pad))
-        s = cv2.remap(t, mx, my, cv2.INTER_LINEAR)  # (zeros outside: OpenCV's default border)
-        # (the colour channels as one contiguous array: numpy is several times slower on a
-        # channel view)
-        res = cv2.cvtColor(s, cv2.COLOR_RGBA2RGB)
-        res *= shade  # shade (h, w, 3)
-        # (the alpha channel extracted contiguous, the under-layer's weight in place)
-        a = np.subtract(1.0, cv2.extractChannel(s, 3), dtype=np.float32)
-        a3 = spread3(a)
-        a3 *= out
-        res += a3
-        return res
+        # (zeros outside: OpenCV's default border)
+        return _under(out, cv2.remap(t, mx, my, cv2.INTER_LINEAR), shade)
 
     def _place(self, place: tuple[str, float, float, float, float],
                ax: tuple[float, float, float], ay: tuple[float, float, float]) -> np.ndarray:
@@ -892,24 +891,16 @@ class MouthPlan:
         left, top, width, height in the layer frame) it samples (as :meth:`_layer_map`: the
         texture's pixels per frame unit inside its blank margin). ``ax``, ``ay``: the frame
         x and y of the box's pixels, per i, per j and at (0, 0)."""
-        name, left, top, ww, hh = place
-        p = self.tex_pad
-        th, tw = self.tex[name].shape[:2]
-        kx, ky = (tw - 2 * p) / ww, (th - 2 * p) / hh
-        return np.array([[ax[0] * kx, ax[1] * kx, (ax[2] - left) * kx + (p - 0.5)],
-                         [ay[0] * ky, ay[1] * ky, (ay[2] - top) * ky + (p - 0.5)]])
+        _, left, top, _, _ = place
+        kx, ky, c = self._tex_scale(place)
+        return np.array([[ax[0] * kx, ax[1] * kx, (ax[2] - left) * kx + c],
+                         [ay[0] * ky, ay[1] * ky, (ay[2] - top) * ky + c]])
 
     def _over_at(self, out, name, M, dsize, shade):
         """:meth:`_over` of texture ``name`` sampled at the affine ``M`` (:meth:`_place`)
         over a box of ``dsize`` (w, h)."""
-        s = cv2.warpAffine(self.tex[name], M, dsize, None, _AFFINE)  # (zeros outside)
-        res = cv2.cvtColor(s, cv2.COLOR_RGBA2RGB)
-        res *= shade  # shade (h, w, 3)
-        a = np.subtract(1.0, cv2.extractChannel(s, 3), dtype=np.float32)
-        a3 = spread3(a)
-        a3 *= out
-        res += a3
-        return res
+        # (zeros outside)
+        return _under(out, cv2.warpAffine(self.tex[name], M, dsize, None, _AFFINE), shade)
 
     def _own_at(self, M, dsize, k, fade):
         """Coverage (h, w) and colours (h, w, 3) of the photo's skull (k=0) or jaw (k=1) part
@@ -923,13 +914,8 @@ class MouthPlan:
         a = cv2.warpAffine(src, M, dsize, None, _AFFINE)  # (zeros outside)
         if not np.count_nonzero(a):
             return None, None
-        # (the colours' border replicated; from REMAP3_PX pixels through their 4-channel
-        # copy, as gaze.sample_rgb: the same values, about 1.4-1.8 x faster there)
-        if dsize[0] * dsize[1] < REMAP3_PX:
-            return a, cv2.warpAffine(self._own_c3[k], M, dsize, None, _AFFINE,
-                                     cv2.BORDER_REPLICATE)
-        return a, cv2.cvtColor(cv2.warpAffine(self._own_c[k], M, dsize, None, _AFFINE,
-                                              cv2.BORDER_REPLICATE), cv2.COLOR_RGBA2RGB)
+        # (the colours' border replicated)
+        return a, warp_rgb(self._own_c3[k], self._own_c[k], M, dsize)
 
     def _tongue_shift(self, faps: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         """Displacements (4, 2) in the layer frame of the tongue points 6.1-6.4, or None."""
@@ -962,6 +948,20 @@ class MouthPlan:
             den += phi
         den = np.maximum(den, 1e-12)
         return Qx - num_x / den, Qy - num_y / den
+
+
+def _under(out: np.ndarray, s: np.ndarray, shade: np.ndarray) -> np.ndarray:
+    """A sampled RGBA texture ``s`` (h, w, 4) float32, its colours times ``shade`` (h, w, 3),
+    over ``out`` (h, w, 3): :meth:`MouthPlan._over`'s and ``_over_at``'s composite."""
+    # (the colour channels as one contiguous array: numpy is several times slower on a
+    # channel view)
+    res = cv2.cvtColor(s, cv2.COLOR_RGBA2RGB)
+    res *= shade
+    # (the alpha channel extracted contiguous, the under-layer's weight in place)
+    a3 = spread3(np.subtract(1.0, cv2.extractChannel(s, 3), dtype=np.float32))
+    a3 *= out
+    res += a3
+    return res
 
 
 #: cv2.warpAffine's flags for sampling a texture at an affine function of the box's pixels

@@ -275,43 +275,34 @@ def _hook(fr: FaceFrame, b: _Band, reach: tuple[int, int, int, int], new: np.nda
     x1, y1 = min(reach[2], bx1), min(reach[3], by1)
     if x1 <= x0 or y1 <= y0:
         return None
-    sub = (slice(y0 - by0, y1 - by0), slice(x0 - bx0, x1 - bx0))
     w, h = x1 - x0, y1 - y0
-    if w * h <= _COARSE_AREA:
-        tab = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
-        # the band's pixels below the fade's end keep the identity the warp gave them (their
-        # shift is 0: x - 0 r01 is x), as on a large box: the rows above it (each pixel its
-        # own node, s = 1; on the 431 x 591 bench face 50 of the box's 66, 3089 of its 3763
-        # band pixels)
-        h = min(h, _fade_rows(fr, tab, y0, 1, new, b.tau, ramp))
-        if h <= 0:
-            return None
-        sub = (slice(y0 - by0, y0 - by0 + h), sub[1])
-        sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
-        # a small box: the table is read and the shift evaluated at the band's pixels only
+    # a small box: each pixel its own node (s = 1), the shift evaluated at the band's pixels
+    # only; a large one: the shift is smooth, evaluated on nodes _COARSE px apart and resized
+    # (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less than a
+    # tenth of a pixel)
+    small = w * h <= _COARSE_AREA
+    s = 1 if small else _COARSE
+    tab = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
+    # the warp gave the band's pixels the identity (see warp.warp): the rows below the fade's
+    # end, where the shift is 0 (x - 0 r01 is x), keep it; the first h rows' nodes and shifts
+    # are the whole box's (the same nodes; a pixel reads the two nodes about it, both in the
+    # grid). On the 431 x 591 bench face 50 of the box's 66 rows (3089 of its 3763 band
+    # pixels) are below it, on the 1080p one a third of the box
+    h = min(h, _fade_rows(fr, tab, y0, s, new, b.tau, ramp))
+    if h <= 0:
+        return None
+    sub = (slice(y0 - by0, y0 - by0 + h), slice(x0 - bx0, x1 - bx0))
+    sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
+    if small:
         # (their flat indices: np.nonzero of a 2-d mask costs several times more)
         k = sel.ravel().nonzero()[0]
         if not len(k):
             return None
         _hook_pixels(fr, tab, sel, k, sub, (x0, y0, x1, y0 + h), map_x, map_y)
         return x0, y0, x1, y0 + h
-    # the shift is smooth: on a large face it is evaluated on nodes _COARSE px apart and
-    # resized (node k where cv2.resize puts it: pixel (k + 0.5) s - 0.5; off by far less
-    # than a tenth of a pixel)
-    o0, o1, _, _, r01, r11 = _frame_numbers(fr)
-    s = _COARSE
-    tab = _jaw_table(fr, b, (x0, y0, x1, y1), new, drop, ring, ramp)
-    # the warp gave the band's pixels the identity (see warp.warp): the rows below the fade's
-    # end, where the shift is 0, keep it (on the 1080p bench face a third of the box). The
-    # first h rows' nodes and shifts are the whole box's (the same nodes; a pixel reads the
-    # two nodes about it, both in the grid)
-    h = min(h, _fade_rows(fr, tab, y0, s, new, b.tau, ramp))
-    if h <= 0:
-        return None
-    sub = (slice(y0 - by0, y0 - by0 + h), sub[1])
-    sel = b.lut.take(ids[sub])  # the band's pixels (as the warp's rasterizer gave them)
     if not np.count_nonzero(sel):
         return None
+    o0, o1, _, _, r01, r11 = _frame_numbers(fr)
     nw, nh = -(-w // s) + 1, -(-h // s) + 1
     off = 0.5 * s - 0.5
     xs = (x0 + off + s * np.arange(nw, dtype=np.float32) - np.float32(o0))[None, :]

@@ -334,11 +334,11 @@ def _assert_as_deep_as_real(emotion: str, code: str, depths, real_median: float)
     assert np.median(strong) <= np.percentile(real, 90), np.median(strong)
 
 
-def _real_and_rendered(emotion: str, code: str, depths, scales: tuple[float, ...]
-                       ) -> tuple[list[float], ...]:
-    """``depths(face, image, vertices)`` on JAFFE's real ``code`` photos (two per woman), then
-    on ``emotion`` rendered at each of ``scales`` on each woman's neutral photo (one list per
-    scale). Skips without JAFFE."""
+def _real_and_rendered(emotion: str, code: str, depths, scales: tuple[float, ...],
+                       per_woman: int | None = 2) -> tuple[list[float], ...]:
+    """``depths(face, image, vertices)`` on JAFFE's real ``code`` photos (``per_woman`` per
+    woman; None: all), then on ``emotion`` rendered at each of ``scales`` on each woman's
+    neutral photo (one list per scale). Skips without JAFFE."""
     from editor.formats.presets import apply_preset as shipped
 
     real: list[float] = []
@@ -348,7 +348,7 @@ def _real_and_rendered(emotion: str, code: str, depths, scales: tuple[float, ...
         if not photos:
             continue
         f = Face.from_image(ne, own_expression=False)
-        for p in photos[:2]:
+        for p in photos[:per_woman]:
             g = Face.from_image(p, own_expression=False)
             real += depths(g, g.image, g.vertices)
         for k, into in zip(scales, rendered, strict=True):
@@ -1193,20 +1193,8 @@ def _forehead_dips(code: str, emotion: str, scales: tuple[float, ...]
                    ) -> tuple[list[float], list[list[float]]]:
     """:func:`_forehead_dip` of every JAFFE photo of ``code`` (the real ones) and of the
     shipped preset ``emotion`` at each of ``scales`` on each woman's neutral photo."""
-    from editor.formats.presets import apply_preset as shipped
-
-    real: list[float] = []
-    drawn: list[list[float]] = [[] for _ in scales]
-    for ne in jaffe_images("*.NE1.*.tiff"):
-        photos = jaffe_images(f"{ne.name[:2]}.{code}*.tiff")
-        if not photos:
-            continue
-        f = Face.from_image(ne, own_expression=False)
-        for k, s in zip(scales, drawn, strict=True):
-            s.append(_forehead_dip(f.render(shipped(emotion, k)), f))
-        for p in photos:
-            g = Face.from_image(p, own_expression=False)
-            real.append(_forehead_dip(g.image, g))
+    real, *drawn = _real_and_rendered(emotion, code, lambda f, img, v: [_forehead_dip(img, f)],
+                                      scales, per_woman=None)
     return real, drawn
 
 
